@@ -1,0 +1,1 @@
+"""Converters from real multi-robot data to pose graphs (one module per source format)."""

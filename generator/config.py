@@ -1,0 +1,87 @@
+"""kollagen's parameters as frozen dataclasses (pure data, no I/O).
+
+Lengths are in metres (kollagen's "length unit"), angles in radians, information values in
+1/m^2 and 1/rad^2. Names follow kollagen's JSON keys so a config reads the same in both tools.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+__all__ = ["AgentConfig", "InterLoopClosureConfig", "SynthConfig"]
+
+
+@dataclass(frozen=True)
+class AgentConfig:
+    """One entry of ``agent_parameters.agent_specific``."""
+
+    std_dev_position: float
+    """Odometry noise on the travelled distance of each sub-step [m]."""
+    std_dev_angle: float
+    """Odometry noise on the heading change of each sub-step [rad]."""
+    estimated_information_position: float
+    """Information written for odometry x and y [1/m^2]."""
+    estimated_information_angle: float
+    """Information written for odometry heading [1/rad^2]."""
+    random_number_generator_seed: int
+    """Seed of the agent's mt19937 (walk and intra-agent loop closures)."""
+    std_dev_intra_loop_closure_position: float
+    """Noise of intra-agent loop closures, x and y [m]."""
+    std_dev_intra_loop_closure_angle: float
+    """Noise of intra-agent loop closures, heading [rad]."""
+    estimated_information_intra_position: float
+    """Information written for intra-agent loop closures, x and y [1/m^2]."""
+    estimated_information_intra_angle: float
+    """Information written for intra-agent loop closures, heading [1/rad^2]."""
+    intra_loop_closure_radius: float
+    """Radius of the candidate circle [m]."""
+    same_position_intra_loop_closure_probability: float
+    """Probability of a loop closure when a grid cell is revisited."""
+    intra_loop_closure_probability_scaling: float
+    """Scale of ``exp(-5 d^2 / r^2)`` for nearby cells (d in grid cells, r in metres, as kollagen)."""
+
+
+@dataclass(frozen=True)
+class InterLoopClosureConfig:
+    """``inter_agent_loop_closure_parameters``."""
+
+    std_dev_loop_closure_position: float
+    std_dev_loop_closure_angle: float
+    estimated_information_position: float
+    estimated_information_angle: float
+    loop_closure_radius: float
+    loop_closure_probability_scaling: float
+    same_position_loop_closure_probability: float
+    random_number_generator_seed: int
+
+
+@dataclass(frozen=True)
+class SynthConfig:
+    """A whole kollagen config, as kollagen's ``generate`` reads it."""
+
+    number_of_steps: int
+    """Random-walk steps per agent; each step has ``step_fragment`` sub-steps (poses)."""
+    align: bool
+    """Translate agents so their rounded centres of mass coincide with agent 1's."""
+    number_of_agents: int
+    exact_information_matrix: bool
+    """Write the derived odometry information matrix (single g2o only, as kollagen)."""
+    stepsize: float
+    """Length of one step [m]."""
+    step_fragment: int
+    """Sub-steps per step; the grid cell is ``stepsize / step_fragment`` metres."""
+    allow_retrocession: bool
+    """Allow 180 degree turns."""
+    agents: tuple[AgentConfig, ...]
+    """``number_of_agents`` entries (a single JSON entry is repeated for every agent)."""
+    inter: InterLoopClosureConfig
+    name: str = field(default="dataset")
+    """Dataset name: the stem of the JSON file, or the preset's name."""
+
+    def __post_init__(self) -> None:
+        if len(self.agents) != self.number_of_agents:
+            raise ValueError("agents must hold number_of_agents entries")
+
+    @property
+    def poses_per_agent(self) -> int:
+        return self.number_of_steps * self.step_fragment + 1

@@ -1,0 +1,593 @@
+"""A numpy re-implementation of kollagen's data generator, bit-exact with its C++.
+
+The public entry point is :func:`generate`, which turns a :class:`~generator.config.SynthConfig` into
+a planar :class:`~studio.model.PoseGraph` and the few extras kollagen's single g2o file needs.
+
+How it stays exact while being fast:
+
+* The random walk draws its turns and odometry noise from each agent's ``mt19937`` in kollagen's
+  order (one integer per step, then a position and an angle normal per sub-step) in a short scalar
+  loop over pre-decoded uniforms; positions and headings are then built with integer cumulative sums.
+* Loop-closure candidates ("hits": an occupied grid cell inside the discrete circle around a pose) are
+  enumerated with a sorted-cell search (cost O(N + hits) instead of kollagen's O(N * R^2) map look-ups)
+  and put in the exact order kollagen visits them. Each hit consumes one uniform; between two accepted
+  loop closures the uniforms sit at fixed stream positions, so acceptance is decided in bulk with numpy
+  and only the accepted ones (and their three normals) go through Python.
+* Floating-point expressions are evaluated in kollagen's order; libm's sin/cos/exp/log are called
+  through :mod:`math` rather than numpy's vectorised versions, which may differ by an ulp.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from generator.config import SynthConfig
+from generator.rng import MT19937Stream, canonical_doubles, polar_normal
+from studio.geometry import normalize_angle
+from studio.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
+
+__all__ = ["SynthOutput", "generate", "effective_seeds", "discrete_circle", "agent_pairs"]
+
+_NS_PER_S = 1_000_000_000
+
+
+@dataclass(frozen=True, eq=False)
+class SynthOutput:
+    """What kollagen's generator produces."""
+
+    graph: PoseGraph
+    """Planar graph: per agent ground truth, dead reckoning, odometry (estimated information) and
+    intra-agent loop closures; inter-agent loop closures in kollagen's order."""
+    exact_odometry_information: tuple[np.ndarray, ...] | None
+    """Per agent ``(n-1, 6)`` derived odometry information, when the config asks for it (kollagen
+    writes it to the single g2o file only)."""
+    connector_information: np.ndarray
+    """``(6,)`` information of the edges that chain agents together in the single g2o file."""
+    seeds: tuple[int, ...]
+    """The agents' seeds after kollagen's replacement of duplicates."""
+
+
+# --------------------------------------------------------------------------------------------------
+# Small kollagen semantics
+
+
+def _round_half_away(v: np.ndarray) -> np.ndarray:
+    """C's ``round``: half away from zero (numpy's ``round`` goes half to even)."""
+    t = np.trunc(v)
+    frac = v - t
+    return (t + np.where(np.abs(frac) >= 0.5, np.sign(v), 0.0)).astype(np.int64)
+
+
+def _round_to_int(v: float) -> int:
+    t = math.trunc(v)
+    if abs(v - t) >= 0.5:
+        t += 1 if v > 0 else -1
+    return int(t)
+
+
+def _libstdcxx_reduce(values: np.ndarray) -> float:
+    """``std::reduce(first, last)`` as libstdc++ evaluates it for random-access iterators."""
+    vals = values.tolist()
+    init = 0.0
+    n4 = len(vals) - len(vals) % 4
+    for k in range(0, n4, 4):
+        init = init + ((vals[k] + vals[k + 1]) + (vals[k + 2] + vals[k + 3]))
+    for v in vals[n4:]:
+        init = init + v
+    return init
+
+
+def effective_seeds(seeds: list[int]) -> tuple[int, ...]:
+    """kollagen's ``add_walker`` seed rule, quirk included.
+
+    A seed already used is replaced by the largest seed so far plus one. kollagen's list of used seeds
+    starts with one zero per existing agent (its vector is sized, then appended to), so seed 0 counts
+    as used from the second agent on.
+    """
+    used: list[int] = []
+    out = []
+    for k, seed in enumerate(seeds):
+        pool = [0] * k + used
+        if k > 0 and seed in pool:
+            seed = max(pool) + 1
+        used.append(seed)
+        out.append(seed)
+    return tuple(out)
+
+
+def discrete_circle(radius: int) -> np.ndarray:
+    """kollagen's ``DiscreteCircle``: ``(k, 2)`` integer offsets in its iteration order."""
+    pts = []
+    for x in range(-radius, radius + 1):
+        lim = radius * radius - x * x
+        y = 0
+        while y * y <= lim:
+            pts.append((x, y))
+            if y > 0:
+                pts.append((x, -y))
+            y += 1
+    return np.array(pts, dtype=np.int64).reshape(-1, 2)
+
+
+def agent_pairs(n: int) -> list[tuple[int, int]]:
+    """The pairs kollagen's ``get_all_pairs`` yields (lexicographic), for n >= 2."""
+    return [(a, b) for a in range(n) for b in range(a + 1, n)]
+
+
+def _quarter_angle_table() -> dict[int, tuple[float, float, float]]:
+    """theta_int -> (theta as kollagen stores it, cos, sin), for theta_int in -3..3."""
+    table = {}
+    for k in range(-3, 4):
+        th = normalize_angle(k * 0.5 * math.pi)
+        table[k] = (th, math.cos(th), math.sin(th))
+    return table
+
+
+_QUARTER = _quarter_angle_table()
+
+
+def _cos_sin(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """libm cos and sin of every entry, computed once per distinct value."""
+    bits = np.ascontiguousarray(theta, dtype=np.float64).view(np.int64)  # keeps -0.0 apart from 0.0
+    uniq, inv = np.unique(bits, return_inverse=True)
+    lst = uniq.view(np.float64).tolist()
+    c = np.array([math.cos(t) for t in lst])
+    s = np.array([math.sin(t) for t in lst])
+    return c[inv], s[inv]
+
+
+# --------------------------------------------------------------------------------------------------
+# The random walk
+
+
+@dataclass(frozen=True, eq=False)
+class _Walk:
+    x: np.ndarray  # ground truth (before alignment), metres
+    y: np.ndarray
+    theta: np.ndarray
+    delta_theta: np.ndarray  # per odometry edge: the turn (quarter turns) at a step's first sub-step
+    odom_pos: np.ndarray
+    odom_ang: np.ndarray
+    drx: np.ndarray
+    dry: np.ndarray
+    drtheta: np.ndarray
+
+
+def _walk_draws(stream: MT19937Stream, n_steps: int, frag: int, retro: bool):
+    """Turns and odometry normals in kollagen's draw order; leaves the stream after the last draw.
+
+    Each step draws one integer (``uniform_int_distribution(-1, 1 + retro)``, Lemire's method) and
+    then, per sub-step, a position normal and an angle normal: one polar-method round whose two
+    uniforms start at any word offset, so uniforms are pre-decoded at every offset.
+    """
+    span = 3 + int(retro)
+    threshold = ((1 << 32) - span) % span
+    turns = [0] * n_steps
+    n_pos = [0.0] * (n_steps * frag)
+    n_ang = [0.0] * (n_steps * frag)
+    log, sqrt = math.log, math.sqrt
+    want = n_steps + 6 * n_steps * frag + 4096
+    s = 0
+    while s < n_steps:
+        words = stream.words(want)
+        w = words.tolist()
+        u = (words[:-1].astype(np.float64) + words[1:].astype(np.float64) * 4294967296.0) / (
+            18446744073709551616.0
+        )
+        np.minimum(u, math.nextafter(1.0, 0.0), out=u)
+        u = u.tolist()
+        p = 0
+        try:
+            while s < n_steps:
+                start = p
+                prod = w[p] * span
+                p += 1
+                while (prod & 0xFFFFFFFF) < threshold:
+                    prod = w[p] * span
+                    p += 1
+                base = s * frag
+                for k in range(frag):
+                    while True:
+                        x = 2.0 * u[p] - 1.0
+                        y = 2.0 * u[p + 2] - 1.0
+                        p += 4
+                        r2 = x * x + y * y
+                        if not (r2 > 1.0 or r2 == 0.0):
+                            break
+                    mult = sqrt(-2.0 * log(r2) / r2)
+                    n_pos[base + k] = y * mult
+                    n_ang[base + k] = x * mult
+                turns[s] = (prod >> 32) - 1
+                s += 1
+        except IndexError:  # the buffer ended inside a step: redo that step with more words
+            p = start
+        stream.advance(p)
+        want *= 2
+    return np.array(turns, dtype=np.int64), np.array(n_pos), np.array(n_ang)
+
+
+def _random_walk(stream: MT19937Stream, cfg: SynthConfig, agent) -> _Walk:
+    frag, stepsize = cfg.step_fragment, cfg.stepsize
+    turns, npos, nang = _walk_draws(stream, cfg.number_of_steps, frag, cfg.allow_retrocession)
+    # heading in quarter turns, with C's truncating %
+    theta_int_steps = np.empty(len(turns), dtype=np.int64)
+    t = 0
+    for s, d in enumerate(turns.tolist()):
+        t = int(math.fmod(t + d, 4))
+        theta_int_steps[s] = t
+    theta_int = np.repeat(theta_int_steps, frag)
+    lut = np.arange(-3, 4)
+    th_tab = np.array([_QUARTER[k][0] for k in lut])
+    dx_tab = np.array([_round_to_int(_QUARTER[k][1]) for k in lut], dtype=np.int64)
+    dy_tab = np.array([_round_to_int(_QUARTER[k][2]) for k in lut], dtype=np.int64)
+    dxi = dx_tab[theta_int + 3]
+    dyi = dy_tab[theta_int + 3]
+    xi = np.concatenate([[0], np.cumsum(dxi)])
+    yi = np.concatenate([[0], np.cumsum(dyi)])
+    x = xi.astype(np.float64) * stepsize / frag
+    y = yi.astype(np.float64) * stepsize / frag
+    theta = np.concatenate([[0.0], th_tab[theta_int + 3]])
+    ddx = dxi.astype(np.float64) * stepsize / frag
+    ddy = dyi.astype(np.float64) * stepsize / frag
+    odom_pos = np.hypot(ddx, ddy) + agent.std_dev_position * npos
+    delta_theta = np.zeros(len(theta_int), dtype=np.int64)
+    delta_theta[::frag] = turns
+    first = np.zeros(len(theta_int), dtype=bool)
+    first[::frag] = True
+    turn_angle = np.array([normalize_angle(k * 0.5 * math.pi) for k in range(-1, 3)])[delta_theta + 1]
+    noise_ang = agent.std_dev_angle * nang
+    odom_ang = np.where(first, turn_angle + noise_ang, noise_ang)
+    drx, dry, drt = _dead_reckon(odom_pos, odom_ang)
+    return _Walk(x, y, theta, delta_theta, odom_pos, odom_ang, drx, dry, drt)
+
+
+def _dead_reckon(odom_pos: np.ndarray, odom_ang: np.ndarray):
+    cos, sin, floor = math.cos, math.sin, math.floor
+    pi, two_pi = math.pi, 2 * math.pi
+    n = len(odom_pos) + 1
+    xs = [0.0] * n
+    ys = [0.0] * n
+    ts = [0.0] * n
+    x = y = t = 0.0
+    for k, (op, oa) in enumerate(zip(odom_pos.tolist(), odom_ang.tolist()), start=1):
+        t = t + oa
+        t = t - floor((t + pi) / two_pi) * 2.0 * pi
+        x = x + op * cos(t)
+        y = y + op * sin(t)
+        xs[k] = x
+        ys[k] = y
+        ts[k] = t
+    return np.array(xs), np.array(ys), np.array(ts)
+
+
+# --------------------------------------------------------------------------------------------------
+# Loop-closure candidates and their sampling
+
+
+def _grid_cells(x: np.ndarray, y: np.ndarray, cfg: SynthConfig) -> tuple[np.ndarray, np.ndarray]:
+    frag, stepsize = float(cfg.step_fragment), cfg.stepsize
+    return _round_half_away(x * frag / stepsize), _round_half_away(y * frag / stepsize)
+
+
+class _CircleTable:
+    """Ranks of the discrete circle's offsets in kollagen's visiting order."""
+
+    def __init__(self, radius: int) -> None:
+        self.radius = radius
+        circle = discrete_circle(radius)
+        size = 2 * radius + 1
+        self.rank = np.full((size, size), -2, dtype=np.int64)
+        self.rank[circle[:, 0] + radius, circle[:, 1] + radius] = np.arange(len(circle))
+        self.rank[radius, radius] = -1  # the same-cell check comes before the circle
+        self.size = len(circle)
+        self.ylim = np.array(
+            [math.isqrt(radius * radius - dx * dx) for dx in range(-radius, radius + 1)], dtype=np.int64
+        )
+
+
+def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
+    """All (query k, table m) pairs with table cell - query cell inside the circle (centre included).
+
+    Returns query indices, table indices, dx and dy, grouped by query and by dx (unordered in y).
+    """
+    R = circle.radius
+    if len(tx) == 0 or len(qx) == 0:
+        z = np.zeros(0, dtype=np.int64)
+        return z, z, z, z
+    xmin = min(int(qx.min()), int(tx.min())) - R
+    ymin = min(int(qy.min()), int(ty.min())) - R
+    stride = max(int(qy.max()), int(ty.max())) - ymin + R + 1
+    tkey = (tx - xmin) * stride + (ty - ymin)
+    order = np.argsort(tkey, kind="stable")
+    skey = tkey[order]
+    dxs = np.arange(-R, R + 1, dtype=np.int64)
+    col = (qx[:, None] + dxs[None, :] - xmin) * stride
+    lo = col + (qy[:, None] - circle.ylim[None, :] - ymin)
+    hi = col + (qy[:, None] + circle.ylim[None, :] - ymin)
+    start = np.searchsorted(skey, lo.ravel(), side="left")
+    stop = np.searchsorted(skey, hi.ravel(), side="right")
+    counts = stop - start
+    total = int(counts.sum())
+    group = np.repeat(np.arange(len(counts)), counts)
+    offsets = np.cumsum(counts) - counts
+    pos = start[group] + (np.arange(total) - offsets[group])
+    m = order[pos]
+    k = group // len(dxs)
+    return k, m, tx[m] - qx[k], ty[m] - qy[k]
+
+
+def _order_hits(k, dx, dy, circle: _CircleTable) -> np.ndarray:
+    """Permutation that puts hits in kollagen's order: by query, then same cell, then circle order."""
+    rank = circle.rank[dx + circle.radius, dy + circle.radius]
+    key = k * (circle.size + 1) + (rank + 1)
+    return np.argsort(key, kind="stable")
+
+
+def _sample(stream: MT19937Stream, probs: np.ndarray, cached: float | None):
+    """Decide every hit with one uniform each; accepted hits draw three normals.
+
+    Returns (accepted hit indices, (n, 3) normals, cache state after the last draw). Advances the
+    stream past everything consumed.
+    """
+    n_hits = len(probs)
+    accepted: list[int] = []
+    normals: list[tuple[float, float, float]] = []
+    budget = n_hits + 64
+    u = stream.uniforms(budget)
+    ul = None  # Python list view of u, made lazily for the scalar normal draws
+    h = 0  # next hit
+    q = 0  # next uniform
+    chunk = 256
+    while h < n_hits:
+        k = min(chunk, n_hits - h)
+        if q + k + 64 > len(u):
+            budget = max(2 * len(u), q + k + 4096)
+            u = stream.uniforms(budget)
+            ul = None
+        hit = probs[h : h + k] > u[q : q + k]
+        t = int(hit.argmax())
+        if not hit[t]:
+            h += k
+            q += k
+            chunk = min(chunk * 2, 1 << 16)
+            continue
+        h += t
+        q += t + 1
+        chunk = max(64, 2 * (t + 1))
+        if ul is None:
+            ul = u.tolist()
+        vals = []
+        for _ in range(3):
+            if cached is not None:
+                vals.append(cached)
+                cached = None
+                continue
+            while True:
+                try:
+                    ret, keep, q = polar_normal(ul, q)
+                    break
+                except IndexError:
+                    budget = 2 * len(u)
+                    u = stream.uniforms(budget)
+                    ul = u.tolist()
+            vals.append(ret)
+            cached = keep
+        accepted.append(h)
+        normals.append((vals[0], vals[1], vals[2]))
+        h += 1
+    stream.advance(2 * q)
+    return np.array(accepted, dtype=np.int64), np.array(normals).reshape(-1, 3), cached
+
+
+def _probabilities(dx, dy, same_prob: float, scale: float, radius_m: float) -> np.ndarray:
+    d2 = dx * dx + dy * dy
+    top = int(d2.max()) if len(d2) else 0
+    table = np.array([scale * math.exp(-5.0 * v / (radius_m * radius_m)) for v in range(top + 1)])
+    p = table[d2] if len(d2) else np.zeros(0)
+    p[d2 == 0] = same_prob
+    return p
+
+
+def _relative(x_from, y_from, th_from, x_to, y_to, th_to):
+    """Pose ``to`` in the frame of ``from``, as kollagen's ``calculate_relative_transform``."""
+    xdiff = x_to - x_from
+    ydiff = y_to - y_from
+    c, s = _cos_sin(th_from)
+    dX = xdiff * c + ydiff * s
+    dY = -xdiff * s + ydiff * c
+    dT = normalize_angle(th_to - th_from)
+    return dX, dY, dT
+
+
+def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, agent):
+    cx, cy = _grid_cells(walk.x, walk.y, cfg)
+    n = len(cx)
+    radius = _round_to_int(agent.intra_loop_closure_radius * cfg.step_fragment / cfg.stepsize)
+    circle = _CircleTable(radius)
+    key = (cx - cx.min()) * (int(cy.max() - cy.min()) + 1) + (cy - cy.min())
+    _, first = np.unique(key, return_index=True)
+    k, m, dx, dy = _enumerate_hits(cx, cy, cx[first], cy[first], circle)
+    j = first[m]
+    keep = (j < k) & (((dx != 0) & (dy != 0)) | ((dx == 0) & (dy == 0)))
+    k, j, dx, dy = k[keep], j[keep], dx[keep], dy[keep]
+    order = _order_hits(k, dx, dy, circle)
+    k, j, dx, dy = k[order], j[order], dx[order], dy[order]
+    probs = _probabilities(
+        dx,
+        dy,
+        agent.same_position_intra_loop_closure_probability,
+        agent.intra_loop_closure_probability_scaling,
+        agent.intra_loop_closure_radius,
+    )
+    acc, noise, _ = _sample(stream, probs, None)
+    i_to, j_from = k[acc], j[acc]
+    dX, dY, dT = _relative(walk.x[j_from], walk.y[j_from], walk.theta[j_from],
+                           walk.x[i_to], walk.y[i_to], walk.theta[i_to])
+    sp, sa = agent.std_dev_intra_loop_closure_position, agent.std_dev_intra_loop_closure_angle
+    meas = np.column_stack([dX + noise[:, 0] * sp, dY + noise[:, 1] * sp, dT + noise[:, 2] * sa])
+    info = _diag_information(
+        len(acc), agent.estimated_information_intra_position, agent.estimated_information_intra_angle
+    )
+    return Edges(PoseKind.SE2, j_from, i_to, meas.reshape(-1, 3), info)
+
+
+def _inter_loop_closures(walks, cells, cfg: SynthConfig):
+    p = cfg.inter
+    radius = _round_to_int(p.loop_closure_radius * cfg.step_fragment / cfg.stepsize)
+    circle = _CircleTable(radius)
+    cols: dict[str, list] = {c: [] for c in ("fa", "fi", "ta", "ti", "m")}
+    for a, b in agent_pairs(len(walks)):
+        wa, wb = walks[a], walks[b]
+        (ax, ay), (bx, by) = cells[a], cells[b]
+        # kollagen's map keeps the last visit of each cell of agent a
+        ra = len(ax) - 1 - np.arange(len(ax))
+        key = (ax - ax.min()) * (int(ay.max() - ay.min()) + 1) + (ay - ay.min())
+        _, first_rev = np.unique(key[::-1], return_index=True)
+        last = ra[first_rev]
+        k, m, dx, dy = _enumerate_hits(bx, by, ax[last], ay[last], circle)
+        order = _order_hits(k, dx, dy, circle)
+        k, j, dx, dy = k[order], last[m[order]], dx[order], dy[order]
+        probs = _probabilities(
+            dx, dy, p.same_position_loop_closure_probability, p.loop_closure_probability_scaling,
+            p.loop_closure_radius,
+        )
+        stream = MT19937Stream(p.random_number_generator_seed)
+        acc, noise, _ = _sample(stream, probs, None)
+        i_from, j_to = k[acc], j[acc]
+        dX, dY, dT = _relative(wb.x[i_from], wb.y[i_from], wb.theta[i_from],
+                               wa.x[j_to], wa.y[j_to], wa.theta[j_to])
+        meas = np.column_stack([
+            dX + noise[:, 0] * p.std_dev_loop_closure_position,
+            dY + noise[:, 1] * p.std_dev_loop_closure_position,
+            dT + noise[:, 2] * p.std_dev_loop_closure_angle,
+        ])
+        cols["fa"].append(np.full(len(acc), b))
+        cols["fi"].append(i_from)
+        cols["ta"].append(np.full(len(acc), a))
+        cols["ti"].append(j_to)
+        cols["m"].append(meas.reshape(-1, 3))
+    if not cols["fa"]:
+        return InterAgentEdges.empty(PoseKind.SE2)
+    meas = np.concatenate(cols["m"])
+    info = _diag_information(len(meas), p.estimated_information_position, p.estimated_information_angle)
+    return InterAgentEdges(
+        PoseKind.SE2,
+        np.concatenate(cols["fa"]),
+        np.concatenate(cols["fi"]),
+        np.concatenate(cols["ta"]),
+        np.concatenate(cols["ti"]),
+        meas,
+        info,
+    )
+
+
+def _diag_information(n: int, position: float, angle: float) -> np.ndarray:
+    info = np.zeros((n, 6))
+    info[:, 0] = position
+    info[:, 3] = position
+    info[:, 5] = angle
+    return info
+
+
+def _exact_odometry_information(walk: _Walk, cfg: SynthConfig, agent) -> np.ndarray:
+    """kollagen's ``set_information_matrix`` (see its doc/information-matrix-derivation.pdf)."""
+    d = cfg.stepsize / cfg.step_fragment
+    sd = agent.std_dev_position
+    st = agent.std_dev_angle
+    d2 = math.pow(d, 2)
+    sd2 = math.pow(sd, 2)
+    st2 = math.pow(st, 2)
+    e1 = (d2 + sd2) / 2.0 * (1 - math.exp(-2 * st2))
+    e2 = (d2 + sd2) / 2.0 * (1 + math.exp(-2 * st2)) - d2 * math.exp(-st2)
+    a = e1 * st2 - d2 * math.pow(st, 4) * math.exp(-st2)
+    c = d * st2 * math.exp(-0.5 * st2)
+    rows = {}
+    for dt in (-1, 0, 1, 2):
+        if dt in (0, 2):
+            i23 = c / a
+            rows[dt] = (1.0 / e2, 0.0, 0.0, st2 / a, -i23 if dt == 0 else i23, e1 / a)
+        else:
+            i13 = c / a
+            rows[dt] = (st2 / a, 0.0, -i13 if dt == -1 else i13, 1.0 / e2, 0.0, e1 / a)
+    table = np.array([rows[k] for k in (-1, 0, 1, 2)])
+    return table[walk.delta_theta + 1]
+
+
+# --------------------------------------------------------------------------------------------------
+
+
+def generate(cfg: SynthConfig) -> SynthOutput:
+    """Run kollagen's generator: walk, intra-agent loop closures, alignment, inter-agent loop closures."""
+    seeds = effective_seeds([a.random_number_generator_seed for a in cfg.agents])
+    walks: list[_Walk] = []
+    intra: list[Edges] = []
+    for agent, seed in zip(cfg.agents, seeds):
+        stream = MT19937Stream(seed)
+        walk = _random_walk(stream, cfg, agent)
+        intra.append(_intra_loop_closures(stream, walk, cfg, agent))
+        walks.append(walk)
+
+    if cfg.align:
+        walks = _align(walks)
+
+    cells = [_grid_cells(w.x, w.y, cfg) for w in walks]
+    inter = _inter_loop_closures(walks, cells, cfg) if len(walks) > 1 else InterAgentEdges.empty(PoseKind.SE2)
+
+    agents = []
+    exact = []
+    for idx, (walk, agent, lcs) in enumerate(zip(walks, cfg.agents, intra)):
+        n = len(walk.x)
+        c, s = _cos_sin(walk.odom_ang)
+        odo = np.column_stack([walk.odom_pos * c, walk.odom_pos * s, walk.odom_ang])
+        odometry = Edges(
+            PoseKind.SE2,
+            np.arange(n - 1),
+            np.arange(1, n),
+            odo.reshape(-1, 3),
+            _diag_information(n - 1, agent.estimated_information_position, agent.estimated_information_angle),
+        )
+        agents.append(
+            AgentGraph(
+                name=f"agent{idx + 1}",
+                kind=PoseKind.SE2,
+                stamps_ns=np.arange(n, dtype=np.int64) * _NS_PER_S,
+                initial=np.column_stack([walk.drx, walk.dry, walk.drtheta]),
+                ground_truth=np.column_stack([walk.x, walk.y, walk.theta]),
+                odometry=odometry,
+                loop_closures=lcs,
+            )
+        )
+        if cfg.exact_information_matrix:
+            exact.append(_exact_odometry_information(walk, cfg, agent))
+
+    graph = PoseGraph(PoseKind.SE2, tuple(agents), inter, {"generator": "kollagen", "name": cfg.name})
+    p = cfg.inter
+    connector = np.array(
+        [p.estimated_information_position, 0.0, 0.0, p.estimated_information_position, 0.0,
+         p.estimated_information_angle]
+    )
+    return SynthOutput(graph, tuple(exact) if cfg.exact_information_matrix else None, connector, seeds)
+
+
+def _align(walks: list[_Walk]) -> list[_Walk]:
+    """kollagen's ``align_center_of_masses``: integer shifts (in metres) towards agent 1's centre."""
+    def centre(w: _Walk) -> tuple[int, int]:
+        n = len(w.x)
+        return _round_to_int(_libstdcxx_reduce(w.x) / n), _round_to_int(_libstdcxx_reduce(w.y) / n)
+
+    x0, y0 = centre(walks[0])
+    out = []
+    for w in walks:
+        xc, yc = centre(w)
+        sx, sy = x0 - xc, y0 - yc
+        if sx == 0 and sy == 0:
+            out.append(w)
+            continue
+        out.append(
+            _Walk(w.x + sx, w.y + sy, w.theta, w.delta_theta, w.odom_pos, w.odom_ang,
+                  w.drx + sx, w.dry + sy, w.drtheta)
+        )
+    return out

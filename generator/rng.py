@@ -1,0 +1,93 @@
+"""Bit-exact replicas of the random draws kollagen makes with libstdc++.
+
+kollagen draws from ``std::mt19937`` through three libstdc++ distributions. numpy's legacy
+``RandomState`` is the same Mersenne Twister with the same integer seeding, and its raw 32-bit words
+are reachable through the public ``randint(0, 2**32, dtype=uint32)``. On top of the words:
+
+* ``uniform_real_distribution<double>(0, 1)`` (``generate_canonical``): two words ``a, b`` give
+  ``(a + b * 2**32) / 2**64``; a result ``>= 1`` becomes the largest double below 1.
+* ``normal_distribution<double>``: Marsaglia's polar method on two such uniforms, rejecting while
+  ``r2 > 1 or r2 == 0``; returns ``y * m`` and caches ``x * m`` for the next call.
+* ``uniform_int_distribution<int>(a, b)``: Lemire's multiply-shift on one word with rejection of the
+  biased low products.
+
+Every draw of a uniform or a normal consumes an even number of words, so once a phase starts (after
+the integer draws of the random walk) the uniforms can be decoded in bulk as a numpy array.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["MT19937Stream", "canonical_doubles", "polar_normal"]
+
+_TWO32 = 4294967296.0
+_TWO64 = 18446744073709551616.0
+_BELOW_ONE = math.nextafter(1.0, 0.0)
+_BLOCK_WORDS = 1 << 16
+
+
+def canonical_doubles(words: np.ndarray) -> np.ndarray:
+    """Decode consecutive word pairs into ``generate_canonical<double, 53>`` values."""
+    lo = words[0::2].astype(np.float64)
+    hi = words[1::2].astype(np.float64)
+    out = (lo + hi * _TWO32) / _TWO64
+    np.minimum(out, _BELOW_ONE, out=out)
+    return out
+
+
+def polar_normal(uniforms, q: int) -> tuple[float, float, int]:
+    """One round of libstdc++'s polar method starting at uniform index ``q``.
+
+    Returns ``(returned, cached, next_q)``: the value the call returns, the value it keeps for the next
+    call, and the index of the next unused uniform.
+    """
+    while True:
+        x = 2.0 * uniforms[q] - 1.0
+        y = 2.0 * uniforms[q + 1] - 1.0
+        q += 2
+        r2 = x * x + y * y
+        if not (r2 > 1.0 or r2 == 0.0):
+            break
+    mult = math.sqrt(-2.0 * math.log(r2) / r2)
+    return y * mult, x * mult, q
+
+
+class MT19937Stream:
+    """The 32-bit word stream of ``std::mt19937(seed)``, read forward with a cursor.
+
+    ``seed`` is converted the way C++ converts an ``int`` to the engine's ``result_type`` and then
+    reduces it modulo 2**32, so negative seeds behave as in kollagen.
+    """
+
+    def __init__(self, seed: int) -> None:
+        self.seed = int(seed)
+        self._state = np.random.RandomState(self.seed % (1 << 32))
+        self._words = np.empty(0, dtype=np.uint32)
+        self._start = 0  # stream index of self._words[0]
+        self.position = 0  # stream index of the next unread word
+
+    def _ensure(self, end: int) -> None:
+        have = self._start + len(self._words)
+        if end <= have:
+            return
+        need = max(end - have, _BLOCK_WORDS)
+        fresh = self._state.randint(0, 1 << 32, size=need, dtype=np.uint32)
+        keep = self._words[self.position - self._start :]
+        self._start = self.position
+        self._words = np.concatenate([keep, fresh])
+
+    def words(self, n: int) -> np.ndarray:
+        """The next ``n`` words, without moving the cursor."""
+        self._ensure(self.position + n)
+        i = self.position - self._start
+        return self._words[i : i + n]
+
+    def advance(self, n_words: int) -> None:
+        self.position += n_words
+
+    def uniforms(self, n: int) -> np.ndarray:
+        """The next ``n`` canonical doubles (``2 n`` words), without moving the cursor."""
+        return canonical_doubles(self.words(2 * n))

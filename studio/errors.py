@@ -1,0 +1,36 @@
+"""The one error tree of cslam-studio.
+
+Every error that bad input can cause is a :class:`StudioError`. Its message is one line that says
+what is wrong and where (``file:line`` or a JSON path). The CLI catches the base class once, prints
+the message and exits with code 2; any other exception is a bug and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "StudioError",
+    "ConfigError",
+    "FormatError",
+    "GraphError",
+    "OutputError",
+]
+
+
+class StudioError(Exception):
+    """Base class of every error caused by input the user gave."""
+
+
+class ConfigError(StudioError):
+    """A configuration (JSON file, preset name, option value) is invalid."""
+
+
+class FormatError(StudioError):
+    """A file could not be parsed; the message names the file and line."""
+
+
+class GraphError(StudioError):
+    """A pose graph breaks an invariant (lengths, unknown vertices, non-unit quaternions...)."""
+
+
+class OutputError(StudioError):
+    """An output cannot be written (it exists and --force was not given, or the folder is unusable)."""

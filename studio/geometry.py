@@ -1,0 +1,76 @@
+"""Small SE(2)/SE(3) helpers on numpy columns (pure maths, no I/O).
+
+Conventions: planar poses are ``[x, y, theta]`` (theta in radians); spatial poses are
+``[x, y, z, qx, qy, qz, qw]`` (Hamilton, scalar last, the TUM/g2o order). Information matrices are
+stored as their upper triangle, row by row.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = [
+    "normalize_angle",
+    "yaw_to_quat_xyzw",
+    "se2_information_to_se3",
+    "upper_to_matrix",
+    "SE3_Z_INFORMATION",
+]
+
+#: Information given to z when a planar measurement is written as an SE(3) record (kollagen's choice).
+SE3_Z_INFORMATION = 1e6
+
+
+def normalize_angle(angle):
+    """Wrap to [-pi, pi) exactly as kollagen: ``a - floor((a + pi) / (2 pi)) * 2 * pi``."""
+    if isinstance(angle, float):
+        return angle - math.floor((angle + math.pi) / (2 * math.pi)) * 2.0 * math.pi
+    angle = np.asarray(angle, dtype=np.float64)
+    return angle - np.floor((angle + np.pi) / (2 * np.pi)) * 2.0 * np.pi
+
+
+def yaw_to_quat_xyzw(theta: np.ndarray) -> np.ndarray:
+    """``[0, 0, sin(theta/2), cos(theta/2)]`` per row, with the C library's sin and cos.
+
+    numpy's vectorised sin/cos may differ from libm by an ulp on some CPUs; kollagen's files are made
+    with libm, so the values are computed with :mod:`math` to stay bit-exact.
+    """
+    half = (np.asarray(theta, dtype=np.float64) / 2).tolist()
+    out = np.zeros((len(half), 4))
+    out[:, 2] = [math.sin(h) for h in half]
+    out[:, 3] = [math.cos(h) for h in half]
+    return out
+
+
+def upper_to_matrix(upper: np.ndarray, dim: int) -> np.ndarray:
+    """Rebuild symmetric ``(n, dim, dim)`` matrices from ``(n, dim*(dim+1)/2)`` upper triangles."""
+    upper = np.asarray(upper, dtype=np.float64)
+    n = upper.shape[0]
+    rows, cols = np.triu_indices(dim)
+    out = np.zeros((n, dim, dim))
+    out[:, rows, cols] = upper
+    out[:, cols, rows] = upper
+    return out
+
+
+def se2_information_to_se3(upper: np.ndarray) -> np.ndarray:
+    """Lift ``(n, 6)`` planar information (x, y, theta) to ``(n, 21)`` for (x, y, z, rx, ry, rz).
+
+    x, y and yaw keep their entries (including cross terms); z gets :data:`SE3_Z_INFORMATION`; roll
+    and pitch get the yaw information. With zero cross terms this is exactly what kollagen writes.
+    """
+    upper = np.asarray(upper, dtype=np.float64)
+    n = upper.shape[0]
+    full = np.zeros((n, 6, 6))
+    m = upper_to_matrix(upper, 3)
+    idx = [0, 1, 5]
+    for a in range(3):
+        for b in range(3):
+            full[:, idx[a], idx[b]] = m[:, a, b]
+    full[:, 2, 2] = SE3_Z_INFORMATION
+    full[:, 3, 3] = m[:, 2, 2]
+    full[:, 4, 4] = m[:, 2, 2]
+    rows, cols = np.triu_indices(6)
+    return full[:, rows, cols]

@@ -1,0 +1,1 @@
+"""File formats: one module per format, each with a reader and a writer."""

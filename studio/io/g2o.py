@@ -1,0 +1,215 @@
+"""g2o text files: ``VERTEX_SE2``/``EDGE_SE2`` and ``VERTEX_SE3:QUAT``/``EDGE_SE3:QUAT`` records.
+
+One file is held as columns in a :class:`G2oDocument`. Numbers are written with ``%.17g`` (every
+double round-trips). In SE(3) records, a positive zero in z, qx, qy or in an off-diagonal information
+entry is written ``0.0``, as kollagen writes the planar data it lifts to 3D; that keeps files written
+from planar graphs byte-identical to kollagen's. Vertices come first, then edges, in column order.
+
+Reading accepts the same four records (and skips blank lines and ``#`` comments); anything else is a
+:class:`~studio.errors.FormatError` naming ``file:line``.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO
+
+import numpy as np
+
+from studio.errors import FormatError
+from studio.io.textfmt import format_column, format_int_column, format_rows
+from studio.model import PoseKind
+
+__all__ = ["G2oDocument", "write_g2o", "read_g2o", "g2o_lines", "SE3_INFO_ZERO_LITERAL"]
+
+_TAGS = {
+    PoseKind.SE2: ("VERTEX_SE2", "EDGE_SE2"),
+    PoseKind.SE3: ("VERTEX_SE3:QUAT", "EDGE_SE3:QUAT"),
+}
+_TAG_KIND = {"VERTEX_SE2": PoseKind.SE2, "EDGE_SE2": PoseKind.SE2,
+             "VERTEX_SE3:QUAT": PoseKind.SE3, "EDGE_SE3:QUAT": PoseKind.SE3}
+_DIAG6 = set(np.cumsum([0, 6, 5, 4, 3, 2]).tolist())  # positions of diagonal entries in a 6x6 upper triangle
+#: For each of the 21 SE(3) information entries, the text of a positive zero.
+SE3_INFO_ZERO_LITERAL = [None if k in _DIAG6 else "0.0" for k in range(21)]
+
+
+@dataclass(frozen=True, eq=False)
+class G2oDocument:
+    """The records of one g2o file, as columns."""
+
+    kind: PoseKind
+    vertex_ids: np.ndarray
+    vertex_poses: np.ndarray
+    edge_from: np.ndarray
+    edge_to: np.ndarray
+    edge_measurements: np.ndarray
+    edge_information_upper: np.ndarray
+
+
+def _pose_texts(poses: np.ndarray, kind: PoseKind) -> list[str]:
+    if kind is PoseKind.SE2:
+        return format_rows_fast(poses, ["%.17g"] * 3, [None] * 3)
+    zeros = [None, None, "0.0", "0.0", "0.0", None, None]
+    return format_rows_fast(poses, ["%.17g"] * 7, zeros)
+
+
+def format_rows_fast(values: np.ndarray, fmts: list[str], zeros: list[str | None]) -> list[str]:
+    """Columns formatted independently (no row dedup), joined by spaces."""
+    cols = [format_column(values[:, c], fmts[c], zeros[c]) for c in range(values.shape[1])]
+    return [" ".join(parts) for parts in zip(*cols)]
+
+
+def _info_texts(info: np.ndarray, kind: PoseKind) -> list[str]:
+    if kind is PoseKind.SE2:
+        return format_rows(info, ["%.17g"] * 6, [None] * 6)
+    return format_rows(info, ["%.17g"] * 21, SE3_INFO_ZERO_LITERAL)
+
+
+def g2o_lines(doc: G2oDocument) -> list[str]:
+    """The lines (with newlines) of a g2o file."""
+    vtag, etag = _TAGS[doc.kind]
+    ids = format_int_column(doc.vertex_ids)
+    poses = _pose_texts(doc.vertex_poses, doc.kind)
+    lines = [f"{vtag} {i} {p}\n" for i, p in zip(ids, poses)]
+    fr = format_int_column(doc.edge_from)
+    to = format_int_column(doc.edge_to)
+    meas = _pose_texts(doc.edge_measurements, doc.kind)
+    info = _info_texts(doc.edge_information_upper, doc.kind)
+    lines += [f"{etag} {a} {b} {m} {i}\n" for a, b, m, i in zip(fr, to, meas, info)]
+    return lines
+
+
+def write_g2o(target: str | os.PathLike | IO[str], doc: G2oDocument) -> None:
+    text = "".join(g2o_lines(doc))
+    if hasattr(target, "write"):
+        target.write(text)
+    else:
+        with open(target, "w", encoding="ascii", newline="\n") as f:
+            f.write(text)
+
+
+def _open_text(source) -> tuple[str, str]:
+    if hasattr(source, "read"):
+        return source.read(), getattr(source, "name", "<stream>")
+    path = Path(source)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise FormatError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise FormatError(f"{path}: is a folder, not a file") from None
+    except OSError as err:
+        raise FormatError(f"{path}: cannot read ({err.strerror})") from None
+    try:
+        return data.decode("utf-8"), str(path)
+    except UnicodeDecodeError as err:
+        line = data[: err.start].count(b"\n") + 1
+        raise FormatError(f"{path}:{line}: not UTF-8 text") from None
+
+
+_WIDTH = {  # tokens after the tag
+    "VERTEX_SE2": 4, "EDGE_SE2": 2 + 3 + 6,
+    "VERTEX_SE3:QUAT": 8, "EDGE_SE3:QUAT": 2 + 7 + 21,
+}
+
+
+def read_g2o(source: str | os.PathLike | IO[str]) -> G2oDocument:
+    """Parse a g2o file; errors name ``file:line``."""
+    text, name = _open_text(source)
+    groups: dict[str, tuple[list[int], list[list[str]]]] = {}
+    kind = None
+    for lineno, raw in enumerate(io.StringIO(text), start=1):
+        parts = raw.split()
+        if not parts or parts[0].startswith("#"):
+            continue
+        tag = parts[0]
+        if tag not in _WIDTH:
+            if tag.startswith(("FIX", "PARAMS")):
+                continue
+            raise FormatError(f"{name}:{lineno}: unknown record {tag[:40]!r}")
+        if kind is None:
+            kind = _TAG_KIND[tag]
+        elif _TAG_KIND[tag] is not kind:
+            raise FormatError(f"{name}:{lineno}: {tag} mixed with {kind.value} records")
+        if len(parts) - 1 != _WIDTH[tag]:
+            raise FormatError(f"{name}:{lineno}: {tag} needs {_WIDTH[tag]} fields, found {len(parts) - 1}")
+        lines, rows = groups.setdefault(tag, ([], []))
+        lines.append(lineno)
+        rows.append(parts[1:])
+    if kind is None:
+        raise FormatError(f"{name}: no vertices or edges")
+    vtag, etag = _TAGS[kind]
+    vlines, vrows = groups.get(vtag, ([], []))
+    elines, erows = groups.get(etag, ([], []))
+    npose = kind.pose_width
+    vids = _ints(vrows, 0, 1, vlines, name).reshape(-1)
+    vposes = _floats(vrows, 1, 1 + npose, vlines, name)
+    eids = _ints(erows, 0, 2, elines, name)
+    emeas = _floats(erows, 2, 2 + npose, elines, name)
+    einfo = _floats(erows, 2 + npose, None, elines, name)
+    uniq, counts = np.unique(vids, return_counts=True)
+    if np.any(counts > 1):
+        dup = int(uniq[np.argmax(counts > 1)])
+        where = [ln for ln, v in zip(vlines, vids.tolist()) if v == dup][1]
+        raise FormatError(f"{name}:{where}: vertex {dup} is defined twice")
+    if len(eids):
+        known = np.isin(eids, vids)
+        if not known.all():
+            r, c = np.argwhere(~known)[0]
+            raise FormatError(f"{name}:{elines[r]}: edge refers to unknown vertex {int(eids[r, c])}")
+    if kind is PoseKind.SE3:
+        _check_quats(vposes, vlines, name)
+        _check_quats(emeas, elines, name)
+    return G2oDocument(kind, vids, vposes, eids[:, 0].copy(), eids[:, 1].copy(), emeas, einfo)
+
+
+def _check_quats(poses: np.ndarray, lines: list[int], name: str) -> None:
+    if not len(poses):
+        return
+    norms = np.linalg.norm(poses[:, 3:7], axis=1)
+    bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-6)
+    if bad.size:
+        raise FormatError(f"{name}:{lines[bad[0]]}: quaternion is not unit length (norm {norms[bad[0]]:.6g})")
+
+
+def _ints(rows, a, b, lines, name) -> np.ndarray:
+    width = b - a
+    if not rows:
+        return np.zeros((0, width), dtype=np.int64)
+    try:
+        return np.array([r[a:b] for r in rows], dtype=np.int64).reshape(-1, width)
+    except (ValueError, OverflowError):
+        for ln, r in zip(lines, rows):
+            for tok in r[a:b]:
+                try:
+                    v = int(tok)
+                except ValueError:
+                    raise FormatError(f"{name}:{ln}: vertex id {tok[:40]!r} is not an integer") from None
+                if not -(2**63) <= v < 2**63:
+                    raise FormatError(f"{name}:{ln}: vertex id {tok[:40]} is out of range") from None
+        raise
+
+
+def _floats(rows, a, b, lines, name) -> np.ndarray:
+    if not rows:
+        width = (b - a) if b is not None else 0
+        return np.zeros((0, width))
+    sub = [r[a:b] for r in rows]
+    try:
+        arr = np.array([[float(t) for t in r] for r in sub], dtype=np.float64)
+    except ValueError:
+        for ln, r in zip(lines, sub):
+            for tok in r:
+                try:
+                    float(tok)
+                except ValueError:
+                    raise FormatError(f"{name}:{ln}: {tok[:40]!r} is not a number") from None
+        raise
+    finite = np.isfinite(arr).all(axis=1)
+    if not finite.all():
+        k = int(np.flatnonzero(~finite)[0])
+        raise FormatError(f"{name}:{lines[k]}: value is not finite")
+    return arr

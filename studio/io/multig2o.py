@@ -1,0 +1,142 @@
+"""The multi-g2o folder: one sub-folder per agent plus the inter-agent loop closures.
+
+::
+
+    DATASET/
+    ├── inter_agent_lc.dat          # see studio.io.inter_lc_dat
+    ├── agent1/
+    │   ├── posegraph.g2o           # vertices 0..n-1 (initial estimate), odometry edges k -> k+1, then
+    │   │                           # intra-agent loop closures
+    │   └── agent1_GT.tum           # ground truth of the same vertices
+    └── agent2/ ...
+
+Agents are the sub-folders holding a ``posegraph.g2o``, in natural order (``agent2`` before
+``agent10``); agent ``k`` in ``inter_agent_lc.dat`` is the k-th of them. On reading, the leading run of
+edges ``0->1, 1->2, ...`` is the odometry and every later edge an intra-agent loop closure.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from studio.errors import FormatError, GraphError
+from studio.geometry import normalize_angle
+from studio.io.g2o import G2oDocument, read_g2o, write_g2o
+from studio.io.inter_lc_dat import Precision, read_inter_lc_dat, write_inter_lc_dat
+from studio.io.tum import read_tum, write_tum
+from studio.model import AgentGraph, Edges, PoseGraph, PoseKind
+
+__all__ = ["write_multi_g2o", "read_multi_g2o", "agent_g2o_document", "Records"]
+
+Records = Literal["2d", "3d"]
+_NS = 1_000_000_000
+
+
+def _natural_key(name: str):
+    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", name)]
+
+
+def agent_g2o_document(agent: AgentGraph, offset: int = 0, odometry_information: np.ndarray | None = None) -> G2oDocument:
+    """An agent's vertices, odometry and loop closures as g2o records (ids shifted by ``offset``)."""
+    odo, lc = agent.odometry, agent.loop_closures
+    odo_info = odo.information_upper if odometry_information is None else odometry_information
+    return G2oDocument(
+        agent.kind,
+        np.arange(agent.num_poses, dtype=np.int64) + offset,
+        agent.initial,
+        np.concatenate([odo.from_index, lc.from_index]) + offset,
+        np.concatenate([odo.to_index, lc.to_index]) + offset,
+        np.concatenate([odo.measurements, lc.measurements]),
+        np.concatenate([odo_info, lc.information_upper]),
+    )
+
+
+def write_multi_g2o(graph: PoseGraph, folder: str | os.PathLike, *, records: Records = "3d",
+                    precision: Precision = "kollagen") -> None:
+    """Write ``graph`` into ``folder`` (which must exist). ``records`` picks 2D or 3D g2o records."""
+    folder = Path(folder)
+    g = graph.to_se3() if records == "3d" else graph
+    if records == "2d" and graph.kind is not PoseKind.SE2:
+        raise GraphError("2D records need a planar (SE2) graph")
+    lifted = graph.to_se3()
+    for agent, agent3 in zip(g.agents, lifted.agents):
+        sub = folder / agent.name
+        sub.mkdir()
+        write_g2o(sub / "posegraph.g2o", agent_g2o_document(agent))
+        if agent3.ground_truth is not None:
+            write_tum(sub / f"{agent.name}_GT.tum", agent3.stamps_ns, agent3.ground_truth)
+    write_inter_lc_dat(folder / "inter_agent_lc.dat", g.inter, precision)
+
+
+def _agent_folders(folder: Path) -> list[Path]:
+    if not folder.is_dir():
+        raise FormatError(f"{folder}: not a folder")
+    subs = [p for p in folder.iterdir() if p.is_dir() and (p / "posegraph.g2o").is_file()]
+    if not subs:
+        raise FormatError(f"{folder}: no agent folder with a posegraph.g2o")
+    return sorted(subs, key=lambda p: _natural_key(p.name))
+
+
+def read_multi_g2o(folder: str | os.PathLike) -> PoseGraph:
+    """Read a multi-g2o folder (ours or kollagen's) into a :class:`PoseGraph`.
+
+    The graph is SE3 when the files hold 3D records (kollagen's default), SE2 for 2D records. A
+    missing ``<agent>_GT.tum`` gives an agent without ground truth; a missing ``inter_agent_lc.dat``
+    gives no inter-agent edges.
+    """
+    folder = Path(folder)
+    agents = []
+    kind = None
+    for sub in _agent_folders(folder):
+        g2o_path = sub / "posegraph.g2o"
+        doc = read_g2o(g2o_path)
+        if kind is None:
+            kind = doc.kind
+        elif doc.kind is not kind:
+            raise FormatError(f"{g2o_path}: {doc.kind.value} records after {kind.value} ones in other agents")
+        n = len(doc.vertex_ids)
+        if n == 0:
+            raise FormatError(f"{g2o_path}: no vertices")
+        order = np.argsort(doc.vertex_ids, kind="stable")
+        if not np.array_equal(doc.vertex_ids[order], np.arange(n)):
+            raise FormatError(f"{g2o_path}: vertex ids must be 0..{n - 1}")
+        initial = doc.vertex_poses[order]
+        fr, to = doc.edge_from, doc.edge_to
+        chain = (fr == np.arange(len(fr))) & (to == np.arange(len(fr)) + 1)
+        n_odo = int(np.argmin(chain)) if not chain.all() else len(fr)
+
+        def edges(sl):
+            return Edges(kind, fr[sl], to[sl], doc.edge_measurements[sl], doc.edge_information_upper[sl])
+
+        gt_path = sub / f"{sub.name}_GT.tum"
+        gt = None
+        stamps = np.arange(n, dtype=np.int64) * _NS
+        if gt_path.is_file():
+            traj = read_tum(gt_path)
+            if len(traj.stamps_ns) != n:
+                raise FormatError(f"{gt_path}: {len(traj.stamps_ns)} poses for {n} vertices in {g2o_path.name}")
+            stamps = traj.stamps_ns
+            gt = traj.poses if kind is PoseKind.SE3 else _planar(traj.poses)
+        try:
+            agents.append(AgentGraph(sub.name, kind, stamps, initial, gt, edges(slice(0, n_odo)),
+                                     edges(slice(n_odo, None))))
+        except GraphError as err:
+            raise FormatError(f"{sub}: {err}") from None
+    dat = folder / "inter_agent_lc.dat"
+    from studio.model import InterAgentEdges
+
+    inter = read_inter_lc_dat(dat, kind) if dat.is_file() else InterAgentEdges.empty(kind)
+    try:
+        return PoseGraph(kind, tuple(agents), inter, {"source": str(folder)})
+    except GraphError as err:
+        raise FormatError(f"{dat}: {err}") from None
+
+
+def _planar(poses7: np.ndarray) -> np.ndarray:
+    theta = normalize_angle(2.0 * np.arctan2(poses7[:, 5], poses7[:, 6]))
+    return np.column_stack([poses7[:, 0], poses7[:, 1], theta])

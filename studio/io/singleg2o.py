@@ -1,0 +1,104 @@
+"""kollagen's single-file view of a multi-agent dataset: one g2o file and two TUM files.
+
+``NAME.g2o`` holds every agent's vertices with ids concatenated (agent 1 first), then per agent an edge
+from the previous agent's last vertex to its first (ground-truth relative pose, so the file is one
+connected graph, as kollagen does), followed by its odometry; then all intra-agent loop closures, then
+all inter-agent ones. ``NAME_GT.tum`` and ``NAME.tum`` hold ground truth and initial estimate with
+the concatenated ids as timestamps.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from studio.geometry import normalize_angle
+from studio.io.g2o import G2oDocument, g2o_lines
+from studio.io.multig2o import Records
+from studio.io.tum import tum_lines
+from studio.model import PoseGraph, PoseKind
+
+__all__ = ["write_single_g2o", "write_single_tum", "agent_offsets", "connector_measurements"]
+
+_NS = 1_000_000_000
+
+
+def agent_offsets(graph: PoseGraph) -> np.ndarray:
+    """The id of each agent's first vertex in the single file (plus the total at the end)."""
+    return np.concatenate([[0], np.cumsum([a.num_poses for a in graph.agents])]).astype(np.int64)
+
+
+def connector_measurements(graph: PoseGraph) -> np.ndarray:
+    """``(n_agents - 1, 3)``: ground-truth pose of agent k's first vertex in agent k-1's last frame."""
+    import math
+
+    rows = []
+    for prev, cur in zip(graph.agents[:-1], graph.agents[1:]):
+        x1, y1, t1 = prev.ground_truth[-1].tolist()
+        x2, y2, t2 = cur.ground_truth[0].tolist()
+        dtheta = normalize_angle(t2 - t1)
+        dx, dy = x2 - x1, y2 - y1
+        c, s = math.cos(t1), math.sin(t1)
+        rows.append((dx * c + dy * s, -dx * s + dy * c, dtheta))
+    return np.array(rows, dtype=np.float64).reshape(-1, 3)
+
+
+def write_single_g2o(graph: PoseGraph, path: str | os.PathLike, *, records: Records = "2d",
+                     connector_information: np.ndarray, odometry_information=None) -> None:
+    """Write the single g2o file. ``graph`` must be planar with ground truth (kollagen's data).
+
+    ``odometry_information`` optionally replaces each agent's odometry information (kollagen's exact
+    information matrix is written here only).
+    """
+    if graph.kind is not PoseKind.SE2:
+        raise ValueError("the single g2o layout is defined for planar graphs")
+    offsets = agent_offsets(graph)
+    conn = connector_measurements(graph)
+    kind = PoseKind.SE2
+    vid = np.arange(offsets[-1], dtype=np.int64)
+    vposes = np.concatenate([a.initial for a in graph.agents])
+    fr, to, meas, info = [], [], [], []
+    for k, agent in enumerate(graph.agents):
+        if k > 0:
+            fr.append([offsets[k] - 1])
+            to.append([offsets[k]])
+            meas.append(conn[k - 1 : k])
+            info.append(np.asarray(connector_information, dtype=np.float64).reshape(1, 6))
+        odo = agent.odometry
+        fr.append(odo.from_index + offsets[k])
+        to.append(odo.to_index + offsets[k])
+        meas.append(odo.measurements)
+        info.append(odo.information_upper if odometry_information is None else odometry_information[k])
+    for k, agent in enumerate(graph.agents):
+        lc = agent.loop_closures
+        fr.append(lc.from_index + offsets[k])
+        to.append(lc.to_index + offsets[k])
+        meas.append(lc.measurements)
+        info.append(lc.information_upper)
+    inter = graph.inter
+    fr.append(inter.from_index + offsets[inter.from_agent])
+    to.append(inter.to_index + offsets[inter.to_agent])
+    meas.append(inter.measurements)
+    info.append(inter.information_upper)
+    doc = G2oDocument(kind, vid, vposes, np.concatenate(fr).astype(np.int64), np.concatenate(to).astype(np.int64),
+                      np.concatenate(meas), np.concatenate(info))
+    if records == "3d":
+        from studio.geometry import se2_information_to_se3
+        from studio.model import _lift_poses
+
+        doc = G2oDocument(PoseKind.SE3, doc.vertex_ids, _lift_poses(doc.vertex_poses), doc.edge_from,
+                          doc.edge_to, _lift_poses(doc.edge_measurements),
+                          se2_information_to_se3(doc.edge_information_upper))
+    with open(path, "w", encoding="ascii", newline="\n") as f:
+        f.write("".join(g2o_lines(doc)))
+
+
+def write_single_tum(graph: PoseGraph, path: str | os.PathLike, *, ground_truth: bool) -> None:
+    """Concatenated ground truth (or initial estimate), timestamps = concatenated vertex ids."""
+    g = graph.to_se3()
+    poses = np.concatenate([a.ground_truth if ground_truth else a.initial for a in g.agents])
+    stamps = np.arange(len(poses), dtype=np.int64) * _NS
+    with open(Path(path), "w", encoding="ascii", newline="\n") as f:
+        f.write("".join(tum_lines(stamps, poses)))

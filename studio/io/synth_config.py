@@ -1,0 +1,226 @@
+"""kollagen's JSON config: read, validate and write :class:`~generator.config.SynthConfig`.
+
+Every problem is a :class:`~studio.errors.ConfigError` whose message names the file and the JSON path
+(``agent_parameters.agent_specific[2].std_dev_angle``). Unknown keys are not errors (kollagen ignores
+them) but are reported through ``warn`` with the closest known key.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any, Callable
+
+from generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
+from studio.errors import ConfigError
+
+__all__ = ["read_synth_config", "parse_synth_config", "synth_config_to_json", "MAX_CONFIG_BYTES"]
+
+#: Larger files are refused before parsing (kollagen configs are a few kB).
+MAX_CONFIG_BYTES = 16 * 1024 * 1024
+
+_TOP = ("number_of_steps", "align", "number_of_agents", "exact_information_matrix", "agent_parameters",
+        "inter_agent_loop_closure_parameters")
+_AGENT_PARAMS = ("stepsize", "step_fragment", "allow_retrocession", "agent_specific")
+_AGENT = tuple(f.name for f in AgentConfig.__dataclass_fields__.values())
+_INTER = tuple(f.name for f in InterLoopClosureConfig.__dataclass_fields__.values())
+_SEEDS = {"random_number_generator_seed"}
+_STD_DEVS = {"std_dev_position", "std_dev_angle", "std_dev_intra_loop_closure_position",
+             "std_dev_intra_loop_closure_angle", "std_dev_loop_closure_position", "std_dev_loop_closure_angle"}
+_PROBABILITIES = {"same_position_intra_loop_closure_probability", "same_position_loop_closure_probability"}
+_RADII = {"intra_loop_closure_radius", "loop_closure_radius"}
+_INT32 = 2**31 - 1
+
+
+class _Reader:
+    def __init__(self, source: str, warn: Callable[[str], None] | None) -> None:
+        self.source = source
+        self.warn = warn
+
+    def fail(self, path: str, msg: str) -> ConfigError:
+        where = f"{self.source}: {path}" if path else self.source
+        return ConfigError(f"{where}: {msg}")
+
+    def obj(self, value: Any, path: str, known: tuple[str, ...]) -> dict:
+        if not isinstance(value, dict):
+            raise self.fail(path, f"must be a JSON object, got {_kind(value)}")
+        if self.warn is not None:
+            for key in value:
+                if key not in known:
+                    close = difflib.get_close_matches(key, known, n=1)
+                    hint = f" (did you mean {close[0]!r}?)" if close else ""
+                    self.warn(f"{self.source}: {_join(path, key)}: unknown key, ignored{hint}")
+        return value
+
+    def get(self, obj: dict, key: str, path: str) -> Any:
+        if key not in obj:
+            raise self.fail(_join(path, key), "missing key")
+        return obj[key]
+
+    def number(self, obj: dict, key: str, path: str) -> float:
+        v = self.get(obj, key, path)
+        p = _join(path, key)
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise self.fail(p, f"must be a number, got {_kind(v)}")
+        v = float(v)
+        if not math.isfinite(v):
+            raise self.fail(p, "must be finite")
+        return v
+
+    def integer(self, obj: dict, key: str, path: str) -> int:
+        v = self.get(obj, key, path)
+        p = _join(path, key)
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise self.fail(p, f"must be an integer, got {_kind(v)}")
+        if isinstance(v, float):
+            if not (math.isfinite(v) and v == int(v)):
+                raise self.fail(p, f"must be an integer, got {v!r}")
+            v = int(v)
+        if not -_INT32 - 1 <= v <= _INT32:
+            raise self.fail(p, f"{v} does not fit kollagen's 32-bit int")
+        return v
+
+    def boolean(self, obj: dict, key: str, path: str) -> bool:
+        v = self.get(obj, key, path)
+        if not isinstance(v, bool):
+            raise self.fail(_join(path, key), f"must be true or false, got {_kind(v)}")
+        return v
+
+
+def _join(path: str, key: str) -> str:
+    return f"{path}.{key}" if path else key
+
+
+def _kind(v: Any) -> str:
+    if v is None:
+        return "null"
+    if isinstance(v, bool):
+        return "a boolean"
+    if isinstance(v, (int, float)):
+        return f"the number {v!r}"
+    if isinstance(v, str):
+        return f"the string {v[:30]!r}"
+    if isinstance(v, list):
+        return "an array"
+    return "an object"
+
+
+def _section(r: _Reader, obj: dict, path: str, names: tuple[str, ...]) -> dict:
+    out: dict[str, Any] = {}
+    for name in names:
+        p = _join(path, name)
+        if name in _SEEDS:
+            out[name] = r.integer(obj, name, path)
+            continue
+        v = r.number(obj, name, path)
+        if name in _STD_DEVS and v < 0:
+            raise r.fail(p, f"a standard deviation cannot be negative, got {v!r}")
+        if name in _RADII and v <= 0:
+            raise r.fail(p, f"must be positive, got {v!r}")
+        if name.startswith("estimated_information") and v < 0:
+            raise r.fail(p, f"information cannot be negative, got {v!r}")
+        if (name in _PROBABILITIES or name.endswith("probability_scaling")) and v < 0:
+            raise r.fail(p, f"cannot be negative, got {v!r}")
+        out[name] = v
+    return out
+
+
+def parse_synth_config(data: Any, *, source: str = "<config>", name: str = "dataset",
+                       warn: Callable[[str], None] | None = None) -> SynthConfig:
+    """Validate a decoded JSON document and build the config."""
+    r = _Reader(source, warn)
+    top = r.obj(data, "", _TOP)
+    n_agents = r.integer(top, "number_of_agents", "")
+    if n_agents <= 0:
+        raise r.fail("number_of_agents", f"must be at least 1, got {n_agents}")
+    n_steps = r.integer(top, "number_of_steps", "")
+    if n_steps <= 0:
+        raise r.fail("number_of_steps", f"must be at least 1, got {n_steps}")
+    align = r.boolean(top, "align", "")
+    exact = r.boolean(top, "exact_information_matrix", "")
+    ap = r.obj(r.get(top, "agent_parameters", ""), "agent_parameters", _AGENT_PARAMS)
+    stepsize = r.number(ap, "stepsize", "agent_parameters")
+    if stepsize <= 0:
+        raise r.fail("agent_parameters.stepsize", f"must be positive, got {stepsize!r}")
+    frag = r.integer(ap, "step_fragment", "agent_parameters")
+    if frag <= 0:
+        raise r.fail("agent_parameters.step_fragment", f"must be at least 1, got {frag}")
+    retro = r.boolean(ap, "allow_retrocession", "agent_parameters")
+    specs = r.get(ap, "agent_specific", "agent_parameters")
+    if not isinstance(specs, list):
+        raise r.fail("agent_parameters.agent_specific", f"must be an array, got {_kind(specs)}")
+    if len(specs) not in (1, n_agents):
+        raise r.fail(
+            "agent_parameters.agent_specific",
+            f"has {len(specs)} entries; it needs 1 (shared by all agents) or number_of_agents = {n_agents}",
+        )
+    agents = []
+    for k, spec in enumerate(specs):
+        path = f"agent_parameters.agent_specific[{k}]"
+        agents.append(AgentConfig(**_section(r, r.obj(spec, path, _AGENT), path, _AGENT)))
+    if len(agents) == 1:
+        agents = agents * n_agents
+    ip = "inter_agent_loop_closure_parameters"
+    inter = InterLoopClosureConfig(**_section(r, r.obj(r.get(top, ip, ""), ip, _INTER), ip, _INTER))
+    return SynthConfig(
+        number_of_steps=n_steps, align=align, number_of_agents=n_agents, exact_information_matrix=exact,
+        stepsize=stepsize, step_fragment=frag, allow_retrocession=retro, agents=tuple(agents), inter=inter,
+        name=name,
+    )
+
+
+def read_synth_config(path: str | os.PathLike, *, warn: Callable[[str], None] | None = None) -> SynthConfig:
+    """Read a kollagen JSON file; the dataset is named after the file's stem (as kollagen does)."""
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        if path.is_dir():
+            raise ConfigError(f"{path}: is a folder, not a JSON file")
+        if size > MAX_CONFIG_BYTES:
+            raise ConfigError(f"{path}: {size} bytes is too large for a config (limit {MAX_CONFIG_BYTES})")
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such file") from None
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read ({err.strerror})") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        line = raw[: err.start].count(b"\n") + 1
+        raise ConfigError(f"{path}:{line}: not UTF-8 text") from None
+    try:
+        data = json.loads(text, parse_constant=_reject_constant)
+    except json.JSONDecodeError as err:
+        raise ConfigError(f"{path}:{err.lineno}:{err.colno}: invalid JSON: {err.msg}") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: invalid JSON: nested too deeply") from None
+    except ValueError as err:
+        raise ConfigError(f"{path}: invalid JSON: {err}") from None
+    return parse_synth_config(data, source=str(path), name=path.stem, warn=warn)
+
+
+def _reject_constant(name: str):
+    raise ValueError(f"{name} is not valid JSON")
+
+
+def synth_config_to_json(cfg: SynthConfig) -> dict:
+    """The config as kollagen's JSON document (one ``agent_specific`` entry per agent)."""
+    def fields(obj) -> dict:
+        return {k: getattr(obj, k) for k in obj.__dataclass_fields__}
+
+    return {
+        "number_of_steps": cfg.number_of_steps,
+        "align": cfg.align,
+        "number_of_agents": cfg.number_of_agents,
+        "exact_information_matrix": cfg.exact_information_matrix,
+        "agent_parameters": {
+            "stepsize": cfg.stepsize,
+            "step_fragment": cfg.step_fragment,
+            "allow_retrocession": cfg.allow_retrocession,
+            "agent_specific": [fields(a) for a in cfg.agents],
+        },
+        "inter_agent_loop_closure_parameters": fields(cfg.inter),
+    }

@@ -1,0 +1,139 @@
+"""TUM trajectory text: ``timestamp tx ty tz qx qy qz qw`` per line.
+
+Writing: whole-second timestamps are written with ``%.17g`` (``0``, ``1``, ... as kollagen writes
+node indices); other timestamps exactly from their nanoseconds (``1634567890.123456789``). Other
+numbers use ``%.17g``; a positive zero in tz, qx or qy is written ``0.0`` (kollagen's planar files).
+
+Reading accepts space- or comma-separated columns, ``#`` comments and one header line, and returns
+int64 nanosecond stamps and ``(n, 7)`` poses with normalised quaternions.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+from dataclasses import dataclass
+from typing import IO
+
+import numpy as np
+
+from studio.errors import FormatError
+from studio.io.g2o import _open_text, format_rows_fast
+from studio.io.textfmt import format_column
+
+__all__ = ["TumTrajectory", "write_tum", "read_tum", "tum_lines", "format_stamps"]
+
+_NS = 1_000_000_000
+_DECIMAL = re.compile(r"^([+-]?)(\d*)(?:\.(\d*))?$")
+
+
+@dataclass(frozen=True, eq=False)
+class TumTrajectory:
+    stamps_ns: np.ndarray
+    """int64 nanoseconds."""
+    poses: np.ndarray
+    """``(n, 7)``: x, y, z, qx, qy, qz, qw."""
+
+
+def format_stamps(stamps_ns: np.ndarray) -> list[str]:
+    stamps_ns = np.asarray(stamps_ns, dtype=np.int64)
+    if np.all(stamps_ns % _NS == 0):
+        return format_column((stamps_ns // _NS).astype(np.float64))
+    sec, frac = np.divmod(stamps_ns, _NS)
+    return [f"{s}.{f:09d}" for s, f in zip(sec.tolist(), frac.tolist())]
+
+
+def tum_lines(stamps_ns: np.ndarray, poses: np.ndarray) -> list[str]:
+    stamps = format_stamps(stamps_ns)
+    body = format_rows_fast(np.asarray(poses, dtype=np.float64), ["%.17g"] * 7,
+                            [None, None, "0.0", "0.0", "0.0", None, None])
+    return [f"{t} {b}\n" for t, b in zip(stamps, body)]
+
+
+def write_tum(target: str | os.PathLike | IO[str], stamps_ns: np.ndarray, poses: np.ndarray) -> None:
+    text = "".join(tum_lines(stamps_ns, poses))
+    if hasattr(target, "write"):
+        target.write(text)
+    else:
+        with open(target, "w", encoding="ascii", newline="\n") as f:
+            f.write(text)
+
+
+def _stamp_ns(token: str) -> int:
+    m = _DECIMAL.match(token)
+    if m and (m.group(2) or m.group(3)):
+        sign = -1 if m.group(1) == "-" else 1
+        whole = int(m.group(2) or 0)
+        frac = (m.group(3) or "")[:9].ljust(9, "0")
+        return sign * (whole * _NS + int(frac))
+    value = float(token)  # exponent notation
+    if not np.isfinite(value):
+        raise ValueError(token)
+    return int(round(value * _NS))
+
+
+def read_tum(source: str | os.PathLike | IO[str]) -> TumTrajectory:
+    text, name = _open_text(source)
+    stamps: list[int] = []
+    rows: list[list[float]] = []
+    lines: list[int] = []
+    seen_data = False
+    for lineno, raw in enumerate(io.StringIO(text), start=1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = line.replace(",", " ").split()
+        if len(parts) != 8:
+            if not seen_data and not _looks_numeric(parts[0]):
+                seen_data = True  # one header line
+                continue
+            raise FormatError(f"{name}:{lineno}: expected 8 columns (t x y z qx qy qz qw), found {len(parts)}")
+        try:
+            stamp = _stamp_ns(parts[0])
+        except (ValueError, OverflowError):
+            if not seen_data and not stamps:
+                seen_data = True
+                continue
+            raise FormatError(f"{name}:{lineno}: timestamp {parts[0][:40]!r} is not a number") from None
+        try:
+            vals = [float(p) for p in parts[1:]]
+        except ValueError:
+            bad = next(p for p in parts[1:] if not _is_float(p))
+            raise FormatError(f"{name}:{lineno}: {bad[:40]!r} is not a number") from None
+        if not all(np.isfinite(vals)):
+            raise FormatError(f"{name}:{lineno}: value is not finite")
+        if not -(2**63) <= stamp < 2**63:
+            raise FormatError(f"{name}:{lineno}: timestamp out of range")
+        seen_data = True
+        stamps.append(stamp)
+        rows.append(vals)
+        lines.append(lineno)
+    if not rows:
+        raise FormatError(f"{name}: no poses")
+    poses = np.array(rows, dtype=np.float64)
+    norms = np.linalg.norm(poses[:, 3:7], axis=1)
+    bad = np.flatnonzero(norms < 1e-9)
+    if bad.size:
+        raise FormatError(f"{name}:{lines[bad[0]]}: quaternion is zero")
+    far = np.flatnonzero(np.abs(norms - 1.0) > 1e-12)
+    if far.size:
+        poses[far, 3:7] /= norms[far, None]
+    st = np.array(stamps, dtype=np.int64)
+    dec = np.flatnonzero(np.diff(st) <= 0)
+    if dec.size:
+        k = int(dec[0]) + 1
+        raise FormatError(f"{name}:{lines[k]}: timestamps must increase")
+    return TumTrajectory(st, poses)
+
+
+def _is_float(tok: str) -> bool:
+    try:
+        float(tok)
+        return True
+    except ValueError:
+        return False
+
+
+def _looks_numeric(tok: str) -> bool:
+    return _is_float(tok)

@@ -1,0 +1,311 @@
+"""The shared in-memory model of a multi-agent pose graph (pure data, no I/O).
+
+Everything is stored as numpy columns, one array per quantity, never one Python object per pose or
+edge. A graph is planar (:attr:`PoseKind.SE2`: poses ``[x, y, theta]``, information upper triangle of
+3x3 = 6 values) or spatial (:attr:`PoseKind.SE3`: poses ``[x, y, z, qx, qy, qz, qw]``, information
+upper triangle of 6x6 = 21 values over ``(x, y, z, rx, ry, rz)``). Edge measurements are the pose of
+the ``to`` vertex expressed in the frame of the ``from`` vertex (the g2o convention).
+
+The containers enforce their invariants at construction and raise :class:`~studio.errors.GraphError`.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from studio.errors import GraphError
+from studio.geometry import se2_information_to_se3, yaw_to_quat_xyzw
+
+__all__ = ["PoseKind", "Edges", "InterAgentEdges", "AgentGraph", "PoseGraph", "graphs_equal"]
+
+_QUAT_TOLERANCE = 1e-6
+
+
+class PoseKind(str, enum.Enum):
+    SE2 = "SE2"
+    SE3 = "SE3"
+
+    @property
+    def pose_width(self) -> int:
+        return 3 if self is PoseKind.SE2 else 7
+
+    @property
+    def information_width(self) -> int:
+        return 6 if self is PoseKind.SE2 else 21
+
+
+def _as_index(a, name: str) -> np.ndarray:
+    arr = np.ascontiguousarray(a, dtype=np.int64)
+    if arr.ndim != 1:
+        raise GraphError(f"{name} must be one-dimensional, got shape {arr.shape}")
+    return arr
+
+
+def _as_rows(a, width: int, name: str) -> np.ndarray:
+    arr = np.ascontiguousarray(a, dtype=np.float64)
+    if arr.ndim == 1 and arr.size == 0:
+        arr = arr.reshape(0, width)
+    if arr.ndim != 2 or arr.shape[1] != width:
+        raise GraphError(f"{name} must have shape (n, {width}), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.flatnonzero(~np.all(np.isfinite(arr), axis=1))[0])
+        raise GraphError(f"{name} row {bad} is not finite")
+    return arr
+
+
+def _check_poses(poses: np.ndarray, kind: PoseKind, name: str) -> None:
+    if kind is PoseKind.SE3 and len(poses):
+        norms = np.linalg.norm(poses[:, 3:7], axis=1)
+        bad = np.flatnonzero(np.abs(norms - 1.0) > _QUAT_TOLERANCE)
+        if bad.size:
+            raise GraphError(f"{name} row {int(bad[0])} has a non-unit quaternion (norm {norms[bad[0]]:.9g})")
+
+
+@dataclass(frozen=True, eq=False)
+class Edges:
+    """Edges inside one agent: vertex indices are 0-based positions in that agent's poses."""
+
+    kind: PoseKind
+    from_index: np.ndarray
+    to_index: np.ndarray
+    measurements: np.ndarray
+    information_upper: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "from_index", _as_index(self.from_index, "from_index"))
+        object.__setattr__(self, "to_index", _as_index(self.to_index, "to_index"))
+        object.__setattr__(
+            self, "measurements", _as_rows(self.measurements, self.kind.pose_width, "measurements")
+        )
+        object.__setattr__(
+            self,
+            "information_upper",
+            _as_rows(self.information_upper, self.kind.information_width, "information_upper"),
+        )
+        n = len(self.from_index)
+        if not (len(self.to_index) == len(self.measurements) == len(self.information_upper) == n):
+            raise GraphError("edge columns must have matching lengths")
+        _check_poses(self.measurements, self.kind, "measurements")
+
+    def __len__(self) -> int:
+        return len(self.from_index)
+
+    @classmethod
+    def empty(cls, kind: PoseKind) -> "Edges":
+        return cls(kind, [], [], np.zeros((0, kind.pose_width)), np.zeros((0, kind.information_width)))
+
+    def to_se3(self) -> "Edges":
+        if self.kind is PoseKind.SE3:
+            return self
+        return Edges(
+            PoseKind.SE3,
+            self.from_index,
+            self.to_index,
+            _lift_poses(self.measurements),
+            se2_information_to_se3(self.information_upper),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class InterAgentEdges:
+    """Edges between agents; agents are 0-based positions in :attr:`PoseGraph.agents`."""
+
+    kind: PoseKind
+    from_agent: np.ndarray
+    from_index: np.ndarray
+    to_agent: np.ndarray
+    to_index: np.ndarray
+    measurements: np.ndarray
+    information_upper: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name in ("from_agent", "from_index", "to_agent", "to_index"):
+            object.__setattr__(self, name, _as_index(getattr(self, name), name))
+        object.__setattr__(
+            self, "measurements", _as_rows(self.measurements, self.kind.pose_width, "measurements")
+        )
+        object.__setattr__(
+            self,
+            "information_upper",
+            _as_rows(self.information_upper, self.kind.information_width, "information_upper"),
+        )
+        n = len(self.from_index)
+        lengths = {len(self.from_agent), len(self.to_agent), len(self.to_index)}
+        lengths |= {len(self.measurements), len(self.information_upper)}
+        if lengths != {n}:
+            raise GraphError("inter-agent edge columns must have matching lengths")
+        _check_poses(self.measurements, self.kind, "inter-agent measurements")
+
+    def __len__(self) -> int:
+        return len(self.from_index)
+
+    @classmethod
+    def empty(cls, kind: PoseKind) -> "InterAgentEdges":
+        z = np.zeros(0, dtype=np.int64)
+        return cls(kind, z, z, z, z, np.zeros((0, kind.pose_width)), np.zeros((0, kind.information_width)))
+
+    def to_se3(self) -> "InterAgentEdges":
+        if self.kind is PoseKind.SE3:
+            return self
+        return InterAgentEdges(
+            PoseKind.SE3,
+            self.from_agent,
+            self.from_index,
+            self.to_agent,
+            self.to_index,
+            _lift_poses(self.measurements),
+            se2_information_to_se3(self.information_upper),
+        )
+
+
+def _lift_poses(poses: np.ndarray) -> np.ndarray:
+    out = np.zeros((len(poses), 7))
+    out[:, 0:2] = poses[:, 0:2]
+    out[:, 3:7] = yaw_to_quat_xyzw(poses[:, 2])
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class AgentGraph:
+    """One agent: its poses (ground truth and initial estimate), odometry and intra-agent loop closures."""
+
+    name: str
+    kind: PoseKind
+    stamps_ns: np.ndarray
+    """Timestamp of each pose, int64 nanoseconds (synthetic data: node index in seconds)."""
+    initial: np.ndarray
+    """Initial estimate (dead reckoning), one row per pose."""
+    ground_truth: np.ndarray | None
+    """Ground truth, one row per pose, or None where a dataset has none."""
+    odometry: Edges
+    loop_closures: Edges
+
+    def __post_init__(self) -> None:
+        if not self.name:
+            raise GraphError("an agent needs a name")
+        object.__setattr__(self, "stamps_ns", _as_index(self.stamps_ns, f"{self.name}: stamps_ns"))
+        w = self.kind.pose_width
+        object.__setattr__(self, "initial", _as_rows(self.initial, w, f"{self.name}: initial"))
+        n = len(self.initial)
+        if n == 0:
+            raise GraphError(f"{self.name}: an agent needs at least one pose")
+        if len(self.stamps_ns) != n:
+            raise GraphError(f"{self.name}: {len(self.stamps_ns)} stamps for {n} poses")
+        if n > 1 and np.any(np.diff(self.stamps_ns) <= 0):
+            bad = int(np.flatnonzero(np.diff(self.stamps_ns) <= 0)[0]) + 1
+            raise GraphError(f"{self.name}: stamps must increase (pose {bad})")
+        _check_poses(self.initial, self.kind, f"{self.name}: initial")
+        if self.ground_truth is not None:
+            gt = _as_rows(self.ground_truth, w, f"{self.name}: ground_truth")
+            if len(gt) != n:
+                raise GraphError(f"{self.name}: {len(gt)} ground-truth poses for {n} poses")
+            _check_poses(gt, self.kind, f"{self.name}: ground_truth")
+            object.__setattr__(self, "ground_truth", gt)
+        for label, edges in (("odometry", self.odometry), ("loop closure", self.loop_closures)):
+            if edges.kind is not self.kind:
+                raise GraphError(f"{self.name}: {label} edges are {edges.kind.value}, poses {self.kind.value}")
+            for col in (edges.from_index, edges.to_index):
+                bad = np.flatnonzero((col < 0) | (col >= n))
+                if bad.size:
+                    raise GraphError(
+                        f"{self.name}: {label} edge {int(bad[0])} refers to vertex {int(col[bad[0]])}, "
+                        f"but the agent has {n} poses"
+                    )
+
+    @property
+    def num_poses(self) -> int:
+        return len(self.initial)
+
+    def to_se3(self) -> "AgentGraph":
+        if self.kind is PoseKind.SE3:
+            return self
+        return AgentGraph(
+            self.name,
+            PoseKind.SE3,
+            self.stamps_ns,
+            _lift_poses(self.initial),
+            None if self.ground_truth is None else _lift_poses(self.ground_truth),
+            self.odometry.to_se3(),
+            self.loop_closures.to_se3(),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class PoseGraph:
+    """Several agents and the loop closures between them."""
+
+    kind: PoseKind
+    agents: tuple[AgentGraph, ...]
+    inter: InterAgentEdges
+    metadata: dict = field(default_factory=dict)
+    """Free-form facts about the dataset (config that made it, source files); not compared."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "agents", tuple(self.agents))
+        if not self.agents:
+            raise GraphError("a pose graph needs at least one agent")
+        names = [a.name for a in self.agents]
+        if len(set(names)) != len(names):
+            raise GraphError(f"agent names must be unique: {names}")
+        for a in self.agents:
+            if a.kind is not self.kind:
+                raise GraphError(f"agent {a.name} is {a.kind.value}, graph is {self.kind.value}")
+        if self.inter.kind is not self.kind:
+            raise GraphError("inter-agent edges must have the graph's pose kind")
+        sizes = np.array([a.num_poses for a in self.agents])
+        for side in ("from", "to"):
+            agent = getattr(self.inter, f"{side}_agent")
+            index = getattr(self.inter, f"{side}_index")
+            bad = np.flatnonzero((agent < 0) | (agent >= len(self.agents)))
+            if bad.size:
+                raise GraphError(f"inter-agent edge {int(bad[0])} refers to unknown agent {int(agent[bad[0]])}")
+            bad = np.flatnonzero((index < 0) | (index >= sizes[agent]))
+            if bad.size:
+                k = int(bad[0])
+                raise GraphError(
+                    f"inter-agent edge {k} refers to vertex {int(index[k])} of agent "
+                    f"{self.agents[agent[k]].name}, which has {int(sizes[agent[k]])} poses"
+                )
+
+    @property
+    def num_poses(self) -> int:
+        return sum(a.num_poses for a in self.agents)
+
+    def edge_counts(self) -> dict[str, int]:
+        return {
+            "odometry": sum(len(a.odometry) for a in self.agents),
+            "intra_loop_closures": sum(len(a.loop_closures) for a in self.agents),
+            "inter_loop_closures": len(self.inter),
+        }
+
+    def to_se3(self) -> "PoseGraph":
+        if self.kind is PoseKind.SE3:
+            return self
+        return PoseGraph(
+            PoseKind.SE3, tuple(a.to_se3() for a in self.agents), self.inter.to_se3(), dict(self.metadata)
+        )
+
+
+def _same(a, b) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+def graphs_equal(a: PoseGraph, b: PoseGraph) -> bool:
+    """True when both graphs hold bit-identical columns (metadata is ignored)."""
+    if a.kind is not b.kind or len(a.agents) != len(b.agents):
+        return False
+    cols = ("from_index", "to_index", "measurements", "information_upper")
+    for x, y in zip(a.agents, b.agents):
+        if x.name != y.name or not all(
+            _same(getattr(x, c), getattr(y, c)) for c in ("stamps_ns", "initial", "ground_truth")
+        ):
+            return False
+        for ex, ey in ((x.odometry, y.odometry), (x.loop_closures, y.loop_closures)):
+            if not all(_same(getattr(ex, c), getattr(ey, c)) for c in cols):
+                return False
+    return all(_same(getattr(a.inter, c), getattr(b.inter, c)) for c in cols + ("from_agent", "to_agent"))
