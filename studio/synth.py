@@ -1,0 +1,77 @@
+"""``studio synth`` as a library function: kollagen config in, kollagen's files out (atomically)."""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+from generator.config import SynthConfig
+from generator.kollagen import SynthOutput, generate
+from generator.presets import PRESETS, preset, preset_names
+from studio.errors import ConfigError
+from studio.io.atomic import staged_outputs
+from studio.io.multig2o import Records, write_multi_g2o
+from studio.io.singleg2o import write_single_g2o, write_single_tum
+from studio.io.synth_config import read_synth_config, synth_config_to_json
+
+__all__ = ["SynthResult", "load_synth_config", "synthesize", "write_kollagen_outputs"]
+
+
+@dataclass(frozen=True, eq=False)
+class SynthResult:
+    config: SynthConfig
+    output: SynthOutput
+    dataset_dir: Path
+    """``OUT/<name>``: the multi-g2o folder."""
+    single_dir: Path
+    """``OUT/<name>_singleg2o``: the single g2o file and the two TUM files."""
+    config_path: Path
+    """``OUT/<name>.config.json``: the effective config (kollagen JSON)."""
+
+
+def load_synth_config(source: str | os.PathLike, *, warn: Callable[[str], None] | None = None) -> SynthConfig:
+    """A preset name (``multi3500x8``, ``multi10000x5``) or the path of a kollagen JSON file."""
+    text = str(source)
+    if text.lower() in PRESETS and not Path(text).exists():
+        return preset(text)
+    path = Path(text)
+    if not path.exists():
+        raise ConfigError(f"{text}: no such file, and not a preset (presets: {', '.join(preset_names())})")
+    return read_synth_config(path, warn=warn)
+
+
+def write_kollagen_outputs(out: SynthOutput, parent: Path, name: str, *, multi_records: Records = "3d",
+                           single_records: Records = "2d") -> None:
+    """Write kollagen's files for ``out`` under ``parent`` (no staging; see :func:`synthesize`)."""
+    multi = parent / name
+    multi.mkdir()
+    write_multi_g2o(out.graph, multi, records=multi_records)
+    single = parent / f"{name}_singleg2o"
+    single.mkdir()
+    write_single_g2o(out.graph, single / f"{name}.g2o", records=single_records,
+                     connector_information=out.connector_information,
+                     odometry_information=out.exact_odometry_information)
+    write_single_tum(out.graph, single / f"{name}_GT.tum", ground_truth=True)
+    write_single_tum(out.graph, single / f"{name}.tum", ground_truth=False)
+
+
+def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool = False,
+               multi_records: Records = "3d", single_records: Records = "2d") -> SynthResult:
+    """Generate ``config`` and write it as kollagen's ``generate CONFIG OUT`` does.
+
+    Writes ``OUT/<name>/`` (multi-g2o), ``OUT/<name>_singleg2o/`` and ``OUT/<name>.config.json``,
+    all staged and renamed into place at the end. Existing outputs are replaced only with ``force``.
+    """
+    out_dir = Path(out_dir)
+    name = config.name
+    names = [name, f"{name}_singleg2o", f"{name}.config.json"]
+    with staged_outputs(out_dir, names, force=force) as staging:
+        output = generate(config)
+        write_kollagen_outputs(output, staging, name, multi_records=multi_records, single_records=single_records)
+        with open(staging / names[2], "w", encoding="utf-8") as f:
+            json.dump(synth_config_to_json(config), f, indent=4)
+            f.write("\n")
+    return SynthResult(config, output, out_dir / name, out_dir / names[1], out_dir / names[2])
