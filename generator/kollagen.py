@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from generator.config import SynthConfig
+from generator.parallel import parallel_map
 from generator.rng import MT19937Stream, canonical_doubles, polar_normal
 from studio.geometry import normalize_angle
 from studio.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
@@ -329,24 +330,24 @@ def _order_hits(k, dx, dy, circle: _CircleTable) -> np.ndarray:
 def _sample(stream: MT19937Stream, probs: np.ndarray, cached: float | None):
     """Decide every hit with one uniform each; accepted hits draw three normals.
 
-    Returns (accepted hit indices, (n, 3) normals, cache state after the last draw). Advances the
+    Between two accepted hits the uniforms sit at fixed stream positions, so a whole chunk of hits is
+    compared with its uniforms at once and only accepted hits (and their normals) run in Python.
+    Returns (accepted hit indices, (n, 3) normals, cache state after the last draw) and advances the
     stream past everything consumed.
     """
     n_hits = len(probs)
     accepted: list[int] = []
-    normals: list[tuple[float, float, float]] = []
-    budget = n_hits + 64
+    normals: list[float] = []
+    # expected uniforms: one per hit plus about 2.5 per accepted hit for its three normals
+    budget = n_hits + int(3 * float(probs.sum())) + 1024
     u = stream.uniforms(budget)
-    ul = None  # Python list view of u, made lazily for the scalar normal draws
     h = 0  # next hit
     q = 0  # next uniform
     chunk = 256
     while h < n_hits:
         k = min(chunk, n_hits - h)
         if q + k + 64 > len(u):
-            budget = max(2 * len(u), q + k + 4096)
-            u = stream.uniforms(budget)
-            ul = None
+            u = stream.uniforms(max(2 * len(u), q + k + 4096))
         hit = probs[h : h + k] > u[q : q + k]
         t = int(hit.argmax())
         if not hit[t]:
@@ -357,26 +358,26 @@ def _sample(stream: MT19937Stream, probs: np.ndarray, cached: float | None):
         h += t
         q += t + 1
         chunk = max(64, 2 * (t + 1))
-        if ul is None:
-            ul = u.tolist()
-        vals = []
         for _ in range(3):
             if cached is not None:
-                vals.append(cached)
+                normals.append(cached)
                 cached = None
                 continue
             while True:
+                window = u[q : q + 16].tolist()
                 try:
-                    ret, keep, q = polar_normal(ul, q)
+                    ret, keep, used = polar_normal(window, 0)
                     break
-                except IndexError:
-                    budget = 2 * len(u)
-                    u = stream.uniforms(budget)
-                    ul = u.tolist()
-            vals.append(ret)
+                except IndexError:  # 8 rejections in a row, or the end of the buffer
+                    if q + 64 > len(u):
+                        u = stream.uniforms(2 * len(u))
+                    window = u[q : q + 4096].tolist()
+                    ret, keep, used = polar_normal(window, 0)
+                    break
+            q += used
+            normals.append(ret)
             cached = keep
         accepted.append(h)
-        normals.append((vals[0], vals[1], vals[2]))
         h += 1
     stream.advance(2 * q)
     return np.array(accepted, dtype=np.int64), np.array(normals).reshape(-1, 3), cached
@@ -434,12 +435,14 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     return Edges(PoseKind.SE2, j_from, i_to, meas.reshape(-1, 3), info)
 
 
-def _inter_loop_closures(walks, cells, cfg: SynthConfig):
+def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None):
     p = cfg.inter
     radius = _round_to_int(p.loop_closure_radius * cfg.step_fragment / cfg.stepsize)
     circle = _CircleTable(radius)
-    cols: dict[str, list] = {c: [] for c in ("fa", "fi", "ta", "ti", "m")}
-    for a, b in agent_pairs(len(walks)):
+    pairs = agent_pairs(len(walks))
+
+    def one_pair(index: int):
+        a, b = pairs[index]
         wa, wb = walks[a], walks[b]
         (ax, ay), (bx, by) = cells[a], cells[b]
         # kollagen's map keeps the last visit of each cell of agent a
@@ -464,13 +467,10 @@ def _inter_loop_closures(walks, cells, cfg: SynthConfig):
             dY + noise[:, 1] * p.std_dev_loop_closure_position,
             dT + noise[:, 2] * p.std_dev_loop_closure_angle,
         ])
-        cols["fa"].append(np.full(len(acc), b))
-        cols["fi"].append(i_from)
-        cols["ta"].append(np.full(len(acc), a))
-        cols["ti"].append(j_to)
-        cols["m"].append(meas.reshape(-1, 3))
-    if not cols["fa"]:
-        return InterAgentEdges.empty(PoseKind.SE2)
+        return np.full(len(acc), b), i_from, np.full(len(acc), a), j_to, meas.reshape(-1, 3)
+
+    done = parallel_map(one_pair, len(pairs), jobs)
+    cols = {c: [d[k] for d in done] for k, c in enumerate(("fa", "fi", "ta", "ti", "m"))}
     meas = np.concatenate(cols["m"])
     info = _diag_information(len(meas), p.estimated_information_position, p.estimated_information_angle)
     return InterAgentEdges(
@@ -519,22 +519,30 @@ def _exact_odometry_information(walk: _Walk, cfg: SynthConfig, agent) -> np.ndar
 # --------------------------------------------------------------------------------------------------
 
 
-def generate(cfg: SynthConfig) -> SynthOutput:
-    """Run kollagen's generator: walk, intra-agent loop closures, alignment, inter-agent loop closures."""
+def generate(cfg: SynthConfig, *, jobs: int | None = None) -> SynthOutput:
+    """Run kollagen's generator: walk, intra-agent loop closures, alignment, inter-agent loop closures.
+
+    ``jobs`` processes share the agents and then the agent pairs (default: every core this process
+    may use); the output does not depend on it.
+    """
     seeds = effective_seeds([a.random_number_generator_seed for a in cfg.agents])
-    walks: list[_Walk] = []
-    intra: list[Edges] = []
-    for agent, seed in zip(cfg.agents, seeds):
-        stream = MT19937Stream(seed)
-        walk = _random_walk(stream, cfg, agent)
-        intra.append(_intra_loop_closures(stream, walk, cfg, agent))
-        walks.append(walk)
+
+    def one_agent(k: int):
+        stream = MT19937Stream(seeds[k])
+        walk = _random_walk(stream, cfg, cfg.agents[k])
+        return walk, _intra_loop_closures(stream, walk, cfg, cfg.agents[k])
+
+    done = parallel_map(one_agent, len(seeds), jobs)
+    walks = [w for w, _ in done]
+    intra = [lc for _, lc in done]
 
     if cfg.align:
         walks = _align(walks)
 
     cells = [_grid_cells(w.x, w.y, cfg) for w in walks]
-    inter = _inter_loop_closures(walks, cells, cfg) if len(walks) > 1 else InterAgentEdges.empty(PoseKind.SE2)
+    inter = (
+        _inter_loop_closures(walks, cells, cfg, jobs) if len(walks) > 1 else InterAgentEdges.empty(PoseKind.SE2)
+    )
 
     agents = []
     exact = []

@@ -92,6 +92,9 @@ def synth(
 
 
 def main() -> None:
+    from studio.runtime import tune_allocator
+
+    tune_allocator()
     app()
 
 

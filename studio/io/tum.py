@@ -19,8 +19,8 @@ from typing import IO
 import numpy as np
 
 from studio.errors import FormatError
-from studio.io.g2o import _open_text, format_rows_fast
-from studio.io.textfmt import format_column
+from studio.io.g2o import SE3_POSE_ZERO_LITERAL, _open_text
+from studio.io.textfmt import format_column, format_columns
 
 __all__ = ["TumTrajectory", "write_tum", "read_tum", "tum_lines", "format_stamps"]
 
@@ -46,8 +46,7 @@ def format_stamps(stamps_ns: np.ndarray) -> list[str]:
 
 def tum_lines(stamps_ns: np.ndarray, poses: np.ndarray) -> list[str]:
     stamps = format_stamps(stamps_ns)
-    body = format_rows_fast(np.asarray(poses, dtype=np.float64), ["%.17g"] * 7,
-                            [None, None, "0.0", "0.0", "0.0", None, None])
+    body = format_columns(np.asarray(poses, dtype=np.float64), ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
     return [f"{t} {b}\n" for t, b in zip(stamps, body)]
 
 
