@@ -86,14 +86,14 @@ def effective_seeds(seeds: list[int]) -> tuple[int, ...]:
 
     A seed already used is replaced by the largest seed so far plus one. kollagen's list of used seeds
     starts with one zero per existing agent (its vector is sized, then appended to), so seed 0 counts
-    as used from the second agent on.
+    as used from the second agent on. The seed is a C++ ``int``, so ``INT_MAX + 1`` wraps around.
     """
     used: list[int] = []
     out = []
     for k, seed in enumerate(seeds):
         pool = [0] * k + used
         if k > 0 and seed in pool:
-            seed = max(pool) + 1
+            seed = (max(pool) + 1 + 2**31) % 2**32 - 2**31  # C++ int: INT_MAX + 1 wraps to INT_MIN
         used.append(seed)
         out.append(seed)
     return tuple(out)

@@ -20,6 +20,8 @@ def test_duplicate_seeds_are_replaced_like_kollagen():
     assert effective_seeds([5, 0]) == (5, 6)
     assert effective_seeds([0, 0, 0]) == (0, 1, 2)
     assert effective_seeds([0, 7]) == (0, 7)
+    # the replacement is a C++ int: INT_MAX + 1 wraps to INT_MIN (checked against kollagen's binary)
+    assert effective_seeds([2**31 - 1] * 3) == (2**31 - 1, -(2**31), -(2**31))
 
 
 def test_discrete_circle_order():
