@@ -68,6 +68,9 @@ def synth(
     single_records: RecordKind = typer.Option(
         RecordKind.d2, "--single-records", help="g2o records of the single g2o file (kollagen: 2d)."
     ),
+    jobs: int = typer.Option(0, "--jobs", "-j", help="Processes to use (0: every core available).", min=0),
+    max_memory_gb: float = typer.Option(8.0, "--max-memory-gb", help="Refuse configs estimated to need more memory."),
+    max_output_gb: float = typer.Option(20.0, "--max-output-gb", help="Refuse configs estimated to write more."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
 ) -> None:
     """Generate a multi-agent pose graph exactly as kollagen's `generate CONFIG OUT` does.
@@ -79,7 +82,8 @@ def synth(
     t0 = time.perf_counter()
     cfg = load_synth_config(config, warn=_warn)
     res = synthesize(cfg, out, force=force, multi_records=multi_records.value,
-                     single_records=single_records.value)
+                     single_records=single_records.value, jobs=jobs or None,
+                     max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
     if not quiet:
         counts = res.output.graph.edge_counts()
         typer.echo(

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from generator.config import SynthConfig
+from generator.config import SynthConfig, estimate_resources
 from generator.kollagen import SynthOutput, generate
 from generator.parallel import parallel_map
 from generator.presets import PRESETS, preset, preset_names
@@ -76,15 +76,40 @@ def write_kollagen_outputs(out: SynthOutput, parent: Path, name: str, *, multi_r
     parallel_map(run, len(tasks), jobs)
 
 
+#: Default resource limits of :func:`synthesize` (lifted with ``max_memory_gb`` / ``max_output_gb``).
+DEFAULT_MAX_MEMORY_GB = 8.0
+DEFAULT_MAX_OUTPUT_GB = 20.0
+
+
+def check_resources(config: SynthConfig, *, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
+                    max_output_gb: float = DEFAULT_MAX_OUTPUT_GB) -> None:
+    """Refuse, before any work, a config whose estimated memory or output size is over the limits."""
+    memory, output = estimate_resources(config)
+    poses = config.number_of_agents * config.poses_per_agent
+    if memory > max_memory_gb * 1e9:
+        raise ConfigError(
+            f"{config.name}: {poses:.3g} poses would need about {memory / 1e9:.3g} GB of memory, over the "
+            f"{max_memory_gb:g} GB limit (raise it with --max-memory-gb)"
+        )
+    if output > max_output_gb * 1e9:
+        raise ConfigError(
+            f"{config.name}: {poses:.3g} poses would write about {output / 1e9:.3g} GB, over the "
+            f"{max_output_gb:g} GB limit (raise it with --max-output-gb)"
+        )
+
+
 def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool = False,
                multi_records: Records = "3d", single_records: Records = "2d",
-               jobs: int | None = None) -> SynthResult:
+               jobs: int | None = None, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
+               max_output_gb: float = DEFAULT_MAX_OUTPUT_GB) -> SynthResult:
     """Generate ``config`` and write it as kollagen's ``generate CONFIG OUT`` does.
 
     Writes ``OUT/<name>/`` (multi-g2o), ``OUT/<name>_singleg2o/`` and ``OUT/<name>.config.json``,
     all staged and renamed into place at the end. Existing outputs are replaced only with ``force``.
     ``jobs`` caps the processes used (default: every core available); the bytes do not depend on it.
+    Configs estimated to need more memory or disk than the limits are refused before any work.
     """
+    check_resources(config, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
     out_dir = Path(out_dir)
     name = config.name
     names = [name, f"{name}_singleg2o", f"{name}.config.json"]

@@ -122,6 +122,11 @@ BAD = [
     ("zero stepsize", _mutate("agent_parameters.stepsize", 0), "agent_parameters.stepsize: must be positive, got 0.0"),
     ("negative stepsize", _mutate("agent_parameters.stepsize", -1.0),
      "agent_parameters.stepsize: must be positive, got -1.0"),
+    ("negative steps", _mutate("number_of_steps", -5), "number_of_steps: must be at least 1, got -5"),
+    ("negative step fragment", _mutate("agent_parameters.step_fragment", -2),
+     "agent_parameters.step_fragment: must be at least 1, got -2"),
+    ("steps beyond int", _mutate("number_of_steps", 10**13),
+     "number_of_steps: 10000000000000 does not fit kollagen's 32-bit int"),
     ("zero step fragment", _mutate("agent_parameters.step_fragment", 0),
      "agent_parameters.step_fragment: must be at least 1, got 0"),
     ("bool as number", _mutate("align", 1), "align: must be true or false, got the number 1"),
@@ -181,3 +186,18 @@ def test_exact_information_needs_positive_noise(tmp_path):
     res = _run(_write(tmp_path, data), "-o", tmp_path / "out")
     assert res.exit_code == 2
     assert "agent_parameters.agent_specific[0].std_dev_angle: must be positive when exact_information_matrix" in res.stderr
+
+
+def test_resource_guard_refuses_huge_configs_before_any_work(tmp_path):
+    data = _mutate("number_of_steps", 2 * 10**9)
+    res = _run(_write(tmp_path, data, "huge"), "-o", tmp_path / "out")
+    assert res.exit_code == 2
+    assert res.stderr.strip() == (
+        "error: huge: 2.4e+10 poses would need about 7.2e+04 GB of memory, over the 8 GB limit "
+        "(raise it with --max-memory-gb)"
+    )
+    assert not (tmp_path / "out").exists()
+    res = _run(_write(tmp_path, _mutate("number_of_steps", 2 * 10**6), "big"), "-o", tmp_path / "out",
+               "--max-memory-gb", "1e9")
+    assert res.exit_code == 2
+    assert "would write about 36 GB, over the 20 GB limit (raise it with --max-output-gb)" in res.stderr
