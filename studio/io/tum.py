@@ -40,8 +40,9 @@ def format_stamps(stamps_ns: np.ndarray) -> list[str]:
     stamps_ns = np.asarray(stamps_ns, dtype=np.int64)
     if np.all(stamps_ns % _NS == 0):
         return format_column((stamps_ns // _NS).astype(np.float64))
-    sec, frac = np.divmod(stamps_ns, _NS)
-    return [f"{s}.{f:09d}" for s, f in zip(sec.tolist(), frac.tolist())]
+    sign = np.where(stamps_ns < 0, "-", "")
+    sec, frac = np.divmod(np.abs(stamps_ns), _NS)
+    return [f"{g}{s}.{f:09d}" for g, s, f in zip(sign.tolist(), sec.tolist(), frac.tolist())]
 
 
 def tum_lines(stamps_ns: np.ndarray, poses: np.ndarray) -> list[str]:
