@@ -95,6 +95,53 @@ def synth(
         )
 
 
+class AlignChoice(str, enum.Enum):
+    none = "none"
+    se3 = "se3"
+    sim3 = "sim3"
+
+
+@app.command()
+@cli_errors
+def evaluate(
+    dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder with <agent>_GT.tum ground truth."),
+    estimate: Path = typer.Option(
+        None, "--estimate", "-e",
+        help="An optimizer's output: a single g2o file (ids as in the dataset's single g2o), a multi-g2o "
+             "folder, or a folder of <agent>.tum / <agent>_*.tum files. Default: the dataset's initial estimate.",
+    ),
+    align: AlignChoice = typer.Option(AlignChoice.none, "--align", help="Umeyama alignment before scoring."),
+    align_per_agent: bool = typer.Option(False, "--align-per-agent", help="One alignment per agent, not one for all."),
+    rpe_delta_m: float = typer.Option(1.0, "--rpe-delta-m", help="RPE distance in metres of ground-truth path."),
+    rpe_delta_nodes: int = typer.Option(1, "--rpe-delta-nodes", help="RPE distance in nodes."),
+    tum_max_diff: float = typer.Option(
+        0.01, "--tum-max-diff", help="Largest time difference in seconds when matching TUM poses to the ground truth."
+    ),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
+    markdown: bool = typer.Option(False, "--markdown", help="Print a Markdown table."),
+) -> None:
+    """Score an estimate against the ground truth with evo: APE and RPE per agent and over all agents.
+
+    Unaligned by default (the kollagen paper's convention: all agents share one frame).
+
+    Example: studio evaluate out/Multi3500x8 --estimate optimized.g2o
+    """
+    from studio.errors import ConfigError
+    from studio.evaluate import evaluate as evaluate_dataset
+    from studio.evaluate import format_markdown, format_table
+
+    if as_json and markdown:
+        raise ConfigError("--json and --markdown exclude each other")
+    if align_per_agent and align is AlignChoice.none:
+        raise ConfigError("--align-per-agent needs --align se3 or --align sim3")
+    ev = evaluate_dataset(dataset, estimate=estimate, align=align.value, align_per_agent=align_per_agent,
+                          rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes, tum_max_diff_s=tum_max_diff)
+    if as_json:
+        typer.echo(ev.to_json())
+    else:
+        typer.echo(format_markdown(ev) if markdown else format_table(ev), nl=False)
+
+
 def main() -> None:
     from studio.runtime import tune_allocator
 
