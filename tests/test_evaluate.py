@@ -349,3 +349,26 @@ def test_cli_missing_dataset(tmp_path):
     res = CliRunner().invoke(app, ["evaluate", str(tmp_path / "nope")])
     assert res.exit_code == 2
     assert res.output.strip() == f"error: {tmp_path / 'nope'}: not a folder"
+
+
+# ------------------------------------------------------------------------------------------ reading
+
+
+def test_reading_vertices_only_keeps_every_pose(small):
+    full = read_multi_g2o(small.dataset_dir)
+    poses = read_multi_g2o(small.dataset_dir, edges=False)
+    assert poses.edge_counts() == {"odometry": 0, "intra_loop_closures": 0, "inter_loop_closures": 0}
+    assert full.edge_counts()["odometry"] == 3 * 240
+    for a, b in zip(full.agents, poses.agents):
+        assert a.initial.tobytes() == b.initial.tobytes()
+        assert a.ground_truth.tobytes() == b.ground_truth.tobytes()
+        assert a.stamps_ns.tobytes() == b.stamps_ns.tobytes()
+
+
+def test_g2o_file_with_vertices_only_reads(tmp_path):
+    from studio.io.g2o import read_g2o
+
+    (tmp_path / "v.g2o").write_text("VERTEX_SE3:QUAT 0 1 2 3 0 0 0 1\nVERTEX_SE3:QUAT 1 4 5 6 0 0 0 1\n")
+    doc = read_g2o(tmp_path / "v.g2o")
+    assert doc.vertex_poses[:, 0].tolist() == [1.0, 4.0]
+    assert doc.edge_information_upper.shape == (0, 21)
