@@ -119,6 +119,10 @@ def evaluate(
     ),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
     markdown: bool = typer.Option(False, "--markdown", help="Print a Markdown table."),
+    rrd: Path = typer.Option(
+        None, "--rrd", help="Also write the per-node APE series into this new Rerun recording (.rrd)."
+    ),
+    force: bool = typer.Option(False, "--force", help="Replace an existing --rrd file."),
 ) -> None:
     """Score an estimate against the ground truth with evo: APE and RPE per agent and over all agents.
 
@@ -136,6 +140,12 @@ def evaluate(
         raise ConfigError("--align-per-agent needs --align se3 or --align sim3")
     ev = evaluate_dataset(dataset, estimate=estimate, align=align.value, align_per_agent=align_per_agent,
                           rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes, tum_max_diff_s=tum_max_diff)
+    if rrd is not None:
+        from studio.evaluation_recording import save_evaluation_recording
+        from studio.io.atomic import staged_outputs
+
+        with staged_outputs(rrd.parent, [rrd.name], force=force) as staging:
+            save_evaluation_recording(ev, staging / rrd.name)
     if as_json:
         typer.echo(ev.to_json())
     else:

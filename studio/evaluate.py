@@ -133,6 +133,8 @@ class Evaluation:
     agents: tuple[AgentScore, ...]
     overall: AgentScore
     """All agents pooled (row ``all``)."""
+    node_indices: tuple[np.ndarray, ...] = field(repr=False)
+    """Per agent, the dataset vertex index of each scored pose (all of them unless TUM matching dropped some)."""
     stamps_ns: tuple[np.ndarray, ...] = field(repr=False)
     """Per agent, the ground-truth stamps of the scored poses."""
     ape_translation_series_m: tuple[np.ndarray, ...] = field(repr=False)
@@ -184,7 +186,7 @@ def _check_finite(poses: np.ndarray, where: str) -> None:
 
 
 def _matched(graph: PoseGraph, estimate, max_diff_s: float):
-    """Per agent: (gt poses, est poses, gt stamps) of the poses to compare."""
+    """Per agent: (gt poses, est poses, gt stamps, vertex indices) of the poses to compare."""
     from evo.core.sync import matching_time_indices
 
     out = []
@@ -195,7 +197,7 @@ def _matched(graph: PoseGraph, estimate, max_diff_s: float):
             hint = f" ({Path(src) / agent.name / (agent.name + '_GT.tum')} is missing)" if src else ""
             raise EvaluationError(f"{agent.name}: no ground truth{hint}")
         if estimate is None:
-            out.append((agent.ground_truth, agent.initial, agent.stamps_ns))
+            out.append((agent.ground_truth, agent.initial, agent.stamps_ns, np.arange(agent.num_poses)))
             continue
         est = estimate[k]
         if est.name != agent.name:
@@ -206,7 +208,7 @@ def _matched(graph: PoseGraph, estimate, max_diff_s: float):
             if len(poses) != agent.num_poses:
                 raise EvaluationError(
                     f"estimate of {agent.name}: {len(poses)} poses for the dataset's {agent.num_poses}")
-            out.append((agent.ground_truth, poses, agent.stamps_ns))
+            out.append((agent.ground_truth, poses, agent.stamps_ns, np.arange(agent.num_poses)))
             continue
         i_gt, i_est = matching_time_indices(agent.stamps_ns / _NS, np.asarray(est.stamps_ns) / _NS, max_diff_s)
         if not i_gt:
@@ -215,7 +217,7 @@ def _matched(graph: PoseGraph, estimate, max_diff_s: float):
                 f"(estimate {est.stamps_ns[0] / _NS:.9g}..{est.stamps_ns[-1] / _NS:.9g} s, ground truth "
                 f"{agent.stamps_ns[0] / _NS:.9g}..{agent.stamps_ns[-1] / _NS:.9g} s)")
         i_gt, i_est = np.asarray(i_gt), np.asarray(i_est)
-        out.append((agent.ground_truth[i_gt], poses[i_est], agent.stamps_ns[i_gt]))
+        out.append((agent.ground_truth[i_gt], poses[i_est], agent.stamps_ns[i_gt], i_gt))
     return out
 
 
@@ -294,15 +296,15 @@ def score(graph: PoseGraph, estimate=None, *, align: Alignment | str = Alignment
         sim3 = align is Alignment.sim3
         if align_per_agent:
             aligned = []
-            for name, (gt, est, st) in zip(names, matched):
+            for name, (gt, est, st, idx) in zip(names, matched):
                 r, t, s = _umeyama(est[:, 0:3], gt[:, 0:3], sim3, name)
                 transforms.append((r, t, s))
-                aligned.append((gt, _apply(est, r, t, s), st))
+                aligned.append((gt, _apply(est, r, t, s), st, idx))
         else:
             r, t, s = _umeyama(np.concatenate([m[1][:, 0:3] for m in matched]),
                                np.concatenate([m[0][:, 0:3] for m in matched]), sim3, "all agents")
             transforms.append((r, t, s))
-            aligned = [(gt, _apply(est, r, t, s), st) for gt, est, st in matched]
+            aligned = [(gt, _apply(est, r, t, s), st, idx) for gt, est, st, idx in matched]
         matched = aligned
 
     # APE translation: evo's own metric, on all agents' poses pooled (kollagen's single TUM files).
@@ -313,9 +315,9 @@ def score(graph: PoseGraph, estimate=None, *, align: Alignment | str = Alignment
     ape.process_data((_trajectory(gt_all, stamps_all), _trajectory(est_all, stamps_all)))
     bounds = np.cumsum([0] + [len(m[0]) for m in matched])
     ape_t = [ape.error[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
-    ape_r = [_ape_rotation_deg(gt, est) for gt, est, _ in matched]
-    rpe_m = [_rpe(gt, est, rpe_delta_m, metrics.Unit.meters) for gt, est, _ in matched]
-    rpe_n = [_rpe(gt, est, rpe_delta_nodes, metrics.Unit.frames) for gt, est, _ in matched]
+    ape_r = [_ape_rotation_deg(gt, est) for gt, est, *_ in matched]
+    rpe_m = [_rpe(gt, est, rpe_delta_m, metrics.Unit.meters) for gt, est, *_ in matched]
+    rpe_n = [_rpe(gt, est, rpe_delta_nodes, metrics.Unit.frames) for gt, est, *_ in matched]
 
     def row(name, n, at, ar, rm, rn) -> AgentScore:
         return AgentScore(name, n, ErrorStats.of(at), ErrorStats.of(ar), ErrorStats.of(rm[0]),
@@ -335,6 +337,7 @@ def score(graph: PoseGraph, estimate=None, *, align: Alignment | str = Alignment
         alignment=align, align_per_agent=align_per_agent and align is not Alignment.none,
         rpe_delta_m=float(rpe_delta_m), rpe_delta_nodes=int(rpe_delta_nodes),
         agents=rows, overall=overall,
+        node_indices=tuple(np.asarray(m[3], dtype=np.int64) for m in matched),
         stamps_ns=tuple(m[2] for m in matched),
         ape_translation_series_m=tuple(ape_t), ape_rotation_series_deg=tuple(ape_r),
         alignment_transforms=tuple(transforms),

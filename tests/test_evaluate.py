@@ -372,3 +372,27 @@ def test_g2o_file_with_vertices_only_reads(tmp_path):
     doc = read_g2o(tmp_path / "v.g2o")
     assert doc.vertex_poses[:, 0].tolist() == [1.0, 4.0]
     assert doc.edge_information_upper.shape == (0, 21)
+
+
+# ------------------------------------------------------------------------------------------ Rerun
+
+
+def test_rrd_holds_the_per_node_error_series(small, graph, tmp_path):
+    from rerun.chunk import RrdReader
+
+    est = _perturbed(graph)
+    _write_multi(tmp_path / "multi", graph, est)
+    rrd = tmp_path / "errors.rrd"
+    res = CliRunner().invoke(app, ["evaluate", str(small.dataset_dir), "-e", str(tmp_path / "multi"),
+                                   "--rrd", str(rrd)])
+    assert res.exit_code == 0, res.output
+    ev = evaluate(small.dataset_dir, estimate=tmp_path / "multi")
+    chunks = {c.entity_path: c for c in RrdReader(rrd).stream() if not c.is_static}
+    batch = chunks["/evaluation/agent2/ape_translation_m"].to_record_batch()
+    values = np.concatenate(batch.column("Scalars:scalars").to_pylist())
+    assert np.array_equal(values, ev.ape_translation_series_m[1])
+    assert batch.column("node").to_pylist() == list(range(241))
+    assert set(chunks) == {f"/evaluation/agent{k}/{s}" for k in (1, 2, 3)
+                           for s in ("ape_translation_m", "ape_rotation_deg")}
+    res = CliRunner().invoke(app, ["evaluate", str(small.dataset_dir), "--rrd", str(rrd)])
+    assert res.exit_code == 2 and "already exists (use --force to overwrite)" in res.output
