@@ -140,6 +140,8 @@ def evaluate(
         raise ConfigError("--align-per-agent needs --align se3 or --align sim3")
     ev = evaluate_dataset(dataset, estimate=estimate, align=align.value, align_per_agent=align_per_agent,
                           rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes, tum_max_diff_s=tum_max_diff)
+    for msg in ev.warnings:
+        _warn(msg)
     if rrd is not None:
         from studio.evaluation_recording import save_evaluation_recording
         from studio.io.atomic import staged_outputs

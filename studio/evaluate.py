@@ -142,6 +142,8 @@ class Evaluation:
     ape_rotation_series_deg: tuple[np.ndarray, ...] = field(repr=False)
     alignment_transforms: tuple[tuple[np.ndarray, np.ndarray, float], ...] = field(repr=False, default=())
     """``(R, t, s)`` of each Umeyama fit (one, or one per agent); empty when unaligned."""
+    warnings: tuple[str, ...] = ()
+    """Facts worth a warning, e.g. ground-truth poses that no TUM estimate pose matched."""
 
     @property
     def alignment_text(self) -> str:
@@ -185,7 +187,7 @@ def _check_finite(poses: np.ndarray, where: str) -> None:
         raise EvaluationError(f"{where}: pose {int(np.flatnonzero(norms < 1e-9)[0])} has a zero quaternion")
 
 
-def _matched(graph: PoseGraph, estimate, max_diff_s: float):
+def _matched(graph: PoseGraph, estimate, max_diff_s: float, warnings: list[str]):
     """Per agent: (gt poses, est poses, gt stamps, vertex indices) of the poses to compare."""
     from evo.core.sync import matching_time_indices
 
@@ -217,6 +219,9 @@ def _matched(graph: PoseGraph, estimate, max_diff_s: float):
                 f"(estimate {est.stamps_ns[0] / _NS:.9g}..{est.stamps_ns[-1] / _NS:.9g} s, ground truth "
                 f"{agent.stamps_ns[0] / _NS:.9g}..{agent.stamps_ns[-1] / _NS:.9g} s)")
         i_gt, i_est = np.asarray(i_gt), np.asarray(i_est)
+        if len(i_gt) < agent.num_poses:
+            warnings.append(f"estimate of {agent.name}: {len(i_gt)} of {agent.num_poses} ground-truth poses "
+                            f"matched within {max_diff_s} s; only those are scored")
         out.append((agent.ground_truth[i_gt], poses[i_est], agent.stamps_ns[i_gt], i_gt))
     return out
 
@@ -289,7 +294,8 @@ def score(graph: PoseGraph, estimate=None, *, align: Alignment | str = Alignment
         raise EvaluationError(f"the RPE node delta must be at least 1, got {rpe_delta_nodes}")
     if estimate is not None and len(estimate) != len(graph.agents):
         raise EvaluationError(f"the estimate has {len(estimate)} agents, the dataset {len(graph.agents)}")
-    matched = _matched(graph, estimate, tum_max_diff_s)
+    warnings: list[str] = []
+    matched = _matched(graph, estimate, tum_max_diff_s, warnings)
     names = [a.name for a in graph.agents]
     transforms = []
     if align is not Alignment.none:
@@ -340,7 +346,7 @@ def score(graph: PoseGraph, estimate=None, *, align: Alignment | str = Alignment
         node_indices=tuple(np.asarray(m[3], dtype=np.int64) for m in matched),
         stamps_ns=tuple(m[2] for m in matched),
         ape_translation_series_m=tuple(ape_t), ape_rotation_series_deg=tuple(ape_r),
-        alignment_transforms=tuple(transforms),
+        alignment_transforms=tuple(transforms), warnings=tuple(warnings),
     )
 
 

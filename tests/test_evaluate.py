@@ -186,6 +186,10 @@ def test_tum_estimate_matched_within_tolerance(small, graph, tmp_path):
     ev = evaluate(small.dataset_dir, estimate=half)
     assert [a.poses for a in ev.agents] == [121, 121, 121]
     assert ev.overall.poses == 363
+    assert ev.warnings[2] == "estimate of agent3: 121 of 241 ground-truth poses matched within 0.01 s; only those are scored"
+    assert evaluate(small.dataset_dir, estimate=tmp_path / "ok").warnings == ()
+    res = CliRunner().invoke(app, ["evaluate", str(small.dataset_dir), "-e", str(half)])
+    assert res.exit_code == 0 and "warning: estimate of agent1: 121 of 241 ground-truth poses matched" in res.output
 
 
 # ------------------------------------------------------------------------------------------ alignment
