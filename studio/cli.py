@@ -105,7 +105,7 @@ class AlignChoice(str, enum.Enum):
 @cli_errors
 def evaluate(
     dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder with <agent>_GT.tum ground truth."),
-    estimate: Path = typer.Option(
+    estimate: Path | None = typer.Option(
         None, "--estimate", "-e",
         help="An optimizer's output: a single g2o file (ids as in the dataset's single g2o), a multi-g2o "
              "folder, or a folder of <agent>.tum / <agent>_*.tum files. Default: the dataset's initial estimate.",
@@ -119,7 +119,7 @@ def evaluate(
     ),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
     markdown: bool = typer.Option(False, "--markdown", help="Print a Markdown table."),
-    rrd: Path = typer.Option(
+    rrd: Path | None = typer.Option(
         None, "--rrd", help="Also write the per-node APE series into this new Rerun recording (.rrd)."
     ),
     force: bool = typer.Option(False, "--force", help="Replace an existing --rrd file."),

@@ -29,11 +29,15 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
 from studio.errors import EvaluationError
 from studio.model import PoseGraph
+
+if TYPE_CHECKING:
+    from studio.io.estimate import AgentEstimate
 
 __all__ = [
     "Alignment",
@@ -279,7 +283,7 @@ def _ape_rotation_deg(gt: np.ndarray, est: np.ndarray) -> np.ndarray:
     return np.rad2deg((Rotation.from_quat(est[:, 3:7]).inv() * Rotation.from_quat(gt[:, 3:7])).magnitude())
 
 
-def score(graph: PoseGraph, estimate=None, *, align: Alignment | str = Alignment.none,
+def score(graph: PoseGraph, estimate: Sequence[AgentEstimate] | None = None, *, align: Alignment | str = Alignment.none,
           align_per_agent: bool = False, rpe_delta_m: float = 1.0, rpe_delta_nodes: int = 1,
           tum_max_diff_s: float = DEFAULT_TUM_MAX_DIFF_S, dataset: str = "", estimate_label: str = "",
           estimate_layout: str = "") -> Evaluation:
@@ -287,7 +291,10 @@ def score(graph: PoseGraph, estimate=None, *, align: Alignment | str = Alignment
     None for the graph's initial estimate) against the graph's ground truth. No I/O."""
     from evo.core import metrics
 
-    align = Alignment(align)
+    try:
+        align = Alignment(align)
+    except ValueError:
+        raise EvaluationError(f"unknown alignment {align!r} (known: none, se3, sim3)") from None
     if not (math.isfinite(rpe_delta_m) and rpe_delta_m > 0):
         raise EvaluationError(f"the RPE distance must be a positive number of metres, got {rpe_delta_m!r}")
     if rpe_delta_nodes < 1:

@@ -79,7 +79,7 @@ def _write_tum(folder, graph, poses, suffix="", shift_ns=0):
 
 def _numbers(ev):
     d = ev.to_dict()
-    del d["estimate"], d["estimate_layout"]
+    del d["dataset"], d["estimate"], d["estimate_layout"]
     return d
 
 
@@ -215,6 +215,11 @@ def test_alignment_removes_a_common_transform(graph):
     assert s == pytest.approx(1 / 1.2)
     assert np.allclose(rot, r.inv().as_matrix())
     assert "sim3 Umeyama alignment, one for all agents" in format_table(ev)
+
+
+def test_unknown_alignment_is_a_studio_error(graph):
+    with pytest.raises(EvaluationError, match=r"unknown alignment 'se2' \(known: none, se3, sim3\)"):
+        score(graph, align="se2")
 
 
 def test_align_per_agent_removes_one_transform_per_agent(graph):
@@ -400,3 +405,9 @@ def test_rrd_holds_the_per_node_error_series(small, graph, tmp_path):
                            for s in ("ape_translation_m", "ape_rotation_deg")}
     res = CliRunner().invoke(app, ["evaluate", str(small.dataset_dir), "--rrd", str(rrd)])
     assert res.exit_code == 2 and "already exists (use --force to overwrite)" in res.output
+
+
+def test_dataset_with_2d_records_scores_like_3d(small, tmp_path):
+    two_d = synthesize(small.config, tmp_path, multi_records="2d")
+    assert "VERTEX_SE2" in (two_d.dataset_dir / "agent1" / "posegraph.g2o").read_text()[:20]
+    assert _numbers(evaluate(two_d.dataset_dir)) == _numbers(evaluate(small.dataset_dir))
