@@ -16,9 +16,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
 
 _CHILD = r"""
 import json, resource, sys, time, tracemalloc
@@ -41,8 +46,9 @@ _CHILD_UNTRACED = _CHILD.replace("tracemalloc.start()", "").replace(
 
 
 def _run(dataset: str, estimate: str, traced: bool) -> dict:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")])))
     out = subprocess.run([sys.executable, "-c", _CHILD if traced else _CHILD_UNTRACED, dataset, estimate],
-                         check=True, capture_output=True, text=True)
+                         check=True, capture_output=True, text=True, env=env)
     return json.loads(out.stdout)
 
 
