@@ -72,6 +72,7 @@ def synth(
     max_memory_gb: float = typer.Option(8.0, "--max-memory-gb", help="Refuse configs estimated to need more memory."),
     max_output_gb: float = typer.Option(20.0, "--max-output-gb", help="Refuse configs estimated to write more."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
+    rrd: bool = typer.Option(True, "--rrd/--no-rrd", help="Also write the Rerun recording OUT/<name>.rrd."),
 ) -> None:
     """Generate a multi-agent pose graph exactly as kollagen's `generate CONFIG OUT` does.
 
@@ -83,7 +84,7 @@ def synth(
     cfg = load_synth_config(config, warn=_warn)
     res = synthesize(cfg, out, force=force, multi_records=multi_records.value,
                      single_records=single_records.value, jobs=jobs or None,
-                     max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
+                     max_memory_gb=max_memory_gb, max_output_gb=max_output_gb, rrd=rrd)
     if not quiet:
         counts = res.output.graph.edge_counts()
         typer.echo(
@@ -91,7 +92,32 @@ def synth(
             f"{sum(counts.values())} constraints ({counts['odometry']} odometry, "
             f"{counts['intra_loop_closures']} intra-agent and {counts['inter_loop_closures']} inter-agent "
             f"loop closures) in {time.perf_counter() - t0:.2f} s\n"
-            f"  {res.dataset_dir}\n  {res.single_dir}"
+            f"  {res.dataset_dir}\n  {res.single_dir}" + (f"\n  {res.rrd_path}" if res.rrd_path else "")
+        )
+
+
+@app.command()
+@cli_errors
+def record(
+    dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder (ours or kollagen's)."),
+    out: Path = typer.Option(..., "-o", "--out", help="The recording to write (FILE.rrd)."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing recording."),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
+) -> None:
+    """Log a multi-g2o dataset with its ground truth to a Rerun recording (open it with `rerun FILE.rrd`).
+
+    Example: studio record out/Multi3500x8 -o multi.rrd
+    """
+    from studio.recording import record_dataset
+
+    t0 = time.perf_counter()
+    res = record_dataset(dataset, out, force=force)
+    if not quiet:
+        counts = res.edge_counts
+        typer.echo(
+            f"{res.path}: {res.num_poses} poses, {counts['odometry']} odometry, "
+            f"{counts['intra_loop_closures']} intra-agent and {counts['inter_loop_closures']} inter-agent "
+            f"loop closures in {time.perf_counter() - t0:.2f} s"
         )
 
 

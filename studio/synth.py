@@ -32,6 +32,8 @@ class SynthResult:
     """``OUT/<name>_singleg2o``: the single g2o file and the two TUM files."""
     config_path: Path
     """``OUT/<name>.config.json``: the effective config (kollagen JSON)."""
+    rrd_path: Path | None = None
+    """``OUT/<name>.rrd``: the Rerun recording, or None with ``rrd=False``."""
 
 
 def load_synth_config(source: str | os.PathLike, *, warn: Callable[[str], None] | None = None) -> SynthConfig:
@@ -101,11 +103,12 @@ def check_resources(config: SynthConfig, *, max_memory_gb: float = DEFAULT_MAX_M
 def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool = False,
                multi_records: Records = "3d", single_records: Records = "2d",
                jobs: int | None = None, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
-               max_output_gb: float = DEFAULT_MAX_OUTPUT_GB) -> SynthResult:
+               max_output_gb: float = DEFAULT_MAX_OUTPUT_GB, rrd: bool = True) -> SynthResult:
     """Generate ``config`` and write it as kollagen's ``generate CONFIG OUT`` does.
 
     Writes ``OUT/<name>/`` (multi-g2o), ``OUT/<name>_singleg2o/`` and ``OUT/<name>.config.json``,
-    all staged and renamed into place at the end. Existing outputs are replaced only with ``force``.
+    and (unless ``rrd`` is false) the Rerun recording ``OUT/<name>.rrd``, all staged and renamed
+    into place at the end. Existing outputs are replaced only with ``force``.
     ``jobs`` caps the processes used (default: every core available); the bytes do not depend on it.
     Configs estimated to need more memory or disk than the limits are refused before any work.
     """
@@ -113,6 +116,8 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
     out_dir = Path(out_dir)
     name = config.name
     names = [name, f"{name}_singleg2o", f"{name}.config.json"]
+    if rrd:
+        names.append(f"{name}.rrd")
     with staged_outputs(out_dir, names, force=force) as staging:
         output = generate(config, jobs=jobs)
         write_kollagen_outputs(output, staging, name, multi_records=multi_records,
@@ -120,4 +125,10 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
         with open(staging / names[2], "w", encoding="utf-8") as f:
             json.dump(synth_config_to_json(config), f, indent=4)
             f.write("\n")
-    return SynthResult(config, output, out_dir / name, out_dir / names[1], out_dir / names[2])
+        if rrd:
+            from studio.recording import record_graph
+
+            record_graph(output.graph, staging / names[3], name=name,
+                         config_json=json.dumps(synth_config_to_json(config), sort_keys=True))
+    return SynthResult(config, output, out_dir / name, out_dir / names[1], out_dir / names[2],
+                       out_dir / names[3] if rrd else None)
