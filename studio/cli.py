@@ -180,6 +180,46 @@ def evaluate(
         typer.echo(format_markdown(ev) if markdown else format_table(ev), nl=False)
 
 
+@app.command()
+@cli_errors
+def view(
+    rrd: Path = typer.Argument(..., metavar="FILE.rrd", help="A recording (studio record / studio synth)."),
+    web: bool = typer.Option(False, "--web", help="Serve the web viewer on 127.0.0.1 instead of a window."),
+    port: int = typer.Option(9090, "--port", help="Port of the web viewer (with --web)."),
+) -> None:
+    """Open a recording in the Rerun viewer (native window, or the web viewer with --web).
+
+    Example: studio view out/Multi3500x8.rrd --web
+    """
+    from studio.viewer import run_viewer, view_command, view_web_command, web_viewer_address
+
+    if web:
+        cmd = view_web_command(rrd, port=port)
+        typer.echo(f"web viewer: open {web_viewer_address(port)} in a browser (Ctrl+C stops it)")
+    else:
+        cmd = view_command(rrd)
+    raise typer.Exit(run_viewer(cmd))
+
+
+@app.command()
+@cli_errors
+def snapshot(
+    rrd: Path = typer.Argument(..., metavar="FILE.rrd", help="A recording (studio record / studio synth)."),
+    out: Path = typer.Option(..., "-o", "--out", help="The picture to write (PNG)."),
+    node: int = typer.Option(None, "--node", help="Put the time cursor on this node (default: the last)."),
+    size: str = typer.Option("1400x900", "--size", help="Window size WIDTHxHEIGHT."),
+) -> None:
+    """Render a recording to a PNG without a display (needs a Vulkan driver, e.g. mesa-vulkan-drivers).
+
+    Example: studio snapshot out/Multi3500x8.rrd -o multi.png --node 400
+    """
+    from studio.viewer import snapshot as render
+
+    res = render(rrd, out, node=node, window_size=size)
+    typer.echo(f"{res.path}: node {res.time}")
+
+
+
 def main() -> None:
     from studio.runtime import tune_allocator
 

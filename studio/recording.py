@@ -142,6 +142,8 @@ class _Scene:
     num_nodes: int
     real_time: bool
     inter: bool = field(default=True)
+    max_position_error_m: float = 1.0
+    max_loop_closures: int = 1
 
 
 # --------------------------------------------------------------------------------------------------
@@ -373,6 +375,9 @@ def _scene(graph: PoseGraph, real_time: bool) -> _Scene:
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     centre = (lo + hi) / 2.0
     extent = float(max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1.0))
+    errors = [float(np.max(np.linalg.norm(a.initial[:, 0:3] - a.ground_truth[:, 0:3], axis=1)))
+              for a in graph.agents if a.ground_truth is not None]
+    most_lcs = max([len(a.loop_closures) for a in graph.agents] + [len(graph.inter), 1])
     return _Scene(
         names=tuple(a.name for a in graph.agents),
         planar=_is_planar(graph),
@@ -381,6 +386,8 @@ def _scene(graph: PoseGraph, real_time: bool) -> _Scene:
         num_nodes=max(a.num_poses for a in graph.agents),
         real_time=real_time,
         inter=len(graph.inter) > 0,
+        max_position_error_m=max(errors + [1e-3]),
+        max_loop_closures=most_lcs,
     )
 
 
@@ -400,10 +407,6 @@ def default_blueprint(scene: _Scene) -> rrb.Blueprint:
         rrb.VisibleTimeRange(t, start=rr.TimeRangeBoundary.infinite(), end=rr.TimeRangeBoundary.cursor_relative())
         for t in timelines
     ]
-    loop_entities = [f"/{LOOP_CLOSURES_INTRA.format(agent=n)}" for n in scene.names]
-    if scene.inter:
-        loop_entities.append(f"/{LOOP_CLOSURES_INTER}")
-    overrides = {e: rrb.VisibleTimeRanges(upto_cursor) for e in loop_entities}
     cx, cy, cz = scene.centre_xyz
     if scene.planar:
         eye = rrb.EyeControls3D(position=(cx, cy, cz + 1.1 * scene.extent_m), look_target=(cx, cy, cz),
@@ -411,13 +414,18 @@ def default_blueprint(scene: _Scene) -> rrb.Blueprint:
     else:
         d = 0.9 * scene.extent_m
         eye = rrb.EyeControls3D(position=(cx - d, cy - d, cz + d), look_target=(cx, cy, cz), eye_up=(0.0, 0.0, 1.0))
-    space = rrb.Spatial3DView(origin=f"/{WORLD}", name="agents", eye_controls=eye, overrides=overrides,
+    # Everything up to the cursor: loop closures accumulate (paths are static, and transforms are
+    # always resolved at the cursor, so the pose markers do not leave a trail).
+    space = rrb.Spatial3DView(origin=f"/{WORLD}", name="agents", eye_controls=eye, time_ranges=upto_cursor,
                               line_grid=rrb.LineGrid3D(visible=False))
     whole = rr.TimeRange(start=rr.TimeRangeBoundary.infinite(), end=rr.TimeRangeBoundary.infinite())
+    # Fixed y ranges: the whole series is visible whatever the cursor (auto-fit follows the view).
     err = rrb.TimeSeriesView(origin=f"/{METRICS}/position_error", name="initial-estimate position error [m]",
-                             axis_x=rrb.TimeAxis(view_range=whole))
+                             axis_x=rrb.TimeAxis(view_range=whole),
+                             axis_y=rrb.ScalarAxis(range=(0.0, 1.05 * scene.max_position_error_m)))
     lcs = rrb.TimeSeriesView(origin=f"/{METRICS}/loop_closures", name="loop closures so far",
-                             axis_x=rrb.TimeAxis(view_range=whole))
+                             axis_x=rrb.TimeAxis(view_range=whole),
+                             axis_y=rrb.ScalarAxis(range=(0.0, 1.05 * scene.max_loop_closures)))
     series = rrb.Vertical(err, lcs)
     root = rrb.Horizontal(space, series, column_shares=[2, 1])
     for part, label in ((space, "agents"), (err, "position_error"), (lcs, "loop_closures"),

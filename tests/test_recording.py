@@ -100,8 +100,9 @@ def check_recording_matches(path: Path, graph: PoseGraph) -> None:
         np.testing.assert_array_equal(np.array([r[1][0] for r in errors]), expected)
     inter = data.get(("/" + LOOP_CLOSURES_INTER, "LineStrips3D:strips"), [])
     assert len(inter) == len(graph.inter)
-    counts = data[("/" + SERIES_INTER_LOOP_CLOSURES, "Scalars:scalars")]
-    assert max(v[0] for _, v in counts) == float(len(graph.inter))
+    if len(graph.inter):
+        counts = data[("/" + SERIES_INTER_LOOP_CLOSURES, "Scalars:scalars")]
+        assert max(v[0] for _, v in counts) == float(len(graph.inter))
     facts = {key[1]: v for key, rows in data.items() if key[0] == "/__properties/dataset" for _, v in rows}
     edge_counts = graph.edge_counts()
     assert facts["agents"] == [len(graph.agents)]
@@ -270,3 +271,26 @@ def test_multi3500x8_synth_recording(tmp_path):
     ok, tail = rrd_verify(res.rrd_path)
     assert ok, tail
     check_recording_matches(res.rrd_path, res.output.graph)
+
+
+def test_single_agent_without_inter_agent_edges(small_graph, tmp_path):
+    from studio.model import InterAgentEdges
+
+    graph = PoseGraph(small_graph.kind, small_graph.agents[:1], InterAgentEdges.empty(small_graph.kind))
+    record_graph(graph, tmp_path / "one.rrd", name="one")
+    check_recording_matches(tmp_path / "one.rrd", graph)
+    data = read_back(tmp_path / "one.rrd")
+    assert ("/" + SERIES_INTER_LOOP_CLOSURES, "Scalars:scalars") not in data
+
+
+def test_spatial_graph_keeps_its_heights(small_graph, tmp_path):
+    g = small_graph.to_se3()
+    a0 = g.agents[0]
+    lifted = a0.ground_truth.copy()
+    lifted[:, 2] = np.linspace(0.0, 5.0, a0.num_poses)
+    graph = dataclasses.replace(g, agents=(dataclasses.replace(a0, ground_truth=lifted),) + g.agents[1:])
+    record_graph(graph, tmp_path / "z.rrd", name="z")
+    check_recording_matches(tmp_path / "z.rrd", graph)
+    data = read_back(tmp_path / "z.rrd")
+    (_, strips), = data[(_entity(PATH_GROUND_TRUTH, a0), "LineStrips3D:strips")]
+    assert strips[0][-1][2] == pytest.approx(5.0)

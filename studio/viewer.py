@@ -1,0 +1,193 @@
+"""Open recordings in the Rerun viewer, natively or on the web, and render pictures without a display.
+
+:func:`snapshot` runs the native viewer headless (it needs a Vulkan driver; on Debian the software
+one, ``mesa-vulkan-drivers``, is enough), opens the file, moves the time cursor with Rerun's
+``ViewerClient`` and saves a screenshot. :func:`view` and :func:`view_web_command` start the
+``rerun`` executable that ships with the ``rerun-sdk`` package.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from studio.errors import ConfigError, FormatError, OutputError, StudioError
+
+__all__ = ["SnapshotResult", "rerun_executable", "vulkan_drivers", "snapshot", "view_command",
+           "view_web_command", "web_viewer_address"]
+
+#: Where the Vulkan loader looks for installed drivers (ICD manifests).
+_ICD_GLOBS = ("/usr/share/vulkan/icd.d/*.json", "/etc/vulkan/icd.d/*.json", "/usr/local/share/vulkan/icd.d/*.json")
+_INSTALL_HINT = "install a Vulkan driver (Debian/Ubuntu: apt-get install -y mesa-vulkan-drivers)"
+
+
+@dataclass(frozen=True)
+class SnapshotResult:
+    path: Path
+    timeline: str
+    time: int | None
+    """Where the cursor was (node index on the ``node`` timeline)."""
+
+
+def rerun_executable() -> str:
+    """The ``rerun`` executable of the installed rerun-sdk (beside this Python first, then PATH)."""
+    beside = Path(sys.executable).parent / "rerun"
+    if beside.is_file() and os.access(beside, os.X_OK):
+        return str(beside)
+    found = shutil.which("rerun")
+    if found is None:
+        raise StudioError("the `rerun` executable was not found: install the rerun-sdk package")
+    return found
+
+
+def vulkan_drivers() -> list[str]:
+    """Installed Vulkan driver manifests (empty: the headless viewer cannot render)."""
+    extra = os.environ.get("VK_ICD_FILENAMES") or os.environ.get("VK_DRIVER_FILES")
+    found = [p for p in (extra or "").split(os.pathsep) if p and os.path.isfile(p)]
+    for pattern in _ICD_GLOBS:
+        found += sorted(glob.glob(pattern))
+    return found
+
+
+def _check_rrd(rrd: Path) -> Path:
+    if not rrd.is_file():
+        raise FormatError(f"{rrd}: no such recording")
+    if rrd.suffix != ".rrd":
+        raise FormatError(f"{rrd}: not a .rrd file")
+    return rrd.resolve()
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    env["RERUN_ANALYTICS"] = "0"
+    env.setdefault("XDG_RUNTIME_DIR", "/tmp")
+    return env
+
+
+def view_command(rrd: str | os.PathLike) -> list[str]:
+    """The command that opens ``rrd`` in the native viewer."""
+    return [rerun_executable(), str(_check_rrd(Path(rrd)))]
+
+
+#: Port of the gRPC server that ``rerun --serve-web`` starts beside the web viewer (Rerun's default).
+GRPC_PORT = 9876
+
+
+def web_viewer_address(port: int) -> str:
+    """The address to open in a browser: the web viewer, told where the recording is served."""
+    return f"http://127.0.0.1:{port}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{GRPC_PORT}%2Fproxy"
+
+
+def view_web_command(rrd: str | os.PathLike, *, port: int = 9090) -> list[str]:
+    """The command that serves ``rrd`` with the web viewer on 127.0.0.1 only."""
+    if not 0 < port < 65536:
+        raise ConfigError(f"--port {port}: not a TCP port")
+    return [rerun_executable(), "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(port),
+            "--port", str(GRPC_PORT), str(_check_rrd(Path(rrd)))]
+
+
+def run_viewer(command: list[str]) -> int:
+    """Run a viewer command in the foreground; its exit code."""
+    return subprocess.call(command, env=_env())
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _parse_size(window_size: str) -> str:
+    w, sep, h = window_size.lower().partition("x")
+    if not (sep and w.isdigit() and h.isdigit() and 100 <= int(w) <= 8000 and 100 <= int(h) <= 8000):
+        raise ConfigError(f"--size {window_size!r}: expected WIDTHxHEIGHT, e.g. 1400x900")
+    return f"{int(w)}x{int(h)}"
+
+
+def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None = None,
+             window_size: str = "1400x900", timeout_s: float = 60.0, settle_s: float = 3.0) -> SnapshotResult:
+    """Render ``rrd`` to ``png`` with the cursor at ``node`` (default: the last node), no display needed.
+
+    Raises :class:`StudioError` with an installation hint when no Vulkan driver is installed. The
+    picture is written atomically (a partial file is never left at ``png``).
+    """
+    from rerun.experimental import ViewerClient
+
+    rrd = _check_rrd(Path(rrd))
+    png = Path(png)
+    if png.suffix.lower() != ".png":
+        raise OutputError(f"{png}: a snapshot must end in .png")
+    if not png.parent.is_dir():
+        raise OutputError(f"{png.parent}: no such folder")
+    size = _parse_size(window_size)
+    if not vulkan_drivers():
+        raise StudioError(f"studio snapshot needs a Vulkan driver and found none: {_INSTALL_HINT}")
+    port = _free_port()
+    cmd = [rerun_executable(), "--headless", "--hide-welcome-screen", "--port", str(port), "--window-size", size]
+    proc = subprocess.Popen(cmd, env=_env(), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    tmp = png.with_name(f".{png.name}.{os.getpid()}.tmp.png")
+    try:
+        client = _connect(ViewerClient, proc, port, timeout_s)
+        client.open(str(rrd))
+        deadline = time.monotonic() + timeout_s
+        while True:
+            state = client.get_state()
+            if state.recordings and not state.loading:
+                break
+            if time.monotonic() > deadline:
+                raise StudioError(f"{rrd}: the viewer did not finish loading within {timeout_s:.0f} s")
+            time.sleep(0.1)
+        rec = state.recordings[0]
+        timelines = {t.name: t for t in rec.timelines}
+        if "node" not in timelines:
+            raise FormatError(f"{rrd}: no `node` timeline (not a studio recording?)")
+        tl = timelines["node"]
+        at = tl.end if node is None else node
+        if at is not None and tl.start is not None and not tl.start <= at <= tl.end:
+            raise ConfigError(f"--node {node}: the recording has nodes {tl.start}..{tl.end}")
+        client.set_time("node", sequence=int(at), play_state="paused")
+        time.sleep(settle_s)  # chunks stream in lazily after the cursor moves
+        client.save_screenshot(str(tmp.resolve()))
+        if not tmp.is_file():
+            raise StudioError("the viewer did not write a screenshot")
+        os.replace(tmp, png)
+        return SnapshotResult(png, "node", int(at))
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        if proc.stderr is not None:
+            proc.stderr.close()
+        tmp.unlink(missing_ok=True)
+
+
+def _connect(client_cls, proc: subprocess.Popen, port: int, timeout_s: float):
+    deadline = time.monotonic() + timeout_s
+    url = f"rerun+http://127.0.0.1:{port}/proxy"
+    last: Exception | None = None
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            err = (proc.stderr.read() if proc.stderr else "").strip().splitlines()
+            tail = next((ln for ln in reversed(err) if ln.strip()), "no output")
+            if "adapter" in tail.lower() or "vulkan" in tail.lower():
+                raise StudioError(f"the headless viewer found no graphics adapter: {_INSTALL_HINT}")
+            raise StudioError(f"the headless viewer exited with code {proc.returncode}: {tail[-300:]}")
+        try:
+            client = client_cls.connect(url)
+            client.get_state()
+            return client
+        except Exception as err:  # the server is not up yet
+            last = err
+            time.sleep(0.2)
+    raise StudioError(f"the headless viewer did not answer on port {port} within {timeout_s:.0f} s ({last})")
