@@ -318,11 +318,8 @@ def log_inter_loop_closures(rec: rr.RecordingStream, graph: PoseGraph, real_time
     created = np.maximum(inter.from_index, inter.to_index)
     order = np.argsort(created, kind="stable")
     segments = np.stack([ref_all[g_from[order]], ref_all[g_to[order]]], axis=1)
+    # On `time`, the later of the two stamps (rows stay in node order; Rerun sorts each timeline).
     stamps = np.maximum(stamps_all[g_from], stamps_all[g_to])[order] if real_time else None
-    if stamps is not None:  # keep the node order, stamps may not follow it across agents
-        order2 = np.argsort(stamps, kind="stable")
-        if not np.array_equal(order2, np.arange(len(order2))):
-            stamps = np.maximum.accumulate(stamps)
     rec.log(LOOP_CLOSURES_INTER, rr.LineStrips3D.from_fields(colors=[_INTER_COLOUR], radii=_INTER_RADIUS),
             static=True)
     _send_segments(rec, LOOP_CLOSURES_INTER, segments, created[order], stamps)
@@ -453,7 +450,7 @@ def record_graph(graph: PoseGraph, path: str | os.PathLike, *, name: str,
     g = graph.to_se3()
     real_time = has_real_stamps(g)
     scene = _scene(g, real_time)
-    rid = recording_id_for(graph)
+    rid = recording_id_for(g)  # the id is computed on the SE3 form anyway: lift once
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)
     try:
         rec.save(path, default_blueprint=default_blueprint(scene))
@@ -496,7 +493,7 @@ def record_dataset(dataset: str | os.PathLike, out: str | os.PathLike, *, force:
     graph = read_multi_g2o(dataset)
     config_json = _sibling_config(dataset)
     name = dataset.resolve().name
-    with staged_outputs(out.parent if str(out.parent) else Path("."), [out.name], force=force) as staging:
+    with staged_outputs(out.parent, [out.name], force=force) as staging:
         res = record_graph(graph, staging / out.name, name=name, config_json=config_json)
     return RecordResult(out, res.recording_id, res.num_poses, res.edge_counts, res.real_time)
 
@@ -511,7 +508,7 @@ _VOLATILE_COLUMNS = ("rerun.controls.RowId", "log_time")
 
 def _column_digest(parts: list) -> str:
     """Hash the rows ``(index, value)`` of one column, sorted by index then value."""
-    rows = [row for idx, values in parts for row in zip(idx, values)]
+    rows = [row for part in parts for row in part]
     rows.sort()
     h = hashlib.sha256()
     for i, v in rows:
@@ -522,11 +519,12 @@ def _column_digest(parts: list) -> str:
     return h.hexdigest()
 
 
-def _value_bytes(col) -> list[bytes]:
+def _value_bytes(col) -> list[bytes | None]:
     """Exact text per row: JSON of the Python values (floats print with ``repr``, which round-trips,
-    so one ulp changes the text), with the arrow type in front."""
+    so one ulp changes the text), with the arrow type in front; None for a null row."""
     typ = str(col.type).encode() + b"|"
-    return [typ + json.dumps(v, sort_keys=True, default=repr).encode() for v in col.to_pylist()]
+    return [None if v is None else typ + json.dumps(v, sort_keys=True, default=repr).encode()
+            for v in col.to_pylist()]
 
 
 def _store_digests(chunks, prefix: str) -> dict[str, str]:
@@ -546,9 +544,10 @@ def _store_digests(chunks, prefix: str) -> dict[str, str]:
         for n in names:
             if n in index_names or n in _VOLATILE_COLUMNS or _is_volatile(batch.schema.field(n)):
                 continue
-            col = batch.column(n)
+            values = _value_bytes(batch.column(n))
+            present = [(i, v) for i, v in zip(idx, values) if v is not None]  # null: not logged in that row
             key = f"{prefix} {chunk.entity_path} {n}"
-            groups.setdefault(key, []).append((idx, _value_bytes(col)))
+            groups.setdefault(key, []).append(present)
     return {k: _column_digest(v) for k, v in sorted(groups.items())}
 
 
