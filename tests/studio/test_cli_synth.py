@@ -37,7 +37,7 @@ def test_synth_writes_kollagens_layout(tmp_path):
     assert res.exit_code == 0, res.output
     assert "3 agents, 723 poses" in res.output
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["mine", "mine.config.json", "mine_singleg2o"]
+    assert names == ["mine", "mine.config.json", "mine.rrd", "mine_singleg2o"]
     assert sorted(p.name for p in (out / "mine").iterdir()) == ["agent1", "agent2", "agent3", "inter_agent_lc.dat"]
     assert sorted(p.name for p in (out / "mine_singleg2o").iterdir()) == ["mine.g2o", "mine.tum", "mine_GT.tum"]
     # the effective config regenerates the same dataset

@@ -34,7 +34,7 @@ from studio.recording import (
 )
 from studio.synth import load_synth_config, synthesize
 
-DATA = Path(__file__).resolve().parent / "data"
+DATA = Path(__file__).resolve().parent.parent / "data" / "configs"
 SMALL = DATA / "small3x100.json"
 
 
@@ -307,3 +307,13 @@ def test_fingerprint_does_not_depend_on_chunking(small_graph, tmp_path, monkeypa
     chunks = [len(list(rc.RrdReader(tmp_path / n).stream())) for n in ("a.rrd", "b.rrd")]
     assert chunks[1] > chunks[0] + 100  # really chunked differently
     assert fingerprint_rrd(tmp_path / "a.rrd") == fingerprint_rrd(tmp_path / "b.rrd")
+
+
+def test_record_of_kollagens_own_output(kollagen_reference, tmp_path):
+    from studio.recording import record_dataset
+
+    name = "small_three"
+    res = record_dataset(kollagen_reference / "outputs" / name, tmp_path / "k.rrd")
+    graph = generate(load_synth_config(kollagen_reference / "configs" / f"{name}.json")).graph
+    assert res.recording_id == recording_id_for(graph)  # same dataset, same id
+    check_recording_matches(tmp_path / "k.rrd", graph)

@@ -12,7 +12,7 @@ from studio.cli import app
 from studio.io.atomic import STAGING_PREFIX
 from studio.synth import load_synth_config, synthesize
 
-DATA = Path(__file__).resolve().parent / "data"
+DATA = Path(__file__).resolve().parent.parent / "data" / "configs"
 runner = CliRunner()
 
 
@@ -165,7 +165,7 @@ def test_snapshot_renders_a_png(tmp_path):
 
     if not vulkan_drivers():
         pytest.skip("no Vulkan driver (apt-get install -y mesa-vulkan-drivers)")
-    rrd = Path(__file__).resolve().parent.parent / "recordings" / "small3x100.rrd"
+    rrd = Path(__file__).resolve().parent.parent.parent / "recordings" / "small3x100.rrd"
     res = runner.invoke(app, ["snapshot", str(rrd), "-o", str(tmp_path / "s.png"), "--node", "100",
                               "--size", "800x500"])
     assert res.exit_code == 0, res.output
