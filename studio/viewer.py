@@ -14,6 +14,7 @@ import shutil
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -131,11 +132,11 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
         raise StudioError(f"studio snapshot needs a Vulkan driver and found none: {_INSTALL_HINT}")
     port = _free_port()
     cmd = [rerun_executable(), "--headless", "--hide-welcome-screen", "--port", str(port), "--window-size", size]
-    proc = subprocess.Popen(cmd, env=_env(), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
+    log = tempfile.TemporaryFile(mode="w+", encoding="utf-8", errors="replace")  # never a full pipe
+    proc = subprocess.Popen(cmd, env=_env(), stdin=subprocess.DEVNULL, stdout=log, stderr=log)
     tmp = png.with_name(f".{png.name}.{os.getpid()}.tmp.png")
     try:
-        client = _connect(ViewerClient, proc, port, timeout_s)
+        client = _connect(ViewerClient, proc, log, port, timeout_s)
         client.open(str(rrd))
         deadline = time.monotonic() + timeout_s
         while True:
@@ -167,18 +168,18 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
-        if proc.stderr is not None:
-            proc.stderr.close()
+        log.close()
         tmp.unlink(missing_ok=True)
 
 
-def _connect(client_cls, proc: subprocess.Popen, port: int, timeout_s: float):
+def _connect(client_cls, proc: subprocess.Popen, log, port: int, timeout_s: float):
     deadline = time.monotonic() + timeout_s
     url = f"rerun+http://127.0.0.1:{port}/proxy"
     last: Exception | None = None
     while time.monotonic() < deadline:
         if proc.poll() is not None:
-            err = (proc.stderr.read() if proc.stderr else "").strip().splitlines()
+            log.seek(0)
+            err = log.read().strip().splitlines()
             tail = next((ln for ln in reversed(err) if ln.strip()), "no output")
             if "adapter" in tail.lower() or "vulkan" in tail.lower():
                 raise StudioError(f"the headless viewer found no graphics adapter: {_INSTALL_HINT}")
