@@ -34,7 +34,8 @@ def test_killed_synth_leaves_no_target(tmp_path, sig):
     done = subprocess.run([sys.executable, "-m", "studio.cli", "synth", str(_tiny()), "-o", str(out), "-q"],
                           env=env, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
-    assert sorted(p.name for p in out.iterdir()) == ["tiny_single", "tiny_single.config.json", "tiny_single_singleg2o"]
+    assert sorted(p.name for p in out.iterdir()) == ["tiny_single", "tiny_single.config.json", "tiny_single.rrd",
+                                                     "tiny_single_singleg2o"]
 
 
 def _tiny():
