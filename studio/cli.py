@@ -219,7 +219,6 @@ def snapshot(
     typer.echo(f"{res.path}: node {res.time}")
 
 
-
 def main() -> None:
     from studio.runtime import tune_allocator
 

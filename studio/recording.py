@@ -53,8 +53,9 @@ __all__ = [
     "rrd_compare",
 ]
 
-#: Fixed application id of every recording the studio writes.
-APPLICATION_ID = "cslam_studio"
+#: Fixed application id of every recording the studio writes (the same as
+#: studio.evaluation_recording's, so an evaluation saved with this recording's id merges with it).
+APPLICATION_ID = "cslam-studio"
 
 # Timelines ----------------------------------------------------------------------------------------
 #: Sequence timeline: the node (pose) index of each agent.
