@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 from typing import Callable, TypeVar
 
 __all__ = ["parallel_map", "default_jobs"]
@@ -29,6 +30,12 @@ def _run(index: int):
     return _TASK[0](index)
 
 
+def _ignore_interrupts() -> None:
+    # Ctrl-C reaches the whole process group; only the parent handles it (and terminates the
+    # workers), otherwise a worker interrupted while holding the pool's queue lock can hang it.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def parallel_map(func: Callable[[int], T], n_items: int, jobs: int | None = None) -> list[T]:
     """``[func(0), ..., func(n_items - 1)]``, computed by up to ``jobs`` forked processes."""
     jobs = default_jobs() if jobs is None else jobs
@@ -38,7 +45,7 @@ def parallel_map(func: Callable[[int], T], n_items: int, jobs: int | None = None
     _TASK.append(func)
     try:
         ctx = multiprocessing.get_context("fork")
-        with ctx.Pool(jobs) as pool:
+        with ctx.Pool(jobs, initializer=_ignore_interrupts) as pool:
             return pool.map(_run, range(n_items), chunksize=1)
     finally:
         _TASK.clear()
