@@ -73,7 +73,12 @@ def _stamp_ns(token: str) -> int:
     return int(round(value * _NS))
 
 
-def read_tum(source: str | os.PathLike | IO[str]) -> TumTrajectory:
+def read_tum(source: str | os.PathLike | IO[str], *, require_increasing: bool = True) -> TumTrajectory:
+    """Parse a TUM file; errors name ``file:line``.
+
+    With ``require_increasing=False`` the rows are returned in file order even when their stamps
+    do not increase (the caller sorts and de-duplicates them, see ``converters.trajectory``).
+    """
     text, name = _open_text(source)
     stamps: list[int] = []
     rows: list[list[float]] = []
@@ -120,8 +125,8 @@ def read_tum(source: str | os.PathLike | IO[str]) -> TumTrajectory:
     if far.size:
         poses[far, 3:7] /= norms[far, None]
     st = np.array(stamps, dtype=np.int64)
-    dec = np.flatnonzero(np.diff(st) <= 0)
-    if dec.size:
+    dec = np.flatnonzero(np.diff(st) <= 0) if require_increasing else ()
+    if len(dec):
         k = int(dec[0]) + 1
         raise FormatError(f"{name}:{lines[k]}: timestamps must increase")
     return TumTrajectory(st, poses)
