@@ -172,14 +172,14 @@ def convert(
     """
     import dataclasses
 
-    from click.core import ParameterSource
-
     from converters.build import GraphOptions
     from converters.convert import ConvertConfig, convert as run_convert, read_convert_config
     from studio.errors import ConfigError
 
+    # options typed on the command line win over the --config file (compared by name: typer may
+    # vendor click, so its ParameterSource enum is not imported)
     given = {name for name in ctx.params
-             if ctx.get_parameter_source(name) in (ParameterSource.COMMANDLINE, ParameterSource.ENVIRONMENT)}
+             if getattr(ctx.get_parameter_source(name), "name", "") in ("COMMANDLINE", "ENVIRONMENT")}
     option_names = [f.name for f in dataclasses.fields(GraphOptions)]
     if config is not None:
         base = read_convert_config(config)
