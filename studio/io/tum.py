@@ -80,6 +80,9 @@ def read_tum(source: str | os.PathLike | IO[str], *, require_increasing: bool = 
     do not increase (the caller sorts and de-duplicates them, see ``converters.trajectory``).
     """
     text, name = _open_text(source)
+    fast = _read_tum_fast(text, require_increasing)
+    if fast is not None:
+        return fast
     stamps: list[int] = []
     rows: list[list[float]] = []
     lines: list[int] = []
@@ -130,6 +133,61 @@ def read_tum(source: str | os.PathLike | IO[str], *, require_increasing: bool = 
         k = int(dec[0]) + 1
         raise FormatError(f"{name}:{lines[k]}: timestamps must increase")
     return TumTrajectory(st, poses)
+
+
+_FAST_MIN_CHARS = 1 << 18
+
+
+def _read_tum_fast(text: str, require_increasing: bool) -> TumTrajectory | None:
+    """Bulk parse of a large, regular file with pandas' C parser (exact: round-trip floats, stamps
+    from their digits). Returns None when anything is irregular (exponent stamps, NaN, a wrong
+    column count, a zero quaternion, ...) so that the line-by-line parser names the offending line.
+    """
+    if len(text) < _FAST_MIN_CHARS or text.count("#") != text.count("\n#") + text.startswith("#"):
+        return None
+    import pandas as pd
+
+    body = text.replace(",", " ")
+    skip = 0
+    for raw in io.StringIO(body):  # comments and one header line before the first data line
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            skip += 1
+            continue
+        if not _looks_numeric(line.split()[0]):
+            skip += 1
+        break
+    # pandas 3 parses floats exactly by default (and deprecates the option); pandas 2 needs round_trip
+    exact = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
+    try:
+        df = pd.read_csv(io.StringIO(body), sep=r"\s+", header=None, comment="#", skiprows=skip, dtype={0: str},
+                         engine="c", **exact)
+    except (ValueError, pd.errors.ParserError):
+        return None
+    if df.shape[1] != 8 or len(df) == 0:
+        return None
+    try:
+        poses = df.iloc[:, 1:].to_numpy(dtype=np.float64)
+    except (ValueError, TypeError):
+        return None
+    if not np.isfinite(poses).all():
+        return None
+    tok = df[0].to_numpy(dtype=str)
+    parts = np.char.partition(tok, ".")
+    whole, frac = parts[:, 0], parts[:, 2]
+    if not (np.char.isdigit(whole).all() and (np.char.isdigit(frac) | (frac == "")).all()):
+        return None
+    if np.char.str_len(whole).max() > 10:
+        return None
+    frac9 = np.char.ljust(frac, 9, "0").astype("U9")
+    stamps = whole.astype(np.int64) * _NS + frac9.astype(np.int64)
+    norms = np.linalg.norm(poses[:, 3:7], axis=1)
+    if np.any(norms < 1e-9) or (require_increasing and np.any(np.diff(stamps) <= 0)):
+        return None
+    far = np.flatnonzero(np.abs(norms - 1.0) > 1e-12)
+    if far.size:
+        poses[far, 3:7] /= norms[far, None]
+    return TumTrajectory(stamps, poses)
 
 
 def _is_float(tok: str) -> bool:

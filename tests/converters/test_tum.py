@@ -71,3 +71,38 @@ def test_tum_rejects_agent_specs_and_needs_a_file(tmp_path):
         read_tum_sources([tmp_path / "x.txt"], agents=["a=/odom"])
     with pytest.raises(ConfigError, match="at least one trajectory file"):
         read_tum_sources([])
+
+
+def test_large_files_take_the_bulk_parser_with_identical_results(tmp_path, monkeypatch):
+    from studio.io import tum as tum_io
+
+    s, p, q = loop_trajectory(4000, centre=(500_000.0, 4_649_776.0, 10.0))
+    q = q * 1.5  # not normalised in the file
+    f = write_tum_file(tmp_path / "big.txt", s, p, q, sep=",", header="t,x,y,z,qx,qy,qz,qw")
+    assert f.stat().st_size > tum_io._FAST_MIN_CHARS
+    text = f.read_text()
+    fast = tum_io._read_tum_fast(text, True)
+    assert fast is not None
+    monkeypatch.setattr(tum_io, "_FAST_MIN_CHARS", 10**12)
+    slow = tum_io.read_tum(f)
+    np.testing.assert_array_equal(fast.stamps_ns, slow.stamps_ns)
+    np.testing.assert_array_equal(fast.poses, slow.poses)
+    np.testing.assert_array_equal(fast.stamps_ns, s)
+
+
+@pytest.mark.parametrize("edit, match", [
+    (lambda lines: lines.__setitem__(3000, lines[3000].replace(" ", " nan ", 1)), r"big\.txt:3001: expected 8 columns"),
+    (lambda lines: lines.__setitem__(3000, lines[3000].rsplit(" ", 1)[0] + " nan"), r"big\.txt:3001: value is not finite"),
+    (lambda lines: lines.__setitem__(3000, lines[2998]), r"big\.txt:3001: timestamps must increase"),
+    (lambda lines: lines.__setitem__(3000, lines[3000] + " # note"), r"big\.txt:3001: expected 8 columns"),
+])
+def test_irregular_large_files_fall_back_to_the_line_parser(tmp_path, edit, match):
+    from studio.io.tum import read_tum
+
+    s, p, q = loop_trajectory(4000)
+    lines = write_tum_file(tmp_path / "x.txt", s, p, q, header=None).read_text().splitlines()
+    edit(lines)
+    f = tmp_path / "big.txt"
+    f.write_text("\n".join(lines) + "\n")
+    with pytest.raises(FormatError, match=match):
+        read_tum(f)
