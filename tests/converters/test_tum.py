@@ -106,3 +106,16 @@ def test_irregular_large_files_fall_back_to_the_line_parser(tmp_path, edit, matc
     f.write_text("\n".join(lines) + "\n")
     with pytest.raises(FormatError, match=match):
         read_tum(f)
+
+
+def test_bulk_stamp_parser_agrees_with_the_line_parser():
+    from studio.io.tum import _stamp_ns, _stamps_from_digits
+
+    rng = np.random.default_rng(1)
+    tokens = [f"{int(w)}.{int(f):0{d}d}" for w, f, d in zip(rng.integers(0, 2_000_000_000, 300),
+                                                          rng.integers(0, 10**9, 300), rng.integers(9, 10, 300))]
+    tokens += ["0", "7", "7.", ".5", "1634567890.123456789999", "1.000000001", "8999999999.999999999"]
+    got = _stamps_from_digits(np.array(tokens))
+    assert got.tolist() == [_stamp_ns(t) for t in tokens]
+    for bad in (["1e9"], ["-1.5"], ["1.2.3"], ["."], ["12345678901"], ["a"]):
+        assert _stamps_from_digits(np.array(bad)) is None
