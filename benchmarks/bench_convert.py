@@ -58,13 +58,21 @@ def make_bag(work: Path, total: int = 300_000) -> Path:
 
 
 def timed(label: str, cfg: ConvertConfig, out: Path) -> None:
+    marks: dict[str, float] = {}
+
+    def progress(label: str, done: int, total: int) -> None:
+        marks.setdefault(label, time.perf_counter())
+
     t0 = time.perf_counter()
-    res = convert(cfg, out, force=True)
+    res = convert(cfg, out, force=True, progress=progress)
     dt = time.perf_counter() - t0
+    t_build = marks.get("keyframes and odometry", t0)
+    t_write = marks.get("writing", t0)
     poses = sum(len(t) for t in res.trajectories)
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"{label}: {poses} poses -> {res.build.graph.num_poses} keyframes, "
-          f"{sum(res.build.graph.edge_counts().values())} edges in {dt:.2f} s (peak RSS {rss:.0f} MiB)")
+          f"{sum(res.build.graph.edge_counts().values())} edges in {dt:.2f} s (read {t_build - t0:.2f}, "
+          f"build {t_write - t_build:.2f}, write {t0 + dt - t_write:.2f}; peak RSS {rss:.0f} MiB)")
 
 
 def main() -> None:
