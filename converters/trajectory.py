@@ -98,7 +98,8 @@ def safe_agent_name(raw: str) -> str:
     The result never holds a path separator, never starts with a dot (so never ``.`` or ``..``) and
     is never empty or one of :data:`RESERVED_NAMES`.
     """
-    name = _SAFE.sub("_", raw).strip("_").lstrip(".")
+    name = _SAFE.sub("_", re.sub(r"\.{2,}", "_", raw))
+    name = re.sub(r"_{2,}", "_", name).strip("_").lstrip(".")
     if not name:
         name = "agent"
     if name in RESERVED_NAMES:
