@@ -1,4 +1,5 @@
-"""ROS bags through ``rosbags``: ROS 1 ``.bag`` files and ROS 2 bag folders (sqlite3 or mcap storage).
+"""ROS bags through ``rosbags``: ROS 1 ``.bag`` files, ROS 2 bag folders (sqlite3 or mcap storage)
+and plain ROS 2 ``.mcap`` files.
 
 An agent is given as ``NAME=SPEC`` where SPEC is
 
@@ -223,14 +224,71 @@ def _finish(col: _Collector, bag: str, warn: Warn | None) -> Trajectory:
     return clean_trajectory(spec.name, stamps, vals[:, :3], vals[:, 3:], where, warn)
 
 
+class _PlainMcap:
+    """A plain ``.mcap`` file (no ``metadata.yaml``), read with rosbags' MCAP storage reader and the
+    same interface as ``AnyReader``: ``topics``, ``connections``, ``messages()``, ``deserialize()``.
+    Message definitions stored in the file are registered like ``AnyReader`` does."""
+
+    def __init__(self, path: Path, store):
+        from rosbags.rosbag2.storage_mcap import McapReader
+
+        self._reader = McapReader(path)
+        self._store = store
+        self.connections: list = []
+
+    def __enter__(self) -> "_PlainMcap":
+        from rosbags.interfaces import MessageDefinitionFormat
+        from rosbags.typesys import get_types_from_idl, get_types_from_msg
+
+        from rosbags.rosbag2 import ReaderError
+
+        try:
+            self._reader.open()
+        except (TypeError, ValueError, IndexError, AssertionError) as err:  # rosbags' MCAP reader on a cut file
+            raise ReaderError(f"malformed MCAP ({type(err).__name__}: {err})") from None
+        self.connections = list(self._reader.connections)
+        types = {}
+        for conn in self.connections:
+            if conn.msgtype in self._store.types:
+                continue
+            if conn.msgdef.format == MessageDefinitionFormat.MSG:
+                types.update(get_types_from_msg(conn.msgdef.data, conn.msgtype))
+            elif conn.msgdef.format == MessageDefinitionFormat.IDL:
+                types.update(get_types_from_idl(conn.msgdef.data))
+        self._store.register(types)
+        return self
+
+    def __exit__(self, *exc) -> bool:
+        self._reader.close()
+        return False
+
+    @property
+    def topics(self) -> dict:
+        from types import SimpleNamespace
+
+        return {c.topic: SimpleNamespace(msgtype=c.msgtype) for c in self.connections}
+
+    def messages(self, connections):
+        from rosbags.rosbag2 import ReaderError
+
+        try:
+            yield from self._reader.messages(connections)
+        except (TypeError, ValueError, IndexError, AssertionError) as err:
+            raise ReaderError(f"malformed MCAP ({type(err).__name__}: {err})") from None
+
+    def deserialize(self, raw: bytes, msgtype: str):
+        return self._store.deserialize_cdr(raw, msgtype)
+
+
 def _open_errors() -> tuple[type[BaseException], ...]:
     from rosbags.highlevel import AnyReaderError
     from rosbags.rosbag1 import ReaderError as ReaderError1
     from rosbags.rosbag2 import ReaderError as ReaderError2
     from rosbags.serde import SerdeError
+    from rosbags.typesys import TypesysError
 
-    return (AnyReaderError, ReaderError1, ReaderError2, SerdeError, sqlite3.Error, struct.error, EOFError,
-            OSError)
+    return (AnyReaderError, ReaderError1, ReaderError2, SerdeError, TypesysError, sqlite3.Error, struct.error,
+            EOFError, OSError)
 
 
 def read_bag(bag: str | os.PathLike | Sequence[str | os.PathLike], specs: Sequence[AgentSpec] | Mapping[str, str], *,
@@ -249,17 +307,18 @@ def read_bag(bag: str | os.PathLike | Sequence[str | os.PathLike], specs: Sequen
     for p in paths:
         if not p.exists():
             raise FormatError(f"{p}: no such bag")
-        if p.is_file() and p.suffix == ".mcap":
-            raise FormatError(f"{p}: a plain .mcap file; give the ROS 2 bag folder (with metadata.yaml) instead")
         if p.is_dir() and not (p / "metadata.yaml").is_file():
             raise FormatError(f"{p}: a folder without metadata.yaml is not a ROS 2 bag")
-        if p.is_file() and p.suffix != ".bag":
-            raise FormatError(f"{p}: not a ROS 1 .bag file or a ROS 2 bag folder")
+        if p.is_file() and p.suffix not in (".bag", ".mcap"):
+            raise FormatError(f"{p}: not a ROS 1 .bag file, a ROS 2 bag folder or an .mcap file")
     is_ros1 = all(p.suffix == ".bag" for p in paths)
+    plain_mcap = len(paths) == 1 and paths[0].is_file() and paths[0].suffix == ".mcap"
+    if not plain_mcap and any(p.suffix == ".mcap" for p in paths):
+        raise FormatError(f"{name}: give one .mcap file at a time")
     store = typestore_for(ros1=is_ros1)
     errors = _open_errors()
     try:
-        with AnyReader(paths, default_typestore=store) as reader:
+        with (_PlainMcap(paths[0], store) if plain_mcap else AnyReader(paths, default_typestore=store)) as reader:
             topics = {t: info.msgtype for t, info in reader.topics.items()}
 
             def known(topic: str) -> bool:
@@ -319,7 +378,7 @@ def read_bag_sources(inputs: Sequence[str | os.PathLike], *, agents: Sequence[st
                      warn: Warn | None = None, progress=None) -> list[Trajectory]:
     """``studio convert bag BAG --agent NAME=SPEC ...``: agents in the order given."""
     if not inputs:
-        raise ConfigError("studio convert bag needs a bag (a ROS 1 .bag file or a ROS 2 bag folder)")
+        raise ConfigError("studio convert bag needs a bag (a ROS 1 .bag file, a ROS 2 bag folder or an .mcap file)")
     if not agents:
         raise ConfigError("studio convert bag needs at least one --agent NAME=SPEC "
                           "(SPEC: /topic, /fix+/heading or /tf:PARENT:CHILD)")

@@ -131,7 +131,7 @@ def convert(
     source: str = typer.Argument(None, metavar="FORMAT", show_default=False,
                                  help="Source format: tum, s3e, airmuseum or bag."),
     inputs: list[Path] = typer.Argument(None, metavar="INPUT...", show_default=False,
-                                        help="TUM files (tum), a sequence folder (s3e, airmuseum) or a bag."),
+                                        help="TUM files (tum), a sequence folder (s3e, airmuseum) or a bag (.bag, ROS 2 folder, .mcap)."),
     out: Path = typer.Option(..., "-o", "--out", help="The dataset folder to write."),
     agent: list[str] = typer.Option([], "--agent", metavar="NAME=SPEC",
                                     help="Bag agents: NAME=/odom, NAME=/fix+/heading or NAME=/tf:PARENT:CHILD."),

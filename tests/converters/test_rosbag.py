@@ -174,7 +174,7 @@ def test_bag_sources_need_agents_and_reject_plain_mcap(tmp_path):
         read_bag_sources([tmp_path], agents=["a=/x", "a=/y"])
     f = tmp_path / "x.mcap"
     f.write_bytes(b"\x89MCAP0\r\n")
-    with pytest.raises(FormatError, match="plain .mcap file"):
+    with pytest.raises(FormatError, match=r"x\.mcap: cannot read the bag, corrupt or truncated"):
         read_bag(f, {"a": "/x"})
     with pytest.raises(FormatError, match="without metadata.yaml"):
         read_bag(tmp_path, {"a": "/x"})
@@ -197,3 +197,24 @@ def test_s3e_reads_agents_without_ground_truth_from_the_bag(tmp_path):
     trajs = read_s3e([seq])
     assert [t.name for t in trajs] == ["alpha", "bob"]
     np.testing.assert_allclose(trajs[0].positions_xyz, p, atol=1e-6)
+
+
+def test_plain_mcap_file_every_type(tmp_path):
+    import shutil
+
+    topics, truth = every_type_topics("mcap")
+    folder = write_bag(tmp_path / "run", "mcap", topics)
+    plain = tmp_path / "plain.mcap"
+    shutil.copy(next(folder.glob("*.mcap")), plain)
+    trajs = read_bag(plain, SPECS)
+    assert [t.name for t in trajs] == list(SPECS)
+    s, p, q = truth["/tf"]
+    np.testing.assert_array_equal(trajs[3].positions_xyz, p)
+    np.testing.assert_array_equal(trajs[3].stamps_ns, s)
+    np.testing.assert_allclose(trajs[4].quat_xyzw[0], truth["/e/fix"][2][0], atol=1e-15)
+    with pytest.raises(FormatError, match=r"no topic '/nope' for agent x \(topics: /a/pose \[geometry_msgs/PoseStamped\]"):
+        read_bag(plain, {"x": "/nope"})
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(plain.read_bytes()[:-100])
+    with pytest.raises(FormatError, match=r"cut\.mcap: cannot read the bag"):
+        read_bag(cut, {"a": "/a/pose"})
