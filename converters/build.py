@@ -119,6 +119,7 @@ class GraphOptions:
                 continue
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise ConfigError(f"{key}: expected a finite number >= 0, got {v!r}")
+            object.__setattr__(self, f.name, float(v))  # 3 and 3.0 give the same convert.json
         if self.lc_radius <= 0:
             raise ConfigError("--lc-radius: must be > 0")
         if self.max_gap <= 0:

@@ -209,3 +209,8 @@ def test_bad_options_raise_config_errors(kw, match):
 def test_duplicate_agent_names_are_rejected():
     with pytest.raises(ConfigError, match="two agents are named 'a'"):
         build_graph([traj("a"), traj("a")], GraphOptions())
+
+
+def test_integer_options_become_floats():
+    o = GraphOptions(lc_radius=3, seed=2)
+    assert isinstance(o.lc_radius, float) and o.lc_radius == 3.0 and o.seed == 2
