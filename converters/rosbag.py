@@ -353,6 +353,8 @@ def read_bag(bag: str | os.PathLike | Sequence[str | os.PathLike], specs: Sequen
                     by_topic.setdefault(spec.heading_topic, []).append((col, True))
                 by_topic.setdefault(spec.topic, []).append((col, False))
                 cols.append(col)
+            if not cols:  # every agent skipped (skip_missing): an empty filter would read everything
+                return []
             conns = [c for c in reader.connections if c.topic in by_topic]
             total = sum(c.msgcount for c in conns)
             done = 0

@@ -147,6 +147,11 @@ def test_no_fix_only_and_two_utm_zones(tmp_path):
         read_bag(path, {"a": "/zones"})
 
 
+def test_skip_missing_reads_nothing_when_no_agent_is_in_the_bag(bag):
+    path, _ = bag
+    assert read_bag(path, {"alpha": "/alpha/fix+/alpha/heading"}, skip_missing=True) == []
+
+
 @pytest.mark.parametrize("spec, match", [
     ("../evil=/a/pose", "not a safe folder name"),
     ("a/b=/a/pose", "not a safe folder name"),
