@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from generator.config import SynthConfig
+from generator.parallel import parallel_map
 from generator.rng import MT19937Stream, canonical_doubles, polar_normal
 from studio.geometry import normalize_angle
 from studio.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
@@ -85,14 +86,14 @@ def effective_seeds(seeds: list[int]) -> tuple[int, ...]:
 
     A seed already used is replaced by the largest seed so far plus one. kollagen's list of used seeds
     starts with one zero per existing agent (its vector is sized, then appended to), so seed 0 counts
-    as used from the second agent on.
+    as used from the second agent on. The seed is a C++ ``int``, so ``INT_MAX + 1`` wraps around.
     """
     used: list[int] = []
     out = []
     for k, seed in enumerate(seeds):
         pool = [0] * k + used
         if k > 0 and seed in pool:
-            seed = max(pool) + 1
+            seed = (max(pool) + 1 + 2**31) % 2**32 - 2**31  # C++ int: INT_MAX + 1 wraps to INT_MIN
         used.append(seed)
         out.append(seed)
     return tuple(out)
@@ -273,7 +274,11 @@ def _grid_cells(x: np.ndarray, y: np.ndarray, cfg: SynthConfig) -> tuple[np.ndar
 
 
 class _CircleTable:
-    """Ranks of the discrete circle's offsets in kollagen's visiting order."""
+    """kollagen's discrete circle: the rank of each offset in its visiting order.
+
+    Rank -1 is the same-cell check that comes before the circle; ranks 0.. follow ``DiscreteCircle``
+    (the centre offset itself is skipped there).
+    """
 
     def __init__(self, radius: int) -> None:
         self.radius = radius
@@ -281,72 +286,85 @@ class _CircleTable:
         size = 2 * radius + 1
         self.rank = np.full((size, size), -2, dtype=np.int64)
         self.rank[circle[:, 0] + radius, circle[:, 1] + radius] = np.arange(len(circle))
-        self.rank[radius, radius] = -1  # the same-cell check comes before the circle
+        self.rank[radius, radius] = -1
         self.size = len(circle)
+        #: squared offset length and "diagonal or centre" per rank + 1
+        d2 = np.zeros(self.size + 1, dtype=np.int64)
+        d2[1:] = circle[:, 0] ** 2 + circle[:, 1] ** 2
+        self.d2_by_rank = d2
+        diag = np.ones(self.size + 1, dtype=bool)
+        diag[1:] = (circle[:, 0] != 0) & (circle[:, 1] != 0)
+        self.diagonal_by_rank = diag
         self.ylim = np.array(
             [math.isqrt(radius * radius - dx * dx) for dx in range(-radius, radius + 1)], dtype=np.int64
         )
 
+    def probabilities(self, same_cell: float, scale: float, radius_m: float) -> np.ndarray:
+        """Probability per rank + 1: ``same_cell`` for the same-cell check, else kollagen's
+        ``scale * exp(-5 (dx^2 + dy^2) / r^2)`` (offsets in cells, radius in metres)."""
+        p = np.array([scale * math.exp(-5.0 * v / (radius_m * radius_m)) for v in self.d2_by_rank.tolist()])
+        p[0] = same_cell
+        return p
+
 
 def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
-    """All (query k, table m) pairs with table cell - query cell inside the circle (centre included).
+    """Every (query k, table m) pair whose cells are at most the circle's radius apart.
 
-    Returns query indices, table indices, dx and dy, grouped by query and by dx (unordered in y).
+    Returns ``(k, m, rank)`` sorted in kollagen's visiting order: by query, then the same-cell check,
+    then the circle's order. Table cells must be distinct.
     """
     R = circle.radius
     if len(tx) == 0 or len(qx) == 0:
         z = np.zeros(0, dtype=np.int64)
-        return z, z, z, z
+        return z, z, z
     xmin = min(int(qx.min()), int(tx.min())) - R
     ymin = min(int(qy.min()), int(ty.min())) - R
     stride = max(int(qy.max()), int(ty.max())) - ymin + R + 1
     tkey = (tx - xmin) * stride + (ty - ymin)
-    order = np.argsort(tkey, kind="stable")
+    order = np.argsort(tkey)
     skey = tkey[order]
+    qkey = (qx - xmin) * stride + (qy - ymin)
     dxs = np.arange(-R, R + 1, dtype=np.int64)
-    col = (qx[:, None] + dxs[None, :] - xmin) * stride
-    lo = col + (qy[:, None] - circle.ylim[None, :] - ymin)
-    hi = col + (qy[:, None] + circle.ylim[None, :] - ymin)
-    start = np.searchsorted(skey, lo.ravel(), side="left")
-    stop = np.searchsorted(skey, hi.ravel(), side="right")
+    centre = qkey[:, None] + dxs[None, :] * stride
+    start = np.searchsorted(skey, (centre - circle.ylim[None, :]).ravel(), side="left")
+    stop = np.searchsorted(skey, (centre + circle.ylim[None, :]).ravel(), side="right")
     counts = stop - start
     total = int(counts.sum())
-    group = np.repeat(np.arange(len(counts)), counts)
-    offsets = np.cumsum(counts) - counts
-    pos = start[group] + (np.arange(total) - offsets[group])
-    m = order[pos]
-    k = group // len(dxs)
-    return k, m, tx[m] - qx[k], ty[m] - qy[k]
-
-
-def _order_hits(k, dx, dy, circle: _CircleTable) -> np.ndarray:
-    """Permutation that puts hits in kollagen's order: by query, then same cell, then circle order."""
-    rank = circle.rank[dx + circle.radius, dy + circle.radius]
+    shift = start - (np.cumsum(counts) - counts)
+    pos = np.arange(total, dtype=np.int64) + np.repeat(shift, counts)
+    k = np.repeat(np.arange(len(qx), dtype=np.int64), counts.reshape(len(qx), -1).sum(axis=1))
+    # offset (dx, dy) as dx * stride + dy, mapped to its rank in the circle
+    delta = skey[pos] - qkey[k]
+    lut = np.full((2 * R + 1) * stride, -2, dtype=np.int64)
+    span = np.arange(-R, R + 1, dtype=np.int64)
+    lut[((span[:, None] + R) * stride + (span[None, :] + R)).ravel()] = circle.rank.ravel()
+    rank = lut[delta + R * stride + R]
     key = k * (circle.size + 1) + (rank + 1)
-    return np.argsort(key, kind="stable")
+    perm = np.argsort(key, kind="stable")
+    return k[perm], order[pos[perm]], rank[perm]
 
 
 def _sample(stream: MT19937Stream, probs: np.ndarray, cached: float | None):
     """Decide every hit with one uniform each; accepted hits draw three normals.
 
-    Returns (accepted hit indices, (n, 3) normals, cache state after the last draw). Advances the
+    Between two accepted hits the uniforms sit at fixed stream positions, so a whole chunk of hits is
+    compared with its uniforms at once and only accepted hits (and their normals) run in Python.
+    Returns (accepted hit indices, (n, 3) normals, cache state after the last draw) and advances the
     stream past everything consumed.
     """
     n_hits = len(probs)
     accepted: list[int] = []
-    normals: list[tuple[float, float, float]] = []
-    budget = n_hits + 64
+    normals: list[float] = []
+    # expected uniforms: one per hit plus about 2.5 per accepted hit for its three normals
+    budget = n_hits + int(3 * float(probs.sum())) + 1024
     u = stream.uniforms(budget)
-    ul = None  # Python list view of u, made lazily for the scalar normal draws
     h = 0  # next hit
     q = 0  # next uniform
     chunk = 256
     while h < n_hits:
         k = min(chunk, n_hits - h)
         if q + k + 64 > len(u):
-            budget = max(2 * len(u), q + k + 4096)
-            u = stream.uniforms(budget)
-            ul = None
+            u = stream.uniforms(max(2 * len(u), q + k + 4096))
         hit = probs[h : h + k] > u[q : q + k]
         t = int(hit.argmax())
         if not hit[t]:
@@ -357,38 +375,29 @@ def _sample(stream: MT19937Stream, probs: np.ndarray, cached: float | None):
         h += t
         q += t + 1
         chunk = max(64, 2 * (t + 1))
-        if ul is None:
-            ul = u.tolist()
-        vals = []
         for _ in range(3):
             if cached is not None:
-                vals.append(cached)
+                normals.append(cached)
                 cached = None
                 continue
             while True:
+                window = u[q : q + 16].tolist()
                 try:
-                    ret, keep, q = polar_normal(ul, q)
+                    ret, keep, used = polar_normal(window, 0)
                     break
-                except IndexError:
-                    budget = 2 * len(u)
-                    u = stream.uniforms(budget)
-                    ul = u.tolist()
-            vals.append(ret)
+                except IndexError:  # 8 rejections in a row, or the end of the buffer
+                    if q + 64 > len(u):
+                        u = stream.uniforms(2 * len(u))
+                    window = u[q : q + 4096].tolist()
+                    ret, keep, used = polar_normal(window, 0)
+                    break
+            q += used
+            normals.append(ret)
             cached = keep
         accepted.append(h)
-        normals.append((vals[0], vals[1], vals[2]))
         h += 1
     stream.advance(2 * q)
     return np.array(accepted, dtype=np.int64), np.array(normals).reshape(-1, 3), cached
-
-
-def _probabilities(dx, dy, same_prob: float, scale: float, radius_m: float) -> np.ndarray:
-    d2 = dx * dx + dy * dy
-    top = int(d2.max()) if len(d2) else 0
-    table = np.array([scale * math.exp(-5.0 * v / (radius_m * radius_m)) for v in range(top + 1)])
-    p = table[d2] if len(d2) else np.zeros(0)
-    p[d2 == 0] = same_prob
-    return p
 
 
 def _relative(x_from, y_from, th_from, x_to, y_to, th_to):
@@ -409,19 +418,25 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     circle = _CircleTable(radius)
     key = (cx - cx.min()) * (int(cy.max() - cy.min()) + 1) + (cy - cy.min())
     _, first = np.unique(key, return_index=True)
-    k, m, dx, dy = _enumerate_hits(cx, cy, cx[first], cy[first], circle)
-    j = first[m]
-    keep = (j < k) & (((dx != 0) & (dy != 0)) | ((dx == 0) & (dy == 0)))
-    k, j, dx, dy = k[keep], j[keep], dx[keep], dy[keep]
-    order = _order_hits(k, dx, dy, circle)
-    k, j, dx, dy = k[order], j[order], dx[order], dy[order]
-    probs = _probabilities(
-        dx,
-        dy,
+    first.sort()  # cells in order of their first visit
+    # kollagen's map only holds cells first visited before the current pose. Poses are taken in
+    # blocks; a block looks only at cells first visited before its end, so few hits are discarded.
+    parts = []
+    bounds = np.linspace(0, n, num=min(n, 16) + 1).astype(np.int64)
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        known = first[: np.searchsorted(first, hi)]
+        k, m, rank = _enumerate_hits(cx[lo:hi], cy[lo:hi], cx[known], cy[known], circle)
+        k = k + lo
+        j = known[m]
+        # intra-agent: only cells seen before, and (kollagen's quirk) only diagonal circle offsets
+        keep = (j < k) & circle.diagonal_by_rank[rank + 1]
+        parts.append((k[keep], j[keep], rank[keep]))
+    k, j, rank = (np.concatenate(c) for c in zip(*parts))
+    probs = circle.probabilities(
         agent.same_position_intra_loop_closure_probability,
         agent.intra_loop_closure_probability_scaling,
         agent.intra_loop_closure_radius,
-    )
+    )[rank + 1]
     acc, noise, _ = _sample(stream, probs, None)
     i_to, j_from = k[acc], j[acc]
     dX, dY, dT = _relative(walk.x[j_from], walk.y[j_from], walk.theta[j_from],
@@ -434,12 +449,17 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     return Edges(PoseKind.SE2, j_from, i_to, meas.reshape(-1, 3), info)
 
 
-def _inter_loop_closures(walks, cells, cfg: SynthConfig):
+def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None):
     p = cfg.inter
     radius = _round_to_int(p.loop_closure_radius * cfg.step_fragment / cfg.stepsize)
     circle = _CircleTable(radius)
-    cols: dict[str, list] = {c: [] for c in ("fa", "fi", "ta", "ti", "m")}
-    for a, b in agent_pairs(len(walks)):
+    prob_by_rank = circle.probabilities(
+        p.same_position_loop_closure_probability, p.loop_closure_probability_scaling, p.loop_closure_radius
+    )
+    pairs = agent_pairs(len(walks))
+
+    def one_pair(index: int):
+        a, b = pairs[index]
         wa, wb = walks[a], walks[b]
         (ax, ay), (bx, by) = cells[a], cells[b]
         # kollagen's map keeps the last visit of each cell of agent a
@@ -447,13 +467,9 @@ def _inter_loop_closures(walks, cells, cfg: SynthConfig):
         key = (ax - ax.min()) * (int(ay.max() - ay.min()) + 1) + (ay - ay.min())
         _, first_rev = np.unique(key[::-1], return_index=True)
         last = ra[first_rev]
-        k, m, dx, dy = _enumerate_hits(bx, by, ax[last], ay[last], circle)
-        order = _order_hits(k, dx, dy, circle)
-        k, j, dx, dy = k[order], last[m[order]], dx[order], dy[order]
-        probs = _probabilities(
-            dx, dy, p.same_position_loop_closure_probability, p.loop_closure_probability_scaling,
-            p.loop_closure_radius,
-        )
+        k, m, rank = _enumerate_hits(bx, by, ax[last], ay[last], circle)
+        j = last[m]
+        probs = prob_by_rank[rank + 1]
         stream = MT19937Stream(p.random_number_generator_seed)
         acc, noise, _ = _sample(stream, probs, None)
         i_from, j_to = k[acc], j[acc]
@@ -464,13 +480,10 @@ def _inter_loop_closures(walks, cells, cfg: SynthConfig):
             dY + noise[:, 1] * p.std_dev_loop_closure_position,
             dT + noise[:, 2] * p.std_dev_loop_closure_angle,
         ])
-        cols["fa"].append(np.full(len(acc), b))
-        cols["fi"].append(i_from)
-        cols["ta"].append(np.full(len(acc), a))
-        cols["ti"].append(j_to)
-        cols["m"].append(meas.reshape(-1, 3))
-    if not cols["fa"]:
-        return InterAgentEdges.empty(PoseKind.SE2)
+        return np.full(len(acc), b), i_from, np.full(len(acc), a), j_to, meas.reshape(-1, 3)
+
+    done = parallel_map(one_pair, len(pairs), jobs)
+    cols = {c: [d[k] for d in done] for k, c in enumerate(("fa", "fi", "ta", "ti", "m"))}
     meas = np.concatenate(cols["m"])
     info = _diag_information(len(meas), p.estimated_information_position, p.estimated_information_angle)
     return InterAgentEdges(
@@ -519,22 +532,30 @@ def _exact_odometry_information(walk: _Walk, cfg: SynthConfig, agent) -> np.ndar
 # --------------------------------------------------------------------------------------------------
 
 
-def generate(cfg: SynthConfig) -> SynthOutput:
-    """Run kollagen's generator: walk, intra-agent loop closures, alignment, inter-agent loop closures."""
+def generate(cfg: SynthConfig, *, jobs: int | None = None) -> SynthOutput:
+    """Run kollagen's generator: walk, intra-agent loop closures, alignment, inter-agent loop closures.
+
+    ``jobs`` processes share the agents and then the agent pairs (default: every core this process
+    may use); the output does not depend on it.
+    """
     seeds = effective_seeds([a.random_number_generator_seed for a in cfg.agents])
-    walks: list[_Walk] = []
-    intra: list[Edges] = []
-    for agent, seed in zip(cfg.agents, seeds):
-        stream = MT19937Stream(seed)
-        walk = _random_walk(stream, cfg, agent)
-        intra.append(_intra_loop_closures(stream, walk, cfg, agent))
-        walks.append(walk)
+
+    def one_agent(k: int):
+        stream = MT19937Stream(seeds[k])
+        walk = _random_walk(stream, cfg, cfg.agents[k])
+        return walk, _intra_loop_closures(stream, walk, cfg, cfg.agents[k])
+
+    done = parallel_map(one_agent, len(seeds), jobs)
+    walks = [w for w, _ in done]
+    intra = [lc for _, lc in done]
 
     if cfg.align:
         walks = _align(walks)
 
     cells = [_grid_cells(w.x, w.y, cfg) for w in walks]
-    inter = _inter_loop_closures(walks, cells, cfg) if len(walks) > 1 else InterAgentEdges.empty(PoseKind.SE2)
+    inter = (
+        _inter_loop_closures(walks, cells, cfg, jobs) if len(walks) > 1 else InterAgentEdges.empty(PoseKind.SE2)
+    )
 
     agents = []
     exact = []

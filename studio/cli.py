@@ -68,6 +68,9 @@ def synth(
     single_records: RecordKind = typer.Option(
         RecordKind.d2, "--single-records", help="g2o records of the single g2o file (kollagen: 2d)."
     ),
+    jobs: int = typer.Option(0, "--jobs", "-j", help="Processes to use (0: every core available).", min=0),
+    max_memory_gb: float = typer.Option(8.0, "--max-memory-gb", help="Refuse configs estimated to need more memory."),
+    max_output_gb: float = typer.Option(20.0, "--max-output-gb", help="Refuse configs estimated to write more."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
 ) -> None:
     """Generate a multi-agent pose graph exactly as kollagen's `generate CONFIG OUT` does.
@@ -79,7 +82,8 @@ def synth(
     t0 = time.perf_counter()
     cfg = load_synth_config(config, warn=_warn)
     res = synthesize(cfg, out, force=force, multi_records=multi_records.value,
-                     single_records=single_records.value)
+                     single_records=single_records.value, jobs=jobs or None,
+                     max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
     if not quiet:
         counts = res.output.graph.edge_counts()
         typer.echo(
@@ -89,6 +93,65 @@ def synth(
             f"loop closures) in {time.perf_counter() - t0:.2f} s\n"
             f"  {res.dataset_dir}\n  {res.single_dir}"
         )
+
+
+class AlignChoice(str, enum.Enum):
+    none = "none"
+    se3 = "se3"
+    sim3 = "sim3"
+
+
+@app.command()
+@cli_errors
+def evaluate(
+    dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder with <agent>_GT.tum ground truth."),
+    estimate: Path | None = typer.Option(
+        None, "--estimate", "-e",
+        help="An optimizer's output: a single g2o file (ids as in the dataset's single g2o), a multi-g2o "
+             "folder, or a folder of <agent>.tum / <agent>_*.tum files. Default: the dataset's initial estimate.",
+    ),
+    align: AlignChoice = typer.Option(AlignChoice.none, "--align", help="Umeyama alignment before scoring."),
+    align_per_agent: bool = typer.Option(False, "--align-per-agent", help="One alignment per agent, not one for all."),
+    rpe_delta_m: float = typer.Option(1.0, "--rpe-delta-m", help="RPE distance in metres of ground-truth path."),
+    rpe_delta_nodes: int = typer.Option(1, "--rpe-delta-nodes", help="RPE distance in nodes."),
+    tum_max_diff: float = typer.Option(
+        0.01, "--tum-max-diff", help="Largest time difference in seconds when matching TUM poses to the ground truth."
+    ),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
+    markdown: bool = typer.Option(False, "--markdown", help="Print a Markdown table."),
+    rrd: Path | None = typer.Option(
+        None, "--rrd", help="Also write the per-node APE series into this new Rerun recording (.rrd)."
+    ),
+    force: bool = typer.Option(False, "--force", help="Replace an existing --rrd file."),
+) -> None:
+    """Score an estimate against the ground truth with evo: APE and RPE per agent and over all agents.
+
+    Unaligned by default (the kollagen paper's convention: all agents share one frame).
+
+    Example: studio evaluate out/Multi3500x8 --estimate optimized.g2o
+    """
+    from studio.errors import ConfigError
+    from studio.evaluate import evaluate as evaluate_dataset
+    from studio.evaluate import format_markdown, format_table
+
+    if as_json and markdown:
+        raise ConfigError("--json and --markdown exclude each other")
+    if align_per_agent and align is AlignChoice.none:
+        raise ConfigError("--align-per-agent needs --align se3 or --align sim3")
+    ev = evaluate_dataset(dataset, estimate=estimate, align=align.value, align_per_agent=align_per_agent,
+                          rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes, tum_max_diff_s=tum_max_diff)
+    for msg in ev.warnings:
+        _warn(msg)
+    if rrd is not None:
+        from studio.evaluation_recording import save_evaluation_recording
+        from studio.io.atomic import staged_outputs
+
+        with staged_outputs(rrd.parent, [rrd.name], force=force) as staging:
+            save_evaluation_recording(ev, staging / rrd.name)
+    if as_json:
+        typer.echo(ev.to_json())
+    else:
+        typer.echo(format_markdown(ev) if markdown else format_table(ev), nl=False)
 
 
 # --- studio convert -----------------------------------------------------------------------------
@@ -211,6 +274,9 @@ def convert(
 
 
 def main() -> None:
+    from studio.runtime import tune_allocator
+
+    tune_allocator()
     app()
 
 

@@ -13,6 +13,7 @@ __all__ = [
     "FormatError",
     "GraphError",
     "OutputError",
+    "EvaluationError",
 ]
 
 
@@ -34,3 +35,7 @@ class GraphError(StudioError):
 
 class OutputError(StudioError):
     """An output cannot be written (it exists and --force was not given, or the folder is unusable)."""
+
+
+class EvaluationError(StudioError):
+    """An estimate cannot be scored against its dataset (vertices or timestamps do not match, no ground truth)."""

@@ -17,6 +17,7 @@ __all__ = [
     "se2_information_to_se3",
     "upper_to_matrix",
     "SE3_Z_INFORMATION",
+    "planar_poses_to_se3",
 ]
 
 #: Information given to z when a planar measurement is written as an SE(3) record (kollagen's choice).
@@ -74,3 +75,12 @@ def se2_information_to_se3(upper: np.ndarray) -> np.ndarray:
     full[:, 4, 4] = m[:, 2, 2]
     rows, cols = np.triu_indices(6)
     return full[:, rows, cols]
+
+
+def planar_poses_to_se3(poses: np.ndarray) -> np.ndarray:
+    """``(n, 3)`` planar poses ``[x, y, theta]`` to ``(n, 7)`` ``[x, y, 0, 0, 0, qz, qw]``."""
+    poses = np.asarray(poses, dtype=np.float64)
+    out = np.zeros((len(poses), 7))
+    out[:, 0:2] = poses[:, 0:2]
+    out[:, 3:7] = yaw_to_quat_xyzw(poses[:, 2])
+    return out

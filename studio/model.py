@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from studio.errors import GraphError
-from studio.geometry import se2_information_to_se3, yaw_to_quat_xyzw
+from studio.geometry import planar_poses_to_se3, se2_information_to_se3
 
 __all__ = ["PoseKind", "Edges", "InterAgentEdges", "AgentGraph", "PoseGraph", "graphs_equal"]
 
@@ -104,7 +104,7 @@ class Edges:
             PoseKind.SE3,
             self.from_index,
             self.to_index,
-            _lift_poses(self.measurements),
+            planar_poses_to_se3(self.measurements),
             se2_information_to_se3(self.information_upper),
         )
 
@@ -156,16 +156,9 @@ class InterAgentEdges:
             self.from_index,
             self.to_agent,
             self.to_index,
-            _lift_poses(self.measurements),
+            planar_poses_to_se3(self.measurements),
             se2_information_to_se3(self.information_upper),
         )
-
-
-def _lift_poses(poses: np.ndarray) -> np.ndarray:
-    out = np.zeros((len(poses), 7))
-    out[:, 0:2] = poses[:, 0:2]
-    out[:, 3:7] = yaw_to_quat_xyzw(poses[:, 2])
-    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -226,8 +219,8 @@ class AgentGraph:
             self.name,
             PoseKind.SE3,
             self.stamps_ns,
-            _lift_poses(self.initial),
-            None if self.ground_truth is None else _lift_poses(self.ground_truth),
+            planar_poses_to_se3(self.initial),
+            None if self.ground_truth is None else planar_poses_to_se3(self.ground_truth),
             self.odometry.to_se3(),
             self.loop_closures.to_se3(),
         )
@@ -282,11 +275,17 @@ class PoseGraph:
         }
 
     def to_se3(self) -> "PoseGraph":
+        """The same graph with SE(3) poses (planar poses lifted; computed once, then cached)."""
         if self.kind is PoseKind.SE3:
             return self
-        return PoseGraph(
+        cached = self.__dict__.get("_se3")
+        if cached is not None:
+            return cached
+        lifted = PoseGraph(
             PoseKind.SE3, tuple(a.to_se3() for a in self.agents), self.inter.to_se3(), dict(self.metadata)
         )
+        object.__setattr__(self, "_se3", lifted)
+        return lifted
 
 
 def _same(a, b) -> bool:

@@ -8,13 +8,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from generator.config import SynthConfig
+from generator.config import SynthConfig, estimate_resources
 from generator.kollagen import SynthOutput, generate
+from generator.parallel import parallel_map
 from generator.presets import PRESETS, preset, preset_names
 from studio.errors import ConfigError
 from studio.io.atomic import staged_outputs
 from studio.io.multig2o import Records, write_multi_g2o
 from studio.io.singleg2o import write_single_g2o, write_single_tum
+from studio.io.textfmt import shared_formatting
 from studio.io.synth_config import read_synth_config, synth_config_to_json
 
 __all__ = ["SynthResult", "load_synth_config", "synthesize", "write_kollagen_outputs"]
@@ -44,33 +46,77 @@ def load_synth_config(source: str | os.PathLike, *, warn: Callable[[str], None] 
 
 
 def write_kollagen_outputs(out: SynthOutput, parent: Path, name: str, *, multi_records: Records = "3d",
-                           single_records: Records = "2d") -> None:
-    """Write kollagen's files for ``out`` under ``parent`` (no staging; see :func:`synthesize`)."""
+                           single_records: Records = "2d", jobs: int | None = None) -> None:
+    """Write kollagen's files for ``out`` under ``parent`` (no staging; see :func:`synthesize`).
+
+    The multi-g2o folder and the single-g2o files are written by two processes when ``jobs`` allows.
+    """
     multi = parent / name
-    multi.mkdir()
-    write_multi_g2o(out.graph, multi, records=multi_records)
     single = parent / f"{name}_singleg2o"
-    single.mkdir()
-    write_single_g2o(out.graph, single / f"{name}.g2o", records=single_records,
-                     connector_information=out.connector_information,
-                     odometry_information=out.exact_odometry_information)
-    write_single_tum(out.graph, single / f"{name}_GT.tum", ground_truth=True)
-    write_single_tum(out.graph, single / f"{name}.tum", ground_truth=False)
+    out.graph.to_se3()  # lift once, before the work is shared out
+
+    def write_multi() -> None:
+        multi.mkdir()
+        write_multi_g2o(out.graph, multi, records=multi_records)
+
+    def write_single() -> None:
+        single.mkdir()
+        write_single_g2o(out.graph, single / f"{name}.g2o", records=single_records,
+                         connector_information=out.connector_information,
+                         odometry_information=out.exact_odometry_information)
+        write_single_tum(out.graph, single / f"{name}_GT.tum", ground_truth=True)
+        write_single_tum(out.graph, single / f"{name}.tum", ground_truth=False)
+
+    tasks = (write_multi, write_single)
+
+    def run(k: int) -> None:
+        with shared_formatting():
+            tasks[k]()
+
+    parallel_map(run, len(tasks), jobs)
+
+
+#: Default resource limits of :func:`synthesize` (lifted with ``max_memory_gb`` / ``max_output_gb``).
+DEFAULT_MAX_MEMORY_GB = 8.0
+DEFAULT_MAX_OUTPUT_GB = 20.0
+
+
+def check_resources(config: SynthConfig, *, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
+                    max_output_gb: float = DEFAULT_MAX_OUTPUT_GB) -> None:
+    """Refuse, before any work, a config whose estimated memory or output size is over the limits."""
+    memory, output = estimate_resources(config)
+    poses = config.number_of_agents * config.poses_per_agent
+    if memory > max_memory_gb * 1e9:
+        raise ConfigError(
+            f"{config.name}: {poses:.3g} poses would need about {memory / 1e9:.3g} GB of memory, over the "
+            f"{max_memory_gb:g} GB limit (raise it with --max-memory-gb)"
+        )
+    if output > max_output_gb * 1e9:
+        raise ConfigError(
+            f"{config.name}: {poses:.3g} poses would write about {output / 1e9:.3g} GB, over the "
+            f"{max_output_gb:g} GB limit (raise it with --max-output-gb)"
+        )
 
 
 def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool = False,
-               multi_records: Records = "3d", single_records: Records = "2d") -> SynthResult:
+               multi_records: Records = "3d", single_records: Records = "2d",
+               jobs: int | None = None, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
+               max_output_gb: float = DEFAULT_MAX_OUTPUT_GB) -> SynthResult:
     """Generate ``config`` and write it as kollagen's ``generate CONFIG OUT`` does.
 
     Writes ``OUT/<name>/`` (multi-g2o), ``OUT/<name>_singleg2o/`` and ``OUT/<name>.config.json``,
     all staged and renamed into place at the end. Existing outputs are replaced only with ``force``.
+    ``jobs`` caps the processes used (default: every core available); the bytes do not depend on it.
+    Configs estimated to need more memory or disk than the limits are refused before any work.
     """
+    check_resources(config, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
     out_dir = Path(out_dir)
     name = config.name
     names = [name, f"{name}_singleg2o", f"{name}.config.json"]
     with staged_outputs(out_dir, names, force=force) as staging:
-        output = generate(config)
-        write_kollagen_outputs(output, staging, name, multi_records=multi_records, single_records=single_records)
+        output = generate(config, jobs=jobs)
+        write_kollagen_outputs(output, staging, name, multi_records=multi_records,
+                               single_records=single_records, jobs=jobs)
         with open(staging / names[2], "w", encoding="utf-8") as f:
             json.dump(synth_config_to_json(config), f, indent=4)
             f.write("\n")

@@ -20,10 +20,10 @@ from typing import IO
 import numpy as np
 
 from studio.errors import FormatError
-from studio.io.textfmt import format_column, format_int_column, format_rows
+from studio.io.textfmt import format_columns, format_int_column, format_rows
 from studio.model import PoseKind
 
-__all__ = ["G2oDocument", "write_g2o", "read_g2o", "g2o_lines", "SE3_INFO_ZERO_LITERAL"]
+__all__ = ["G2oDocument", "write_g2o", "read_g2o", "g2o_lines", "SE3_INFO_ZERO_LITERAL", "SE3_POSE_ZERO_LITERAL"]
 
 _TAGS = {
     PoseKind.SE2: ("VERTEX_SE2", "EDGE_SE2"),
@@ -34,6 +34,8 @@ _TAG_KIND = {"VERTEX_SE2": PoseKind.SE2, "EDGE_SE2": PoseKind.SE2,
 _DIAG6 = set(np.cumsum([0, 6, 5, 4, 3, 2]).tolist())  # positions of diagonal entries in a 6x6 upper triangle
 #: For each of the 21 SE(3) information entries, the text of a positive zero.
 SE3_INFO_ZERO_LITERAL = [None if k in _DIAG6 else "0.0" for k in range(21)]
+#: For x, y, z, qx, qy, qz, qw: the text of a positive zero (kollagen writes planar z, qx, qy as 0.0).
+SE3_POSE_ZERO_LITERAL = [None, None, "0.0", "0.0", "0.0", None, None]
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,15 +53,8 @@ class G2oDocument:
 
 def _pose_texts(poses: np.ndarray, kind: PoseKind) -> list[str]:
     if kind is PoseKind.SE2:
-        return format_rows_fast(poses, ["%.17g"] * 3, [None] * 3)
-    zeros = [None, None, "0.0", "0.0", "0.0", None, None]
-    return format_rows_fast(poses, ["%.17g"] * 7, zeros)
-
-
-def format_rows_fast(values: np.ndarray, fmts: list[str], zeros: list[str | None]) -> list[str]:
-    """Columns formatted independently (no row dedup), joined by spaces."""
-    cols = [format_column(values[:, c], fmts[c], zeros[c]) for c in range(values.shape[1])]
-    return [" ".join(parts) for parts in zip(*cols)]
+        return format_columns(poses, ["%.17g"] * 3, [None] * 3)
+    return format_columns(poses, ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
 
 
 def _info_texts(info: np.ndarray, kind: PoseKind) -> list[str]:
@@ -116,12 +111,18 @@ _WIDTH = {  # tokens after the tag
 }
 
 
-def read_g2o(source: str | os.PathLike | IO[str]) -> G2oDocument:
-    """Parse a g2o file; errors name ``file:line``."""
+def read_g2o(source: str | os.PathLike | IO[str], *, edges: bool = True) -> G2oDocument:
+    """Parse a g2o file; errors name ``file:line``.
+
+    ``edges=False`` skips edge records unparsed (the document then has no edges): reading only the
+    vertices of a large file is several times faster.
+    """
     text, name = _open_text(source)
     groups: dict[str, tuple[list[int], list[list[str]]]] = {}
     kind = None
     for lineno, raw in enumerate(io.StringIO(text), start=1):
+        if not edges and raw.startswith("EDGE_"):
+            continue
         parts = raw.split()
         if not parts or parts[0].startswith("#"):
             continue
@@ -149,7 +150,7 @@ def read_g2o(source: str | os.PathLike | IO[str]) -> G2oDocument:
     vposes = _floats(vrows, 1, 1 + npose, vlines, name)
     eids = _ints(erows, 0, 2, elines, name)
     emeas = _floats(erows, 2, 2 + npose, elines, name)
-    einfo = _floats(erows, 2 + npose, None, elines, name)
+    einfo = _floats(erows, 2 + npose, 2 + npose + kind.information_width, elines, name)
     uniq, counts = np.unique(vids, return_counts=True)
     if np.any(counts > 1):
         dup = int(uniq[np.argmax(counts > 1)])

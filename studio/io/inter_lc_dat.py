@@ -17,8 +17,8 @@ from typing import IO, Literal
 import numpy as np
 
 from studio.errors import FormatError
-from studio.io.g2o import SE3_INFO_ZERO_LITERAL, _open_text, format_rows_fast
-from studio.io.textfmt import format_int_column, format_rows
+from studio.io.g2o import SE3_INFO_ZERO_LITERAL, SE3_POSE_ZERO_LITERAL, _open_text
+from studio.io.textfmt import format_columns, format_int_column, format_rows
 from studio.model import InterAgentEdges, PoseKind
 
 __all__ = ["write_inter_lc_dat", "read_inter_lc_dat", "inter_lc_lines", "Precision"]
@@ -29,10 +29,10 @@ Precision = Literal["kollagen", "full"]
 def inter_lc_lines(inter: InterAgentEdges, precision: Precision = "kollagen") -> list[str]:
     fmt = "%f" if precision == "kollagen" else "%.17g"
     if inter.kind is PoseKind.SE3:
-        meas = format_rows_fast(inter.measurements, [fmt] * 7, [None, None, "0.0", "0.0", "0.0", None, None])
+        meas = format_columns(inter.measurements, [fmt] * 7, SE3_POSE_ZERO_LITERAL)
         info = format_rows(inter.information_upper, [fmt] * 21, SE3_INFO_ZERO_LITERAL)
     else:
-        meas = format_rows_fast(inter.measurements, [fmt] * 3, [None] * 3)
+        meas = format_columns(inter.measurements, [fmt] * 3, [None] * 3)
         info = format_rows(inter.information_upper, [fmt] * 6, [None, "0.0", "0.0", None, "0.0", None])
     a1 = format_int_column(inter.from_agent + 1)
     v1 = format_int_column(inter.from_index)

@@ -82,19 +82,20 @@ def _agent_folders(folder: Path) -> list[Path]:
     return sorted(subs, key=lambda p: _natural_key(p.name))
 
 
-def read_multi_g2o(folder: str | os.PathLike) -> PoseGraph:
+def read_multi_g2o(folder: str | os.PathLike, *, edges: bool = True) -> PoseGraph:
     """Read a multi-g2o folder (ours or kollagen's) into a :class:`PoseGraph`.
 
     The graph is SE3 when the files hold 3D records (kollagen's default), SE2 for 2D records. A
     missing ``<agent>_GT.tum`` gives an agent without ground truth; a missing ``inter_agent_lc.dat``
-    gives no inter-agent edges.
+    gives no inter-agent edges. ``edges=False`` reads only the poses (every edge list is empty), for
+    tools such as ``studio evaluate`` that need nothing else.
     """
     folder = Path(folder)
     agents = []
     kind = None
     for sub in _agent_folders(folder):
         g2o_path = sub / "posegraph.g2o"
-        doc = read_g2o(g2o_path)
+        doc = read_g2o(g2o_path, edges=edges)
         if kind is None:
             kind = doc.kind
         elif doc.kind is not kind:
@@ -110,7 +111,7 @@ def read_multi_g2o(folder: str | os.PathLike) -> PoseGraph:
         chain = (fr == np.arange(len(fr))) & (to == np.arange(len(fr)) + 1)
         n_odo = int(np.argmin(chain)) if not chain.all() else len(fr)
 
-        def edges(sl):
+        def edge_slice(sl):
             return Edges(kind, fr[sl], to[sl], doc.edge_measurements[sl], doc.edge_information_upper[sl])
 
         gt_path = sub / f"{sub.name}_GT.tum"
@@ -123,14 +124,14 @@ def read_multi_g2o(folder: str | os.PathLike) -> PoseGraph:
             stamps = traj.stamps_ns
             gt = traj.poses if kind is PoseKind.SE3 else _planar(traj.poses)
         try:
-            agents.append(AgentGraph(sub.name, kind, stamps, initial, gt, edges(slice(0, n_odo)),
-                                     edges(slice(n_odo, None))))
+            agents.append(AgentGraph(sub.name, kind, stamps, initial, gt, edge_slice(slice(0, n_odo)),
+                                     edge_slice(slice(n_odo, None))))
         except GraphError as err:
             raise FormatError(f"{sub}: {err}") from None
     dat = folder / "inter_agent_lc.dat"
     from studio.model import InterAgentEdges
 
-    inter = read_inter_lc_dat(dat, kind) if dat.is_file() else InterAgentEdges.empty(kind)
+    inter = read_inter_lc_dat(dat, kind) if edges and dat.is_file() else InterAgentEdges.empty(kind)
     try:
         return PoseGraph(kind, tuple(agents), inter, {"source": str(folder)})
     except GraphError as err:

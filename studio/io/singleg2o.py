@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from studio.geometry import normalize_angle
+from studio.geometry import normalize_angle, planar_poses_to_se3, se2_information_to_se3
 from studio.io.g2o import G2oDocument, g2o_lines
 from studio.io.multig2o import Records
 from studio.io.tum import tum_lines
@@ -85,11 +85,8 @@ def write_single_g2o(graph: PoseGraph, path: str | os.PathLike, *, records: Reco
     doc = G2oDocument(kind, vid, vposes, np.concatenate(fr).astype(np.int64), np.concatenate(to).astype(np.int64),
                       np.concatenate(meas), np.concatenate(info))
     if records == "3d":
-        from studio.geometry import se2_information_to_se3
-        from studio.model import _lift_poses
-
-        doc = G2oDocument(PoseKind.SE3, doc.vertex_ids, _lift_poses(doc.vertex_poses), doc.edge_from,
-                          doc.edge_to, _lift_poses(doc.edge_measurements),
+        doc = G2oDocument(PoseKind.SE3, doc.vertex_ids, planar_poses_to_se3(doc.vertex_poses), doc.edge_from,
+                          doc.edge_to, planar_poses_to_se3(doc.edge_measurements),
                           se2_information_to_se3(doc.edge_information_upper))
     with open(path, "w", encoding="ascii", newline="\n") as f:
         f.write("".join(g2o_lines(doc)))

@@ -163,6 +163,15 @@ def parse_synth_config(data: Any, *, source: str = "<config>", name: str = "data
         agents.append(AgentConfig(**_section(r, r.obj(spec, path, _AGENT), path, _AGENT)))
     if len(agents) == 1:
         agents = agents * n_agents
+    if exact:
+        for k, a in enumerate(agents):
+            for key in ("std_dev_position", "std_dev_angle"):
+                if getattr(a, key) <= 0:
+                    raise r.fail(
+                        f"agent_parameters.agent_specific[{k}].{key}",
+                        "must be positive when exact_information_matrix is true (the derived information "
+                        "would be infinite)",
+                    )
     ip = "inter_agent_loop_closure_parameters"
     inter = InterLoopClosureConfig(**_section(r, r.obj(r.get(top, ip, ""), ip, _INTER), ip, _INTER))
     return SynthConfig(

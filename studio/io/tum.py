@@ -11,6 +11,7 @@ int64 nanosecond stamps and ``(n, 7)`` poses with normalised quaternions.
 from __future__ import annotations
 
 import io
+import math
 import os
 import re
 from dataclasses import dataclass
@@ -19,8 +20,8 @@ from typing import IO
 import numpy as np
 
 from studio.errors import FormatError
-from studio.io.g2o import _open_text, format_rows_fast
-from studio.io.textfmt import format_column
+from studio.io.g2o import SE3_POSE_ZERO_LITERAL, _open_text
+from studio.io.textfmt import format_column, format_columns
 
 __all__ = ["TumTrajectory", "write_tum", "read_tum", "tum_lines", "format_stamps"]
 
@@ -40,14 +41,14 @@ def format_stamps(stamps_ns: np.ndarray) -> list[str]:
     stamps_ns = np.asarray(stamps_ns, dtype=np.int64)
     if np.all(stamps_ns % _NS == 0):
         return format_column((stamps_ns // _NS).astype(np.float64))
-    sec, frac = np.divmod(stamps_ns, _NS)
-    return [f"{s}.{f:09d}" for s, f in zip(sec.tolist(), frac.tolist())]
+    sign = np.where(stamps_ns < 0, "-", "")
+    sec, frac = np.divmod(np.abs(stamps_ns), _NS)
+    return [f"{g}{s}.{f:09d}" for g, s, f in zip(sign.tolist(), sec.tolist(), frac.tolist())]
 
 
 def tum_lines(stamps_ns: np.ndarray, poses: np.ndarray) -> list[str]:
     stamps = format_stamps(stamps_ns)
-    body = format_rows_fast(np.asarray(poses, dtype=np.float64), ["%.17g"] * 7,
-                            [None, None, "0.0", "0.0", "0.0", None, None])
+    body = format_columns(np.asarray(poses, dtype=np.float64), ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
     return [f"{t} {b}\n" for t, b in zip(stamps, body)]
 
 
@@ -61,6 +62,8 @@ def write_tum(target: str | os.PathLike | IO[str], stamps_ns: np.ndarray, poses:
 
 
 def _stamp_ns(token: str) -> int:
+    if token.isdecimal():  # whole seconds (kollagen's node indices): the common case, fast
+        return int(token) * _NS
     m = _DECIMAL.match(token)
     if m and (m.group(2) or m.group(3)):
         sign = -1 if m.group(1) == "-" else 1
@@ -109,7 +112,7 @@ def read_tum(source: str | os.PathLike | IO[str], *, require_increasing: bool = 
         except ValueError:
             bad = next(p for p in parts[1:] if not _is_float(p))
             raise FormatError(f"{name}:{lineno}: {bad[:40]!r} is not a number") from None
-        if not all(np.isfinite(vals)):
+        if not all(map(math.isfinite, vals)):
             raise FormatError(f"{name}:{lineno}: value is not finite")
         if not -(2**63) <= stamp < 2**63:
             raise FormatError(f"{name}:{lineno}: timestamp out of range")

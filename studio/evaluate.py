@@ -1,0 +1,443 @@
+"""``studio evaluate`` as a library function: score an estimate against a dataset's ground truth with evo.
+
+Conventions (those of the kollagen paper, Tables I and II, unless an option says otherwise):
+
+* Poses are compared in the one world frame all agents share, **unaligned** by default. ``align``
+  ``"se3"``/``"sim3"`` fits one Umeyama transform (evo's :func:`~evo.core.geometry.umeyama_alignment`)
+  to all agents together, or one per agent with ``align_per_agent``.
+* **APE** (evo's :class:`~evo.core.metrics.APE`): translation part in metres, rotation angle in
+  degrees, for every pose, the first included. The row ``all`` pools the poses of every agent, as
+  evo does on kollagen's concatenated ``NAME_GT.tum``/``NAME.tum``: its translation mean is the
+  paper's figure (14.883697 on Multi3500x8, 17.427713 on Multi10000x5).
+* **RPE** (evo's :class:`~evo.core.metrics.RPE`, consecutive pairs chosen on the ground truth with
+  evo's :func:`~evo.core.metrics.id_pairs_from_delta`, i.e. ``evo_rpe --pairs_from_reference``):
+  per ``rpe_delta_m`` metres travelled and per ``rpe_delta_nodes`` nodes, translation in metres and
+  rotation angle in degrees. Pairs never span two agents; ``all`` pools every agent's pairs.
+* Statistics are evo's (``rmse, mean, median, std, min, max, sse``, std with ``ddof=0``).
+
+evo computes APE rotation and RPE in Python loops over 4x4 matrices (about 15 s for the 50,005 poses
+of Multi10000x5). Here the same formulas are evaluated on whole columns with scipy's ``Rotation``
+(which evo's ``so3_log`` uses too); ``tests/test_evaluate.py`` checks them against evo's metric objects.
+The translation APE is evo's own ``APE.process_data``.
+"""
+
+from __future__ import annotations
+
+import enum
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Sequence
+
+import numpy as np
+
+from studio.errors import EvaluationError
+from studio.model import PoseGraph
+
+if TYPE_CHECKING:
+    from studio.io.estimate import AgentEstimate
+
+__all__ = [
+    "Alignment",
+    "AgentScore",
+    "Evaluation",
+    "ErrorStats",
+    "evaluate",
+    "score",
+    "format_table",
+    "format_markdown",
+    "DEFAULT_TUM_MAX_DIFF_S",
+]
+
+#: Largest time difference [s] at which a TUM estimate pose is matched to a ground-truth pose (evo's default).
+DEFAULT_TUM_MAX_DIFF_S = 0.01
+_NS = 1_000_000_000
+
+
+class Alignment(str, enum.Enum):
+    none = "none"
+    se3 = "se3"
+    sim3 = "sim3"
+
+
+@dataclass(frozen=True)
+class ErrorStats:
+    """evo's statistics of one error series (``StatisticsType``), and how many values it has."""
+
+    count: int
+    rmse: float
+    mean: float
+    median: float
+    std: float
+    min: float
+    max: float
+    sse: float
+
+    @classmethod
+    def of(cls, errors: np.ndarray) -> "ErrorStats | None":
+        if len(errors) == 0:
+            return None
+        from evo.core import metrics
+
+        pe = metrics.APE()  # evo's statistics of an error array (PE.get_all_statistics)
+        pe.error = np.asarray(errors, dtype=np.float64)
+        s = pe.get_all_statistics()
+        return cls(len(errors), *(float(s[k]) for k in ("rmse", "mean", "median", "std", "min", "max", "sse")))
+
+
+_METRICS = (
+    ("ape_translation_m", "APE translation [m]"),
+    ("ape_rotation_deg", "APE rotation [deg]"),
+    ("rpe_m_translation_m", "RPE per metre, translation [m]"),
+    ("rpe_m_rotation_deg", "RPE per metre, rotation [deg]"),
+    ("rpe_node_translation_m", "RPE per node, translation [m]"),
+    ("rpe_node_rotation_deg", "RPE per node, rotation [deg]"),
+)
+
+
+@dataclass(frozen=True, eq=False)
+class AgentScore:
+    """The errors of one agent (or of all agents pooled: ``name == "all"``)."""
+
+    name: str
+    poses: int
+    """Poses scored (matched ones for TUM estimates)."""
+    ape_translation_m: ErrorStats
+    ape_rotation_deg: ErrorStats
+    rpe_m_translation_m: ErrorStats | None
+    """None when the ground truth travels less than one RPE distance."""
+    rpe_m_rotation_deg: ErrorStats | None
+    rpe_node_translation_m: ErrorStats | None
+    """None when the agent has no more poses than the RPE node delta."""
+    rpe_node_rotation_deg: ErrorStats | None
+
+    def to_dict(self) -> dict:
+        out: dict = {"name": self.name, "poses": self.poses}
+        for key, _ in _METRICS:
+            st = getattr(self, key)
+            out[key] = None if st is None else st.__dict__.copy()
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class Evaluation:
+    """The result of :func:`score` / :func:`evaluate`."""
+
+    dataset: str
+    estimate: str
+    """The estimate's path, or ``"initial estimate"``."""
+    estimate_layout: str
+    """``initial``, ``single-g2o``, ``multi-g2o`` or ``tum``."""
+    alignment: Alignment
+    align_per_agent: bool
+    rpe_delta_m: float
+    rpe_delta_nodes: int
+    agents: tuple[AgentScore, ...]
+    overall: AgentScore
+    """All agents pooled (row ``all``)."""
+    node_indices: tuple[np.ndarray, ...] = field(repr=False)
+    """Per agent, the dataset vertex index of each scored pose (all of them unless TUM matching dropped some)."""
+    stamps_ns: tuple[np.ndarray, ...] = field(repr=False)
+    """Per agent, the ground-truth stamps of the scored poses."""
+    ape_translation_series_m: tuple[np.ndarray, ...] = field(repr=False)
+    """Per agent, the APE translation error of each scored pose (for plots and recordings)."""
+    ape_rotation_series_deg: tuple[np.ndarray, ...] = field(repr=False)
+    alignment_transforms: tuple[tuple[np.ndarray, np.ndarray, float], ...] = field(repr=False, default=())
+    """``(R, t, s)`` of each Umeyama fit (one, or one per agent); empty when unaligned."""
+    warnings: tuple[str, ...] = ()
+    """Facts worth a warning, e.g. ground-truth poses that no TUM estimate pose matched."""
+
+    @property
+    def alignment_text(self) -> str:
+        if self.alignment is Alignment.none:
+            return "unaligned"
+        return f"{self.alignment.value} Umeyama alignment, " + (
+            "one per agent" if self.align_per_agent else "one for all agents")
+
+    def to_dict(self) -> dict:
+        return {
+            "dataset": self.dataset,
+            "estimate": self.estimate,
+            "estimate_layout": self.estimate_layout,
+            "alignment": {"mode": self.alignment.value, "per_agent": self.align_per_agent},
+            "rpe": {"delta_m": self.rpe_delta_m, "delta_nodes": self.rpe_delta_nodes,
+                    "pairs_from": "ground truth"},
+            "agents": [a.to_dict() for a in self.agents],
+            "all": self.overall.to_dict(),
+        }
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2, allow_nan=False)
+
+
+# ---------------------------------------------------------------------------------------------- scoring
+
+
+def _trajectory(poses7: np.ndarray, stamps_ns: np.ndarray):
+    from evo.core.trajectory import PoseTrajectory3D
+
+    return PoseTrajectory3D(positions_xyz=poses7[:, 0:3], orientations_quat_wxyz=poses7[:, [6, 3, 4, 5]],
+                            timestamps=stamps_ns / _NS)
+
+
+def _check_finite(poses: np.ndarray, where: str) -> None:
+    bad = ~np.isfinite(poses).all(axis=1)
+    if bad.any():
+        raise EvaluationError(f"{where}: pose {int(np.flatnonzero(bad)[0])} is not finite (NaN or inf)")
+    norms = np.linalg.norm(poses[:, 3:7], axis=1)
+    if np.any(norms < 1e-9):
+        raise EvaluationError(f"{where}: pose {int(np.flatnonzero(norms < 1e-9)[0])} has a zero quaternion")
+
+
+def _matched(graph: PoseGraph, estimate, max_diff_s: float, warnings: list[str]):
+    """Per agent: (gt poses, est poses, gt stamps, vertex indices) of the poses to compare."""
+    from evo.core.sync import matching_time_indices
+
+    out = []
+    g = graph.to_se3()
+    for k, agent in enumerate(g.agents):
+        if agent.ground_truth is None:
+            src = graph.metadata.get("source")
+            hint = f" ({Path(src) / agent.name / (agent.name + '_GT.tum')} is missing)" if src else ""
+            raise EvaluationError(f"{agent.name}: no ground truth{hint}")
+        if estimate is None:
+            out.append((agent.ground_truth, agent.initial, agent.stamps_ns, np.arange(agent.num_poses)))
+            continue
+        est = estimate[k]
+        if est.name != agent.name:
+            raise EvaluationError(f"estimate agent {k + 1} is {est.name}, the dataset's is {agent.name}")
+        poses = np.asarray(est.poses_xyz_quat_xyzw, dtype=np.float64)
+        _check_finite(poses, f"estimate of {agent.name}")
+        if est.stamps_ns is None:
+            if len(poses) != agent.num_poses:
+                raise EvaluationError(
+                    f"estimate of {agent.name}: {len(poses)} poses for the dataset's {agent.num_poses}")
+            out.append((agent.ground_truth, poses, agent.stamps_ns, np.arange(agent.num_poses)))
+            continue
+        i_gt, i_est = matching_time_indices(agent.stamps_ns / _NS, np.asarray(est.stamps_ns) / _NS, max_diff_s)
+        if not i_gt:
+            raise EvaluationError(
+                f"estimate of {agent.name}: no timestamp matches the ground truth within {max_diff_s} s "
+                f"(estimate {est.stamps_ns[0] / _NS:.9g}..{est.stamps_ns[-1] / _NS:.9g} s, ground truth "
+                f"{agent.stamps_ns[0] / _NS:.9g}..{agent.stamps_ns[-1] / _NS:.9g} s)")
+        i_gt, i_est = np.asarray(i_gt), np.asarray(i_est)
+        if len(i_gt) < agent.num_poses:
+            warnings.append(f"estimate of {agent.name}: {len(i_gt)} of {agent.num_poses} ground-truth poses "
+                            f"matched within {max_diff_s} s; only those are scored")
+        out.append((agent.ground_truth[i_gt], poses[i_est], agent.stamps_ns[i_gt], i_gt))
+    return out
+
+
+def _umeyama(est_xyz: np.ndarray, gt_xyz: np.ndarray, with_scale: bool, what: str):
+    from evo.core.geometry import GeometryException, umeyama_alignment
+
+    try:
+        return umeyama_alignment(est_xyz.T, gt_xyz.T, with_scale)
+    except GeometryException as err:
+        raise EvaluationError(f"{what}: cannot align ({err})") from None
+
+
+def _apply(poses: np.ndarray, r: np.ndarray, t: np.ndarray, s: float) -> np.ndarray:
+    """``T * (scaled pose)`` as evo's ``scale(s)`` then ``transform(se3(r, t))``, on columns."""
+    from scipy.spatial.transform import Rotation
+
+    out = np.empty_like(poses)
+    out[:, 0:3] = (s * poses[:, 0:3]) @ r.T + t
+    out[:, 3:7] = (Rotation.from_matrix(r) * Rotation.from_quat(poses[:, 3:7])).as_quat()
+    return out
+
+
+def _rpe(gt: np.ndarray, est: np.ndarray, delta: float, unit) -> tuple[np.ndarray, np.ndarray]:
+    """RPE translation [m] and rotation [deg] of evo's consecutive pairs, pairs taken on the ground truth."""
+    from evo.core import filters, metrics
+    from scipy.spatial.transform import Rotation
+
+    n = len(gt)
+    if unit is metrics.Unit.frames:
+        poses = range(n)  # filter_pairs_by_index only counts them
+    else:
+        poses = np.zeros((n, 4, 4))
+        poses[:, 0:3, 3] = gt[:, 0:3]
+    try:
+        pairs = np.asarray(metrics.id_pairs_from_delta(poses, delta, unit, 0.1, all_pairs=False),
+                           dtype=np.int64).reshape(-1, 2)
+    except filters.FilterException:
+        return np.zeros(0), np.zeros(0)
+    i, j = pairs[:, 0], pairs[:, 1]
+    rq, rp = Rotation.from_quat(gt[:, 3:7]), Rotation.from_quat(est[:, 3:7])
+    # Q_rel = Q_i^-1 Q_j, P_rel = P_i^-1 P_j, E = Q_rel^-1 P_rel (evo's RPE.rpe_base)
+    q_rel_r, p_rel_r = rq[i].inv() * rq[j], rp[i].inv() * rp[j]
+    q_rel_t = rq[i].inv().apply(gt[j, 0:3] - gt[i, 0:3])
+    p_rel_t = rp[i].inv().apply(est[j, 0:3] - est[i, 0:3])
+    trans = np.linalg.norm(q_rel_r.inv().apply(p_rel_t - q_rel_t), axis=1)
+    rot = np.rad2deg((q_rel_r.inv() * p_rel_r).magnitude())
+    return trans, rot
+
+
+def _ape_rotation_deg(gt: np.ndarray, est: np.ndarray) -> np.ndarray:
+    """evo's APE rotation angle: the angle of ``est^-1 * gt`` in degrees."""
+    from scipy.spatial.transform import Rotation
+
+    return np.rad2deg((Rotation.from_quat(est[:, 3:7]).inv() * Rotation.from_quat(gt[:, 3:7])).magnitude())
+
+
+def score(graph: PoseGraph, estimate: Sequence[AgentEstimate] | None = None, *, align: Alignment | str = Alignment.none,
+          align_per_agent: bool = False, rpe_delta_m: float = 1.0, rpe_delta_nodes: int = 1,
+          tum_max_diff_s: float = DEFAULT_TUM_MAX_DIFF_S, dataset: str = "", estimate_label: str = "",
+          estimate_layout: str = "") -> Evaluation:
+    """Score ``estimate`` (a sequence of :class:`~studio.io.estimate.AgentEstimate`, one per agent, or
+    None for the graph's initial estimate) against the graph's ground truth. No I/O."""
+    from evo.core import metrics
+
+    try:
+        align = Alignment(align)
+    except ValueError:
+        raise EvaluationError(f"unknown alignment {align!r} (known: none, se3, sim3)") from None
+    if not (math.isfinite(rpe_delta_m) and rpe_delta_m > 0):
+        raise EvaluationError(f"the RPE distance must be a positive number of metres, got {rpe_delta_m!r}")
+    if rpe_delta_nodes < 1:
+        raise EvaluationError(f"the RPE node delta must be at least 1, got {rpe_delta_nodes}")
+    if estimate is not None and len(estimate) != len(graph.agents):
+        raise EvaluationError(f"the estimate has {len(estimate)} agents, the dataset {len(graph.agents)}")
+    warnings: list[str] = []
+    matched = _matched(graph, estimate, tum_max_diff_s, warnings)
+    names = [a.name for a in graph.agents]
+    transforms = []
+    if align is not Alignment.none:
+        sim3 = align is Alignment.sim3
+        if align_per_agent:
+            aligned = []
+            for name, (gt, est, st, idx) in zip(names, matched):
+                r, t, s = _umeyama(est[:, 0:3], gt[:, 0:3], sim3, name)
+                transforms.append((r, t, s))
+                aligned.append((gt, _apply(est, r, t, s), st, idx))
+        else:
+            r, t, s = _umeyama(np.concatenate([m[1][:, 0:3] for m in matched]),
+                               np.concatenate([m[0][:, 0:3] for m in matched]), sim3, "all agents")
+            transforms.append((r, t, s))
+            aligned = [(gt, _apply(est, r, t, s), st, idx) for gt, est, st, idx in matched]
+        matched = aligned
+
+    # APE translation: evo's own metric, on all agents' poses pooled (kollagen's single TUM files).
+    gt_all = np.concatenate([m[0] for m in matched])
+    est_all = np.concatenate([m[1] for m in matched])
+    stamps_all = np.arange(len(gt_all), dtype=np.int64) * _NS
+    ape = metrics.APE(metrics.PoseRelation.translation_part)
+    ape.process_data((_trajectory(gt_all, stamps_all), _trajectory(est_all, stamps_all)))
+    bounds = np.cumsum([0] + [len(m[0]) for m in matched])
+    ape_t = [ape.error[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+    ape_r = [_ape_rotation_deg(gt, est) for gt, est, *_ in matched]
+    rpe_m = [_rpe(gt, est, rpe_delta_m, metrics.Unit.meters) for gt, est, *_ in matched]
+    rpe_n = [_rpe(gt, est, rpe_delta_nodes, metrics.Unit.frames) for gt, est, *_ in matched]
+
+    def row(name, n, at, ar, rm, rn) -> AgentScore:
+        return AgentScore(name, n, ErrorStats.of(at), ErrorStats.of(ar), ErrorStats.of(rm[0]),
+                          ErrorStats.of(rm[1]), ErrorStats.of(rn[0]), ErrorStats.of(rn[1]))
+
+    rows = tuple(row(names[k], len(matched[k][0]), ape_t[k], ape_r[k], rpe_m[k], rpe_n[k])
+                 for k in range(len(names)))
+
+    def pool(series):
+        return tuple(np.concatenate([s[c] for s in series]) for c in (0, 1))
+
+    overall = row("all", len(gt_all), ape.error, np.concatenate(ape_r), pool(rpe_m), pool(rpe_n))
+    return Evaluation(
+        dataset=dataset or str(graph.metadata.get("source", "")),
+        estimate=estimate_label or ("initial estimate" if estimate is None else "estimate"),
+        estimate_layout=estimate_layout or ("initial" if estimate is None else "arrays"),
+        alignment=align, align_per_agent=align_per_agent and align is not Alignment.none,
+        rpe_delta_m=float(rpe_delta_m), rpe_delta_nodes=int(rpe_delta_nodes),
+        agents=rows, overall=overall,
+        node_indices=tuple(np.asarray(m[3], dtype=np.int64) for m in matched),
+        stamps_ns=tuple(m[2] for m in matched),
+        ape_translation_series_m=tuple(ape_t), ape_rotation_series_deg=tuple(ape_r),
+        alignment_transforms=tuple(transforms), warnings=tuple(warnings),
+    )
+
+
+def evaluate(dataset: str | os.PathLike, *, estimate: str | os.PathLike | None = None,
+             align: Alignment | str = Alignment.none, align_per_agent: bool = False,
+             rpe_delta_m: float = 1.0, rpe_delta_nodes: int = 1,
+             tum_max_diff_s: float = DEFAULT_TUM_MAX_DIFF_S) -> Evaluation:
+    """Read the multi-g2o folder ``dataset`` and score ``estimate`` (or, if None, the dataset's
+    initial estimate) against its ground truth. See the module docstring for the conventions.
+
+    ``estimate`` is a single g2o file (ids as in the dataset's single g2o), a multi-g2o folder, or a
+    folder of ``<agent>.tum``/``<agent>_*.tum`` files (matched by time within ``tum_max_diff_s``).
+    """
+    from studio.io.estimate import read_estimate
+    from studio.io.multig2o import read_multi_g2o
+
+    graph = read_multi_g2o(dataset, edges=False)
+    est = None if estimate is None else read_estimate(estimate, graph)
+    return score(graph, None if est is None else est.agents, align=align, align_per_agent=align_per_agent,
+                 rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes, tum_max_diff_s=tum_max_diff_s,
+                 dataset=str(dataset), estimate_label="initial estimate" if est is None else est.source,
+                 estimate_layout="initial" if est is None else est.layout)
+
+
+# ---------------------------------------------------------------------------------------------- output
+
+_COLUMNS = (  # header, metric, statistic
+    ("poses", None, None),
+    ("APE t mean", "ape_translation_m", "mean"),
+    ("APE t median", "ape_translation_m", "median"),
+    ("APE t RMSE", "ape_translation_m", "rmse"),
+    ("APE t max", "ape_translation_m", "max"),
+    ("APE r mean", "ape_rotation_deg", "mean"),
+    ("APE r RMSE", "ape_rotation_deg", "rmse"),
+    ("RPE/m t RMSE", "rpe_m_translation_m", "rmse"),
+    ("RPE/m r RMSE", "rpe_m_rotation_deg", "rmse"),
+    ("RPE/node t RMSE", "rpe_node_translation_m", "rmse"),
+    ("RPE/node r RMSE", "rpe_node_rotation_deg", "rmse"),
+)
+
+
+def _cells(a: AgentScore) -> list[str]:
+    out = [a.name]
+    for _, metric, stat in _COLUMNS:
+        if metric is None:
+            out.append(str(a.poses))
+            continue
+        st = getattr(a, metric)
+        out.append("-" if st is None else f"{getattr(st, stat):.6f}")
+    return out
+
+
+def _header_lines(ev: Evaluation) -> list[str]:
+    return [
+        f"dataset:   {ev.dataset}",
+        f"estimate:  {ev.estimate} ({ev.estimate_layout})",
+        f"alignment: {ev.alignment_text}",
+        f"units:     t in metres, r in degrees; RPE/m over {ev.rpe_delta_m:g} m of ground-truth path, "
+        f"RPE/node over {ev.rpe_delta_nodes} node{'s' if ev.rpe_delta_nodes != 1 else ''}",
+    ]
+
+
+def format_table(ev: Evaluation) -> str:
+    """A plain-text table, agents as rows and ``all`` (every agent pooled) last."""
+    head = ["agent"] + [c[0] for c in _COLUMNS]
+    body = [_cells(a) for a in ev.agents] + [_cells(ev.overall)]
+    widths = [max(len(r[c]) for r in [head] + body) for c in range(len(head))]
+
+    def line(r):
+        return "  ".join(r[0].ljust(widths[0]) if c == 0 else r[c].rjust(widths[c]) for c in range(len(r)))
+
+    rule = "-" * len(line(head))
+    return "\n".join(_header_lines(ev) + ["", line(head), rule] + [line(r) for r in body[:-1]]
+                     + [rule, line(body[-1])]) + "\n"
+
+
+def format_markdown(ev: Evaluation) -> str:
+    """A GitHub-flavoured Markdown table with the same columns, conventions stated above it."""
+    head = ["agent"] + [c[0] for c in _COLUMNS]
+    lines = [f"{ln.split(':', 1)[0].capitalize()}:{ln.split(':', 1)[1].rstrip()}  " for ln in _header_lines(ev)]
+    lines[-1] = lines[-1].rstrip()
+    lines += ["", "| " + " | ".join(head) + " |", "|" + "|".join([":---"] + ["---:"] * len(_COLUMNS)) + "|"]
+    for a in ev.agents:
+        lines.append("| " + " | ".join(_cells(a)) + " |")
+    cells = _cells(ev.overall)
+    lines.append("| " + " | ".join(f"**{c}**" for c in cells) + " |")
+    return "\n".join(lines) + "\n"

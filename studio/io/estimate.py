@@ -1,0 +1,174 @@
+"""An optimizer's estimate of a dataset, read from one of three layouts and split per agent.
+
+* **single g2o** (a ``.g2o`` file): every agent's vertices with ids concatenated in the order of the
+  dataset's single g2o (agent 1's vertices first, see :func:`studio.io.singleg2o.agent_offsets`);
+  edges and ``FIX`` lines are ignored.
+* **multi-g2o** (a folder of ``<agent>/posegraph.g2o``): one file per agent, ids ``0..n-1``.
+* **TUM** (a folder of ``<agent>.tum`` or ``<agent>_*.tum``, ``*_GT.tum`` excluded): one trajectory
+  per agent; its poses are matched to the ground truth by timestamp when scoring.
+
+g2o estimates give one pose per dataset vertex; a vertex count or id that does not match the dataset
+raises :class:`~studio.errors.EvaluationError` naming the agent and how many vertices are off.
+Planar (``VERTEX_SE2``) files are lifted to ``[x, y, 0, 0, 0, sin(theta/2), cos(theta/2)]``.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from studio.errors import EvaluationError, FormatError
+from studio.geometry import yaw_to_quat_xyzw
+from studio.io.g2o import G2oDocument, read_g2o
+from studio.io.singleg2o import agent_offsets
+from studio.io.tum import read_tum
+from studio.model import PoseGraph, PoseKind
+
+__all__ = ["AgentEstimate", "Estimate", "EstimateLayout", "read_estimate", "estimate_layout"]
+
+EstimateLayout = Literal["single-g2o", "multi-g2o", "tum"]
+
+
+@dataclass(frozen=True, eq=False)
+class AgentEstimate:
+    """One agent's estimated trajectory."""
+
+    name: str
+    poses_xyz_quat_xyzw: np.ndarray
+    """``(n, 7)``: x, y, z, qx, qy, qz, qw."""
+    stamps_ns: np.ndarray | None
+    """int64 nanoseconds (TUM estimates), or None: then row k is the estimate of dataset vertex k."""
+
+
+@dataclass(frozen=True, eq=False)
+class Estimate:
+    layout: EstimateLayout
+    source: str
+    agents: tuple[AgentEstimate, ...]
+    """One entry per dataset agent, in the dataset's order."""
+
+
+def _poses7(doc: G2oDocument) -> np.ndarray:
+    if doc.kind is PoseKind.SE3:
+        return doc.vertex_poses
+    out = np.zeros((len(doc.vertex_poses), 7))
+    out[:, 0:2] = doc.vertex_poses[:, 0:2]
+    out[:, 3:7] = yaw_to_quat_xyzw(doc.vertex_poses[:, 2])
+    return out
+
+
+def _range_text(first: int, count: int) -> str:
+    return f"id {first}" if count == 1 else f"ids {first}..{first + count - 1}"
+
+
+def _check_ids(ids: np.ndarray, first: int, count: int, where: str, agent: str) -> np.ndarray:
+    """The row order that sorts ``ids`` into ``first..first+count-1``, or an EvaluationError."""
+    inside = (ids >= first) & (ids < first + count)
+    n_in = int(inside.sum())
+    if n_in != count:
+        have = np.zeros(count, dtype=bool)
+        have[ids[inside] - first] = True
+        missing = np.flatnonzero(~have)
+        raise EvaluationError(
+            f"{where}: {agent} has {n_in} of its {count} vertices ({_range_text(first, count)}); "
+            f"{len(missing)} missing, the first is id {first + int(missing[0])}"
+        )
+    return np.argsort(ids, kind="stable")
+
+
+def _read_single_g2o(path: Path, graph: PoseGraph) -> tuple[AgentEstimate, ...]:
+    doc = read_g2o(path, edges=False)
+    offsets = agent_offsets(graph)
+    total = int(offsets[-1])
+    ids = doc.vertex_ids
+    outside = (ids < 0) | (ids >= total)
+    if outside.any():
+        raise EvaluationError(
+            f"{path}: {int(outside.sum())} vertices have ids outside the dataset's {total} "
+            f"(ids 0..{total - 1}); the first is id {int(ids[outside][0])}"
+        )
+    poses = _poses7(doc)
+    out = []
+    for k, agent in enumerate(graph.agents):
+        first, count = int(offsets[k]), agent.num_poses
+        sel = (ids >= first) & (ids < first + count)
+        order = _check_ids(ids[sel], first, count, str(path), agent.name)
+        out.append(AgentEstimate(agent.name, poses[sel][order], None))
+    return tuple(out)
+
+
+def _agent_dirs(folder: Path) -> dict[str, Path]:
+    return {p.name: p for p in folder.iterdir() if p.is_dir() and (p / "posegraph.g2o").is_file()}
+
+
+def _read_multi_g2o(folder: Path, graph: PoseGraph) -> tuple[AgentEstimate, ...]:
+    subs = _agent_dirs(folder)
+    names = [a.name for a in graph.agents]
+    extra = sorted(set(subs) - set(names))
+    if extra:
+        raise EvaluationError(f"{folder}: agent {extra[0]} is not in the dataset (agents: {', '.join(names)})")
+    out = []
+    for agent in graph.agents:
+        if agent.name not in subs:
+            raise EvaluationError(f"{folder}: no {agent.name}/posegraph.g2o for agent {agent.name}")
+        path = subs[agent.name] / "posegraph.g2o"
+        doc = read_g2o(path, edges=False)
+        if len(doc.vertex_ids) != agent.num_poses:
+            raise EvaluationError(
+                f"{path}: {agent.name} has {len(doc.vertex_ids)} vertices, the dataset {agent.num_poses}"
+            )
+        order = _check_ids(doc.vertex_ids, 0, agent.num_poses, str(path), agent.name)
+        out.append(AgentEstimate(agent.name, _poses7(doc)[order], None))
+    return tuple(out)
+
+
+def _tum_files(folder: Path, graph: PoseGraph) -> dict[str, Path]:
+    files = [p for p in folder.iterdir() if p.is_file() and p.suffix == ".tum" and not p.name.endswith("_GT.tum")]
+    found = {}
+    for agent in graph.agents:
+        mine = sorted(p for p in files if p.name == f"{agent.name}.tum" or p.name.startswith(f"{agent.name}_"))
+        if not mine:
+            raise EvaluationError(f"{folder}: no {agent.name}.tum or {agent.name}_*.tum for agent {agent.name}")
+        if len(mine) > 1:
+            raise EvaluationError(
+                f"{folder}: several TUM files for agent {agent.name}: {', '.join(p.name for p in mine)}"
+            )
+        found[agent.name] = mine[0]
+    return found
+
+
+def _read_tum_folder(folder: Path, graph: PoseGraph) -> tuple[AgentEstimate, ...]:
+    out = []
+    for name, path in _tum_files(folder, graph).items():
+        traj = read_tum(path)
+        out.append(AgentEstimate(name, traj.poses, traj.stamps_ns))
+    return tuple(out)
+
+
+def estimate_layout(path: str | os.PathLike) -> EstimateLayout:
+    """Guess the layout from the path: a file is a single g2o; a folder holds agent folders or TUM files."""
+    path = Path(path)
+    if path.is_file():
+        return "single-g2o"
+    if not path.is_dir():
+        raise FormatError(f"{path}: no such file or folder")
+    if _agent_dirs(path):
+        return "multi-g2o"
+    if any(p.suffix == ".tum" for p in path.iterdir() if p.is_file()):
+        return "tum"
+    raise FormatError(
+        f"{path}: not an estimate (expected a single .g2o file, a folder of <agent>/posegraph.g2o, "
+        "or a folder of <agent>.tum files)"
+    )
+
+
+def read_estimate(path: str | os.PathLike, graph: PoseGraph) -> Estimate:
+    """Read an estimate of ``graph`` (layout guessed by :func:`estimate_layout`), split per agent."""
+    path = Path(path)
+    layout = estimate_layout(path)
+    reader = {"single-g2o": _read_single_g2o, "multi-g2o": _read_multi_g2o, "tum": _read_tum_folder}[layout]
+    return Estimate(layout, str(path), reader(path, graph))
