@@ -29,6 +29,7 @@ from converters.trajectory import Trajectory
 from studio.errors import ConfigError, FormatError, OutputError
 from studio.io.atomic import staged_outputs
 from studio.io.multig2o import write_multi_g2o
+from studio.model import PoseGraph
 
 __all__ = ["ConvertConfig", "ConvertResult", "convert", "read_convert_config", "convert_config_to_json",
            "CONFIG_NAME"]
@@ -147,10 +148,14 @@ def _outlier_lines(build: BuildResult) -> str:
 
 
 def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
-            warn: Callable[[str], None] | None = None, progress: Progress | None = None) -> ConvertResult:
+            warn: Callable[[str], None] | None = None, progress: Progress | None = None,
+            recorder: Callable[[PoseGraph, Path], None] | None = None) -> ConvertResult:
     """Read ``cfg``'s sources, build the graph and write the dataset folder ``out``.
 
     Nothing is written when an input is bad, and an existing ``out`` is replaced only with ``force``.
+    ``recorder(graph, folder)``, if given, writes extra files (the ``.rrd`` recording) into the
+    dataset while it is still in the staging folder, so they appear atomically with the rest; the
+    keyframes' real stamps are ``graph.agents[k].stamps_ns``.
     """
     out = Path(out).absolute()
     if out.name in ("", ".", ".."):
@@ -177,6 +182,8 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
         _write_text(ds / CONFIG_NAME, json.dumps(convert_config_to_json(cfg), indent=2) + "\n")
         _write_text(ds / "report.json", json.dumps(_report(build, trajs, warnings), indent=2) + "\n")
         _write_text(ds / "outliers.txt", _outlier_lines(build))
+        if recorder is not None:
+            recorder(build.graph, ds)
     return ConvertResult(cfg, out, tuple(trajs), build, tuple(warnings))
 
 

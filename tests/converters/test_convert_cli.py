@@ -152,3 +152,26 @@ def test_planar_writes_2d_records(tmp_path, tum_files):
     assert run("tum", *tum_files[:2], "-o", tmp_path / "ds", "--planar").exit_code == 0
     assert (tmp_path / "ds" / "alpha" / "posegraph.g2o").read_text().startswith("VERTEX_SE2 0 ")
     assert read_multi_g2o(tmp_path / "ds").kind.value == "SE2"
+
+
+def test_recorder_hook_writes_inside_the_staged_dataset(tmp_path, tum_files):
+    from converters.convert import ConvertConfig, convert
+    from studio.errors import OutputError
+
+    seen = {}
+
+    def recorder(graph, folder):
+        seen["stamps"] = graph.agents[0].stamps_ns
+        assert folder.parent.name.startswith(".studio-staging-")
+        (folder / "dataset.rrd").write_bytes(b"rrd")
+
+    res = convert(ConvertConfig("tum", tum_files), tmp_path / "ds", recorder=recorder)
+    assert (tmp_path / "ds" / "dataset.rrd").read_bytes() == b"rrd"
+    assert seen["stamps"][0] == res.trajectories[0].stamps_ns[0]
+
+    def broken(graph, folder):
+        raise OutputError("cannot record")
+
+    with pytest.raises(OutputError, match="cannot record"):
+        convert(ConvertConfig("tum", tum_files), tmp_path / "ds2", recorder=broken)
+    assert not (tmp_path / "ds2").exists() and not list(tmp_path.glob(".studio-staging-*"))
