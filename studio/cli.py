@@ -219,6 +219,125 @@ def snapshot(
     typer.echo(f"{res.path}: node {res.time}")
 
 
+# --- studio convert -----------------------------------------------------------------------------
+# Every GraphOptions field is a kebab-case flag; defaults and help come from converters.build.
+_CONVERT_HELP = {
+    "seed": "Seed of every random draw: same inputs, options and seed give byte-identical output.",
+    "keyframe_distance": "A keyframe every this many metres of path (0: off).",
+    "keyframe_angle": "A keyframe every this many degrees of rotation (0: off).",
+    "keyframe_time": "A keyframe every this many seconds (0: off).",
+    "max_gap": "Stamps further apart than this many seconds are a gap: bridged and reported.",
+    "gap_sigma_m_per_s": "Extra translation std dev of a gap-bridging edge [m per second of gap].",
+    "gap_sigma_rad_per_s": "Extra rotation std dev of a gap-bridging edge [rad per second of gap].",
+    "odo_sigma_m_per_m": "Odometry translation std dev per metre travelled [m/m].",
+    "odo_sigma_rad_per_rad": "Odometry rotation std dev per radian turned [rad/rad].",
+    "odo_sigma_rad_per_m": "Odometry rotation std dev per metre travelled [rad/m].",
+    "odo_sigma_min_m": "Odometry translation std dev floor [m].",
+    "odo_sigma_min_rad": "Odometry rotation std dev floor [rad].",
+    "lc_radius": "Loop-closure radius R [m].",
+    "lc_prob_intra": "Intra-agent loop-closure probability p (accepted with p*exp(-5(d/R)^2)).",
+    "lc_prob_inter": "Inter-agent loop-closure probability p.",
+    "lc_min_time": "Intra-agent pairs at least this many seconds apart.",
+    "lc_min_index": "Intra-agent pairs at least this many keyframes apart.",
+    "lc_max_heading": "Heading compatibility: x axes within this many degrees (0: off).",
+    "rendezvous": "Inter-agent pairs only within this many seconds of each other (0: any time).",
+    "lc_sigma_m": "Loop-closure translation noise std dev [m].",
+    "lc_sigma_rad": "Loop-closure rotation noise std dev [rad].",
+    "outlier_fraction": "Fraction of loop closures made outliers (listed in outliers.txt).",
+    "planar": "Project to SE(2) and write 2D records.",
+}
+
+
+def _stderr_progress(label: str, done: int, total: int) -> None:
+    typer.echo(f"\r{label}: {done}/{total}\033[K", err=True, nl=False)
+
+
+@app.command()
+@cli_errors
+def convert(
+    ctx: typer.Context,
+    source: str = typer.Argument(None, metavar="FORMAT", show_default=False,
+                                 help="Source format: tum, s3e, airmuseum or bag."),
+    inputs: list[Path] = typer.Argument(None, metavar="INPUT...", show_default=False,
+                                        help="TUM files (tum), a sequence folder (s3e, airmuseum) or a bag (.bag, ROS 2 folder, .mcap)."),
+    out: Path = typer.Option(..., "-o", "--out", help="The dataset folder to write."),
+    agent: list[str] = typer.Option([], "--agent", metavar="NAME=SPEC",
+                                    help="Bag agents: NAME=/odom, NAME=/fix+/heading or NAME=/tf:PARENT:CHILD."),
+    config: Path = typer.Option(None, "--config", exists=True, dir_okay=False,
+                                help="A convert.json: reproduce its dataset (options given here win)."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing dataset folder."),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
+    seed: int = typer.Option(0, help=_CONVERT_HELP["seed"]),
+    keyframe_distance: float = typer.Option(1.0, help=_CONVERT_HELP["keyframe_distance"]),
+    keyframe_angle: float = typer.Option(15.0, help=_CONVERT_HELP["keyframe_angle"]),
+    keyframe_time: float = typer.Option(0.0, help=_CONVERT_HELP["keyframe_time"]),
+    max_gap: float = typer.Option(1.0, help=_CONVERT_HELP["max_gap"]),
+    gap_sigma_m_per_s: float = typer.Option(0.05, help=_CONVERT_HELP["gap_sigma_m_per_s"]),
+    gap_sigma_rad_per_s: float = typer.Option(0.005, help=_CONVERT_HELP["gap_sigma_rad_per_s"]),
+    odo_sigma_m_per_m: float = typer.Option(0.02, help=_CONVERT_HELP["odo_sigma_m_per_m"]),
+    odo_sigma_rad_per_rad: float = typer.Option(0.02, help=_CONVERT_HELP["odo_sigma_rad_per_rad"]),
+    odo_sigma_rad_per_m: float = typer.Option(0.001, help=_CONVERT_HELP["odo_sigma_rad_per_m"]),
+    odo_sigma_min_m: float = typer.Option(0.002, help=_CONVERT_HELP["odo_sigma_min_m"]),
+    odo_sigma_min_rad: float = typer.Option(0.0005, help=_CONVERT_HELP["odo_sigma_min_rad"]),
+    lc_radius: float = typer.Option(2.0, help=_CONVERT_HELP["lc_radius"]),
+    lc_prob_intra: float = typer.Option(0.5, help=_CONVERT_HELP["lc_prob_intra"]),
+    lc_prob_inter: float = typer.Option(0.5, help=_CONVERT_HELP["lc_prob_inter"]),
+    lc_min_time: float = typer.Option(30.0, help=_CONVERT_HELP["lc_min_time"]),
+    lc_min_index: int = typer.Option(10, help=_CONVERT_HELP["lc_min_index"]),
+    lc_max_heading: float = typer.Option(0.0, help=_CONVERT_HELP["lc_max_heading"]),
+    rendezvous: float = typer.Option(0.0, help=_CONVERT_HELP["rendezvous"]),
+    lc_sigma_m: float = typer.Option(0.05, help=_CONVERT_HELP["lc_sigma_m"]),
+    lc_sigma_rad: float = typer.Option(0.01, help=_CONVERT_HELP["lc_sigma_rad"]),
+    outlier_fraction: float = typer.Option(0.0, help=_CONVERT_HELP["outlier_fraction"]),
+    planar: bool = typer.Option(False, "--planar", help=_CONVERT_HELP["planar"]),
+) -> None:
+    """Turn real trajectories into a multi-g2o dataset with synthetic odometry and loop closures.
+
+    Examples: studio convert tum alpha.txt bob.txt -o out/ds ;
+    studio convert s3e S3E_Square_1/ -o out/s3e ;
+    studio convert bag run.bag --agent alpha=/alpha/odom --agent bob=/tf:odom:bob/base_link -o out/ds ;
+    studio convert --config out/ds/convert.json -o out/ds2
+    """
+    import dataclasses
+
+    from converters.build import GraphOptions
+    from converters.convert import ConvertConfig, convert as run_convert, read_convert_config
+    from studio.errors import ConfigError
+
+    # options typed on the command line win over the --config file (compared by name: typer may
+    # vendor click, so its ParameterSource enum is not imported)
+    given = {name for name in ctx.params
+             if getattr(ctx.get_parameter_source(name), "name", "") in ("COMMANDLINE", "ENVIRONMENT")}
+    option_names = [f.name for f in dataclasses.fields(GraphOptions)]
+    if config is not None:
+        base = read_convert_config(config)
+        overrides = {k: ctx.params[k] for k in option_names if k in given}
+        cfg = ConvertConfig(source or base.source, tuple(str(p) for p in inputs) if inputs else base.inputs,
+                            tuple(agent) if agent else base.agents,
+                            dataclasses.replace(base.options, **overrides))
+    else:
+        if not source:
+            raise ConfigError("give a FORMAT (tum, s3e, airmuseum, bag) or --config")
+        cfg = ConvertConfig(source, tuple(str(p) for p in inputs or ()), tuple(agent),
+                            GraphOptions(**{k: ctx.params[k] for k in option_names}))
+    show = not quiet and sys.stderr.isatty()
+    t0 = time.perf_counter()
+    res = run_convert(cfg, out, force=force, warn=_warn, progress=_stderr_progress if show else None)
+    if show:
+        typer.echo("\r\033[K", err=True, nl=False)
+    if not quiet:
+        g = res.build.graph
+        counts = g.edge_counts()
+        typer.echo(
+            f"{res.dataset_dir.name}: {len(g.agents)} agents, {g.num_poses} keyframes, "
+            f"{counts['odometry']} odometry edges, {counts['intra_loop_closures']} intra-agent and "
+            f"{counts['inter_loop_closures']} inter-agent loop closures ({res.build.candidates['outliers']} "
+            f"outliers), {len(res.build.gaps)} gaps, in {time.perf_counter() - t0:.2f} s\n  {res.dataset_dir}"
+        )
+        for gap in res.build.gaps:
+            typer.echo(f"  gap: {gap.agent} vertex {gap.vertex}: {gap.seconds:.3f} s, {gap.metres:.2f} m bridged")
+
+
 def main() -> None:
     from studio.runtime import tune_allocator
 

@@ -76,8 +76,16 @@ def _stamp_ns(token: str) -> int:
     return int(round(value * _NS))
 
 
-def read_tum(source: str | os.PathLike | IO[str]) -> TumTrajectory:
+def read_tum(source: str | os.PathLike | IO[str], *, require_increasing: bool = True) -> TumTrajectory:
+    """Parse a TUM file; errors name ``file:line``.
+
+    With ``require_increasing=False`` the rows are returned in file order even when their stamps
+    do not increase (the caller sorts and de-duplicates them, see ``converters.trajectory``).
+    """
     text, name = _open_text(source)
+    fast = _read_tum_fast(text, require_increasing)
+    if fast is not None:
+        return fast
     stamps: list[int] = []
     rows: list[list[float]] = []
     lines: list[int] = []
@@ -123,11 +131,104 @@ def read_tum(source: str | os.PathLike | IO[str]) -> TumTrajectory:
     if far.size:
         poses[far, 3:7] /= norms[far, None]
     st = np.array(stamps, dtype=np.int64)
-    dec = np.flatnonzero(np.diff(st) <= 0)
-    if dec.size:
+    dec = np.flatnonzero(np.diff(st) <= 0) if require_increasing else ()
+    if len(dec):
         k = int(dec[0]) + 1
         raise FormatError(f"{name}:{lines[k]}: timestamps must increase")
     return TumTrajectory(st, poses)
+
+
+_FAST_MIN_CHARS = 1 << 18
+
+
+def _read_tum_fast(text: str, require_increasing: bool) -> TumTrajectory | None:
+    """Bulk parse of a large, regular file with pandas' C parser (exact: round-trip floats, stamps
+    from their digits). Returns None when anything is irregular (exponent stamps, NaN, a wrong
+    column count, a zero quaternion, ...) so that the line-by-line parser names the offending line.
+    """
+    if len(text) < _FAST_MIN_CHARS or text.count("#") != text.count("\n#") + text.startswith("#"):
+        return None
+    import pandas as pd
+
+    skip = 0
+    first = ""
+    header = False
+    for raw in io.StringIO(text):  # comments and at most one header line before the first data line
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            skip += 1
+            continue
+        if not _looks_numeric(line.replace(",", " ").split()[0]):
+            if header:
+                return None
+            header = True
+            skip += 1
+            continue
+        first = line
+        break
+    # the C parser is fastest with a one-character separator; irregular spacing takes \s+
+    if "," in first:
+        sep = ","
+    elif "  " in text or "\t" in text or " \n" in text:
+        sep = r"\s+"
+    else:
+        sep = " "
+    # pandas 3 parses floats exactly by default (and deprecates the option); pandas 2 needs round_trip
+    exact = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
+    try:
+        df = pd.read_csv(io.BytesIO(text.encode("utf-8")), sep=sep, header=None, comment="#", skiprows=skip,
+                         dtype={0: str}, engine="c", **exact)
+    except (ValueError, pd.errors.ParserError):
+        return None
+    if df.shape[1] != 8 or len(df) == 0:
+        return None
+    try:
+        poses = df.iloc[:, 1:].to_numpy(dtype=np.float64)
+    except (ValueError, TypeError):
+        return None
+    if not np.isfinite(poses).all():
+        return None
+    stamps = _stamps_from_digits(df[0].to_numpy(dtype=str))
+    if stamps is None:
+        return None
+    norms = np.linalg.norm(poses[:, 3:7], axis=1)
+    if np.any(norms < 1e-9) or (require_increasing and np.any(np.diff(stamps) <= 0)):
+        return None
+    far = np.flatnonzero(np.abs(norms - 1.0) > 1e-12)
+    if far.size:
+        poses[far, 3:7] /= norms[far, None]
+    return TumTrajectory(stamps, poses)
+
+
+_POW10 = 10 ** np.arange(19, dtype=np.int64)
+
+
+def _stamps_from_digits(tokens: np.ndarray) -> np.ndarray | None:
+    """Exact int64 nanoseconds of decimal tokens ``SSSSSSSSSS[.FFFFFFFFF...]`` (digits beyond the
+    ninth decimal dropped, as the line parser does), vectorised over their bytes; None for anything
+    else (signs, exponents, more than 10 whole digits, tokens over 32 characters)."""
+    try:
+        b = np.asarray(tokens).astype("S32")
+    except UnicodeEncodeError:
+        return None
+    width = b.dtype.itemsize
+    c = b.view(np.uint8).reshape(len(b), width)
+    if c[:, -1].any():  # possibly truncated by the 32-byte width
+        return None
+    is_dot = c == ord(".")
+    is_digit = (c >= ord("0")) & (c <= ord("9"))
+    if not np.all(is_dot | is_digit | (c == 0)) or np.any(is_dot.sum(axis=1) > 1):
+        return None
+    length = np.count_nonzero(c, axis=1)
+    dot = np.where(is_dot.any(axis=1), is_dot.argmax(axis=1), length)
+    if np.any(length - (dot < length) == 0) or np.any(dot > 10) or np.any((dot == 10) & (c[:, 0] >= ord("9"))):
+        return None
+    out = np.zeros(len(b), dtype=np.int64)
+    for i in range(min(width, 20)):  # whole digits (<= 10) and nine decimals lie in the first 20 bytes
+        e = 9 + dot - i - (i < dot)
+        use = is_digit[:, i] & (e >= 0)
+        out += np.where(use, (c[:, i].astype(np.int64) - 48) * _POW10[np.clip(e, 0, 18)], 0)
+    return out
 
 
 def _is_float(tok: str) -> bool:

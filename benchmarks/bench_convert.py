@@ -1,0 +1,90 @@
+"""Benchmark of `studio convert` (not a timed test): run ``python benchmarks/bench_convert.py [WORKDIR]``.
+
+1. TUM: 3 agents, 1,000,000 poses in total (100 Hz, UTM-sized coordinates), converted end to end.
+2. Bag: a ROS 2 (mcap) bag with 300,000 geometry_msgs/PoseStamped messages on 3 topics.
+
+Inputs are generated once into WORKDIR (default: a temporary folder) and reused; the figures are
+wall-clock seconds of :func:`converters.convert.convert` (reading, building and writing) and the peak
+resident memory of the process.
+"""
+
+from __future__ import annotations
+
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from converters.convert import ConvertConfig, convert  # noqa: E402
+from tests.converters.synthetic import UTM_EAST, UTM_NORTH, loop_trajectory  # noqa: E402
+
+
+def make_tum(work: Path, total: int = 1_000_000) -> list[Path]:
+    files = []
+    for k in range(3):
+        path = work / f"agent{k}.txt"
+        files.append(path)
+        if path.exists():
+            continue
+        n = total // 3 + (1 if k < total % 3 else 0)
+        s, p, q = loop_trajectory(n, rate_hz=100.0, radius=50.0, laps=20, phase=k,
+                                  centre=(UTM_EAST + 10 * k, UTM_NORTH, 30.0))
+        sec, ns = np.divmod(s, 1_000_000_000)
+        rows = np.column_stack([p, q]).tolist()
+        with open(path, "w") as f:
+            f.write("# timestamp tx ty tz qx qy qz qw\n")
+            f.writelines(f"{a}.{b:09d} {' '.join(map(repr, r))}\n" for a, b, r in zip(sec.tolist(), ns.tolist(), rows))
+    return files
+
+
+def make_bag(work: Path, total: int = 300_000) -> Path:
+    from tests.converters.bags import Msgs, typestore, write_bag
+
+    path = work / "poses_bag"
+    if path.exists():
+        return path
+    m = Msgs(typestore("mcap"))
+    topics = {}
+    for k in range(3):
+        s, p, q = loop_trajectory(total // 3, rate_hz=100.0, radius=30.0, laps=10, phase=k)
+        topics[f"/robot{k}/pose"] = [(int(t), m.PoseStamped(int(t), pp, qq)) for t, pp, qq in zip(s, p, q)]
+    write_bag(path, "mcap", topics)
+    return path
+
+
+def timed(label: str, cfg: ConvertConfig, out: Path) -> None:
+    marks: dict[str, float] = {}
+
+    def progress(label: str, done: int, total: int) -> None:
+        marks.setdefault(label, time.perf_counter())
+
+    t0 = time.perf_counter()
+    res = convert(cfg, out, force=True, progress=progress)
+    dt = time.perf_counter() - t0
+    t_build = marks.get("keyframes and odometry", t0)
+    t_write = marks.get("writing", t0)
+    poses = sum(len(t) for t in res.trajectories)
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"{label}: {poses} poses -> {res.build.graph.num_poses} keyframes, "
+          f"{sum(res.build.graph.edge_counts().values())} edges in {dt:.2f} s (read {t_build - t0:.2f}, "
+          f"build {t_write - t_build:.2f}, write {t0 + dt - t_write:.2f}; peak RSS {rss:.0f} MiB)")
+
+
+def main() -> None:
+    work = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(tempfile.mkdtemp(prefix="bench-convert-"))
+    work.mkdir(parents=True, exist_ok=True)
+    what = sys.argv[2:] or ["tum", "bag"]
+    if "tum" in what:
+        timed("tum 3 agents", ConvertConfig("tum", make_tum(work)), work / "out_tum")
+    if "bag" in what:
+        agents = [f"robot{k}=/robot{k}/pose" for k in range(3)]
+        timed("bag (mcap) PoseStamped", ConvertConfig("bag", [make_bag(work)], agents), work / "out_bag")
+
+
+if __name__ == "__main__":
+    main()

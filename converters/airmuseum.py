@@ -1,0 +1,61 @@
+"""AirMuseum sequences: one ground-truth text file per robot (``# timestamp tx ty tz qx qy qz qw``).
+
+A ground-truth file is a ``.txt``, ``.tum`` or ``.csv`` file whose name contains ``gt``,
+``groundtruth`` or ``ground_truth`` (any case), in ``DIR`` or one of its immediate sub-folders. The
+agent is named after its sub-folder (``DIR/robot_1/groundtruth.txt`` -> ``robot_1``) or, for a file
+directly in ``DIR``, after the file without the ground-truth word (``drone_gt.txt`` -> ``drone``).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+from typing import Sequence
+
+from converters.trajectory import Trajectory, Warn, safe_agent_name
+from converters.tum import read_tum_trajectory
+from studio.errors import ConfigError, FormatError
+
+__all__ = ["read_airmuseum", "find_ground_truth_files"]
+
+_GT_WORD = re.compile(r"(ground[_-]?truth|(?<![a-z])gt(?![a-z]))", re.IGNORECASE)
+_EXT = (".txt", ".tum", ".csv")
+
+
+def find_ground_truth_files(root: Path) -> list[tuple[str, Path]]:
+    """(agent name, file) pairs, in natural order of the agent names."""
+    found: list[tuple[str, Path]] = []
+    for p in sorted(root.iterdir()):
+        if p.is_file() and p.suffix.lower() in _EXT and _GT_WORD.search(p.stem):
+            stem = _GT_WORD.sub("", p.stem).strip("_- .") or p.stem
+            found.append((safe_agent_name(stem), p))
+        elif p.is_dir():
+            inner = [q for q in sorted(p.iterdir())
+                     if q.is_file() and q.suffix.lower() in _EXT and _GT_WORD.search(q.stem)]
+            if len(inner) > 1:
+                raise FormatError(f"{p}: {len(inner)} ground-truth files ({inner[0].name}, {inner[1].name}); "
+                                  "expected one per robot folder")
+            if inner:
+                found.append((safe_agent_name(p.name), inner[0]))
+    return found
+
+
+def read_airmuseum(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
+                   warn: Warn | None = None, progress=None) -> list[Trajectory]:
+    """``studio convert airmuseum DIR``: every robot with a ground-truth file."""
+    if agents:
+        raise ConfigError("--agent is only for `studio convert bag`; AirMuseum agents come from the files")
+    if len(inputs) != 1:
+        raise ConfigError(f"studio convert airmuseum takes one sequence folder, got {len(inputs)} inputs")
+    root = Path(inputs[0])
+    if not root.is_dir():
+        raise FormatError(f"{root}: not a folder (expected an AirMuseum sequence folder)")
+    found = find_ground_truth_files(root)
+    if not found:
+        raise FormatError(f"{root}: no ground-truth file (*gt*.txt, *groundtruth*.txt) here or in a sub-folder")
+    names = [n for n, _ in found]
+    for n in names:
+        if names.count(n) > 1:
+            raise FormatError(f"{root}: two robots would be named {n!r}")
+    return [read_tum_trajectory(p, name=n, warn=warn) for n, p in found]

@@ -1,0 +1,192 @@
+"""``studio convert`` as a library function: sources in, a multi-g2o dataset out (atomically).
+
+The dataset folder ``OUT`` holds::
+
+    OUT/
+    ├── <agent>/posegraph.g2o, <agent>/<agent>_GT.tum   # 3D records (2D with planar=True); real stamps
+    ├── inter_agent_lc.dat                             # full precision (%.17g)
+    ├── convert.json                                   # every option and the seed: --config reproduces OUT
+    ├── report.json                                    # origin, agents, gaps, counts, warnings
+    └── outliers.txt                                   # the loop closures that are outliers (ground truth)
+
+Everything is written in a staging folder beside ``OUT`` and renamed into place at the end; an
+existing ``OUT`` is replaced only with ``force``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+from converters.build import BuildResult, GraphOptions, Progress, build_graph
+from converters.registry import get_reader
+from converters.trajectory import Trajectory
+from studio.errors import ConfigError, FormatError, OutputError
+from studio.io.atomic import staged_outputs
+from studio.io.multig2o import write_multi_g2o
+from studio.model import PoseGraph
+
+__all__ = ["ConvertConfig", "ConvertResult", "convert", "read_convert_config", "convert_config_to_json",
+           "CONFIG_NAME"]
+
+CONFIG_NAME = "convert.json"
+_FORMAT = "studio-convert/1"
+_OPTION_FIELDS = [f.name for f in dataclasses.fields(GraphOptions)]
+
+
+@dataclass(frozen=True)
+class ConvertConfig:
+    """What ``studio convert`` did: the source format, its inputs, ``--agent`` specs and the options."""
+
+    source: str
+    """A name of :data:`converters.registry.READERS` (tum, s3e, airmuseum, bag)."""
+    inputs: tuple[str, ...]
+    """Paths of the inputs (absolute once resolved by :func:`convert`)."""
+    agents: tuple[str, ...] = ()
+    """``NAME=SPEC`` strings (bags only)."""
+    options: GraphOptions = field(default_factory=GraphOptions)
+
+    def __post_init__(self) -> None:
+        get_reader(self.source)  # unknown names raise and list the known ones
+        object.__setattr__(self, "inputs", tuple(str(p) for p in self.inputs))
+        object.__setattr__(self, "agents", tuple(self.agents))
+
+
+@dataclass(frozen=True, eq=False)
+class ConvertResult:
+    config: ConvertConfig
+    dataset_dir: Path
+    trajectories: tuple[Trajectory, ...]
+    build: BuildResult
+    warnings: tuple[str, ...]
+
+
+def convert_config_to_json(cfg: ConvertConfig) -> dict[str, Any]:
+    out: dict[str, Any] = {"format": _FORMAT, "source": cfg.source, "inputs": list(cfg.inputs),
+                           "agents": list(cfg.agents)}
+    out.update(dataclasses.asdict(cfg.options))
+    return out
+
+
+def config_from_mapping(data: Mapping[str, Any], where: str = "config") -> ConvertConfig:
+    """A config from a JSON object; unknown keys are rejected with a hint."""
+    known = {"format", "source", "inputs", "agents", *_OPTION_FIELDS}
+    for key in data:
+        if key not in known:
+            hint = difflib.get_close_matches(key, sorted(known), n=1)
+            raise ConfigError(f"{where}: unknown key {key!r}" + (f" (did you mean {hint[0]!r}?)" if hint else ""))
+    if data.get("format", _FORMAT) != _FORMAT:
+        raise ConfigError(f"{where}: format {data['format']!r} is not {_FORMAT!r}")
+    if "source" not in data:
+        raise ConfigError(f"{where}: missing key 'source'")
+    for key in ("inputs", "agents"):
+        if not isinstance(data.get(key, []), list) or not all(isinstance(x, str) for x in data.get(key, [])):
+            raise ConfigError(f"{where}: {key!r} must be a list of strings")
+    opts = {k: data[k] for k in _OPTION_FIELDS if k in data}
+    try:
+        options = GraphOptions(**opts)
+    except ConfigError as err:
+        raise ConfigError(f"{where}: {err}") from None
+    return ConvertConfig(str(data["source"]), tuple(data.get("inputs", [])), tuple(data.get("agents", [])), options)
+
+
+def read_convert_config(path: str | os.PathLike) -> ConvertConfig:
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise ConfigError(f"{path}: cannot read ({err})") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as err:
+        raise ConfigError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a JSON object")
+    return config_from_mapping(data, str(path))
+
+
+def _resolve_inputs(cfg: ConvertConfig) -> ConvertConfig:
+    inputs = []
+    for p in cfg.inputs:
+        path = Path(p)
+        if not path.exists():
+            raise FormatError(f"{p}: no such file or folder")
+        inputs.append(str(path.resolve()))
+    return dataclasses.replace(cfg, inputs=tuple(inputs))
+
+
+def _report(result_build: BuildResult, trajs: Sequence[Trajectory], warnings: Sequence[str]) -> dict[str, Any]:
+    g = result_build.graph
+    return {
+        "origin_xyz": [float(v) for v in result_build.origin_xyz],
+        "agents": [
+            {"name": a.name, "source": t.source, "poses_in": len(t), "keyframes": a.num_poses,
+             "first_stamp_ns": int(a.stamps_ns[0]), "last_stamp_ns": int(a.stamps_ns[-1]),
+             "odometry": len(a.odometry), "intra_loop_closures": len(a.loop_closures)}
+            for a, t in zip(g.agents, trajs)
+        ],
+        "gaps": [{"agent": gap.agent, "vertex": gap.vertex, "start_ns": gap.start_ns, "end_ns": gap.end_ns,
+                  "seconds": gap.seconds, "metres": gap.metres} for gap in result_build.gaps],
+        "counts": {**g.edge_counts(), **result_build.candidates},
+        "warnings": list(warnings),
+    }
+
+
+def _outlier_lines(build: BuildResult) -> str:
+    head = ("# Loop closures that are outliers: they point at a wrong vertex (ground truth for robust\n"
+            "# optimisers). Columns: agent_from vertex_from agent_to vertex_to; agents 1-based as in\n"
+            "# inter_agent_lc.dat, vertices 0-based; equal agents: an intra-agent loop closure.\n")
+    rows = "".join(f"{a + 1} {b} {c + 1} {d}\n" for a, b, c, d in build.outliers.tolist())
+    return head + rows
+
+
+def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
+            warn: Callable[[str], None] | None = None, progress: Progress | None = None,
+            recorder: Callable[[PoseGraph, Path], None] | None = None) -> ConvertResult:
+    """Read ``cfg``'s sources, build the graph and write the dataset folder ``out``.
+
+    Nothing is written when an input is bad, and an existing ``out`` is replaced only with ``force``.
+    ``recorder(graph, folder)``, if given, writes extra files (the ``.rrd`` recording) into the
+    dataset while it is still in the staging folder, so they appear atomically with the rest; the
+    keyframes' real stamps are ``graph.agents[k].stamps_ns``.
+    """
+    out = Path(out).absolute()
+    if out.name in ("", ".", ".."):
+        raise OutputError(f"{out}: -o must name the dataset folder itself")
+    if (out.exists() or out.is_symlink()) and not force:
+        raise OutputError(f"{out} already exists (use --force to overwrite)")
+    cfg = _resolve_inputs(cfg)
+    warnings: list[str] = []
+
+    def _warn(msg: str) -> None:
+        warnings.append(msg)
+        if warn is not None:
+            warn(msg)
+
+    reader = get_reader(cfg.source)
+    trajs = reader(cfg.inputs, agents=cfg.agents, warn=_warn, progress=progress)
+    build = build_graph(trajs, cfg.options, progress=progress)
+    with staged_outputs(out.parent, [out.name], force=force) as staging:
+        ds = staging / out.name
+        ds.mkdir()
+        if progress:
+            progress("writing", 0, 1)
+        write_multi_g2o(build.graph, ds, records="2d" if cfg.options.planar else "3d", precision="full")
+        _write_text(ds / CONFIG_NAME, json.dumps(convert_config_to_json(cfg), indent=2) + "\n")
+        _write_text(ds / "report.json", json.dumps(_report(build, trajs, warnings), indent=2) + "\n")
+        _write_text(ds / "outliers.txt", _outlier_lines(build))
+        if recorder is not None:
+            recorder(build.graph, ds)
+    return ConvertResult(cfg, out, tuple(trajs), build, tuple(warnings))
+
+
+def _write_text(path: Path, text: str) -> None:
+    with open(path, "w", encoding="utf-8", newline="\n") as f:
+        f.write(text)

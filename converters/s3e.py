@@ -1,0 +1,70 @@
+"""S3E sequences: ground truth per robot as ``<agent>_gt.txt`` (alpha, bob, carol; any case).
+
+The files are TUM-like text in UTM coordinates (``timestamp tx ty tz qx qy qz qw``), present only
+where the RTK receiver had a fixed solution, so they have gaps. They are looked for in ``DIR`` and its
+immediate sub-folders. An agent without a ground-truth file is read from a ROS 2 bag found in the
+same places (a folder holding ``metadata.yaml``) through its ``/<agent>/fix`` + ``/<agent>/heading``
+topics (see :mod:`converters.rosbag`).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+from typing import Sequence
+
+from converters.trajectory import Trajectory, Warn
+from converters.tum import read_tum_trajectory
+from studio.errors import ConfigError, FormatError
+
+__all__ = ["S3E_AGENTS", "read_s3e"]
+
+S3E_AGENTS = ("alpha", "bob", "carol")
+_GT = re.compile(r"^(alpha|bob|carol)_gt\.txt$", re.IGNORECASE)
+
+
+def _candidates(root: Path) -> list[Path]:
+    found = sorted(p for p in root.iterdir())
+    for sub in sorted(p for p in root.iterdir() if p.is_dir()):
+        found += sorted(sub.iterdir())
+    return found
+
+
+def read_s3e(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
+             warn: Warn | None = None, progress=None) -> list[Trajectory]:
+    """``studio convert s3e DIR``: alpha, bob and carol (those present), in that order."""
+    if agents:
+        raise ConfigError("--agent is only for `studio convert bag`; S3E agents are alpha, bob and carol")
+    if len(inputs) != 1:
+        raise ConfigError(f"studio convert s3e takes one sequence folder, got {len(inputs)} inputs")
+    root = Path(inputs[0])
+    if not root.is_dir():
+        raise FormatError(f"{root}: not a folder (expected an S3E sequence folder)")
+    entries = _candidates(root)
+    files: dict[str, Path] = {}
+    for p in entries:
+        m = _GT.match(p.name)
+        if m and p.is_file():
+            agent = m.group(1).lower()
+            if agent in files:
+                raise FormatError(f"{p}: a second ground-truth file for {agent} (first: {files[agent]})")
+            files[agent] = p
+    bags = [p for p in [root, *entries] if p.is_dir() and (p / "metadata.yaml").is_file()]
+    out: list[Trajectory] = []
+    missing = [a for a in S3E_AGENTS if a not in files]
+    bag_trajs: dict[str, Trajectory] = {}
+    if missing and bags:
+        from converters.rosbag import read_bag
+
+        specs = {a: f"/{a}/fix+/{a}/heading" for a in missing}
+        bag_trajs = {t.name: t for t in read_bag(bags[0], specs, warn=warn, skip_missing=True, progress=progress)}
+    for agent in S3E_AGENTS:
+        if agent in files:
+            out.append(read_tum_trajectory(files[agent], name=agent, warn=warn))
+        elif agent in bag_trajs:
+            out.append(bag_trajs[agent])
+    if not out:
+        raise FormatError(f"{root}: no S3E ground truth (alpha_gt.txt, bob_gt.txt, carol_gt.txt) "
+                          "and no ROS 2 bag with /<agent>/fix topics")
+    return out

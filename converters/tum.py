@@ -1,0 +1,36 @@
+"""TUM-style trajectory text files: ``timestamp tx ty tz qx qy qz qw`` per line.
+
+Space- or comma-separated, ``#`` comments or one header line; parsing is :func:`studio.io.tum.read_tum`
+(errors name ``file:line``). Quaternions are normalised; unsorted or duplicate timestamps are sorted
+and de-duplicated with a warning that counts them. One file is one agent, named after the file.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Sequence
+
+from converters.trajectory import Trajectory, Warn, clean_trajectory, safe_agent_name
+from studio.errors import ConfigError
+from studio.io.tum import read_tum
+
+__all__ = ["read_tum_trajectory", "read_tum_sources"]
+
+
+def read_tum_trajectory(path: str | os.PathLike, *, name: str | None = None, warn: Warn | None = None) -> Trajectory:
+    """One trajectory; ``name`` defaults to a safe version of the file's stem."""
+    path = Path(path)
+    doc = read_tum(path, require_increasing=False)
+    agent = name if name is not None else safe_agent_name(path.stem)
+    return clean_trajectory(agent, doc.stamps_ns, doc.poses[:, :3], doc.poses[:, 3:], str(path), warn)
+
+
+def read_tum_sources(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
+                     warn: Warn | None = None, progress=None) -> list[Trajectory]:
+    """``studio convert tum FILE...``: one agent per file, in the order given."""
+    if agents:
+        raise ConfigError("--agent is only for `studio convert bag`; tum agents are named after their files")
+    if not inputs:
+        raise ConfigError("studio convert tum needs at least one trajectory file")
+    return [read_tum_trajectory(p, warn=warn) for p in inputs]
