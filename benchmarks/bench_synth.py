@@ -2,9 +2,10 @@
 
     python benchmarks/bench_synth.py [--repeat 5] [--kollagen /path/to/kollagen/generate]
 
-Prints, per preset, the median and best wall time and the peak resident memory of the process tree.
-With --kollagen, kollagen's own `generate` binary runs side by side on the same config (written from
-the preset) and its files are compared byte for byte with ours.
+Prints, per preset, the median and best wall time and the peak resident memory. `studio` is
+`studio synth PRESET --no-rrd` (exactly kollagen's files); `studio+rrd` is the default command, which
+also writes the Rerun recording. With --kollagen, kollagen's own `generate` binary runs side by side on
+the same config (written from the preset) and its files are compared byte for byte with ours.
 """
 
 from __future__ import annotations
@@ -54,18 +55,21 @@ def main() -> None:
     args = ap.parse_args()
     studio = shutil.which("studio") or str(Path(sys.executable).parent / "studio")
     print(f"# {time.strftime('%Y-%m-%d')}  {os.cpu_count()} cores  python {sys.version.split()[0]}")
-    print(f"{'dataset':14} {'tool':9} {'median s':>9} {'best s':>8} {'peak MiB':>9}  runs")
+    print(f"{'dataset':14} {'tool':10} {'median s':>9} {'best s':>8} {'peak MiB':>9}  runs")
     for name in args.presets:
         cfg = preset(name)
         with tempfile.TemporaryDirectory() as tmp:
             tmp = Path(tmp)
-            rows = {"studio": [], "kollagen": []}
-            peaks = {"studio": 0.0, "kollagen": 0.0}
+            rows = {"studio": [], "studio+rrd": [], "kollagen": []}
+            peaks = {"studio": 0.0, "studio+rrd": 0.0, "kollagen": 0.0}
             cfg_file = tmp / f"{cfg.name}.json"
             cfg_file.write_text(json.dumps(synth_config_to_json(cfg), indent=4))
             for k in range(args.repeat):
                 out = tmp / f"studio{k}"
-                wall, peak = run_timed([studio, "synth", name, "-o", str(out), "-q"])
+                wall, peak = run_timed([studio, "synth", name, "-o", str(out / "rrd"), "-q"])
+                rows["studio+rrd"].append(wall)
+                peaks["studio+rrd"] = max(peaks["studio+rrd"], peak)
+                wall, peak = run_timed([studio, "synth", name, "-o", str(out), "-q", "--no-rrd"])
                 rows["studio"].append(wall)
                 peaks["studio"] = max(peaks["studio"], peak)
                 if args.kollagen:
@@ -80,11 +84,11 @@ def main() -> None:
                 shutil.rmtree(out)
             for tool, walls in rows.items():
                 if walls:
-                    print(f"{cfg.name:14} {tool:9} {statistics.median(walls):9.2f} {min(walls):8.2f} "
+                    print(f"{cfg.name:14} {tool:10} {statistics.median(walls):9.2f} {min(walls):8.2f} "
                           f"{peaks[tool]:9.0f}  {len(walls)}")
             if rows["kollagen"]:
                 ratio = statistics.median(rows["kollagen"]) / statistics.median(rows["studio"])
-                print(f"{cfg.name:14} speed-up  {ratio:9.2f}x (median kollagen / median studio), outputs identical")
+                print(f"{cfg.name:14} speed-up   {ratio:9.2f}x (median kollagen / median studio), outputs identical")
 
 
 if __name__ == "__main__":

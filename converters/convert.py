@@ -64,6 +64,8 @@ class ConvertResult:
     trajectories: tuple[Trajectory, ...]
     build: BuildResult
     warnings: tuple[str, ...]
+    rrd_path: Path | None = None
+    """``OUT/<name>.rrd`` inside the dataset folder, or None when no recording was asked for."""
 
 
 def convert_config_to_json(cfg: ConvertConfig) -> dict[str, Any]:
@@ -149,13 +151,14 @@ def _outlier_lines(build: BuildResult) -> str:
 
 def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
             warn: Callable[[str], None] | None = None, progress: Progress | None = None,
-            recorder: Callable[[PoseGraph, Path], None] | None = None) -> ConvertResult:
+            recorder: Callable[[PoseGraph, Path], None] | None = None, rrd: bool = True) -> ConvertResult:
     """Read ``cfg``'s sources, build the graph and write the dataset folder ``out``.
 
     Nothing is written when an input is bad, and an existing ``out`` is replaced only with ``force``.
     ``recorder(graph, folder)``, if given, writes extra files (the ``.rrd`` recording) into the
     dataset while it is still in the staging folder, so they appear atomically with the rest; the
-    keyframes' real stamps are ``graph.agents[k].stamps_ns``.
+    keyframes' real stamps are ``graph.agents[k].stamps_ns``. With ``rrd`` (the default) the Rerun
+    recording ``OUT/<name>.rrd`` is written inside the dataset folder the same way.
     """
     out = Path(out).absolute()
     if out.name in ("", ".", ".."):
@@ -184,7 +187,16 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
         _write_text(ds / "outliers.txt", _outlier_lines(build))
         if recorder is not None:
             recorder(build.graph, ds)
-    return ConvertResult(cfg, out, tuple(trajs), build, tuple(warnings))
+        if rrd:
+            from studio.recording import record_graph
+
+            # input paths reduced to file names: the recording must not depend on where it was made
+            shown = convert_config_to_json(cfg)
+            shown["inputs"] = [Path(p).name for p in cfg.inputs]
+            record_graph(build.graph, ds / f"{out.name}.rrd", name=out.name,
+                         config_json=json.dumps(shown, sort_keys=True))
+    return ConvertResult(cfg, out, tuple(trajs), build, tuple(warnings),
+                         out / f"{out.name}.rrd" if rrd else None)
 
 
 def _write_text(path: Path, text: str) -> None:

@@ -266,6 +266,7 @@ def convert(
     config: Path = typer.Option(None, "--config", exists=True, dir_okay=False,
                                 help="A convert.json: reproduce its dataset (options given here win)."),
     force: bool = typer.Option(False, "--force", help="Replace an existing dataset folder."),
+    rrd: bool = typer.Option(True, "--rrd/--no-rrd", help="Also write the Rerun recording OUT/<name>.rrd."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
     seed: int = typer.Option(0, help=_CONVERT_HELP["seed"]),
     keyframe_distance: float = typer.Option(1.0, help=_CONVERT_HELP["keyframe_distance"]),
@@ -322,7 +323,7 @@ def convert(
                             GraphOptions(**{k: ctx.params[k] for k in option_names}))
     show = not quiet and sys.stderr.isatty()
     t0 = time.perf_counter()
-    res = run_convert(cfg, out, force=force, warn=_warn, progress=_stderr_progress if show else None)
+    res = run_convert(cfg, out, force=force, warn=_warn, progress=_stderr_progress if show else None, rrd=rrd)
     if show:
         typer.echo("\r\033[K", err=True, nl=False)
     if not quiet:

@@ -33,10 +33,23 @@ def _synth(config: Path) -> Callable[[Path], Path]:
     return make
 
 
+def _convert_tum(folder: Path, name: str) -> Callable[[Path], Path]:
+    def make(tmp: Path) -> Path:
+        from converters.build import GraphOptions
+        from converters.convert import ConvertConfig, convert
+
+        inputs = tuple(str(p) for p in sorted(folder.glob("*.tum")))
+        cfg = ConvertConfig("tum", inputs, (), GraphOptions(seed=7, outlier_fraction=0.05))
+        return convert(cfg, tmp / name).rrd_path
+
+    return make
+
+
 #: name -> function that writes the recording under a temporary folder and returns its path.
 #: One line per committed recording (``recordings/<name>.rrd``, ``.fingerprint``, ``.command``).
 CANONICAL: dict[str, Callable[[Path], Path]] = {
     "small3x100": _synth(DATA / "small3x100.json"),
+    "three_loops": _convert_tum(DATA.parent / "trajectories", "three_loops"),
 }
 
 

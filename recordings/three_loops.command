@@ -1,0 +1,1 @@
+studio convert tum tests/data/trajectories/alpha.tum tests/data/trajectories/bob.tum tests/data/trajectories/carol.tum --seed 7 --outlier-fraction 0.05 -o OUT/three_loops && cp OUT/three_loops/three_loops.rrd recordings/  # fingerprint: STUDIO_BLESS=1 pytest tests/studio/test_committed_recordings.py
