@@ -133,7 +133,9 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
     port = _free_port()
     cmd = [rerun_executable(), "--headless", "--hide-welcome-screen", "--port", str(port), "--window-size", size]
     log = tempfile.TemporaryFile(mode="w+", encoding="utf-8", errors="replace")  # never a full pipe
-    proc = subprocess.Popen(cmd, env=_env(), stdin=subprocess.DEVNULL, stdout=log, stderr=log)
+    # its own process group: the viewer starts helper processes that must end with it
+    proc = subprocess.Popen(cmd, env=_env(), stdin=subprocess.DEVNULL, stdout=log, stderr=log,
+                            start_new_session=True)
     tmp = png.with_name(f".{png.name}.{os.getpid()}.tmp.png")
     try:
         client = _connect(ViewerClient, proc, log, port, timeout_s)
@@ -162,14 +164,30 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
         os.replace(tmp, png)
         return SnapshotResult(png, "node", int(at))
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        _stop_group(proc)
         log.close()
         tmp.unlink(missing_ok=True)
+
+
+def _stop_group(proc: subprocess.Popen) -> None:
+    """Stop the viewer and every process it started (SIGTERM, then SIGKILL after 10 s)."""
+    import signal
+
+    for sig, wait_s in ((signal.SIGTERM, 10.0), (signal.SIGKILL, None)):
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            break
+        deadline = time.monotonic() + (wait_s or 10.0)
+        while time.monotonic() < deadline:
+            try:
+                os.killpg(proc.pid, 0)
+            except ProcessLookupError:
+                proc.wait()
+                return
+            proc.poll()
+            time.sleep(0.05)
+    proc.wait()
 
 
 def _connect(client_cls, proc: subprocess.Popen, log, port: int, timeout_s: float):
