@@ -34,7 +34,7 @@ def _multi3500x8() -> SynthConfig:
     )
     return SynthConfig(number_of_steps=875, align=True, number_of_agents=8, exact_information_matrix=False,
                        stepsize=1.0, step_fragment=4, allow_retrocession=True, agents=agents, inter=inter,
-                       name="Multi3500x8")
+                       name="multi3500x8")
 
 
 def _multi10000x5() -> SynthConfig:
@@ -61,7 +61,7 @@ def _multi10000x5() -> SynthConfig:
     )
     return SynthConfig(number_of_steps=2500, align=True, number_of_agents=5, exact_information_matrix=False,
                        stepsize=1.0, step_fragment=4, allow_retrocession=False, agents=agents, inter=inter,
-                       name="Multi10000x5")
+                       name="multi10000x5")
 
 
 PRESETS = {"multi3500x8": _multi3500x8, "multi10000x5": _multi10000x5}
@@ -72,5 +72,11 @@ def preset_names() -> list[str]:
 
 
 def preset(name: str) -> SynthConfig:
-    """The preset called ``name`` (case-insensitive); KeyError if there is none."""
-    return PRESETS[name.lower()]()
+    """The preset called ``name`` (case-insensitive); KeyError if there is none.
+
+    The dataset is named ``name`` as given, as kollagen names a dataset after the argument it was
+    given (the JSON file's stem): ``studio synth multi3500x8`` writes ``OUT/multi3500x8/``.
+    """
+    import dataclasses
+
+    return dataclasses.replace(PRESETS[name.lower()](), name=name)

@@ -106,7 +106,7 @@ def record(
 ) -> None:
     """Log a multi-g2o dataset with its ground truth to a Rerun recording (open it with `rerun FILE.rrd`).
 
-    Example: studio record out/Multi3500x8 -o multi.rrd
+    Example: studio record out/multi3500x8 -o multi.rrd
     """
     from studio.recording import record_dataset
 
@@ -154,7 +154,7 @@ def evaluate(
 
     Unaligned by default (the kollagen paper's convention: all agents share one frame).
 
-    Example: studio evaluate out/Multi3500x8 --estimate optimized.g2o
+    Example: studio evaluate out/multi3500x8 --estimate optimized.g2o
     """
     from studio.errors import ConfigError
     from studio.evaluate import evaluate as evaluate_dataset
@@ -189,7 +189,7 @@ def view(
 ) -> None:
     """Open a recording in the Rerun viewer (native window, or the web viewer with --web).
 
-    Example: studio view out/Multi3500x8.rrd --web
+    Example: studio view out/multi3500x8.rrd --web
     """
     from studio.viewer import run_viewer, view_command, view_web_command, web_viewer_address
 
@@ -211,7 +211,7 @@ def snapshot(
 ) -> None:
     """Render a recording to a PNG without a display (needs a Vulkan driver, e.g. mesa-vulkan-drivers).
 
-    Example: studio snapshot out/Multi3500x8.rrd -o multi.png --node 400
+    Example: studio snapshot out/multi3500x8.rrd -o multi.png --node 400
     """
     from studio.viewer import snapshot as render
 

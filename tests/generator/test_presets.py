@@ -27,11 +27,13 @@ def test_paper_datasets_have_the_papers_constraint_counts(name, poses, odometry,
 @pytest.mark.parametrize("name,file", [("multi3500x8", "Multi3500x8"), ("multi10000x5", "Multi10000x5")])
 def test_presets_equal_the_papers_json(kollagen_reference, name, file):
     data = json.loads((kollagen_reference / "configs" / f"{file}.json").read_text())
-    assert parse_synth_config(data, name=file) == preset(name)
+    assert parse_synth_config(data, name=file) == preset(file)
+    assert preset(name).name == name
 
 
 def test_preset_lookup():
     assert preset_names() == ["multi10000x5", "multi3500x8"]
     assert preset("Multi3500x8").name == "Multi3500x8"
+    assert preset("multi3500x8").name == "multi3500x8"
     with pytest.raises(KeyError):
         preset("multi1x1")

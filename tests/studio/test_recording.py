@@ -267,7 +267,7 @@ def test_synth_without_rrd(tmp_path):
 @pytest.mark.slow
 def test_multi3500x8_synth_recording(tmp_path):
     res = synthesize(load_synth_config("multi3500x8"), tmp_path)
-    assert res.rrd_path == tmp_path / "Multi3500x8.rrd"
+    assert res.rrd_path == tmp_path / "multi3500x8.rrd"
     ok, tail = rrd_verify(res.rrd_path)
     assert ok, tail
     check_recording_matches(res.rrd_path, res.output.graph)
