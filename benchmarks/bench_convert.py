@@ -74,7 +74,7 @@ def timed(label: str, cfg: ConvertConfig, out: Path) -> None:
     t_build = marks.get("keyframes and odometry", t0)
     t_write = marks.get("writing", t0)
     poses = sum(len(t) for t in res.trajectories)
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    rss = max(resource.getrusage(who).ru_maxrss for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)) / 1024
     print(f"{label}: {poses} poses -> {res.build.graph.num_poses} keyframes, "
           f"{sum(res.build.graph.edge_counts().values())} edges in {dt:.2f} s (read {t_build - t0:.2f}, "
           f"build {t_write - t_build:.2f}, write {t0 + dt - t_write:.2f}; peak RSS {rss:.0f} MiB); "

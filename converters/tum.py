@@ -11,11 +11,15 @@ import os
 from pathlib import Path
 from typing import Sequence
 
+from generator.parallel import parallel_map
 from converters.trajectory import Trajectory, Warn, clean_trajectory, safe_agent_name
 from studio.errors import ConfigError
 from studio.io.tum import read_tum
 
 __all__ = ["read_tum_trajectory", "read_tum_sources"]
+
+#: Inputs larger than this in total are parsed in parallel (one process per core).
+_PARALLEL_MIN_BYTES = 8 * 1024 * 1024
 
 
 def read_tum_trajectory(path: str | os.PathLike, *, name: str | None = None, warn: Warn | None = None) -> Trajectory:
@@ -33,4 +37,19 @@ def read_tum_sources(inputs: Sequence[str | os.PathLike], *, agents: Sequence[st
         raise ConfigError("--agent is only for `studio convert bag`; tum agents are named after their files")
     if not inputs:
         raise ConfigError("studio convert tum needs at least one trajectory file")
-    return [read_tum_trajectory(p, warn=warn) for p in inputs]
+    sizes = [Path(p).stat().st_size if Path(p).is_file() else 0 for p in inputs]
+    if len(inputs) < 2 or sum(sizes) < _PARALLEL_MIN_BYTES:
+        return [read_tum_trajectory(p, warn=warn) for p in inputs]
+
+    # large files are parsed by several processes; their warnings are replayed here, in order
+    def read_one(k: int):
+        messages: list[str] = []
+        return read_tum_trajectory(inputs[k], warn=messages.append), messages
+
+    out = []
+    for traj, messages in parallel_map(read_one, len(inputs)):
+        for msg in messages:
+            if warn is not None:
+                warn(msg)
+        out.append(traj)
+    return out

@@ -93,9 +93,17 @@ def format_rows(rows: np.ndarray, fmts: list[str], zeros: list[str | None]) -> l
     n = len(rows)
     if n == 0:
         return []
-    bits = rows.view(np.int64).reshape(n, -1)
+    bits = rows.view(np.uint64).reshape(n, -1)
     if (bits == bits[0]).all():
         return format_columns(rows[:1], fmts, zeros) * n
-    uniq, inv = np.unique(bits, axis=0, return_inverse=True)
-    texts = np.array(format_columns(uniq.view(np.float64).reshape(len(uniq), -1), fmts, zeros), dtype=object)
-    return texts[inv.ravel()].tolist()
+    # group equal rows through a 64-bit hash of their bits, then check the grouping exactly
+    weights = (np.arange(1, bits.shape[1] + 1, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15)) | np.uint64(1)
+    with np.errstate(over="ignore"):
+        h = (bits * weights).sum(axis=1, dtype=np.uint64)
+        h ^= h >> np.uint64(29)
+    _, first, inv = np.unique(h, return_index=True, return_inverse=True)
+    inv = inv.ravel()
+    if len(first) * 2 > n or not np.array_equal(bits[first][inv], bits):
+        return format_columns(rows, fmts, zeros)  # mostly distinct rows (or a hash collision)
+    texts = np.array(format_columns(rows[first], fmts, zeros), dtype=object)
+    return texts[inv].tolist()
