@@ -26,7 +26,7 @@ import numpy as np
 
 from generator.config import SynthConfig
 from generator.parallel import parallel_map
-from generator.rng import MT19937Stream, canonical_doubles, polar_normal
+from generator.rng import MT19937Stream, polar_normal
 from studio.geometry import normalize_angle
 from studio.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 
@@ -191,6 +191,7 @@ def _walk_draws(stream: MT19937Stream, n_steps: int, frag: int, retro: bool):
                     p += 1
                 base = s * frag
                 for k in range(frag):
+                    # rng.polar_normal inlined: this loop runs once per pose
                     while True:
                         x = 2.0 * u[p] - 1.0
                         y = 2.0 * u[p + 2] - 1.0

@@ -20,7 +20,7 @@ from typing import IO
 import numpy as np
 
 from studio.errors import FormatError
-from studio.io.textfmt import format_columns, format_int_column, format_rows
+from studio.io.textfmt import format_columns, format_int_column, format_rows, write_lines
 from studio.model import PoseKind
 
 __all__ = ["G2oDocument", "write_g2o", "read_g2o", "g2o_lines", "SE3_INFO_ZERO_LITERAL", "SE3_POSE_ZERO_LITERAL"]
@@ -78,12 +78,7 @@ def g2o_lines(doc: G2oDocument) -> list[str]:
 
 
 def write_g2o(target: str | os.PathLike | IO[str], doc: G2oDocument) -> None:
-    text = "".join(g2o_lines(doc))
-    if hasattr(target, "write"):
-        target.write(text)
-    else:
-        with open(target, "w", encoding="ascii", newline="\n") as f:
-            f.write(text)
+    write_lines(target, g2o_lines(doc))
 
 
 def _open_text(source) -> tuple[str, str]:

@@ -18,7 +18,7 @@ import numpy as np
 
 from studio.errors import FormatError
 from studio.io.g2o import SE3_INFO_ZERO_LITERAL, SE3_POSE_ZERO_LITERAL, _open_text
-from studio.io.textfmt import format_columns, format_int_column, format_rows
+from studio.io.textfmt import format_columns, format_int_column, format_rows, write_lines
 from studio.model import InterAgentEdges, PoseKind
 
 __all__ = ["write_inter_lc_dat", "read_inter_lc_dat", "inter_lc_lines", "Precision"]
@@ -43,12 +43,7 @@ def inter_lc_lines(inter: InterAgentEdges, precision: Precision = "kollagen") ->
 
 def write_inter_lc_dat(target: str | os.PathLike | IO[str], inter: InterAgentEdges,
                        precision: Precision = "kollagen") -> None:
-    text = "".join(inter_lc_lines(inter, precision))
-    if hasattr(target, "write"):
-        target.write(text)
-    else:
-        with open(target, "w", encoding="ascii", newline="\n") as f:
-            f.write(text)
+    write_lines(target, inter_lc_lines(inter, precision))
 
 
 def read_inter_lc_dat(source: str | os.PathLike | IO[str], kind: PoseKind | None = None) -> InterAgentEdges:

@@ -18,11 +18,12 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
-from typing import Iterator
+import os
+from typing import IO, Iterator
 
 import numpy as np
 
-__all__ = ["format_column", "format_int_column", "format_rows", "format_columns", "shared_formatting"]
+__all__ = ["write_lines", "format_column", "format_int_column", "format_rows", "format_columns", "shared_formatting"]
 
 _CACHE: contextvars.ContextVar[dict | None] = contextvars.ContextVar("studio_format_cache", default=None)
 
@@ -107,3 +108,13 @@ def format_rows(rows: np.ndarray, fmts: list[str], zeros: list[str | None]) -> l
         return format_columns(rows, fmts, zeros)  # mostly distinct rows (or a hash collision)
     texts = np.array(format_columns(rows[first], fmts, zeros), dtype=object)
     return texts[inv].tolist()
+
+
+def write_lines(target: str | os.PathLike | IO[str], lines: list[str]) -> None:
+    """Write text lines (with their newlines) to an open text stream or to a new ASCII file."""
+    text = "".join(lines)
+    if hasattr(target, "write"):
+        target.write(text)
+    else:
+        with open(target, "w", encoding="ascii", newline="\n") as f:
+            f.write(text)

@@ -21,7 +21,7 @@ import numpy as np
 
 from studio.errors import FormatError
 from studio.io.g2o import SE3_POSE_ZERO_LITERAL, _open_text
-from studio.io.textfmt import format_column, format_columns
+from studio.io.textfmt import format_column, format_columns, write_lines
 
 __all__ = ["TumTrajectory", "write_tum", "read_tum", "tum_lines", "format_stamps"]
 
@@ -53,12 +53,7 @@ def tum_lines(stamps_ns: np.ndarray, poses: np.ndarray) -> list[str]:
 
 
 def write_tum(target: str | os.PathLike | IO[str], stamps_ns: np.ndarray, poses: np.ndarray) -> None:
-    text = "".join(tum_lines(stamps_ns, poses))
-    if hasattr(target, "write"):
-        target.write(text)
-    else:
-        with open(target, "w", encoding="ascii", newline="\n") as f:
-            f.write(text)
+    write_lines(target, tum_lines(stamps_ns, poses))
 
 
 def _stamp_ns(token: str) -> int:
