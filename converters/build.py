@@ -227,11 +227,17 @@ def _compose_chain(p0, q0, t_steps, q_steps):
     return (np.vstack([p0[None, :], pos]), np.vstack([quat_canonical(q0[None, :]), quat]))
 
 
-def pairs_within(points_xyz: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+#: Memory for one candidate pair while loop closures are searched (indices, distance, temporaries).
+BYTES_PER_CANDIDATE = 64
+
+
+def pairs_within(points_xyz: np.ndarray, radius: float, *,
+                 max_bytes: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All pairs ``i < j`` with ``|p_i - p_j| < radius``, found with a grid of ``radius``-sized cells.
 
     Returns ``(i, j, d)`` sorted by ``(i, j)``. Cost: sort + binary search per neighbour cell, and
-    memory linear in the number of points plus pairs in neighbouring cells.
+    memory linear in the number of points plus pairs in neighbouring cells. With ``max_bytes``, the
+    candidates are counted first and a search that would need more memory raises ConfigError.
     """
     n = len(points_xyz)
     if n < 2:
@@ -244,6 +250,19 @@ def pairs_within(points_xyz: np.ndarray, radius: float) -> tuple[np.ndarray, np.
     order = np.argsort(key, kind="stable")
     skey = key[order]
     idx = np.arange(n)
+    if max_bytes is not None:
+        candidates = 0
+        for dx in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                nk = key + (dx * dims[1] + dy) * dims[2] + np.arange(-1, 2)[:, None]
+                candidates += int((np.searchsorted(skey, nk, "right") - np.searchsorted(skey, nk, "left")).sum())
+        need = candidates * BYTES_PER_CANDIDATE
+        if need > max_bytes:
+            raise ConfigError(
+                f"the loop-closure search would examine {candidates:.3g} keyframe pairs (about "
+                f"{need / 1e9:.3g} GB of memory, over the {max_bytes / 1e9:g} GB limit): use a smaller "
+                f"--lc-radius, a larger --keyframe-distance, or raise --max-memory-gb"
+            )
     out_i, out_j, out_d = [], [], []
     for dx in (-1, 0, 1):
         for dy in (-1, 0, 1):
@@ -295,8 +314,11 @@ def _info_to_se2(info21: np.ndarray) -> np.ndarray:
 
 
 def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
-                progress: Progress | None = None) -> BuildResult:
-    """Build the pose graph of ``trajectories`` (agent order kept); see the module docstring."""
+                progress: Progress | None = None, max_memory_gb: float | None = None) -> BuildResult:
+    """Build the pose graph of ``trajectories`` (agent order kept); see the module docstring.
+
+    ``max_memory_gb`` bounds the loop-closure search, checked before it allocates anything.
+    """
     if not trajectories:
         raise ConfigError("no trajectories to convert")
     names = [t.name for t in trajectories]
@@ -348,7 +370,7 @@ def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
     S = np.concatenate(kf_stamps)
     A = np.concatenate(kf_agent)
     V = np.concatenate(kf_index)
-    i, j, d = pairs_within(P, opts.lc_radius)
+    i, j, d = pairs_within(P, opts.lc_radius, max_bytes=None if max_memory_gb is None else max_memory_gb * 1e9)
     same = A[i] == A[j]
     dt_ns = np.abs(S[j] - S[i])
     ok = np.where(same, (dt_ns >= int(round(opts.lc_min_time * _NS))) & (np.abs(V[j] - V[i]) >= opts.lc_min_index),

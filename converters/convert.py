@@ -151,14 +151,16 @@ def _outlier_lines(build: BuildResult) -> str:
 
 def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
             warn: Callable[[str], None] | None = None, progress: Progress | None = None,
-            recorder: Callable[[PoseGraph, Path], None] | None = None, rrd: bool = True) -> ConvertResult:
+            recorder: Callable[[PoseGraph, Path], None] | None = None, rrd: bool = True,
+            max_memory_gb: float = 8.0) -> ConvertResult:
     """Read ``cfg``'s sources, build the graph and write the dataset folder ``out``.
 
     Nothing is written when an input is bad, and an existing ``out`` is replaced only with ``force``.
     ``recorder(graph, folder)``, if given, writes extra files (the ``.rrd`` recording) into the
     dataset while it is still in the staging folder, so they appear atomically with the rest; the
     keyframes' real stamps are ``graph.agents[k].stamps_ns``. With ``rrd`` (the default) the Rerun
-    recording ``OUT/<name>.rrd`` is written inside the dataset folder the same way.
+    recording ``OUT/<name>.rrd`` is written inside the dataset folder the same way. A loop-closure
+    search estimated to need more than ``max_memory_gb`` is refused before it starts.
     """
     out = Path(out).absolute()
     if out.name in ("", ".", ".."):
@@ -175,7 +177,7 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
 
     reader = get_reader(cfg.source)
     trajs = reader(cfg.inputs, agents=cfg.agents, warn=_warn, progress=progress)
-    build = build_graph(trajs, cfg.options, progress=progress)
+    build = build_graph(trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb)
     with staged_outputs(out.parent, [out.name], force=force) as staging:
         ds = staging / out.name
         ds.mkdir()

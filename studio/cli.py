@@ -267,6 +267,8 @@ def convert(
                                 help="A convert.json: reproduce its dataset (options given here win)."),
     force: bool = typer.Option(False, "--force", help="Replace an existing dataset folder."),
     rrd: bool = typer.Option(True, "--rrd/--no-rrd", help="Also write the Rerun recording OUT/<name>.rrd."),
+    max_memory_gb: float = typer.Option(8.0, "--max-memory-gb",
+                                        help="Refuse a loop-closure search estimated to need more memory."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
     seed: int = typer.Option(0, help=_CONVERT_HELP["seed"]),
     keyframe_distance: float = typer.Option(1.0, help=_CONVERT_HELP["keyframe_distance"]),
@@ -323,7 +325,8 @@ def convert(
                             GraphOptions(**{k: ctx.params[k] for k in option_names}))
     show = not quiet and sys.stderr.isatty()
     t0 = time.perf_counter()
-    res = run_convert(cfg, out, force=force, warn=_warn, progress=_stderr_progress if show else None, rrd=rrd)
+    res = run_convert(cfg, out, force=force, warn=_warn, progress=_stderr_progress if show else None, rrd=rrd,
+                      max_memory_gb=max_memory_gb)
     if show:
         typer.echo("\r\033[K", err=True, nl=False)
     if not quiet:

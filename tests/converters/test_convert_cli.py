@@ -188,3 +188,12 @@ def test_recorder_hook_writes_inside_the_staged_dataset(tmp_path, tum_files):
     with pytest.raises(OutputError, match="cannot record"):
         convert(ConvertConfig("tum", tum_files), tmp_path / "ds2", recorder=broken)
     assert not (tmp_path / "ds2").exists() and not list(tmp_path.glob(".studio-staging-*"))
+
+
+def test_loop_closure_search_over_the_memory_limit_is_refused_before_it_starts(tmp_path, tum_files):
+    r = run("tum", *tum_files, "-o", tmp_path / "a", "--lc-radius", "1000", "--max-memory-gb", "0.0001")
+    assert r.exit_code == 2
+    assert "keyframe pairs (about" in r.stderr and "over the 0.0001 GB limit): use a smaller --lc-radius" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "a").exists()
+    assert run("tum", *tum_files, "-o", tmp_path / "b", "--lc-radius", "1000").exit_code == 0
