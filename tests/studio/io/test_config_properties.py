@@ -143,3 +143,38 @@ def test_arbitrary_convert_configs_raise_only_studio_errors(doc):
         config_from_mapping(doc if isinstance(doc, dict) else {"source": doc}, "c.json")
     except StudioError as err:
         assert "\n" not in str(err)
+
+
+@st.composite
+def convert_configs(draw):
+    import dataclasses
+
+    from converters.build import GraphOptions
+    from converters.convert import ConvertConfig
+
+    values = {}
+    for f in dataclasses.fields(GraphOptions):
+        if f.type in ("bool", bool):
+            values[f.name] = draw(st.booleans())
+        elif f.type in ("int", int):
+            values[f.name] = draw(st.integers(0, 10**6))
+        else:
+            values[f.name] = draw(st.floats(0.0, 1e3, allow_nan=False))
+    try:
+        opts = GraphOptions(**values)
+    except ConfigError:
+        opts = GraphOptions(seed=values["seed"])
+    source = draw(st.sampled_from(["tum", "s3e", "airmuseum", "bag"]))
+    inputs = tuple(draw(st.lists(st.text(min_size=1, max_size=10), max_size=3)))
+    agents = tuple(draw(st.lists(st.text(min_size=1, max_size=10), max_size=2)))
+    return ConvertConfig(source, inputs, agents, opts)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(cfg=convert_configs())
+def test_convert_config_json_round_trip_is_exact(tmp_path, cfg):
+    from converters.convert import convert_config_to_json, read_convert_config
+
+    path = tmp_path / "convert.json"
+    path.write_text(json.dumps(convert_config_to_json(cfg), indent=2), encoding="utf-8")
+    assert read_convert_config(path) == cfg
