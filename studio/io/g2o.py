@@ -6,7 +6,9 @@ entry is written ``0.0``, as kollagen writes the planar data it lifts to 3D; tha
 from planar graphs byte-identical to kollagen's. Vertices come first, then edges, in column order.
 
 Reading accepts the same four records (and skips blank lines and ``#`` comments); anything else is a
-:class:`~studio.errors.FormatError` naming ``file:line``.
+:class:`~studio.errors.FormatError` naming ``file:line``. Files are UTF-8 (a byte-order mark is
+skipped) of at most :data:`MAX_TEXT_BYTES` (1 GiB), checked before reading; the TUM and
+``inter_agent_lc.dat`` readers share these rules.
 """
 
 from __future__ import annotations
@@ -23,7 +25,8 @@ from studio.errors import FormatError
 from studio.io.textfmt import format_columns, format_int_column, format_rows, write_lines
 from studio.model import PoseKind
 
-__all__ = ["G2oDocument", "write_g2o", "read_g2o", "g2o_lines", "SE3_INFO_ZERO_LITERAL", "SE3_POSE_ZERO_LITERAL"]
+__all__ = ["G2oDocument", "write_g2o", "read_g2o", "g2o_lines", "SE3_INFO_ZERO_LITERAL", "SE3_POSE_ZERO_LITERAL",
+           "MAX_TEXT_BYTES"]
 
 _TAGS = {
     PoseKind.SE2: ("VERTEX_SE2", "EDGE_SE2"),
@@ -81,23 +84,62 @@ def write_g2o(target: str | os.PathLike | IO[str], doc: G2oDocument) -> None:
     write_lines(target, g2o_lines(doc))
 
 
+#: Text inputs larger than this are refused before reading: reading holds the file about four times
+#: over (bytes, text, lines, columns), so 1 GiB keeps a read within the 8 GB memory bound of the
+#: other commands; it is ten times the largest real input benchmarked (a 1,000,000-pose TUM file).
+MAX_TEXT_BYTES = 1 << 30
+
+_BOMS = ((b"\xff\xfe\x00\x00", "UTF-32"), (b"\x00\x00\xfe\xff", "UTF-32"), (b"\xff\xfe", "UTF-16"),
+         (b"\xfe\xff", "UTF-16"))
+
+
 def _open_text(source) -> tuple[str, str]:
+    """The text of a path or an open text stream, and the name errors use.
+
+    Files are UTF-8 (ASCII in practice; a UTF-8 byte-order mark is skipped). A file over
+    :data:`MAX_TEXT_BYTES`, UTF-16/32 text or other bytes are refused with a :class:`FormatError`.
+    """
     if hasattr(source, "read"):
         return source.read(), getattr(source, "name", "<stream>")
     path = Path(source)
     try:
-        data = path.read_bytes()
+        if path.is_dir():
+            raise FormatError(f"{path}: is a folder, not a file")
+        size = path.stat().st_size
+        if size > MAX_TEXT_BYTES:
+            raise FormatError(f"{path}: {size} bytes is over the {MAX_TEXT_BYTES} byte (1 GiB) limit of text inputs")
+        with open(path, "rb") as f:
+            data = f.read(MAX_TEXT_BYTES + 1)  # the size may grow after stat() (a device, a growing file)
     except FileNotFoundError:
         raise FormatError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise FormatError(f"{path}: is a folder, not a file") from None
     except OSError as err:
         raise FormatError(f"{path}: cannot read ({err.strerror})") from None
+    if len(data) > MAX_TEXT_BYTES:
+        raise FormatError(f"{path}: over the {MAX_TEXT_BYTES} byte (1 GiB) limit of text inputs")
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
     try:
         return data.decode("utf-8"), str(path)
     except UnicodeDecodeError as err:
+        for bom, enc in _BOMS:
+            if data.startswith(bom):
+                raise FormatError(f"{path}:1: {enc} text, not UTF-8 (save it as UTF-8 or ASCII)") from None
         line = data[: err.start].count(b"\n") + 1
-        raise FormatError(f"{path}:{line}: not UTF-8 text") from None
+        column = err.start - (data.rfind(b"\n", 0, err.start) + 1) + 1
+        raise FormatError(f"{path}:{line}: not UTF-8 text (byte 0x{data[err.start]:02x} at column {column})") from None
+
+
+def _row_norms(values: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each row (as ``np.linalg.norm``), without overflow: rows with 1e300-sized
+    entries give 1.4e300, not inf and a RuntimeWarning."""
+    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+        norms = np.linalg.norm(values, axis=1)
+    big = ~np.isfinite(norms)
+    if big.any():
+        rows = values[big]
+        scale = np.abs(rows).max(axis=1)
+        norms[big] = scale * np.linalg.norm(rows / scale[:, None], axis=1)
+    return norms
 
 
 _WIDTH = {  # tokens after the tag
@@ -165,7 +207,7 @@ def read_g2o(source: str | os.PathLike | IO[str], *, edges: bool = True) -> G2oD
 def _check_quats(poses: np.ndarray, lines: list[int], name: str) -> None:
     if not len(poses):
         return
-    norms = np.linalg.norm(poses[:, 3:7], axis=1)
+    norms = _row_norms(poses[:, 3:7])
     bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-6)
     if bad.size:
         raise FormatError(f"{name}:{lines[bad[0]]}: quaternion is not unit length (norm {norms[bad[0]]:.6g})")

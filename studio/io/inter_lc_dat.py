@@ -17,7 +17,7 @@ from typing import IO, Literal
 import numpy as np
 
 from studio.errors import FormatError
-from studio.io.g2o import SE3_INFO_ZERO_LITERAL, SE3_POSE_ZERO_LITERAL, _open_text
+from studio.io.g2o import SE3_INFO_ZERO_LITERAL, SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
 from studio.io.textfmt import format_columns, format_int_column, format_rows, write_lines
 from studio.model import InterAgentEdges, PoseKind
 
@@ -89,7 +89,7 @@ def read_inter_lc_dat(source: str | os.PathLike | IO[str], kind: PoseKind | None
     w = kind.pose_width
     meas = vals[:, :w]
     if kind is PoseKind.SE3:
-        norms = np.linalg.norm(meas[:, 3:7], axis=1)
+        norms = _row_norms(meas[:, 3:7])
         if np.any(norms < 1e-9):
             k = int(np.flatnonzero(norms < 1e-9)[0])
             raise FormatError(f"{name}:{lines[k]}: quaternion is zero")

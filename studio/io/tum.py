@@ -20,7 +20,7 @@ from typing import IO
 import numpy as np
 
 from studio.errors import FormatError
-from studio.io.g2o import SE3_POSE_ZERO_LITERAL, _open_text
+from studio.io.g2o import SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
 from studio.io.textfmt import format_column, format_columns, write_lines
 
 __all__ = ["TumTrajectory", "write_tum", "read_tum", "tum_lines", "format_stamps"]
@@ -118,7 +118,7 @@ def read_tum(source: str | os.PathLike | IO[str], *, require_increasing: bool = 
     if not rows:
         raise FormatError(f"{name}: no poses")
     poses = np.array(rows, dtype=np.float64)
-    norms = np.linalg.norm(poses[:, 3:7], axis=1)
+    norms = _row_norms(poses[:, 3:7])
     bad = np.flatnonzero(norms < 1e-9)
     if bad.size:
         raise FormatError(f"{name}:{lines[bad[0]]}: quaternion is zero")
@@ -186,7 +186,7 @@ def _read_tum_fast(text: str, require_increasing: bool) -> TumTrajectory | None:
     stamps = _stamps_from_digits(df[0].to_numpy(dtype=str))
     if stamps is None:
         return None
-    norms = np.linalg.norm(poses[:, 3:7], axis=1)
+    norms = _row_norms(poses[:, 3:7])
     if np.any(norms < 1e-9) or (require_increasing and np.any(np.diff(stamps) <= 0)):
         return None
     far = np.flatnonzero(np.abs(norms - 1.0) > 1e-12)
