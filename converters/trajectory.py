@@ -27,12 +27,16 @@ __all__ = [
     "quat_angle",
     "quat_canonical",
     "RESERVED_NAMES",
+    "MAX_COORDINATE_M",
 ]
 
 Warn = Callable[[str], None]
 
 #: Names an agent folder may not take: the files written beside the agent folders.
 RESERVED_NAMES = frozenset({"convert.json", "report.json", "outliers.txt", "inter_agent_lc.dat"})
+#: Largest position coordinate [m] of a trajectory: UTM and ECEF coordinates stay under 1e7 m, and
+#: beyond this the graph builder's products overflow.
+MAX_COORDINATE_M = 1e9
 _SAFE = re.compile(r"[^A-Za-z0-9_.+-]+")
 
 
@@ -74,6 +78,11 @@ def clean_trajectory(name: str, stamps_ns: np.ndarray, positions_xyz: np.ndarray
     finite = np.isfinite(positions_xyz).all(axis=1) & np.isfinite(quat_xyzw).all(axis=1)
     if not finite.all():
         raise FormatError(f"{source}: pose {int(np.flatnonzero(~finite)[0])} is not finite")
+    far = np.abs(positions_xyz).max(axis=1, initial=0.0) > MAX_COORDINATE_M
+    if far.any():
+        k = int(np.flatnonzero(far)[0])
+        raise FormatError(f"{source}: pose {k} has a coordinate of {np.abs(positions_xyz[k]).max():g} m, "
+                          f"beyond the {MAX_COORDINATE_M:g} m a trajectory may reach")
     norms = np.linalg.norm(quat_xyzw, axis=1)
     if np.any(norms < 1e-9):
         raise FormatError(f"{source}: pose {int(np.flatnonzero(norms < 1e-9)[0])} has a zero quaternion")

@@ -357,7 +357,7 @@ def _sample(stream: MT19937Stream, probs: np.ndarray, cached: float | None):
     accepted: list[int] = []
     normals: list[float] = []
     # expected uniforms: one per hit plus about 2.5 per accepted hit for its three normals
-    budget = n_hits + int(3 * float(probs.sum())) + 1024
+    budget = n_hits + int(3 * float(np.minimum(probs, 1.0).sum())) + 1024  # a probability over 1 accepts once
     u = stream.uniforms(budget)
     h = 0  # next hit
     q = 0  # next uniform

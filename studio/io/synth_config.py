@@ -3,6 +3,11 @@
 Every problem is a :class:`~studio.errors.ConfigError` whose message names the file and the JSON path
 (``agent_parameters.agent_specific[2].std_dev_angle``). Unknown keys are not errors (kollagen ignores
 them) but are reported through ``warn`` with the closest known key.
+
+Beyond kollagen's own rules, numbers whose arithmetic would overflow in the generator are refused:
+a length, standard deviation or probability over :data:`MAX_MAGNITUDE` (1e9), a stepsize or radius
+under :data:`MIN_LENGTH` (1e-9 m), more than :data:`MAX_AGENTS` agents, and JSON integers of more
+than 100 digits.
 """
 
 from __future__ import annotations
@@ -17,10 +22,19 @@ from typing import Any, Callable
 from generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
 from studio.errors import ConfigError
 
-__all__ = ["read_synth_config", "parse_synth_config", "synth_config_to_json", "MAX_CONFIG_BYTES"]
+__all__ = ["read_synth_config", "parse_synth_config", "synth_config_to_json", "MAX_CONFIG_BYTES", "MAX_MAGNITUDE",
+           "MIN_LENGTH", "MAX_AGENTS"]
 
 #: Larger files are refused before parsing (kollagen configs are a few kB).
 MAX_CONFIG_BYTES = 16 * 1024 * 1024
+#: Largest length [m], standard deviation or probability (scaling): beyond it the generator's
+#: squares and products overflow (kollagen's paper configs use values under 10).
+MAX_MAGNITUDE = 1e9
+#: Smallest stepsize or loop-closure radius [m]: a radius whose square underflows divides by zero.
+MIN_LENGTH = 1e-9
+#: Most agents a config may ask for (the paper's datasets have 5 and 8); a single ``agent_specific``
+#: entry is repeated for each, so a huge count would exhaust memory while parsing.
+MAX_AGENTS = 10_000
 
 _TOP = ("number_of_steps", "align", "number_of_agents", "exact_information_matrix", "agent_parameters",
         "inter_agent_loop_closure_parameters")
@@ -65,7 +79,10 @@ class _Reader:
         p = _join(path, key)
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise self.fail(p, f"must be a number, got {_kind(v)}")
-        v = float(v)
+        try:
+            v = float(v)
+        except OverflowError:  # a JSON integer beyond the float range
+            raise self.fail(p, "must be finite, got an integer beyond the float range") from None
         if not math.isfinite(v):
             raise self.fail(p, "must be finite")
         return v
@@ -80,7 +97,8 @@ class _Reader:
                 raise self.fail(p, f"must be an integer, got {v!r}")
             v = int(v)
         if not -_INT32 - 1 <= v <= _INT32:
-            raise self.fail(p, f"{v} does not fit kollagen's 32-bit int")
+            shown = str(v) if abs(v) < 10**30 else f"an integer of {len(str(abs(v)))} digits"
+            raise self.fail(p, f"{shown} does not fit kollagen's 32-bit int")
         return v
 
     def boolean(self, obj: dict, key: str, path: str) -> bool:
@@ -120,6 +138,11 @@ def _section(r: _Reader, obj: dict, path: str, names: tuple[str, ...]) -> dict:
             raise r.fail(p, f"a standard deviation cannot be negative, got {v!r}")
         if name in _RADII and v <= 0:
             raise r.fail(p, f"must be positive, got {v!r}")
+        if name in _RADII and v < MIN_LENGTH:
+            raise r.fail(p, f"{v!r} is under the smallest radius, {MIN_LENGTH!r} m")
+        if (name in _STD_DEVS or name in _RADII or name in _PROBABILITIES or name.endswith("probability_scaling")) \
+                and v > MAX_MAGNITUDE:
+            raise r.fail(p, f"{v!r} is over the largest value allowed, {MAX_MAGNITUDE!r}")
         if name.startswith("estimated_information") and v < 0:
             raise r.fail(p, f"information cannot be negative, got {v!r}")
         if (name in _PROBABILITIES or name.endswith("probability_scaling")) and v < 0:
@@ -136,6 +159,8 @@ def parse_synth_config(data: Any, *, source: str = "<config>", name: str = "data
     n_agents = r.integer(top, "number_of_agents", "")
     if n_agents <= 0:
         raise r.fail("number_of_agents", f"must be at least 1, got {n_agents}")
+    if n_agents > MAX_AGENTS:
+        raise r.fail("number_of_agents", f"{n_agents} is over the limit of {MAX_AGENTS} agents")
     n_steps = r.integer(top, "number_of_steps", "")
     if n_steps <= 0:
         raise r.fail("number_of_steps", f"must be at least 1, got {n_steps}")
@@ -145,6 +170,8 @@ def parse_synth_config(data: Any, *, source: str = "<config>", name: str = "data
     stepsize = r.number(ap, "stepsize", "agent_parameters")
     if stepsize <= 0:
         raise r.fail("agent_parameters.stepsize", f"must be positive, got {stepsize!r}")
+    if not MIN_LENGTH <= stepsize <= MAX_MAGNITUDE:
+        raise r.fail("agent_parameters.stepsize", f"{stepsize!r} is outside [{MIN_LENGTH!r}, {MAX_MAGNITUDE!r}] m")
     frag = r.integer(ap, "step_fragment", "agent_parameters")
     if frag <= 0:
         raise r.fail("agent_parameters.step_fragment", f"must be at least 1, got {frag}")
@@ -201,7 +228,7 @@ def read_synth_config(path: str | os.PathLike, *, warn: Callable[[str], None] | 
         line = raw[: err.start].count(b"\n") + 1
         raise ConfigError(f"{path}:{line}: not UTF-8 text") from None
     try:
-        data = json.loads(text, parse_constant=_reject_constant)
+        data = json.loads(text, parse_constant=_reject_constant, parse_int=_parse_int)
     except json.JSONDecodeError as err:
         raise ConfigError(f"{path}:{err.lineno}:{err.colno}: invalid JSON: {err.msg}") from None
     except RecursionError:
@@ -213,6 +240,12 @@ def read_synth_config(path: str | os.PathLike, *, warn: Callable[[str], None] | 
 
 def _reject_constant(name: str):
     raise ValueError(f"{name} is not valid JSON")
+
+
+def _parse_int(text: str) -> int:
+    if len(text) > 100:  # Python refuses over 4300 digits anyway, with a message about its own limit
+        raise ValueError(f"an integer of {len(text.lstrip('-'))} digits is too long")
+    return int(text)
 
 
 def synth_config_to_json(cfg: SynthConfig) -> dict:
