@@ -177,6 +177,11 @@ def test_tum_non_numeric_field(tmp_path):
     convert_tum(tmp_path, src, f"error: {src}:3: 'O' is not a number")
 
 
+def test_tum_line_of_separators_only(tmp_path):
+    src = copy(tmp_path, "tum_commas_only_line.tum")  # found by the fuzzer: an IndexError before the fix
+    convert_tum(tmp_path, src, f"error: {src}:2: expected 8 columns (t x y z qx qy qz qw), found 0")
+
+
 def test_tum_nan(tmp_path):
     src = copy(tmp_path, "tum_nan.tum")
     convert_tum(tmp_path, src, f"error: {src}:3: value is not finite")

@@ -91,7 +91,7 @@ def read_tum(source: str | os.PathLike | IO[str], *, require_increasing: bool = 
             continue
         parts = line.replace(",", " ").split()
         if len(parts) != 8:
-            if not seen_data and not _looks_numeric(parts[0]):
+            if not seen_data and parts and not _looks_numeric(parts[0]):
                 seen_data = True  # one header line
                 continue
             raise FormatError(f"{name}:{lineno}: expected 8 columns (t x y z qx qy qz qw), found {len(parts)}")
@@ -153,7 +153,10 @@ def _read_tum_fast(text: str, require_increasing: bool) -> TumTrajectory | None:
         if not line or line.startswith("#"):
             skip += 1
             continue
-        if not _looks_numeric(line.replace(",", " ").split()[0]):
+        tokens = line.replace(",", " ").split()
+        if not tokens:  # a line of separators only: let the line parser name it
+            return None
+        if not _looks_numeric(tokens[0]):
             if header:
                 return None
             header = True

@@ -17,6 +17,7 @@ inputs tried per reader and the failures; the exit code is 1 when there were fai
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import random
 import shutil
@@ -153,7 +154,7 @@ def mutate_json(data: bytes, rng: random.Random) -> bytes:
         if rng.random() < 0.15 and isinstance(parent, dict):
             parent.pop(path[-1], None)
         else:
-            parent[path[-1]] = rng.choice(hostile)
+            parent[path[-1]] = copy.deepcopy(rng.choice(hostile))  # no shared (or cyclic) containers
     text = json.dumps(doc, indent=rng.choice([None, 1, 4]))
     if rng.random() < 0.1:
         text = text.replace("\"NaN\"", "NaN").replace("1e+308", "1e999")
