@@ -6,6 +6,7 @@ Lengths are in metres (kollagen's "length unit"), angles in radians, information
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 __all__ = ["AgentConfig", "InterLoopClosureConfig", "SynthConfig", "estimate_resources"]
@@ -94,7 +95,32 @@ MEMORY_BYTES_BASE = 80_000_000
 OUTPUT_BYTES_PER_POSE = 1_500
 
 
+#: Bytes per candidate ("hit": an occupied cell inside a pose's circle) while loop closures are drawn.
+MEMORY_BYTES_PER_HIT = 48
+
+
+def _radius_cells(radius_m: float, cfg: SynthConfig) -> int:
+    return int(math.floor(abs(radius_m * cfg.step_fragment / cfg.stepsize) + 0.5))
+
+
+def _search_bytes(radius_cells: int, queries: int, table: int) -> float:
+    """Memory of one loop-closure search: the circle's lookup grids, the per-pose column ranges and,
+    at worst, every table cell inside every pose's circle."""
+    side = 2 * radius_cells + 1
+    circle = math.pi * radius_cells * radius_cells + side
+    return side * side * 24 + queries * side * 32 + queries * min(circle, table) * MEMORY_BYTES_PER_HIT
+
+
 def estimate_resources(cfg: SynthConfig) -> tuple[int, int]:
-    """``(peak memory bytes, output bytes)`` that generating ``cfg`` will roughly need."""
-    poses = cfg.number_of_agents * cfg.poses_per_agent
-    return MEMORY_BYTES_BASE + poses * MEMORY_BYTES_PER_POSE, poses * OUTPUT_BYTES_PER_POSE
+    """``(peak memory bytes, output bytes)`` that generating ``cfg`` will roughly need.
+
+    Poses cost a fixed amount each; each loop-closure search (one agent's intra-agent closures, or one
+    pair of agents) is bounded by its circle size, with two searches running at once.
+    """
+    n = cfg.poses_per_agent
+    poses = cfg.number_of_agents * n
+    searches = [_search_bytes(_radius_cells(a.intra_loop_closure_radius, cfg), n, n) for a in cfg.agents]
+    if cfg.number_of_agents > 1:
+        searches.append(_search_bytes(_radius_cells(cfg.inter.loop_closure_radius, cfg), n, n))
+    memory = MEMORY_BYTES_BASE + poses * MEMORY_BYTES_PER_POSE + 2 * max(searches)
+    return int(memory), poses * OUTPUT_BYTES_PER_POSE

@@ -100,17 +100,17 @@ def effective_seeds(seeds: list[int]) -> tuple[int, ...]:
 
 
 def discrete_circle(radius: int) -> np.ndarray:
-    """kollagen's ``DiscreteCircle``: ``(k, 2)`` integer offsets in its iteration order."""
-    pts = []
-    for x in range(-radius, radius + 1):
-        lim = radius * radius - x * x
-        y = 0
-        while y * y <= lim:
-            pts.append((x, y))
-            if y > 0:
-                pts.append((x, -y))
-            y += 1
-    return np.array(pts, dtype=np.int64).reshape(-1, 2)
+    """kollagen's ``DiscreteCircle``: ``(k, 2)`` integer offsets in its iteration order.
+
+    x runs from -radius to radius; for each x, y takes 0, 1, -1, 2, -2, ... while y^2 <= r^2 - x^2.
+    """
+    xs = np.arange(-radius, radius + 1, dtype=np.int64)
+    ylim = np.array([math.isqrt(radius * radius - x * x) for x in xs.tolist()], dtype=np.int64)
+    counts = 2 * ylim + 1
+    x = np.repeat(xs, counts)
+    k = np.arange(int(counts.sum()), dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)
+    y = (k + 1) // 2 * np.where(k % 2 == 1, 1, -1)
+    return np.column_stack([x, y])
 
 
 def agent_pairs(n: int) -> list[tuple[int, int]]:

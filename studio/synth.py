@@ -90,8 +90,8 @@ def check_resources(config: SynthConfig, *, max_memory_gb: float = DEFAULT_MAX_M
     poses = config.number_of_agents * config.poses_per_agent
     if memory > max_memory_gb * 1e9:
         raise ConfigError(
-            f"{config.name}: {poses:.3g} poses would need about {memory / 1e9:.3g} GB of memory, over the "
-            f"{max_memory_gb:g} GB limit (raise it with --max-memory-gb)"
+            f"{config.name}: {poses:.3g} poses and their loop-closure radii would need about "
+            f"{memory / 1e9:.3g} GB of memory, over the {max_memory_gb:g} GB limit (raise it with --max-memory-gb)"
         )
     if output > max_output_gb * 1e9:
         raise ConfigError(

@@ -193,11 +193,21 @@ def test_resource_guard_refuses_huge_configs_before_any_work(tmp_path):
     res = _run(_write(tmp_path, data, "huge"), "-o", tmp_path / "out")
     assert res.exit_code == 2
     assert res.stderr.strip() == (
-        "error: huge: 2.4e+10 poses would need about 7.2e+04 GB of memory, over the 8 GB limit "
-        "(raise it with --max-memory-gb)"
+        "error: huge: 2.4e+10 poses and their loop-closure radii would need about 7.32e+05 GB of memory, "
+        "over the 8 GB limit (raise it with --max-memory-gb)"
     )
     assert not (tmp_path / "out").exists()
     res = _run(_write(tmp_path, _mutate("number_of_steps", 2 * 10**6), "big"), "-o", tmp_path / "out",
                "--max-memory-gb", "1e9")
     assert res.exit_code == 2
     assert "would write about 36 GB, over the 20 GB limit (raise it with --max-output-gb)" in res.stderr
+
+
+def test_resource_guard_counts_the_loop_closure_circle(tmp_path):
+    # 1e4 m at 4 cells per metre: a circle of 1.3e9 cells; refused at once instead of hanging
+    data = _mutate("agent_parameters.agent_specific[1].intra_loop_closure_radius", 1e4)
+    res = _run(_write(tmp_path, data, "wide"), "-o", tmp_path / "out")
+    assert res.exit_code == 2
+    assert res.stderr.startswith("error: wide: 723 poses and their loop-closure radii would need about ")
+    assert res.stderr.rstrip().endswith("GB limit (raise it with --max-memory-gb)")
+    assert not (tmp_path / "out").exists()
