@@ -26,7 +26,7 @@ import numpy as np
 
 from generator.config import SynthConfig
 from generator.parallel import parallel_map
-from generator.rng import MT19937Stream, polar_normal
+from generator.rng import MT19937Stream, canonical_doubles, polar_normal
 from studio.geometry import normalize_angle
 from studio.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 
@@ -175,11 +175,7 @@ def _walk_draws(stream: MT19937Stream, n_steps: int, frag: int, retro: bool):
     while s < n_steps:
         words = stream.words(want)
         w = words.tolist()
-        u = (words[:-1].astype(np.float64) + words[1:].astype(np.float64) * 4294967296.0) / (
-            18446744073709551616.0
-        )
-        np.minimum(u, math.nextafter(1.0, 0.0), out=u)
-        u = u.tolist()
+        u = canonical_doubles(words, every_offset=True).tolist()
         p = 0
         try:
             while s < n_steps:
@@ -308,6 +304,15 @@ class _CircleTable:
         return p
 
 
+def _visits(cx: np.ndarray, cy: np.ndarray, which: str) -> np.ndarray:
+    """For each distinct grid cell, the index of its ``"first"`` or ``"last"`` visit (kollagen's
+    intra-agent map keeps the first visit, its inter-agent map the last)."""
+    key = (cx - cx.min()) * (int(cy.max() - cy.min()) + 1) + (cy - cy.min())
+    if which == "first":
+        return np.unique(key, return_index=True)[1]
+    return len(key) - 1 - np.unique(key[::-1], return_index=True)[1]
+
+
 def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
     """Every (query k, table m) pair whose cells are at most the circle's radius apart.
 
@@ -417,9 +422,7 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     n = len(cx)
     radius = _round_to_int(agent.intra_loop_closure_radius * cfg.step_fragment / cfg.stepsize)
     circle = _CircleTable(radius)
-    key = (cx - cx.min()) * (int(cy.max() - cy.min()) + 1) + (cy - cy.min())
-    _, first = np.unique(key, return_index=True)
-    first.sort()  # cells in order of their first visit
+    first = np.sort(_visits(cx, cy, "first"))  # cells in order of their first visit
     # kollagen's map only holds cells first visited before the current pose. Poses are taken in
     # blocks; a block looks only at cells first visited before its end, so few hits are discarded.
     parts = []
@@ -464,10 +467,7 @@ def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None):
         wa, wb = walks[a], walks[b]
         (ax, ay), (bx, by) = cells[a], cells[b]
         # kollagen's map keeps the last visit of each cell of agent a
-        ra = len(ax) - 1 - np.arange(len(ax))
-        key = (ax - ax.min()) * (int(ay.max() - ay.min()) + 1) + (ay - ay.min())
-        _, first_rev = np.unique(key[::-1], return_index=True)
-        last = ra[first_rev]
+        last = _visits(ax, ay, "last")
         k, m, rank = _enumerate_hits(bx, by, ax[last], ay[last], circle)
         j = last[m]
         probs = prob_by_rank[rank + 1]

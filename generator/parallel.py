@@ -7,11 +7,12 @@ data stays in the parent's memory (copy-on-write), only the results travel back.
 
 from __future__ import annotations
 
-import ctypes
 import multiprocessing
 import os
 import signal
 from typing import Callable, TypeVar
+
+from studio.runtime import release_free_heap
 
 __all__ = ["parallel_map", "default_jobs"]
 
@@ -35,16 +36,7 @@ def _worker_init() -> None:
     # Ctrl-C reaches the whole process group; only the parent handles it (and terminates the
     # workers), otherwise a worker interrupted while holding the pool's queue lock can hang it.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _release_free_heap()
-
-
-def _release_free_heap() -> None:
-    """Give the parent's free heap pages back in this child (glibc): reusing them would copy each
-    page on first write (copy-on-write) instead of mapping a fresh zero page."""
-    try:
-        ctypes.CDLL("libc.so.6").malloc_trim(0)
-    except (OSError, AttributeError):
-        pass
+    release_free_heap()
 
 
 def parallel_map(func: Callable[[int], T], n_items: int, jobs: int | None = None) -> list[T]:

@@ -29,10 +29,16 @@ _BELOW_ONE = math.nextafter(1.0, 0.0)
 _BLOCK_WORDS = 1 << 16
 
 
-def canonical_doubles(words: np.ndarray) -> np.ndarray:
-    """Decode consecutive word pairs into ``generate_canonical<double, 53>`` values."""
-    lo = words[0::2].astype(np.float64)
-    hi = words[1::2].astype(np.float64)
+def canonical_doubles(words: np.ndarray, *, every_offset: bool = False) -> np.ndarray:
+    """Decode word pairs into ``generate_canonical<double, 53>`` values.
+
+    By default the pairs are consecutive and disjoint (words 0-1, 2-3, ...); with ``every_offset``
+    value ``k`` is decoded from words ``k, k+1``, for a stream whose draws may start at any word.
+    """
+    if every_offset:
+        lo, hi = words[:-1].astype(np.float64), words[1:].astype(np.float64)
+    else:
+        lo, hi = words[0::2].astype(np.float64), words[1::2].astype(np.float64)
     out = (lo + hi * _TWO32) / _TWO64
     np.minimum(out, _BELOW_ONE, out=out)
     return out
