@@ -27,7 +27,7 @@ import numpy as np
 from generator.config import SynthConfig
 from generator.parallel import parallel_map
 from generator.rng import MT19937Stream, canonical_doubles, polar_normal
-from studio.geometry import normalize_angle
+from studio.geometry import libm_cos_sin, normalize_angle, relative_planar_pose
 from studio.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 
 __all__ = ["SynthOutput", "generate", "effective_seeds", "discrete_circle", "agent_pairs"]
@@ -128,16 +128,6 @@ def _quarter_angle_table() -> dict[int, tuple[float, float, float]]:
 
 
 _QUARTER = _quarter_angle_table()
-
-
-def _cos_sin(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """libm cos and sin of every entry, computed once per distinct value."""
-    bits = np.ascontiguousarray(theta, dtype=np.float64).view(np.int64)  # keeps -0.0 apart from 0.0
-    uniq, inv = np.unique(bits, return_inverse=True)
-    lst = uniq.view(np.float64).tolist()
-    c = np.array([math.cos(t) for t in lst])
-    s = np.array([math.sin(t) for t in lst])
-    return c[inv], s[inv]
 
 
 # --------------------------------------------------------------------------------------------------
@@ -406,17 +396,6 @@ def _sample(stream: MT19937Stream, probs: np.ndarray, cached: float | None):
     return np.array(accepted, dtype=np.int64), np.array(normals).reshape(-1, 3), cached
 
 
-def _relative(x_from, y_from, th_from, x_to, y_to, th_to):
-    """Pose ``to`` in the frame of ``from``, as kollagen's ``calculate_relative_transform``."""
-    xdiff = x_to - x_from
-    ydiff = y_to - y_from
-    c, s = _cos_sin(th_from)
-    dX = xdiff * c + ydiff * s
-    dY = -xdiff * s + ydiff * c
-    dT = normalize_angle(th_to - th_from)
-    return dX, dY, dT
-
-
 def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, agent):
     cx, cy = _grid_cells(walk.x, walk.y, cfg)
     n = len(cx)
@@ -443,7 +422,7 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     )[rank + 1]
     acc, noise, _ = _sample(stream, probs, None)
     i_to, j_from = k[acc], j[acc]
-    dX, dY, dT = _relative(walk.x[j_from], walk.y[j_from], walk.theta[j_from],
+    dX, dY, dT = relative_planar_pose(walk.x[j_from], walk.y[j_from], walk.theta[j_from],
                            walk.x[i_to], walk.y[i_to], walk.theta[i_to])
     sp, sa = agent.std_dev_intra_loop_closure_position, agent.std_dev_intra_loop_closure_angle
     meas = np.column_stack([dX + noise[:, 0] * sp, dY + noise[:, 1] * sp, dT + noise[:, 2] * sa])
@@ -474,7 +453,7 @@ def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None):
         stream = MT19937Stream(p.random_number_generator_seed)
         acc, noise, _ = _sample(stream, probs, None)
         i_from, j_to = k[acc], j[acc]
-        dX, dY, dT = _relative(wb.x[i_from], wb.y[i_from], wb.theta[i_from],
+        dX, dY, dT = relative_planar_pose(wb.x[i_from], wb.y[i_from], wb.theta[i_from],
                                wa.x[j_to], wa.y[j_to], wa.theta[j_to])
         meas = np.column_stack([
             dX + noise[:, 0] * p.std_dev_loop_closure_position,
@@ -562,7 +541,7 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None) -> SynthOutput:
     exact = []
     for idx, (walk, agent, lcs) in enumerate(zip(walks, cfg.agents, intra)):
         n = len(walk.x)
-        c, s = _cos_sin(walk.odom_ang)
+        c, s = libm_cos_sin(walk.odom_ang)
         odo = np.column_stack([walk.odom_pos * c, walk.odom_pos * s, walk.odom_ang])
         odometry = Edges(
             PoseKind.SE2,

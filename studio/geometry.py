@@ -18,6 +18,8 @@ __all__ = [
     "upper_to_matrix",
     "SE3_Z_INFORMATION",
     "planar_poses_to_se3",
+    "libm_cos_sin",
+    "relative_planar_pose",
 ]
 
 #: Information given to z when a planar measurement is written as an SE(3) record (kollagen's choice).
@@ -84,3 +86,24 @@ def planar_poses_to_se3(poses: np.ndarray) -> np.ndarray:
     out[:, 0:2] = poses[:, 0:2]
     out[:, 3:7] = yaw_to_quat_xyzw(poses[:, 2])
     return out
+
+
+def libm_cos_sin(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """libm's cos and sin of every entry (see :func:`yaw_to_quat_xyzw`), once per distinct value."""
+    bits = np.ascontiguousarray(theta, dtype=np.float64).view(np.int64)  # keeps -0.0 apart from 0.0
+    uniq, inv = np.unique(bits, return_inverse=True)
+    lst = uniq.view(np.float64).tolist()
+    c = np.array([math.cos(t) for t in lst])
+    s = np.array([math.sin(t) for t in lst])
+    return c[inv], s[inv]
+
+
+def relative_planar_pose(x_from, y_from, th_from, x_to, y_to, th_to):
+    """Planar pose ``to`` in the frame of ``from``, columns ``(dx, dy, dtheta)``, evaluated in
+    kollagen's order (``calculate_relative_transform``) so the bits match its files."""
+    xdiff = np.asarray(x_to, dtype=np.float64) - x_from
+    ydiff = np.asarray(y_to, dtype=np.float64) - y_from
+    c, s = libm_cos_sin(th_from)
+    dx = xdiff * c + ydiff * s
+    dy = -xdiff * s + ydiff * c
+    return dx, dy, normalize_angle(np.asarray(th_to, dtype=np.float64) - th_from)

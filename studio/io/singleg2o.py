@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from studio.geometry import normalize_angle, planar_poses_to_se3, se2_information_to_se3
+from studio.geometry import planar_poses_to_se3, relative_planar_pose, se2_information_to_se3
 from studio.io.g2o import G2oDocument, g2o_lines
 from studio.io.multig2o import Records
 from studio.io.tum import tum_lines
@@ -32,17 +32,10 @@ def agent_offsets(graph: PoseGraph) -> np.ndarray:
 
 def connector_measurements(graph: PoseGraph) -> np.ndarray:
     """``(n_agents - 1, 3)``: ground-truth pose of agent k's first vertex in agent k-1's last frame."""
-    import math
-
-    rows = []
-    for prev, cur in zip(graph.agents[:-1], graph.agents[1:]):
-        x1, y1, t1 = prev.ground_truth[-1].tolist()
-        x2, y2, t2 = cur.ground_truth[0].tolist()
-        dtheta = normalize_angle(t2 - t1)
-        dx, dy = x2 - x1, y2 - y1
-        c, s = math.cos(t1), math.sin(t1)
-        rows.append((dx * c + dy * s, -dx * s + dy * c, dtheta))
-    return np.array(rows, dtype=np.float64).reshape(-1, 3)
+    last = np.array([a.ground_truth[-1] for a in graph.agents[:-1]]).reshape(-1, 3)
+    first = np.array([a.ground_truth[0] for a in graph.agents[1:]]).reshape(-1, 3)
+    dx, dy, dt = relative_planar_pose(last[:, 0], last[:, 1], last[:, 2], first[:, 0], first[:, 1], first[:, 2])
+    return np.column_stack([dx, dy, dt])
 
 
 def write_single_g2o(graph: PoseGraph, path: str | os.PathLike, *, records: Records = "2d",
