@@ -29,7 +29,7 @@ from studio.geometry import normalize_angle
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.io.inter_lc_dat import Precision, read_inter_lc_dat, write_inter_lc_dat
 from studio.io.tum import read_tum, write_tum
-from studio.model import AgentGraph, Edges, PoseGraph, PoseKind
+from studio.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 
 __all__ = ["write_multi_g2o", "read_multi_g2o", "agent_g2o_document", "Records"]
 
@@ -129,7 +129,6 @@ def read_multi_g2o(folder: str | os.PathLike, *, edges: bool = True) -> PoseGrap
         except GraphError as err:
             raise FormatError(f"{sub}: {err}") from None
     dat = folder / "inter_agent_lc.dat"
-    from studio.model import InterAgentEdges
 
     inter = read_inter_lc_dat(dat, kind) if edges and dat.is_file() else InterAgentEdges.empty(kind)
     try:
