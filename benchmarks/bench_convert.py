@@ -4,7 +4,7 @@
 2. Bag: a ROS 2 (mcap) bag with 300,000 geometry_msgs/PoseStamped messages on 3 topics.
 
 Inputs are generated once into WORKDIR (default: a temporary folder) and reused; the figures are
-wall-clock seconds of :func:`converters.convert.convert` (reading, building and writing the dataset,
+wall-clock seconds of :func:`studio.convert.convert` (reading, building and writing the dataset,
 without the recording, whose time is printed separately) and the peak resident memory of the process.
 """
 
@@ -20,7 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from converters.convert import ConvertConfig, convert  # noqa: E402
+from studio.convert import ConvertConfig, convert  # noqa: E402
 from tests.converters.synthetic import UTM_EAST, UTM_NORTH, loop_trajectory  # noqa: E402
 
 
@@ -66,7 +66,7 @@ def timed(label: str, cfg: ConvertConfig, out: Path) -> None:
     t0 = time.perf_counter()
     res = convert(cfg, out, force=True, progress=progress, rrd=False)
     dt = time.perf_counter() - t0
-    from studio.recording import record_graph
+    from studio.recording.dataset import record_graph
 
     t_rec = time.perf_counter()
     record_graph(res.build.graph, out / "bench.rrd", name=out.name)

@@ -61,7 +61,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         dataset = args.dataset
         if dataset is None:
-            from generator.presets import preset
+            from studio.generator.presets import preset
             from studio.synth import synthesize
 
             dataset = str(synthesize(preset("multi10000x5"), tmp).dataset_dir)

@@ -18,8 +18,8 @@ from pathlib import Path
 os.environ.setdefault("CI", "true")
 os.environ["RERUN_ANALYTICS"] = "0"
 
-from generator.kollagen import generate  # noqa: E402
-from generator.presets import preset  # noqa: E402
+from studio.generator.kollagen import generate  # noqa: E402
+from studio.generator.presets import preset  # noqa: E402
 
 
 def _peak_rss_mb() -> float:
@@ -34,7 +34,7 @@ def bench(name: str, repeat: int) -> None:
     rss_before = _peak_rss_mb()
     import rerun  # noqa: F401  (import cost is not logging cost)
 
-    from studio.recording import record_graph
+    from studio.recording.dataset import record_graph
 
     times = []
     with tempfile.TemporaryDirectory() as tmp:

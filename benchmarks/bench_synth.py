@@ -24,7 +24,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from generator.presets import preset  # noqa: E402
+from studio.generator.presets import preset  # noqa: E402
 from studio.io.synth_config import synth_config_to_json  # noqa: E402
 
 PRESETS = ["multi3500x8", "multi10000x5"]

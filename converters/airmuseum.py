@@ -13,9 +13,10 @@ import re
 from pathlib import Path
 from typing import Sequence
 
-from converters.trajectory import Trajectory, Warn, safe_agent_name
-from converters.tum import read_tum_trajectory
-from studio.errors import ConfigError, FormatError
+from studio.converters.names import safe_agent_name
+from studio.core.trajectory import Trajectory, Warn
+from studio.converters.tum import read_tum_trajectory
+from studio.core.errors import ConfigError, FormatError
 
 __all__ = ["read_airmuseum", "find_ground_truth_files"]
 

@@ -31,8 +31,9 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from converters.trajectory import (
-    Trajectory,
+from studio.core.errors import ConfigError
+from studio.core.geometry import (
+    normalize_angle,
     quat_angle,
     quat_canonical,
     quat_conj,
@@ -40,13 +41,12 @@ from converters.trajectory import (
     quat_mul,
     quat_rotate,
 )
-from studio.errors import ConfigError
-from studio.geometry import normalize_angle
-from studio.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
+from studio.core.trajectory import Trajectory
+from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
+from studio.core.units import NS_PER_S
 
 __all__ = ["GraphOptions", "Gap", "BuildResult", "build_graph", "pairs_within", "select_keyframes"]
 
-_NS = 1_000_000_000
 _DIAG21 = np.array([0, 6, 11, 15, 18, 20])  # diagonal entries of a 6x6 upper triangle
 _STREAM_ODOMETRY, _STREAM_LOOPS, _STREAM_OUTLIERS = 1, 2, 3
 
@@ -144,7 +144,7 @@ class Gap:
 
     @property
     def seconds(self) -> float:
-        return (self.end_ns - self.start_ns) / _NS
+        return (self.end_ns - self.start_ns) / NS_PER_S
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,7 +168,7 @@ def select_keyframes(stamps_ns: np.ndarray, positions_xyz: np.ndarray, quat_xyzw
     """Indices of the keyframes, and the boolean "a gap follows this pose" of every pose."""
     n = len(stamps_ns)
     gap_after = np.zeros(n, dtype=bool)
-    gap_after[:-1] = np.diff(stamps_ns) > int(round(opts.max_gap * _NS))
+    gap_after[:-1] = np.diff(stamps_ns) > int(round(opts.max_gap * NS_PER_S))
     new = np.zeros(n, dtype=bool)
     new[0] = new[-1] = True
     new |= gap_after
@@ -182,7 +182,7 @@ def select_keyframes(stamps_ns: np.ndarray, positions_xyz: np.ndarray, quat_xyzw
         b = np.floor(np.concatenate([[0.0], np.cumsum(turn)]) / math.radians(opts.keyframe_angle))
         new[1:] |= b[1:] != b[:-1]
     if opts.keyframe_time > 0:
-        b = (stamps_ns - stamps_ns[0]) // max(1, int(round(opts.keyframe_time * _NS)))
+        b = (stamps_ns - stamps_ns[0]) // max(1, int(round(opts.keyframe_time * NS_PER_S)))
         new[1:] |= b[1:] != b[:-1]
     return np.flatnonzero(new), gap_after
 
@@ -348,7 +348,7 @@ def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
         sigma_t = opts.odo_sigma_min_m + opts.odo_sigma_m_per_m * dist
         sigma_r = opts.odo_sigma_min_rad + opts.odo_sigma_rad_per_rad * turn + opts.odo_sigma_rad_per_m * dist
         bridge = gap_after[kf[:-1]]
-        dt = np.diff(st) / _NS
+        dt = np.diff(st) / NS_PER_S
         sigma_t = sigma_t + np.where(bridge, opts.gap_sigma_m_per_s * dt, 0.0)
         sigma_r = sigma_r + np.where(bridge, opts.gap_sigma_rad_per_s * dt, 0.0)
         meas, info = _perturb(t_rel, q_rel, sigma_t, sigma_r, rng_odo, opts.planar)
@@ -373,10 +373,10 @@ def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
     i, j, d = pairs_within(P, opts.lc_radius, max_bytes=None if max_memory_gb is None else max_memory_gb * 1e9)
     same = A[i] == A[j]
     dt_ns = np.abs(S[j] - S[i])
-    ok = np.where(same, (dt_ns >= int(round(opts.lc_min_time * _NS))) & (np.abs(V[j] - V[i]) >= opts.lc_min_index),
+    ok = np.where(same, (dt_ns >= int(round(opts.lc_min_time * NS_PER_S))) & (np.abs(V[j] - V[i]) >= opts.lc_min_index),
                   True)
     if opts.rendezvous > 0:
-        ok &= same | (dt_ns <= int(round(opts.rendezvous * _NS)))
+        ok &= same | (dt_ns <= int(round(opts.rendezvous * NS_PER_S)))
     if opts.lc_max_heading > 0:
         ex = np.zeros((len(i), 3))
         ex[:, 0] = 1.0

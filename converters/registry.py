@@ -10,11 +10,11 @@ from __future__ import annotations
 import os
 from typing import Callable, Sequence
 
-from converters.airmuseum import read_airmuseum
-from converters.s3e import read_s3e
-from converters.trajectory import Trajectory, Warn
-from converters.tum import read_tum_sources
-from studio.errors import ConfigError
+from studio.converters.airmuseum import read_airmuseum
+from studio.converters.s3e import read_s3e
+from studio.core.trajectory import Trajectory, Warn
+from studio.converters.tum import read_tum_sources
+from studio.core.errors import ConfigError
 
 __all__ = ["READERS", "get_reader", "source_names"]
 
@@ -23,7 +23,7 @@ Reader = Callable[..., list[Trajectory]]
 
 def _read_bag(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
               warn: Warn | None = None, progress=None) -> list[Trajectory]:
-    from converters.rosbag import read_bag_sources
+    from studio.converters.rosbag import read_bag_sources
 
     return read_bag_sources(inputs, agents=agents, warn=warn, progress=progress)
 

@@ -16,7 +16,7 @@ status or NaN coordinates are dropped with a warning; fixes spanning two UTM zon
 Without a heading topic a fix's orientation is the yaw of the direction of travel.
 
 Every failure (unknown topic, unsupported message type, corrupt or truncated bag) is a
-:class:`~studio.errors.FormatError` naming the bag; an unknown topic lists the bag's topics and types.
+:class:`~studio.core.errors.FormatError` naming the bag; an unknown topic lists the bag's topics and types.
 """
 
 from __future__ import annotations
@@ -30,8 +30,10 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from converters.trajectory import Trajectory, Warn, check_agent_name, clean_trajectory
-from studio.errors import ConfigError, FormatError
+from studio.converters.names import check_agent_name
+from studio.core.trajectory import Trajectory, Warn, clean_trajectory
+from studio.core.errors import ConfigError, FormatError
+from studio.core.units import NS_PER_S
 
 __all__ = ["typestore_for", "AgentSpec", "parse_agent_spec", "read_bag", "read_bag_sources", "POSE_TYPES", "HEADING_TYPES"]
 
@@ -45,7 +47,6 @@ POSE_TYPES = (
 )
 #: Message types that give a heading for NavSatFix.
 HEADING_TYPES = ("geometry_msgs/msg/QuaternionStamped", "sensor_msgs/msg/Imu")
-_NS = 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -95,7 +96,7 @@ def typestore_for(*, ros1: bool):
 
 
 def _stamp(header) -> int:
-    return int(header.stamp.sec) * _NS + int(header.stamp.nanosec)
+    return int(header.stamp.sec) * NS_PER_S + int(header.stamp.nanosec)
 
 
 class _Collector:

@@ -14,9 +14,9 @@ import re
 from pathlib import Path
 from typing import Sequence
 
-from converters.trajectory import Trajectory, Warn
-from converters.tum import read_tum_trajectory
-from studio.errors import ConfigError, FormatError
+from studio.core.trajectory import Trajectory, Warn
+from studio.converters.tum import read_tum_trajectory
+from studio.core.errors import ConfigError, FormatError
 
 __all__ = ["S3E_AGENTS", "read_s3e"]
 
@@ -55,7 +55,7 @@ def read_s3e(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
     missing = [a for a in S3E_AGENTS if a not in files]
     bag_trajs: dict[str, Trajectory] = {}
     if missing and bags:
-        from converters.rosbag import read_bag
+        from studio.converters.rosbag import read_bag
 
         specs = {a: f"/{a}/fix+/{a}/heading" for a in missing}
         bag_trajs = {t.name: t for t in read_bag(bags[0], specs, warn=warn, skip_missing=True, progress=progress)}

@@ -11,9 +11,10 @@ import os
 from pathlib import Path
 from typing import Sequence
 
-from generator.parallel import parallel_map
-from converters.trajectory import Trajectory, Warn, clean_trajectory, safe_agent_name
-from studio.errors import ConfigError
+from studio.core.parallel import parallel_map
+from studio.converters.names import safe_agent_name
+from studio.core.trajectory import Trajectory, Warn, clean_trajectory
+from studio.core.errors import ConfigError
 from studio.io.tum import read_tum
 
 __all__ = ["read_tum_trajectory", "read_tum_sources"]

@@ -1,7 +1,7 @@
 """A numpy re-implementation of kollagen's data generator, bit-exact with its C++.
 
 The public entry point is :func:`generate`, which turns a :class:`~generator.config.SynthConfig` into
-a planar :class:`~studio.model.PoseGraph` and the few extras kollagen's single g2o file needs.
+a planar :class:`~studio.core.model.PoseGraph` and the few extras kollagen's single g2o file needs.
 
 How it stays exact while being fast:
 
@@ -24,15 +24,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from generator.config import SynthConfig
-from generator.parallel import parallel_map
-from generator.rng import MT19937Stream, canonical_doubles, polar_normal
-from studio.geometry import libm_cos_sin, normalize_angle, relative_planar_pose
-from studio.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
+from studio.generator.config import SynthConfig
+from studio.core.parallel import parallel_map
+from studio.generator.rng import MT19937Stream, canonical_doubles, polar_normal
+from studio.core.geometry import libm_cos_sin, normalize_angle, relative_planar_pose
+from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
+from studio.core.units import NS_PER_S
 
 __all__ = ["SynthOutput", "generate", "effective_seeds", "discrete_circle", "agent_pairs"]
 
-_NS_PER_S = 1_000_000_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -554,7 +554,7 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None) -> SynthOutput:
             AgentGraph(
                 name=f"agent{idx + 1}",
                 kind=PoseKind.SE2,
-                stamps_ns=np.arange(n, dtype=np.int64) * _NS_PER_S,
+                stamps_ns=np.arange(n, dtype=np.int64) * NS_PER_S,
                 initial=np.column_stack([walk.drx, walk.dry, walk.drtheta]),
                 ground_truth=np.column_stack([walk.x, walk.y, walk.theta]),
                 odometry=odometry,

@@ -6,7 +6,7 @@ presets work without any file.
 
 from __future__ import annotations
 
-from generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
+from studio.generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
 
 __all__ = ["PRESETS", "preset", "preset_names"]
 

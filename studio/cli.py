@@ -1,6 +1,6 @@
 """The ``studio`` command line: a thin typer layer over the library functions.
 
-This is the only module that imports typer. Every :class:`~studio.errors.StudioError` becomes one line
+This is the only module that imports typer. Every :class:`~studio.core.errors.StudioError` becomes one line
 on stderr and exit code 2; heavy imports happen inside the commands so ``studio --help`` stays fast.
 """
 
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import typer
 
-from studio.errors import StudioError
+from studio.core.errors import StudioError
 
 app = typer.Typer(
     name="studio",
@@ -108,7 +108,7 @@ def record(
 
     Example: studio record out/multi3500x8 -o multi.rrd
     """
-    from studio.recording import record_dataset
+    from studio.recording.dataset import record_dataset
 
     t0 = time.perf_counter()
     res = record_dataset(dataset, out, force=force)
@@ -156,7 +156,7 @@ def evaluate(
 
     Example: studio evaluate out/multi3500x8 --estimate optimized.g2o
     """
-    from studio.errors import ConfigError
+    from studio.core.errors import ConfigError
     from studio.evaluate import evaluate as evaluate_dataset
     from studio.evaluate import format_markdown, format_table
 
@@ -169,11 +169,9 @@ def evaluate(
     for msg in ev.warnings:
         _warn(msg)
     if rrd is not None:
-        from studio.evaluation_recording import save_evaluation_recording
-        from studio.io.atomic import staged_outputs
+        from studio.evaluate import write_evaluation_recording
 
-        with staged_outputs(rrd.parent, [rrd.name], force=force) as staging:
-            save_evaluation_recording(ev, staging / rrd.name)
+        write_evaluation_recording(ev, rrd, force=force)
     if as_json:
         typer.echo(ev.to_json())
     else:
@@ -191,7 +189,7 @@ def view(
 
     Example: studio view out/multi3500x8.rrd --web
     """
-    from studio.viewer import run_viewer, view_command, view_web_command, web_viewer_address
+    from studio.recording.viewer import run_viewer, view_command, view_web_command, web_viewer_address
 
     if web:
         cmd = view_web_command(rrd, port=port)
@@ -213,7 +211,7 @@ def snapshot(
 
     Example: studio snapshot out/multi3500x8.rrd -o multi.png --node 400
     """
-    from studio.viewer import snapshot as render
+    from studio.recording.viewer import snapshot as render
 
     res = render(rrd, out, node=node, window_size=size)
     typer.echo(f"{res.path}: node {res.time}")
@@ -303,9 +301,9 @@ def convert(
     """
     import dataclasses
 
-    from converters.build import GraphOptions
-    from converters.convert import ConvertConfig, convert as run_convert, read_convert_config
-    from studio.errors import ConfigError
+    from studio.converters.build import GraphOptions
+    from studio.convert import ConvertConfig, convert as run_convert, read_convert_config
+    from studio.core.errors import ConfigError
 
     # options typed on the command line win over the --config file (compared by name: typer may
     # vendor click, so its ParameterSource enum is not imported)
@@ -343,7 +341,7 @@ def convert(
 
 
 def main() -> None:
-    from studio.runtime import tune_allocator
+    from studio.core.parallel import tune_allocator
 
     tune_allocator()
     app()

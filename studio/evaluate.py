@@ -33,8 +33,9 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from studio.errors import EvaluationError
-from studio.model import PoseGraph
+from studio.core.errors import EvaluationError
+from studio.core.model import PoseGraph
+from studio.core.units import NS_PER_S
 
 if TYPE_CHECKING:
     from studio.io.estimate import AgentEstimate
@@ -49,11 +50,11 @@ __all__ = [
     "format_table",
     "format_markdown",
     "DEFAULT_TUM_MAX_DIFF_S",
+    "write_evaluation_recording",
 ]
 
 #: Largest time difference [s] at which a TUM estimate pose is matched to a ground-truth pose (evo's default).
 DEFAULT_TUM_MAX_DIFF_S = 0.01
-_NS = 1_000_000_000
 
 
 class Alignment(str, enum.Enum):
@@ -179,7 +180,7 @@ def _trajectory(poses7: np.ndarray, stamps_ns: np.ndarray):
     from evo.core.trajectory import PoseTrajectory3D
 
     return PoseTrajectory3D(positions_xyz=poses7[:, 0:3], orientations_quat_wxyz=poses7[:, [6, 3, 4, 5]],
-                            timestamps=stamps_ns / _NS)
+                            timestamps=stamps_ns / NS_PER_S)
 
 
 def _check_finite(poses: np.ndarray, where: str) -> None:
@@ -216,12 +217,12 @@ def _matched(graph: PoseGraph, estimate, max_diff_s: float, warnings: list[str])
                     f"estimate of {agent.name}: {len(poses)} poses for the dataset's {agent.num_poses}")
             out.append((agent.ground_truth, poses, agent.stamps_ns, np.arange(agent.num_poses)))
             continue
-        i_gt, i_est = matching_time_indices(agent.stamps_ns / _NS, np.asarray(est.stamps_ns) / _NS, max_diff_s)
+        i_gt, i_est = matching_time_indices(agent.stamps_ns / NS_PER_S, np.asarray(est.stamps_ns) / NS_PER_S, max_diff_s)
         if not i_gt:
             raise EvaluationError(
                 f"estimate of {agent.name}: no timestamp matches the ground truth within {max_diff_s} s "
-                f"(estimate {est.stamps_ns[0] / _NS:.9g}..{est.stamps_ns[-1] / _NS:.9g} s, ground truth "
-                f"{agent.stamps_ns[0] / _NS:.9g}..{agent.stamps_ns[-1] / _NS:.9g} s)")
+                f"(estimate {est.stamps_ns[0] / NS_PER_S:.9g}..{est.stamps_ns[-1] / NS_PER_S:.9g} s, ground truth "
+                f"{agent.stamps_ns[0] / NS_PER_S:.9g}..{agent.stamps_ns[-1] / NS_PER_S:.9g} s)")
         i_gt, i_est = np.asarray(i_gt), np.asarray(i_est)
         if len(i_gt) < agent.num_poses:
             warnings.append(f"estimate of {agent.name}: {len(i_gt)} of {agent.num_poses} ground-truth poses "
@@ -323,7 +324,7 @@ def score(graph: PoseGraph, estimate: Sequence[AgentEstimate] | None = None, *, 
     # APE translation: evo's own metric, on all agents' poses pooled (kollagen's single TUM files).
     gt_all = np.concatenate([m[0] for m in matched])
     est_all = np.concatenate([m[1] for m in matched])
-    stamps_all = np.arange(len(gt_all), dtype=np.int64) * _NS
+    stamps_all = np.arange(len(gt_all), dtype=np.int64) * NS_PER_S
     ape = metrics.APE(metrics.PoseRelation.translation_part)
     ape.process_data((_trajectory(gt_all, stamps_all), _trajectory(est_all, stamps_all)))
     bounds = np.cumsum([0] + [len(m[0]) for m in matched])
@@ -441,3 +442,27 @@ def format_markdown(ev: Evaluation) -> str:
     cells = _cells(ev.overall)
     lines.append("| " + " | ".join(f"**{c}**" for c in cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------------------------- recording
+
+
+def write_evaluation_recording(ev: Evaluation, path: str | os.PathLike, *, force: bool = False,
+                               recording_id: str | None = None) -> Path:
+    """Write the per-node APE series and the statistics table of ``ev`` as a new ``.rrd``, atomically.
+
+    Pass the dataset recording's id as ``recording_id`` to have the viewer merge both files.
+    """
+    from studio.io.atomic import staged_outputs
+    from studio.recording.evaluation import ErrorSeries, save_evaluation_recording
+
+    path = Path(path)
+    series = [
+        ErrorSeries(a.name, ev.node_indices[k], ev.stamps_ns[k],
+                    {"ape_translation_m": ev.ape_translation_series_m[k],
+                     "ape_rotation_deg": ev.ape_rotation_series_deg[k]})
+        for k, a in enumerate(ev.agents)
+    ]
+    with staged_outputs(path.parent, [path.name], force=force) as staging:
+        save_evaluation_recording(staging / path.name, format_markdown(ev), series, recording_id=recording_id)
+    return path

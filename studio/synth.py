@@ -8,11 +8,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from generator.config import SynthConfig, estimate_resources
-from generator.kollagen import SynthOutput, generate
-from generator.parallel import parallel_map
-from generator.presets import PRESETS, preset, preset_names
-from studio.errors import ConfigError
+from studio.generator.config import SynthConfig, estimate_resources
+from studio.generator.kollagen import SynthOutput, generate
+from studio.core.parallel import parallel_map
+from studio.generator.presets import PRESETS, preset, preset_names
+from studio.core.errors import ConfigError
+from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.io.atomic import staged_outputs
 from studio.io.multig2o import Records, write_multi_g2o
 from studio.io.singleg2o import write_single_g2o, write_single_tum
@@ -78,9 +79,6 @@ def write_kollagen_outputs(out: SynthOutput, parent: Path, name: str, *, multi_r
     parallel_map(run, len(tasks), jobs)
 
 
-#: Default resource limits of :func:`synthesize` (lifted with ``max_memory_gb`` / ``max_output_gb``).
-DEFAULT_MAX_MEMORY_GB = 8.0
-DEFAULT_MAX_OUTPUT_GB = 20.0
 
 
 def check_resources(config: SynthConfig, *, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
@@ -126,7 +124,7 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
             json.dump(synth_config_to_json(config), f, indent=4)
             f.write("\n")
         if rrd:
-            from studio.recording import record_graph
+            from studio.recording.dataset import record_graph
 
             record_graph(output.graph, staging / names[3], name=name,
                          config_json=json.dumps(synth_config_to_json(config), sort_keys=True))

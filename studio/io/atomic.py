@@ -13,7 +13,7 @@ import shutil
 from pathlib import Path
 from typing import Iterator
 
-from studio.errors import OutputError
+from studio.core.errors import OutputError
 
 __all__ = ["staged_outputs", "STAGING_PREFIX"]
 

@@ -8,7 +8,7 @@
   per agent; its poses are matched to the ground truth by timestamp when scoring.
 
 g2o estimates give one pose per dataset vertex; a vertex count or id that does not match the dataset
-raises :class:`~studio.errors.EvaluationError` naming the agent and how many vertices are off.
+raises :class:`~studio.core.errors.EvaluationError` naming the agent and how many vertices are off.
 Planar (``VERTEX_SE2``) files are lifted to ``[x, y, 0, 0, 0, sin(theta/2), cos(theta/2)]``.
 """
 
@@ -21,12 +21,12 @@ from typing import Literal
 
 import numpy as np
 
-from studio.errors import EvaluationError, FormatError
-from studio.geometry import yaw_to_quat_xyzw
+from studio.core.errors import EvaluationError, FormatError
+from studio.core.geometry import yaw_to_quat_xyzw
 from studio.io.g2o import G2oDocument, read_g2o
 from studio.io.singleg2o import agent_offsets
 from studio.io.tum import read_tum
-from studio.model import PoseGraph, PoseKind
+from studio.core.model import PoseGraph, PoseKind
 
 __all__ = ["AgentEstimate", "Estimate", "EstimateLayout", "read_estimate", "estimate_layout"]
 

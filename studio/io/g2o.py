@@ -6,7 +6,7 @@ entry is written ``0.0``, as kollagen writes the planar data it lifts to 3D; tha
 from planar graphs byte-identical to kollagen's. Vertices come first, then edges, in column order.
 
 Reading accepts the same four records (and skips blank lines and ``#`` comments); anything else is a
-:class:`~studio.errors.FormatError` naming ``file:line``. Files are UTF-8 (a byte-order mark is
+:class:`~studio.core.errors.FormatError` naming ``file:line``. Files are UTF-8 (a byte-order mark is
 skipped) of at most :data:`MAX_TEXT_BYTES` (1 GiB), checked before reading; the TUM and
 ``inter_agent_lc.dat`` readers share these rules.
 """
@@ -21,9 +21,9 @@ from typing import IO
 
 import numpy as np
 
-from studio.errors import FormatError
+from studio.core.errors import FormatError
 from studio.io.textfmt import format_columns, format_int_column, format_rows, write_lines
-from studio.model import PoseKind
+from studio.core.model import PoseKind
 
 __all__ = ["G2oDocument", "write_g2o", "read_g2o", "g2o_lines", "SE3_INFO_ZERO_LITERAL", "SE3_POSE_ZERO_LITERAL",
            "MAX_TEXT_BYTES"]

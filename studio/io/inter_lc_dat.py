@@ -16,10 +16,10 @@ from typing import IO, Literal
 
 import numpy as np
 
-from studio.errors import FormatError
+from studio.core.errors import FormatError
 from studio.io.g2o import SE3_INFO_ZERO_LITERAL, SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
 from studio.io.textfmt import format_columns, format_int_column, format_rows, write_lines
-from studio.model import InterAgentEdges, PoseKind
+from studio.core.model import InterAgentEdges, PoseKind
 
 __all__ = ["write_inter_lc_dat", "read_inter_lc_dat", "inter_lc_lines", "Precision"]
 

@@ -24,17 +24,17 @@ from typing import Literal
 
 import numpy as np
 
-from studio.errors import FormatError, GraphError
-from studio.geometry import normalize_angle
+from studio.core.errors import FormatError, GraphError
+from studio.core.geometry import normalize_angle
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.io.inter_lc_dat import Precision, read_inter_lc_dat, write_inter_lc_dat
 from studio.io.tum import read_tum, write_tum
-from studio.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
+from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
+from studio.core.units import NS_PER_S
 
 __all__ = ["write_multi_g2o", "read_multi_g2o", "agent_g2o_document", "Records"]
 
 Records = Literal["2d", "3d"]
-_NS = 1_000_000_000
 
 
 def _natural_key(name: str):
@@ -116,7 +116,7 @@ def read_multi_g2o(folder: str | os.PathLike, *, edges: bool = True) -> PoseGrap
 
         gt_path = sub / f"{sub.name}_GT.tum"
         gt = None
-        stamps = np.arange(n, dtype=np.int64) * _NS
+        stamps = np.arange(n, dtype=np.int64) * NS_PER_S
         if gt_path.is_file():
             traj = read_tum(gt_path)
             if len(traj.stamps_ns) != n:

@@ -14,15 +14,15 @@ from pathlib import Path
 
 import numpy as np
 
-from studio.geometry import planar_poses_to_se3, relative_planar_pose, se2_information_to_se3
+from studio.core.geometry import planar_poses_to_se3, relative_planar_pose, se2_information_to_se3
 from studio.io.g2o import G2oDocument, g2o_lines
 from studio.io.multig2o import Records
 from studio.io.tum import tum_lines
-from studio.model import PoseGraph, PoseKind
+from studio.core.model import PoseGraph, PoseKind
+from studio.core.units import NS_PER_S
 
 __all__ = ["write_single_g2o", "write_single_tum", "agent_offsets", "connector_measurements"]
 
-_NS = 1_000_000_000
 
 
 def agent_offsets(graph: PoseGraph) -> np.ndarray:
@@ -89,6 +89,6 @@ def write_single_tum(graph: PoseGraph, path: str | os.PathLike, *, ground_truth:
     """Concatenated ground truth (or initial estimate), timestamps = concatenated vertex ids."""
     g = graph.to_se3()
     poses = np.concatenate([a.ground_truth if ground_truth else a.initial for a in g.agents])
-    stamps = np.arange(len(poses), dtype=np.int64) * _NS
+    stamps = np.arange(len(poses), dtype=np.int64) * NS_PER_S
     with open(Path(path), "w", encoding="ascii", newline="\n") as f:
         f.write("".join(tum_lines(stamps, poses)))

@@ -1,6 +1,6 @@
 """kollagen's JSON config: read, validate and write :class:`~generator.config.SynthConfig`.
 
-Every problem is a :class:`~studio.errors.ConfigError` whose message names the file and the JSON path
+Every problem is a :class:`~studio.core.errors.ConfigError` whose message names the file and the JSON path
 (``agent_parameters.agent_specific[2].std_dev_angle``). Unknown keys are not errors (kollagen ignores
 them) but are reported through ``warn`` with the closest known key.
 
@@ -19,8 +19,8 @@ import os
 from pathlib import Path
 from typing import Any, Callable
 
-from generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
-from studio.errors import ConfigError
+from studio.generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
+from studio.core.errors import ConfigError
 
 __all__ = ["read_synth_config", "parse_synth_config", "synth_config_to_json", "MAX_CONFIG_BYTES", "MAX_MAGNITUDE",
            "MIN_LENGTH", "MAX_AGENTS"]

@@ -19,13 +19,13 @@ from typing import IO
 
 import numpy as np
 
-from studio.errors import FormatError
+from studio.core.errors import FormatError
 from studio.io.g2o import SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
 from studio.io.textfmt import format_column, format_columns, write_lines
+from studio.core.units import NS_PER_S
 
 __all__ = ["TumTrajectory", "write_tum", "read_tum", "tum_lines", "format_stamps"]
 
-_NS = 1_000_000_000
 _DECIMAL = re.compile(r"^([+-]?)(\d*)(?:\.(\d*))?$")
 
 
@@ -39,10 +39,10 @@ class TumTrajectory:
 
 def format_stamps(stamps_ns: np.ndarray) -> list[str]:
     stamps_ns = np.asarray(stamps_ns, dtype=np.int64)
-    if np.all(stamps_ns % _NS == 0):
-        return format_column((stamps_ns // _NS).astype(np.float64))
+    if np.all(stamps_ns % NS_PER_S == 0):
+        return format_column((stamps_ns // NS_PER_S).astype(np.float64))
     sign = np.where(stamps_ns < 0, "-", "")
-    sec, frac = np.divmod(np.abs(stamps_ns), _NS)
+    sec, frac = np.divmod(np.abs(stamps_ns), NS_PER_S)
     return [f"{g}{s}.{f:09d}" for g, s, f in zip(sign.tolist(), sec.tolist(), frac.tolist())]
 
 
@@ -58,24 +58,24 @@ def write_tum(target: str | os.PathLike | IO[str], stamps_ns: np.ndarray, poses:
 
 def _stamp_ns(token: str) -> int:
     if token.isdecimal():  # whole seconds (kollagen's node indices): the common case, fast
-        return int(token) * _NS
+        return int(token) * NS_PER_S
     m = _DECIMAL.match(token)
     if m and (m.group(2) or m.group(3)):
         sign = -1 if m.group(1) == "-" else 1
         whole = int(m.group(2) or 0)
         frac = (m.group(3) or "")[:9].ljust(9, "0")
-        return sign * (whole * _NS + int(frac))
+        return sign * (whole * NS_PER_S + int(frac))
     value = float(token)  # exponent notation
     if not np.isfinite(value):
         raise ValueError(token)
-    return int(round(value * _NS))
+    return int(round(value * NS_PER_S))
 
 
 def read_tum(source: str | os.PathLike | IO[str], *, require_increasing: bool = True) -> TumTrajectory:
     """Parse a TUM file; errors name ``file:line``.
 
     With ``require_increasing=False`` the rows are returned in file order even when their stamps
-    do not increase (the caller sorts and de-duplicates them, see ``converters.trajectory``).
+    do not increase (the caller sorts and de-duplicates them, see ``studio.core.trajectory``).
     """
     text, name = _open_text(source)
     fast = _read_tum_fast(text, require_increasing)

@@ -10,7 +10,7 @@ STORAGES = ("ros1", "sqlite3", "mcap")
 
 
 def typestore(storage: str):
-    from converters.rosbag import typestore_for
+    from studio.converters.rosbag import typestore_for
 
     return typestore_for(ros1=storage == "ros1")
 

@@ -6,9 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from converters.build import GraphOptions, build_graph, pairs_within, select_keyframes
-from converters.trajectory import Trajectory, quat_conj, quat_mul, quat_rotate
-from studio.errors import ConfigError
+from studio.converters.build import GraphOptions, build_graph, pairs_within, select_keyframes
+from studio.core.geometry import quat_conj, quat_mul, quat_rotate
+from studio.core.trajectory import Trajectory
+from studio.core.errors import ConfigError
 from tests.converters.synthetic import UTM_EAST, UTM_NORTH, loop_trajectory
 
 NOISELESS = dict(odo_sigma_m_per_m=0.0, odo_sigma_rad_per_rad=0.0, odo_sigma_rad_per_m=0.0,
@@ -177,7 +178,7 @@ def test_same_seed_same_graph_other_seed_other_noise():
     two = [traj("a"), traj("b", phase=1.0)]
     r1, r2 = build_graph(two, GraphOptions(seed=7)), build_graph(two, GraphOptions(seed=7))
     r3 = build_graph(two, GraphOptions(seed=8))
-    from studio.model import graphs_equal
+    from studio.core.model import graphs_equal
 
     assert graphs_equal(r1.graph, r2.graph)
     assert not graphs_equal(r1.graph, r3.graph)

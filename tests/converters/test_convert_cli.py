@@ -30,7 +30,7 @@ def folder_bytes(root: Path) -> dict[str, bytes]:
 
 
 def rrd_fingerprint(root: Path) -> dict[str, str]:
-    from studio.recording import fingerprint_rrd
+    from studio.recording.checks import fingerprint_rrd
 
     # the recording's name property is the folder's name; everything else must match
     return {k: v for k, v in fingerprint_rrd(root / f"{root.name}.rrd").items() if not k.endswith(("RecordingInfo:name", "dataset name"))}
@@ -73,8 +73,8 @@ def test_tum_end_to_end_reads_back_and_keeps_real_stamps(tmp_path, tum_files):
 
 
 def test_full_precision_read_back_gives_the_same_graph(tmp_path, tum_files):
-    from converters.convert import ConvertConfig, convert
-    from studio.model import graphs_equal
+    from studio.convert import ConvertConfig, convert
+    from studio.core.model import graphs_equal
 
     res = convert(ConvertConfig("tum", tum_files), tmp_path / "ds")
     assert graphs_equal(read_multi_g2o(tmp_path / "ds"), res.build.graph)
@@ -168,8 +168,8 @@ def test_planar_writes_2d_records(tmp_path, tum_files):
 
 
 def test_recorder_hook_writes_inside_the_staged_dataset(tmp_path, tum_files):
-    from converters.convert import ConvertConfig, convert
-    from studio.errors import OutputError
+    from studio.convert import ConvertConfig, convert
+    from studio.core.errors import OutputError
 
     seen = {}
 

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from converters.airmuseum import read_airmuseum
-from converters.s3e import read_s3e
+from studio.converters.airmuseum import read_airmuseum
+from studio.converters.s3e import read_s3e
 from studio.cli import app
-from studio.errors import ConfigError, FormatError
+from studio.core.errors import ConfigError, FormatError
 from studio.io.multig2o import read_multi_g2o
 from tests.converters.synthetic import UTM_EAST, UTM_NORTH, loop_trajectory, write_tum_file
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from converters.build import GraphOptions
-from converters.convert import ConvertConfig, convert
+from studio.converters.build import GraphOptions
+from studio.convert import ConvertConfig, convert
 from studio.cli import app
 from tests.converters.synthetic import UTM_EAST, UTM_NORTH, loop_trajectory, write_tum_file
 

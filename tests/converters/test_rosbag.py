@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from converters.rosbag import parse_agent_spec, read_bag, read_bag_sources
+from studio.converters.rosbag import parse_agent_spec, read_bag, read_bag_sources
 from studio.cli import app
-from studio.errors import ConfigError, FormatError
+from studio.core.errors import ConfigError, FormatError
 from studio.io.multig2o import read_multi_g2o
 from tests.converters.bags import STORAGES, Msgs, typestore, utm31_to_latlon, write_bag
 from tests.converters.synthetic import UTM_EAST, UTM_NORTH, loop_trajectory
@@ -186,7 +186,7 @@ def test_bag_sources_need_agents_and_reject_plain_mcap(tmp_path):
 
 
 def test_s3e_reads_agents_without_ground_truth_from_the_bag(tmp_path):
-    from converters.s3e import read_s3e
+    from studio.converters.s3e import read_s3e
     from tests.converters.synthetic import write_tum_file
 
     seq = tmp_path / "S3E_seq"

@@ -1,19 +1,13 @@
-"""converters.trajectory: safe agent names and the quaternion helpers."""
+"""studio.converters.names (safe agent names) and the quaternion helpers of studio.core.geometry."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from converters.trajectory import (
-    check_agent_name,
-    quat_angle,
-    quat_from_rotvec,
-    quat_mul,
-    quat_rotate,
-    safe_agent_name,
-)
-from studio.errors import ConfigError
+from studio.converters.names import check_agent_name, safe_agent_name
+from studio.core.geometry import quat_angle, quat_from_rotvec, quat_mul, quat_rotate
+from studio.core.errors import ConfigError
 
 
 @pytest.mark.parametrize("raw, safe", [

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from converters.tum import read_tum_sources, read_tum_trajectory
-from studio.errors import ConfigError, FormatError
+from studio.converters.tum import read_tum_sources, read_tum_trajectory
+from studio.core.errors import ConfigError, FormatError
 from tests.converters.synthetic import loop_trajectory, write_tum_file
 
 

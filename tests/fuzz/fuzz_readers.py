@@ -8,7 +8,7 @@ hostile tokens put in place of good ones), for a given time budget::
     python -m tests.fuzz.fuzz_readers --seconds 60
 
 Every input goes through the reader as a file (so the encoding and size checks run too). A reader
-that returns or raises a :class:`~studio.errors.StudioError` with a one-line message passes; any other
+that returns or raises a :class:`~studio.core.errors.StudioError` with a one-line message passes; any other
 exception, a message over several lines, or a warning (numpy's ``RuntimeWarning`` would be printed
 beside the CLI's one line) is a failure, printed with its input. The run ends with the number of
 inputs tried per reader and the failures; the exit code is 1 when there were failures.
@@ -33,7 +33,7 @@ from typing import Callable
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from studio.errors import StudioError
+from studio.core.errors import StudioError
 
 __all__ = ["FuzzReport", "fuzz", "READERS", "main"]
 
@@ -208,7 +208,7 @@ def _read_tum(path: Path) -> None:
 
 def _read_dat(path: Path) -> None:
     from studio.io.inter_lc_dat import read_inter_lc_dat
-    from studio.model import PoseKind
+    from studio.core.model import PoseKind
 
     read_inter_lc_dat(path)
     read_inter_lc_dat(path, PoseKind.SE2)

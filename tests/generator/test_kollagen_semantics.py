@@ -2,7 +2,7 @@ import math
 
 import numpy as np
 
-from generator.kollagen import (
+from studio.generator.kollagen import (
     _libstdcxx_reduce,
     _round_half_away,
     _round_to_int,
@@ -10,7 +10,7 @@ from generator.kollagen import (
     discrete_circle,
     effective_seeds,
 )
-from studio.geometry import normalize_angle
+from studio.core.geometry import normalize_angle
 
 
 def test_duplicate_seeds_are_replaced_like_kollagen():

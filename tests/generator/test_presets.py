@@ -6,8 +6,8 @@ import json
 
 import pytest
 
-from generator.kollagen import generate
-from generator.presets import preset, preset_names
+from studio.generator.kollagen import generate
+from studio.generator.presets import preset, preset_names
 from studio.io.synth_config import parse_synth_config
 
 

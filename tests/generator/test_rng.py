@@ -2,7 +2,7 @@ import math
 
 import numpy as np
 
-from generator.rng import MT19937Stream, canonical_doubles, polar_normal
+from studio.generator.rng import MT19937Stream, canonical_doubles, polar_normal
 
 
 def test_mt19937_default_seed_10000th_word():

@@ -99,8 +99,8 @@ def test_record_output_must_be_rrd(dataset, tmp_path):
 
 
 def test_failure_while_logging_leaves_nothing(dataset, tmp_path, monkeypatch):
-    import studio.recording as recording
-    from studio.errors import GraphError
+    import studio.recording.dataset as recording
+    from studio.core.errors import GraphError
 
     def boom(*args, **kwargs):
         raise GraphError("boom")
@@ -126,7 +126,7 @@ def test_synth_writes_rrd_by_default_and_not_with_no_rrd(tmp_path):
 
 
 def test_view_web_serves_on_localhost_only(tmp_path):
-    from studio.viewer import view_web_command, web_viewer_address
+    from studio.recording.viewer import view_web_command, web_viewer_address
 
     rrd = tmp_path / "x.rrd"
     rrd.write_bytes(b"")
@@ -141,7 +141,7 @@ def test_view_missing_file(tmp_path):
 
 
 def test_snapshot_without_vulkan_says_what_to_install(tmp_path, monkeypatch):
-    import studio.viewer as viewer
+    import studio.recording.viewer as viewer
 
     rrd = tmp_path / "x.rrd"
     rrd.write_bytes(b"")
@@ -161,7 +161,7 @@ def test_snapshot_bad_size(tmp_path):
 
 @pytest.mark.slow
 def test_snapshot_renders_a_png(tmp_path):
-    from studio.viewer import vulkan_drivers
+    from studio.recording.viewer import vulkan_drivers
 
     if not vulkan_drivers():
         pytest.skip("no Vulkan driver (apt-get install -y mesa-vulkan-drivers)")

@@ -11,9 +11,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
-from generator.presets import preset
+from studio.generator.presets import preset
 from studio.cli import app
-from studio.errors import EvaluationError, FormatError
+from studio.core.errors import EvaluationError, FormatError
 from studio.evaluate import Alignment, evaluate, format_markdown, format_table, score
 from studio.io.estimate import AgentEstimate, read_estimate
 from studio.io.g2o import G2oDocument, write_g2o
@@ -52,7 +52,7 @@ def _perturbed(graph, seed=7):
 
 def _doc(ids, poses):
     z = np.zeros(0, dtype=np.int64)
-    from studio.model import PoseKind
+    from studio.core.model import PoseKind
 
     return G2oDocument(PoseKind.SE3, np.asarray(ids, dtype=np.int64), poses, z, z, np.zeros((0, 7)), np.zeros((0, 21)))
 
@@ -305,7 +305,7 @@ def test_tum_folder_without_a_file_for_an_agent(small, graph, tmp_path):
 
 def test_short_path_has_no_rpe_per_metre(graph):
     a = graph.agents[0]
-    from studio.model import AgentGraph, Edges, InterAgentEdges, PoseGraph
+    from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph
 
     tiny = AgentGraph("tiny", a.kind, a.stamps_ns[:3], a.initial[:3], a.ground_truth[:3],
                       Edges.empty(a.kind), Edges.empty(a.kind))

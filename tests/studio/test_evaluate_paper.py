@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from generator.presets import preset
+from studio.generator.presets import preset
 from studio.evaluate import evaluate
 from studio.synth import synthesize
 

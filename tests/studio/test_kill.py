@@ -62,7 +62,7 @@ def test_killed_synth_leaves_no_target(tmp_path, sig):
 
 @pytest.fixture(scope="module")
 def big_dataset(tmp_path_factory) -> Path:
-    from generator.presets import preset
+    from studio.generator.presets import preset
     from studio.synth import synthesize
 
     root = tmp_path_factory.mktemp("big")

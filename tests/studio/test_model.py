@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from studio.errors import GraphError
-from studio.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind, graphs_equal
+from studio.core.errors import GraphError
+from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind, graphs_equal
 
 
 def _agent(name="a", n=4, kind=PoseKind.SE2):

@@ -9,11 +9,11 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
-from studio.errors import ConfigError, StudioError
+from studio.generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
+from studio.core.errors import ConfigError, StudioError
 from studio.io.multig2o import read_multi_g2o, write_multi_g2o
 from studio.io.synth_config import parse_synth_config, read_synth_config, synth_config_to_json
-from studio.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind, graphs_equal
+from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind, graphs_equal
 
 pos = st.floats(min_value=1e-6, max_value=1e6, allow_nan=False)
 nonneg = st.floats(min_value=0.0, max_value=1e6, allow_nan=False)
@@ -137,7 +137,7 @@ def test_multi_g2o_folder_round_trip_is_exact(tmp_path_factory, g):
 @settings(max_examples=200, deadline=None)
 @given(doc=json_values)
 def test_arbitrary_convert_configs_raise_only_studio_errors(doc):
-    from converters.convert import config_from_mapping
+    from studio.convert import config_from_mapping
 
     try:
         config_from_mapping(doc if isinstance(doc, dict) else {"source": doc}, "c.json")
@@ -149,8 +149,8 @@ def test_arbitrary_convert_configs_raise_only_studio_errors(doc):
 def convert_configs(draw):
     import dataclasses
 
-    from converters.build import GraphOptions
-    from converters.convert import ConvertConfig
+    from studio.converters.build import GraphOptions
+    from studio.convert import ConvertConfig
 
     values = {}
     for f in dataclasses.fields(GraphOptions):
@@ -173,7 +173,7 @@ def convert_configs(draw):
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(cfg=convert_configs())
 def test_convert_config_json_round_trip_is_exact(tmp_path, cfg):
-    from converters.convert import convert_config_to_json, read_convert_config
+    from studio.convert import convert_config_to_json, read_convert_config
 
     path = tmp_path / "convert.json"
     path.write_text(json.dumps(convert_config_to_json(cfg), indent=2), encoding="utf-8")

@@ -8,14 +8,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from generator.kollagen import generate
-from studio.errors import FormatError
+from studio.generator.kollagen import generate
+from studio.core.errors import FormatError
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.io.inter_lc_dat import read_inter_lc_dat
 from studio.io.multig2o import read_multi_g2o, write_multi_g2o
 from studio.io.synth_config import read_synth_config
 from studio.io.tum import read_tum, write_tum
-from studio.model import PoseKind, graphs_equal
+from studio.core.model import PoseKind, graphs_equal
 
 DATA = Path(__file__).resolve().parents[2] / "data"
 

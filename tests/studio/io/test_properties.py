@@ -8,11 +8,11 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from studio.errors import FormatError
+from studio.core.errors import FormatError
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.io.inter_lc_dat import read_inter_lc_dat, write_inter_lc_dat
 from studio.io.tum import read_tum, write_tum
-from studio.model import InterAgentEdges, PoseKind
+from studio.core.model import InterAgentEdges, PoseKind
 
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
 

@@ -6,7 +6,7 @@ edge. A graph is planar (:attr:`PoseKind.SE2`: poses ``[x, y, theta]``, informat
 upper triangle of 6x6 = 21 values over ``(x, y, z, rx, ry, rz)``). Edge measurements are the pose of
 the ``to`` vertex expressed in the frame of the ``from`` vertex (the g2o convention).
 
-The containers enforce their invariants at construction and raise :class:`~studio.errors.GraphError`.
+The containers enforce their invariants at construction and raise :class:`~studio.core.errors.GraphError`.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from studio.errors import GraphError
-from studio.geometry import planar_poses_to_se3, se2_information_to_se3
+from studio.core.errors import GraphError
+from studio.core.geometry import planar_poses_to_se3, se2_information_to_se3
 
 __all__ = ["PoseKind", "Edges", "InterAgentEdges", "AgentGraph", "PoseGraph", "graphs_equal"]
 

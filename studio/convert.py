@@ -23,13 +23,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
-from converters.build import BuildResult, GraphOptions, Progress, build_graph
-from converters.registry import get_reader
-from converters.trajectory import Trajectory
-from studio.errors import ConfigError, FormatError, OutputError
+from studio.converters.build import BuildResult, GraphOptions, Progress, build_graph
+from studio.converters.registry import get_reader
+from studio.core.trajectory import Trajectory
+from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.io.atomic import staged_outputs
 from studio.io.multig2o import write_multi_g2o
-from studio.model import PoseGraph
+from studio.core.model import PoseGraph
+from studio.core.units import DEFAULT_MAX_MEMORY_GB
 
 __all__ = ["ConvertConfig", "ConvertResult", "convert", "read_convert_config", "convert_config_to_json",
            "CONFIG_NAME"]
@@ -152,7 +153,7 @@ def _outlier_lines(build: BuildResult) -> str:
 def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
             warn: Callable[[str], None] | None = None, progress: Progress | None = None,
             recorder: Callable[[PoseGraph, Path], None] | None = None, rrd: bool = True,
-            max_memory_gb: float = 8.0) -> ConvertResult:
+            max_memory_gb: float = DEFAULT_MAX_MEMORY_GB) -> ConvertResult:
     """Read ``cfg``'s sources, build the graph and write the dataset folder ``out``.
 
     Nothing is written when an input is bad, and an existing ``out`` is replaced only with ``force``.
@@ -190,7 +191,7 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
         if recorder is not None:
             recorder(build.graph, ds)
         if rrd:
-            from studio.recording import record_graph
+            from studio.recording.dataset import record_graph
 
             # input paths reduced to file names: the recording must not depend on where it was made
             shown = convert_config_to_json(cfg)

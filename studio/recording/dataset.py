@@ -1,4 +1,4 @@
-"""Rerun recordings of pose graphs: one ``log_<kind>()`` per kind of data, one blueprint, exact checks.
+"""Rerun recordings of pose graphs: one ``log_<kind>()`` per kind of data, one blueprint.
 
 A recording shows, per agent and in the agent's colour, the ground-truth and initial-estimate
 (dead-reckoning) paths, a current-pose marker that moves along the ``node`` timeline (and along
@@ -9,9 +9,8 @@ properties; the default layout is saved inside the file.
 
 Everything bulky goes through ``send_columns`` (never one ``log`` call per row). The content depends
 only on the dataset: the application id is fixed, the recording id is derived from the graph's
-columns, and no clock or host value is logged. :func:`fingerprint_rrd` reads a file back and hashes
-its content exactly, per entity and component (one ulp changes it); :func:`rrd_compare` and
-:func:`rrd_verify` run Rerun's own checks.
+columns, and no clock or host value is logged. Entity paths and timelines are in
+:mod:`studio.recording.entities`; exact checks in :mod:`studio.recording.checks`.
 """
 
 from __future__ import annotations
@@ -19,8 +18,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import subprocess
-import sys
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,71 +25,45 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from studio.errors import FormatError, OutputError
+from studio.core.errors import FormatError, OutputError
+from studio.core.model import AgentGraph, PoseGraph, PoseKind
+from studio.core.units import NS_PER_S
 from studio.io.atomic import staged_outputs
-from studio.model import AgentGraph, PoseGraph, PoseKind
+from studio.recording.entities import (
+    APPLICATION_ID,
+    LOOP_CLOSURES_INTER,
+    LOOP_CLOSURES_INTRA,
+    METRICS,
+    PATH_GROUND_TRUTH,
+    PATH_INITIAL,
+    POSE_GROUND_TRUTH,
+    POSE_INITIAL,
+    PROPERTY_CONFIG,
+    PROPERTY_DATASET,
+    SERIES_INTER_LOOP_CLOSURES,
+    SERIES_LOOP_CLOSURES,
+    SERIES_POSITION_ERROR,
+    TIMELINE_NODE,
+    TIMELINE_TIME,
+    WORLD,
+)
 
 if TYPE_CHECKING:
     import rerun as rr
     import rerun.blueprint as rrb
 
 __all__ = [
-    "APPLICATION_ID",
-    "TIMELINE_NODE",
-    "TIMELINE_TIME",
     "RecordResult",
     "record_graph",
     "record_dataset",
     "default_blueprint",
     "recording_id_for",
     "has_real_stamps",
-    "fingerprint_rrd",
-    "read_fingerprint",
-    "write_fingerprint",
-    "rrd_verify",
-    "rrd_compare",
 ]
-
-#: Fixed application id of every recording the studio writes (the same as
-#: studio.evaluation_recording's, so an evaluation saved with this recording's id merges with it).
-APPLICATION_ID = "cslam-studio"
-
-# Timelines ----------------------------------------------------------------------------------------
-#: Sequence timeline: the node (pose) index of each agent.
-TIMELINE_NODE = "node"
-#: Timestamp timeline, only when the data has real timestamps (not node index in seconds).
-TIMELINE_TIME = "time"
-
-# Entity paths -------------------------------------------------------------------------------------
-WORLD = "world"
-#: Static line strip: the whole ground-truth path of an agent.
-PATH_GROUND_TRUTH = "world/{agent}/ground_truth"
-#: Static line strip: the whole initial-estimate (dead-reckoning) path of an agent.
-PATH_INITIAL = "world/{agent}/initial"
-#: Transform moving along the timelines, with axes: the agent's current ground-truth pose.
-POSE_GROUND_TRUTH = "world/{agent}/ground_truth_pose"
-#: Transform moving along the timelines: the agent's current initial-estimate pose.
-POSE_INITIAL = "world/{agent}/initial_pose"
-#: One segment per intra-agent loop closure, at the node where it is created.
-LOOP_CLOSURES_INTRA = "world/{agent}/loop_closures"
-#: One segment per inter-agent loop closure, at the node where it is created.
-LOOP_CLOSURES_INTER = "world/inter_loop_closures"
-METRICS = "metrics"
-#: Scalar per node: |initial - ground truth| position [m].
-SERIES_POSITION_ERROR = "metrics/position_error/{agent}"
-#: Scalar per node: intra-agent loop closures created so far.
-SERIES_LOOP_CLOSURES = "metrics/loop_closures/{agent}"
-#: Scalar per node: inter-agent loop closures created so far (all agents).
-SERIES_INTER_LOOP_CLOSURES = "metrics/loop_closures/inter_agent"
-#: Recording property holding the dataset facts.
-PROPERTY_DATASET = "dataset"
-#: Recording property holding the config that made the dataset (JSON text), when known.
-PROPERTY_CONFIG = "config"
 
 #: Rows per chunk for time-indexed line strips (``rerun rrd verify`` is quadratic in it).
 STRIP_CHUNK_ROWS = 1000
 
-_NS = 1_000_000_000
 _PALETTE = np.array(
     [  # Tableau 10
         [31, 119, 180], [255, 127, 14], [44, 160, 44], [214, 39, 40], [148, 103, 189],
@@ -178,7 +149,7 @@ def recording_id_for(graph: PoseGraph) -> str:
 
 def has_real_stamps(graph: PoseGraph) -> bool:
     """False for synthetic stamps (node index in seconds in every agent), True otherwise."""
-    return any(not np.array_equal(a.stamps_ns, np.arange(a.num_poses, dtype=np.int64) * _NS) for a in graph.agents)
+    return any(not np.array_equal(a.stamps_ns, np.arange(a.num_poses, dtype=np.int64) * NS_PER_S) for a in graph.agents)
 
 
 def _is_planar(graph: PoseGraph) -> bool:
@@ -497,140 +468,3 @@ def record_dataset(dataset: str | os.PathLike, out: str | os.PathLike, *, force:
     with staged_outputs(out.parent, [out.name], force=force) as staging:
         res = record_graph(graph, staging / out.name, name=name, config_json=config_json)
     return RecordResult(out, res.recording_id, res.num_poses, res.edge_counts, res.real_time)
-
-
-# --------------------------------------------------------------------------------------------------
-# Exact comparison
-
-#: Columns that differ between runs by design: row ids are time-based, and the blueprint's rows carry
-#: the wall-clock ``log_time`` of the ``save`` call (the recording itself has no clock values).
-_VOLATILE_COLUMNS = ("rerun.controls.RowId", "log_time")
-
-
-def _column_digest(parts: list) -> str:
-    """Hash the rows ``(index, value)`` of one column, sorted by index then value."""
-    rows = [row for part in parts for row in part]
-    rows.sort()
-    h = hashlib.sha256()
-    for i, v in rows:
-        h.update(repr(i).encode())
-        h.update(b"\x1f")
-        h.update(v)
-        h.update(b"\x1e")
-    return h.hexdigest()
-
-
-def _value_bytes(col) -> list[bytes | None]:
-    """Exact text per row: JSON of the Python values (floats print with ``repr``, which round-trips,
-    so one ulp changes the text), with the arrow type in front; None for a null row."""
-    typ = str(col.type).encode() + b"|"
-    return [None if v is None else typ + json.dumps(v, sort_keys=True, default=repr).encode()
-            for v in col.to_pylist()]
-
-
-def _store_digests(chunks, prefix: str) -> dict[str, str]:
-    """``{'<prefix> <entity> <component>': sha256}`` over every chunk of one store."""
-    groups: dict[str, list] = {}
-    for chunk in chunks:
-        batch = chunk.to_record_batch()
-        names = batch.schema.names
-        index_names = sorted(n for n in names if _is_index(batch.schema.field(n)) and n not in _VOLATILE_COLUMNS)
-        index_cols = [batch.column(n) for n in index_names]
-        if index_cols:
-            idx = list(zip(*[
-                [(name, v) for v in col.cast("int64").to_pylist()] for name, col in zip(index_names, index_cols)
-            ]))
-        else:
-            idx = [(("static", 0),)] * batch.num_rows
-        for n in names:
-            if n in index_names or n in _VOLATILE_COLUMNS or _is_volatile(batch.schema.field(n)):
-                continue
-            values = _value_bytes(batch.column(n))
-            present = [(i, v) for i, v in zip(idx, values) if v is not None]  # null: not logged in that row
-            key = f"{prefix} {chunk.entity_path} {n}"
-            groups.setdefault(key, []).append(present)
-    return {k: _column_digest(v) for k, v in sorted(groups.items())}
-
-
-def _field_kind(field) -> str:
-    md = field.metadata or {}
-    return md.get(b"rerun:kind", b"").decode()
-
-
-def _is_index(field) -> bool:
-    return _field_kind(field) in ("index", "time")
-
-
-def _is_volatile(field) -> bool:
-    return _field_kind(field) == "control"
-
-
-def fingerprint_rrd(path: str | os.PathLike) -> dict[str, str]:
-    """An exact fingerprint of a recording's content, robust to chunking and row order.
-
-    Keys are ``store entity component`` (plus ``store id``); values are SHA-256 digests of that
-    column's (index, value) rows sorted by index, with values as their exact bytes. The blueprint
-    store is included. Row ids and chunk ids (time-based) are left out.
-    """
-    import rerun.chunk as rc
-
-    path = Path(path)
-    if not path.is_file():
-        raise FormatError(f"{path}: no such recording")
-    reader = rc.RrdReader(path)
-    out: dict[str, str] = {}
-    for label, stores in (("recording", reader.recordings()), ("blueprint", reader.blueprints())):
-        for n, store in enumerate(stores):
-            prefix = f"{label}{n}"
-            if label == "recording":
-                out[f"{prefix} id"] = hashlib.sha256(
-                    f"{store.application_id}/{store.recording_id}".encode()).hexdigest()
-            else:
-                out[f"{prefix} id"] = hashlib.sha256(store.application_id.encode()).hexdigest()
-            out.update(_store_digests(reader.stream(store=store), prefix))
-    return out
-
-
-def write_fingerprint(fp: dict[str, str], path: str | os.PathLike) -> None:
-    """One line per key: ``<sha256>  <key>``, sorted, so a diff names what changed."""
-    text = "".join(f"{v}  {k}\n" for k, v in sorted(fp.items()))
-    Path(path).write_text(text, encoding="utf-8")
-
-
-def read_fingerprint(path: str | os.PathLike) -> dict[str, str]:
-    out = {}
-    for lineno, line in enumerate(Path(path).read_text(encoding="utf-8").splitlines(), start=1):
-        if not line.strip():
-            continue
-        digest, sep, key = line.partition("  ")
-        if not sep or len(digest) != 64:
-            raise FormatError(f"{path}:{lineno}: expected '<sha256>  <key>'")
-        out[key] = digest
-    return out
-
-
-# --------------------------------------------------------------------------------------------------
-# Rerun's own checks
-
-
-def _rerun_cli(*args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
-    env = dict(os.environ, RERUN_ANALYTICS="0")
-    env.setdefault("CI", "true")
-    return subprocess.run([sys.executable, "-m", "rerun", *args], capture_output=True, text=True,
-                          env=env, timeout=timeout, check=False)
-
-
-def _tail(text: str, lines: int = 30, chars: int = 4000) -> str:
-    return "\n".join(text.splitlines()[-lines:])[-chars:]
-
-
-def rrd_verify(path: str | os.PathLike) -> tuple[bool, str]:
-    """``rerun rrd verify PATH``: (passed, tail of its output)."""
-    p = _rerun_cli("rrd", "verify", str(path))
-    return p.returncode == 0, _tail(p.stdout + p.stderr)
-
-
-def rrd_compare(a: str | os.PathLike, b: str | os.PathLike) -> tuple[bool, str]:
-    """``rerun rrd compare --unordered A B``: (equal, tail of its output: it can be huge)."""
-    p = _rerun_cli("rrd", "compare", "--unordered", str(a), str(b))
-    return p.returncode == 0, _tail(p.stdout + p.stderr)

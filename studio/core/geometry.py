@@ -20,6 +20,12 @@ __all__ = [
     "planar_poses_to_se3",
     "libm_cos_sin",
     "relative_planar_pose",
+    "quat_mul",
+    "quat_conj",
+    "quat_rotate",
+    "quat_from_rotvec",
+    "quat_angle",
+    "quat_canonical",
 ]
 
 #: Information given to z when a planar measurement is written as an SE(3) record (kollagen's choice).
@@ -107,3 +113,53 @@ def relative_planar_pose(x_from, y_from, th_from, x_to, y_to, th_to):
     dx = xdiff * c + ydiff * s
     dy = -xdiff * s + ydiff * c
     return dx, dy, normalize_angle(np.asarray(th_to, dtype=np.float64) - th_from)
+
+
+# ---------------------------------------------------------------------------------------------------
+# quaternions (x, y, z, w), vectorised over rows
+
+
+def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    ax, ay, az, aw = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bx, by, bz, bw = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    return np.stack([
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    ], axis=-1)
+
+
+def quat_conj(q: np.ndarray) -> np.ndarray:
+    out = np.array(q, dtype=np.float64, copy=True)
+    out[..., :3] *= -1.0
+    return out
+
+
+def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors ``v`` (n, 3) by unit quaternions ``q`` (n, 4)."""
+    u = q[..., :3]
+    w = q[..., 3:4]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def quat_from_rotvec(r: np.ndarray) -> np.ndarray:
+    """Exponential map: rotation vectors (n, 3) [rad] to unit quaternions."""
+    angle = np.linalg.norm(r, axis=-1, keepdims=True)
+    half = 0.5 * angle
+    small = angle < 1e-12
+    scale = np.where(small, 0.5, np.sin(half) / np.where(small, 1.0, angle))
+    return np.concatenate([r * scale, np.cos(half)], axis=-1)
+
+
+def quat_angle(q: np.ndarray) -> np.ndarray:
+    """Rotation angle [rad] in [0, pi] of unit quaternions."""
+    v = np.linalg.norm(q[..., :3], axis=-1)
+    return 2.0 * np.arctan2(v, np.abs(q[..., 3]))
+
+
+def quat_canonical(q: np.ndarray) -> np.ndarray:
+    """Normalised, with ``w >= 0`` (one representative of each rotation)."""
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., 3:4] < 0, -q, q)

@@ -19,7 +19,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from studio.errors import ConfigError, FormatError, OutputError, StudioError
+from studio.core.errors import ConfigError, FormatError, OutputError, StudioError
 
 __all__ = ["SnapshotResult", "rerun_executable", "vulkan_drivers", "snapshot", "view_command",
            "view_web_command", "web_viewer_address"]

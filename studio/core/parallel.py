@@ -1,0 +1,100 @@
+"""Process-level helpers: run independent pieces of work on several cores (forked processes), results in input order.
+
+Agents' random walks and the inter-agent pairs each use their own random stream, so they can run in
+any order on any core and still give the same bytes. Work is handed to forked children by index: the
+data stays in the parent's memory (copy-on-write), only the results travel back.
+
+Also the allocator tuning of the command line (glibc only; never done on import).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import multiprocessing
+import os
+import signal
+import sys
+from typing import Any, Callable, TypeVar
+
+__all__ = ["parallel_map", "default_jobs", "tune_allocator", "release_free_heap"]
+
+T = TypeVar("T")
+_TASK: list[Callable[[int], object]] = []
+
+
+def default_jobs() -> int:
+    """The cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _run(index: int):
+    return _TASK[0](index)
+
+
+def _worker_init() -> None:
+    # Ctrl-C reaches the whole process group; only the parent handles it (and terminates the
+    # workers), otherwise a worker interrupted while holding the pool's queue lock can hang it.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    release_free_heap()
+
+
+def parallel_map(func: Callable[[int], T], n_items: int, jobs: int | None = None) -> list[T]:
+    """``[func(0), ..., func(n_items - 1)]``, computed by up to ``jobs`` forked processes."""
+    jobs = default_jobs() if jobs is None else jobs
+    jobs = min(jobs, n_items)
+    if jobs <= 1 or "fork" not in multiprocessing.get_all_start_methods() or _TASK:
+        return [func(i) for i in range(n_items)]
+    _TASK.append(func)
+    try:
+        ctx = multiprocessing.get_context("fork")
+        with ctx.Pool(jobs, initializer=_worker_init) as pool:
+            return pool.map(_run, range(n_items), chunksize=1)
+    finally:
+        _TASK.clear()
+
+_M_TRIM_THRESHOLD = -1
+_M_TOP_PAD = -2
+_M_MMAP_THRESHOLD = -3
+
+
+def _libc():
+    """glibc, or None where it cannot be loaded (not Linux, or another C library)."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+    except OSError:
+        return None
+
+
+def release_free_heap() -> None:
+    """Give free heap pages back to the kernel (glibc's ``malloc_trim``).
+
+    Called in forked workers: reusing the parent's free chunks would copy each page on first write
+    (copy-on-write) instead of mapping a fresh zero page.
+    """
+    libc = _libc()
+    if libc is not None and hasattr(libc, "malloc_trim"):
+        libc.malloc_trim(0)
+
+
+def tune_allocator() -> bool:
+    """Let glibc keep freed memory for reuse instead of returning it to the kernel at once.
+
+    The generator makes many short-lived arrays of a few MB. By default glibc serves each from a fresh
+    ``mmap`` and unmaps it on free, so every array pays page faults again: measured on Multi3500x8,
+    1.1 s of system time instead of 0.3 s. Returns whether the tuning was applied (glibc only).
+    """
+    libc = _libc()
+    if libc is None or not hasattr(libc, "mallopt"):
+        return False
+    mallopt = libc.mallopt
+    mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
+    ok = mallopt(_M_MMAP_THRESHOLD, 1 << 30)
+    ok &= mallopt(_M_TRIM_THRESHOLD, 1 << 30)
+    ok &= mallopt(_M_TOP_PAD, 64 << 20)
+    return bool(ok)

@@ -1,0 +1,83 @@
+"""The one timed-pose type of the studio: an agent's timestamped SE(3) poses, as columns.
+
+Every source reader returns it, the TUM reader and writer use it, and estimates are read into it.
+Pure data: no I/O here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from studio.core.errors import FormatError
+
+__all__ = ["Trajectory", "clean_trajectory", "Warn", "MAX_COORDINATE_M"]
+
+Warn = Callable[[str], None]
+
+#: Largest position coordinate [m] of a trajectory: UTM and ECEF coordinates stay under 1e7 m, and
+#: beyond this the graph builder's products overflow.
+MAX_COORDINATE_M = 1e9
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """One agent's poses: ``stamps_ns`` int64 increasing, ``positions_xyz`` (n, 3) metres,
+    ``quat_xyzw`` (n, 4) unit quaternions body-to-world. ``source`` names where it came from."""
+
+    name: str
+    stamps_ns: np.ndarray
+    positions_xyz: np.ndarray
+    quat_xyzw: np.ndarray
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        n = len(self.stamps_ns)
+        where = self.source or self.name
+        if self.positions_xyz.shape != (n, 3) or self.quat_xyzw.shape != (n, 4):
+            raise FormatError(f"{where}: positions and orientations do not match the {n} stamps")
+        if n < 2:
+            raise FormatError(f"{where}: agent {self.name!r} has {n} pose{'s' if n != 1 else ''}; "
+                              "a trajectory needs at least 2")
+        if np.any(np.diff(self.stamps_ns) <= 0):
+            raise FormatError(f"{where}: stamps must increase")
+
+    def __len__(self) -> int:
+        return len(self.stamps_ns)
+
+
+def clean_trajectory(name: str, stamps_ns: np.ndarray, positions_xyz: np.ndarray, quat_xyzw: np.ndarray,
+                     source: str, warn: Warn | None = None) -> Trajectory:
+    """Sort by time, drop duplicate stamps (keeping the first), normalise quaternions, reject NaN.
+
+    Sorting and de-duplication are reported through ``warn`` with their counts.
+    """
+    stamps_ns = np.asarray(stamps_ns, dtype=np.int64)
+    positions_xyz = np.asarray(positions_xyz, dtype=np.float64).reshape(-1, 3)
+    quat_xyzw = np.asarray(quat_xyzw, dtype=np.float64).reshape(-1, 4)
+    finite = np.isfinite(positions_xyz).all(axis=1) & np.isfinite(quat_xyzw).all(axis=1)
+    if not finite.all():
+        raise FormatError(f"{source}: pose {int(np.flatnonzero(~finite)[0])} is not finite")
+    far = np.abs(positions_xyz).max(axis=1, initial=0.0) > MAX_COORDINATE_M
+    if far.any():
+        k = int(np.flatnonzero(far)[0])
+        raise FormatError(f"{source}: pose {k} has a coordinate of {np.abs(positions_xyz[k]).max():g} m, "
+                          f"beyond the {MAX_COORDINATE_M:g} m a trajectory may reach")
+    norms = np.linalg.norm(quat_xyzw, axis=1)
+    if np.any(norms < 1e-9):
+        raise FormatError(f"{source}: pose {int(np.flatnonzero(norms < 1e-9)[0])} has a zero quaternion")
+    quat_xyzw = quat_xyzw / norms[:, None]
+    if len(stamps_ns) > 1 and np.any(np.diff(stamps_ns) <= 0):
+        unsorted = int(np.count_nonzero(np.diff(stamps_ns) < 0))
+        order = np.argsort(stamps_ns, kind="stable")
+        stamps_ns, positions_xyz, quat_xyzw = stamps_ns[order], positions_xyz[order], quat_xyzw[order]
+        keep = np.ones(len(stamps_ns), dtype=bool)
+        keep[1:] = np.diff(stamps_ns) != 0
+        dups = int(np.count_nonzero(~keep))
+        stamps_ns, positions_xyz, quat_xyzw = stamps_ns[keep], positions_xyz[keep], quat_xyzw[keep]
+        if warn is not None:
+            warn(f"{source}: {unsorted} out-of-order timestamp{'s' if unsorted != 1 else ''} sorted, "
+                 f"{dups} duplicate timestamp{'s' if dups != 1 else ''} dropped")
+    return Trajectory(name, stamps_ns, positions_xyz, quat_xyzw, source)

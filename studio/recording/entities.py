@@ -1,0 +1,57 @@
+"""Everything the studio's Rerun recordings share: application id, timelines, entity paths.
+
+One definition of each, used by every ``log_<kind>`` module of this package (dataset, evaluation),
+so recordings of one dataset line up and merge in the viewer.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "APPLICATION_ID", "TIMELINE_NODE", "TIMELINE_TIME", "WORLD", "PATH_GROUND_TRUTH", "PATH_INITIAL",
+    "POSE_GROUND_TRUTH", "POSE_INITIAL", "LOOP_CLOSURES_INTRA", "LOOP_CLOSURES_INTER", "METRICS",
+    "SERIES_POSITION_ERROR", "SERIES_LOOP_CLOSURES", "SERIES_INTER_LOOP_CLOSURES", "PROPERTY_DATASET",
+    "PROPERTY_CONFIG", "EVALUATION", "EVALUATION_SUMMARY", "EVALUATION_SERIES",
+]
+
+#: Fixed application id of every recording the studio writes, so recordings of one dataset (its
+#: graph, an evaluation, a solve) saved with the same recording id merge in the viewer.
+APPLICATION_ID = "cslam-studio"
+
+# Timelines ----------------------------------------------------------------------------------------
+#: Sequence timeline: the node (pose) index of each agent.
+TIMELINE_NODE = "node"
+#: Timestamp timeline, only when the data has real timestamps (not node index in seconds).
+TIMELINE_TIME = "time"
+
+# Entity paths -------------------------------------------------------------------------------------
+WORLD = "world"
+#: Static line strip: the whole ground-truth path of an agent.
+PATH_GROUND_TRUTH = "world/{agent}/ground_truth"
+#: Static line strip: the whole initial-estimate (dead-reckoning) path of an agent.
+PATH_INITIAL = "world/{agent}/initial"
+#: Transform moving along the timelines, with axes: the agent's current ground-truth pose.
+POSE_GROUND_TRUTH = "world/{agent}/ground_truth_pose"
+#: Transform moving along the timelines: the agent's current initial-estimate pose.
+POSE_INITIAL = "world/{agent}/initial_pose"
+#: One segment per intra-agent loop closure, at the node where it is created.
+LOOP_CLOSURES_INTRA = "world/{agent}/loop_closures"
+#: One segment per inter-agent loop closure, at the node where it is created.
+LOOP_CLOSURES_INTER = "world/inter_loop_closures"
+METRICS = "metrics"
+#: Scalar per node: |initial - ground truth| position [m].
+SERIES_POSITION_ERROR = "metrics/position_error/{agent}"
+#: Scalar per node: intra-agent loop closures created so far.
+SERIES_LOOP_CLOSURES = "metrics/loop_closures/{agent}"
+#: Scalar per node: inter-agent loop closures created so far (all agents).
+SERIES_INTER_LOOP_CLOSURES = "metrics/loop_closures/inter_agent"
+#: Recording property holding the dataset facts.
+PROPERTY_DATASET = "dataset"
+#: Recording property holding the config that made the dataset (JSON text), when known.
+PROPERTY_CONFIG = "config"
+
+# Evaluation -----------------------------------------------------------------------------------------
+EVALUATION = "evaluation"
+#: Static Markdown table of an evaluation's statistics.
+EVALUATION_SUMMARY = "evaluation/summary"
+#: Scalar per node of one agent: ``{metric}`` is e.g. ``ape_translation_m``.
+EVALUATION_SERIES = "evaluation/{agent}/{metric}"
