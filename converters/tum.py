@@ -1,6 +1,6 @@
 """TUM-style trajectory text files: ``timestamp tx ty tz qx qy qz qw`` per line.
 
-Space- or comma-separated, ``#`` comments or one header line; parsing is :func:`studio.io.tum.read_tum`
+Space- or comma-separated, ``#`` comments or one header line; parsing is :func:`studio.io.tum.read_tum_rows`
 (errors name ``file:line``). Quaternions are normalised; unsorted or duplicate timestamps are sorted
 and de-duplicated with a warning that counts them. One file is one agent, named after the file.
 """
@@ -15,7 +15,7 @@ from studio.core.parallel import parallel_map
 from studio.converters.names import safe_agent_name
 from studio.core.trajectory import Trajectory, Warn, clean_trajectory
 from studio.core.errors import ConfigError
-from studio.io.tum import read_tum
+from studio.io.tum import read_tum_rows
 
 __all__ = ["read_tum_trajectory", "read_tum_sources"]
 
@@ -26,9 +26,9 @@ _PARALLEL_MIN_BYTES = 8 * 1024 * 1024
 def read_tum_trajectory(path: str | os.PathLike, *, name: str | None = None, warn: Warn | None = None) -> Trajectory:
     """One trajectory; ``name`` defaults to a safe version of the file's stem."""
     path = Path(path)
-    doc = read_tum(path, require_increasing=False)
+    stamps_ns, poses = read_tum_rows(path)
     agent = name if name is not None else safe_agent_name(path.stem)
-    return clean_trajectory(agent, doc.stamps_ns, doc.poses[:, :3], doc.poses[:, 3:], str(path), warn)
+    return clean_trajectory(agent, stamps_ns, poses[:, :3], poses[:, 3:], str(path), warn)
 
 
 def read_tum_sources(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),

@@ -38,7 +38,7 @@ from studio.core.model import PoseGraph
 from studio.core.units import NS_PER_S
 
 if TYPE_CHECKING:
-    from studio.io.estimate import AgentEstimate
+    from studio.core.trajectory import Trajectory
 
 __all__ = [
     "Alignment",
@@ -192,7 +192,8 @@ def _check_finite(poses: np.ndarray, where: str) -> None:
         raise EvaluationError(f"{where}: pose {int(np.flatnonzero(norms < 1e-9)[0])} has a zero quaternion")
 
 
-def _matched(graph: PoseGraph, estimate, max_diff_s: float, warnings: list[str]):
+def _matched(graph: PoseGraph, estimate: Sequence[Trajectory] | None, by_time: bool, max_diff_s: float,
+             warnings: list[str]):
     """Per agent: (gt poses, est poses, gt stamps, vertex indices) of the poses to compare."""
     from evo.core.sync import matching_time_indices
 
@@ -211,7 +212,7 @@ def _matched(graph: PoseGraph, estimate, max_diff_s: float, warnings: list[str])
             raise EvaluationError(f"estimate agent {k + 1} is {est.name}, the dataset's is {agent.name}")
         poses = np.asarray(est.poses_xyz_quat_xyzw, dtype=np.float64)
         _check_finite(poses, f"estimate of {agent.name}")
-        if est.stamps_ns is None:
+        if not by_time:
             if len(poses) != agent.num_poses:
                 raise EvaluationError(
                     f"estimate of {agent.name}: {len(poses)} poses for the dataset's {agent.num_poses}")
@@ -284,12 +285,16 @@ def _ape_rotation_deg(gt: np.ndarray, est: np.ndarray) -> np.ndarray:
     return np.rad2deg((Rotation.from_quat(est[:, 3:7]).inv() * Rotation.from_quat(gt[:, 3:7])).magnitude())
 
 
-def score(graph: PoseGraph, estimate: Sequence[AgentEstimate] | None = None, *, align: Alignment | str = Alignment.none,
+def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_time: bool = False,
+          align: Alignment | str = Alignment.none,
           align_per_agent: bool = False, rpe_delta_m: float = 1.0, rpe_delta_nodes: int = 1,
           tum_max_diff_s: float = DEFAULT_TUM_MAX_DIFF_S, dataset: str = "", estimate_label: str = "",
           estimate_layout: str = "") -> Evaluation:
-    """Score ``estimate`` (a sequence of :class:`~studio.io.estimate.AgentEstimate`, one per agent, or
-    None for the graph's initial estimate) against the graph's ground truth. No I/O."""
+    """Score ``estimate`` (one :class:`~studio.core.trajectory.Trajectory` per agent, or None for the
+    graph's initial estimate) against the graph's ground truth. No I/O.
+
+    With ``by_time`` the estimate's poses are matched to the ground truth by timestamp (within
+    ``tum_max_diff_s``); otherwise pose k of an agent is the estimate of its vertex k."""
     from evo.core import metrics
 
     try:
@@ -303,7 +308,7 @@ def score(graph: PoseGraph, estimate: Sequence[AgentEstimate] | None = None, *, 
     if estimate is not None and len(estimate) != len(graph.agents):
         raise EvaluationError(f"the estimate has {len(estimate)} agents, the dataset {len(graph.agents)}")
     warnings: list[str] = []
-    matched = _matched(graph, estimate, tum_max_diff_s, warnings)
+    matched = _matched(graph, estimate, by_time, tum_max_diff_s, warnings)
     names = [a.name for a in graph.agents]
     transforms = []
     if align is not Alignment.none:
@@ -373,7 +378,8 @@ def evaluate(dataset: str | os.PathLike, *, estimate: str | os.PathLike | None =
 
     graph = read_multi_g2o(dataset, edges=False)
     est = None if estimate is None else read_estimate(estimate, graph)
-    return score(graph, None if est is None else est.agents, align=align, align_per_agent=align_per_agent,
+    return score(graph, None if est is None else est.agents, by_time=est is not None and est.by_time,
+                 align=align, align_per_agent=align_per_agent,
                  rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes, tum_max_diff_s=tum_max_diff_s,
                  dataset=str(dataset), estimate_label="initial estimate" if est is None else est.source,
                  estimate_layout="initial" if est is None else est.layout)

@@ -18,6 +18,8 @@ __all__ = [
     "upper_to_matrix",
     "SE3_Z_INFORMATION",
     "planar_poses_to_se3",
+    "se3_poses_to_planar",
+    "yaw_from_quat_xyzw",
     "libm_cos_sin",
     "relative_planar_pose",
     "quat_mul",
@@ -92,6 +94,23 @@ def planar_poses_to_se3(poses: np.ndarray) -> np.ndarray:
     out[:, 0:2] = poses[:, 0:2]
     out[:, 3:7] = yaw_to_quat_xyzw(poses[:, 2])
     return out
+
+
+def yaw_from_quat_xyzw(q: np.ndarray) -> np.ndarray:
+    """Yaw [rad] in [-pi, pi] of quaternions ``(n, 4)``: the rotation about z of the ZYX
+    (yaw-pitch-roll) decomposition, i.e. the heading of the body x axis projected on the xy plane.
+    For a pure yaw ``[0, 0, sin(t/2), cos(t/2)]`` it is ``t`` (to rounding)."""
+    q = np.asarray(q, dtype=np.float64)
+    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def se3_poses_to_planar(poses: np.ndarray) -> np.ndarray:
+    """``(n, 7)`` poses ``[x, y, z, qx, qy, qz, qw]`` to ``(n, 3)`` ``[x, y, yaw]``: the one 3D-to-planar
+    projection (z, roll and pitch dropped; yaw by :func:`yaw_from_quat_xyzw`), the inverse of
+    :func:`planar_poses_to_se3` on planar poses."""
+    poses = np.asarray(poses, dtype=np.float64)
+    return np.column_stack([poses[:, 0], poses[:, 1], yaw_from_quat_xyzw(poses[:, 3:7])])
 
 
 def libm_cos_sin(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -24,8 +24,13 @@ MAX_COORDINATE_M = 1e9
 
 @dataclass(frozen=True, eq=False)
 class Trajectory:
-    """One agent's poses: ``stamps_ns`` int64 increasing, ``positions_xyz`` (n, 3) metres,
-    ``quat_xyzw`` (n, 4) unit quaternions body-to-world. ``source`` names where it came from."""
+    """One agent's timed poses: ``stamps_ns`` int64 increasing, ``positions_xyz`` (n, 3) metres,
+    ``quat_xyzw`` (n, 4) quaternions body-to-world (Hamilton, scalar last). ``source`` names where
+    it came from (a file, a bag topic), for messages.
+
+    The one timed-pose type of the studio: source readers return it, TUM files are read into and
+    written from it, estimates are split into one per agent.
+    """
 
     name: str
     stamps_ns: np.ndarray
@@ -34,23 +39,40 @@ class Trajectory:
     source: str = ""
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "stamps_ns", np.ascontiguousarray(self.stamps_ns, dtype=np.int64))
+        object.__setattr__(self, "positions_xyz", np.asarray(self.positions_xyz, dtype=np.float64))
+        object.__setattr__(self, "quat_xyzw", np.asarray(self.quat_xyzw, dtype=np.float64))
         n = len(self.stamps_ns)
         where = self.source or self.name
-        if self.positions_xyz.shape != (n, 3) or self.quat_xyzw.shape != (n, 4):
+        if self.stamps_ns.ndim != 1 or self.positions_xyz.shape != (n, 3) or self.quat_xyzw.shape != (n, 4):
             raise FormatError(f"{where}: positions and orientations do not match the {n} stamps")
-        if n < 2:
-            raise FormatError(f"{where}: agent {self.name!r} has {n} pose{'s' if n != 1 else ''}; "
-                              "a trajectory needs at least 2")
+        if n == 0:
+            raise FormatError(f"{where}: agent {self.name!r} has no poses")
         if np.any(np.diff(self.stamps_ns) <= 0):
             raise FormatError(f"{where}: stamps must increase")
 
     def __len__(self) -> int:
         return len(self.stamps_ns)
 
+    @classmethod
+    def from_poses(cls, name: str, stamps_ns: np.ndarray, poses_xyz_quat_xyzw: np.ndarray,
+                   source: str = "") -> "Trajectory":
+        """From ``(n, 7)`` rows ``x y z qx qy qz qw`` (the TUM and g2o column order)."""
+        poses = np.asarray(poses_xyz_quat_xyzw, dtype=np.float64)
+        if poses.ndim != 2 or poses.shape[1] != 7:
+            raise FormatError(f"{source or name}: poses must have shape (n, 7), got {poses.shape}")
+        return cls(name, stamps_ns, poses[:, 0:3], poses[:, 3:7], source)
+
+    @property
+    def poses_xyz_quat_xyzw(self) -> np.ndarray:
+        """``(n, 7)`` rows ``x y z qx qy qz qw``."""
+        return np.hstack([self.positions_xyz, self.quat_xyzw])
+
 
 def clean_trajectory(name: str, stamps_ns: np.ndarray, positions_xyz: np.ndarray, quat_xyzw: np.ndarray,
                      source: str, warn: Warn | None = None) -> Trajectory:
-    """Sort by time, drop duplicate stamps (keeping the first), normalise quaternions, reject NaN.
+    """Sort by time, drop duplicate stamps (keeping the first), normalise quaternions, reject NaN;
+    a trajectory to convert needs at least 2 poses.
 
     Sorting and de-duplication are reported through ``warn`` with their counts.
     """
@@ -80,4 +102,8 @@ def clean_trajectory(name: str, stamps_ns: np.ndarray, positions_xyz: np.ndarray
         if warn is not None:
             warn(f"{source}: {unsorted} out-of-order timestamp{'s' if unsorted != 1 else ''} sorted, "
                  f"{dups} duplicate timestamp{'s' if dups != 1 else ''} dropped")
+    n = len(stamps_ns)
+    if n < 2:
+        raise FormatError(f"{source or name}: agent {name!r} has {n} pose{'s' if n != 1 else ''}; "
+                          "a trajectory needs at least 2")
     return Trajectory(name, stamps_ns, positions_xyz, quat_xyzw, source)

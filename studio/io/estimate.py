@@ -7,9 +7,11 @@
 * **TUM** (a folder of ``<agent>.tum`` or ``<agent>_*.tum``, ``*_GT.tum`` excluded): one trajectory
   per agent; its poses are matched to the ground truth by timestamp when scoring.
 
-g2o estimates give one pose per dataset vertex; a vertex count or id that does not match the dataset
-raises :class:`~studio.core.errors.EvaluationError` naming the agent and how many vertices are off.
-Planar (``VERTEX_SE2``) files are lifted to ``[x, y, 0, 0, 0, sin(theta/2), cos(theta/2)]``.
+Every layout gives one :class:`~studio.core.trajectory.Trajectory` per dataset agent. g2o estimates
+give one pose per dataset vertex, stamped with the dataset's stamps (``Estimate.by_time`` is false:
+pose k is the estimate of vertex k); a vertex count or id that does not match the dataset raises
+:class:`~studio.core.errors.EvaluationError` naming the agent and how many vertices are off. Planar
+(``VERTEX_SE2``) files are lifted to ``[x, y, 0, 0, 0, sin(theta/2), cos(theta/2)]``.
 """
 
 from __future__ import annotations
@@ -22,43 +24,34 @@ from typing import Literal
 import numpy as np
 
 from studio.core.errors import EvaluationError, FormatError
-from studio.core.geometry import yaw_to_quat_xyzw
+from studio.core.geometry import planar_poses_to_se3
 from studio.io.g2o import G2oDocument, read_g2o
 from studio.io.singleg2o import agent_offsets
 from studio.io.tum import read_tum
 from studio.core.model import PoseGraph, PoseKind
+from studio.core.trajectory import Trajectory
 
-__all__ = ["AgentEstimate", "Estimate", "EstimateLayout", "read_estimate", "estimate_layout"]
+__all__ = ["Estimate", "EstimateLayout", "read_estimate", "estimate_layout"]
 
 EstimateLayout = Literal["single-g2o", "multi-g2o", "tum"]
-
-
-@dataclass(frozen=True, eq=False)
-class AgentEstimate:
-    """One agent's estimated trajectory."""
-
-    name: str
-    poses_xyz_quat_xyzw: np.ndarray
-    """``(n, 7)``: x, y, z, qx, qy, qz, qw."""
-    stamps_ns: np.ndarray | None
-    """int64 nanoseconds (TUM estimates), or None: then row k is the estimate of dataset vertex k."""
 
 
 @dataclass(frozen=True, eq=False)
 class Estimate:
     layout: EstimateLayout
     source: str
-    agents: tuple[AgentEstimate, ...]
+    agents: tuple[Trajectory, ...]
     """One entry per dataset agent, in the dataset's order."""
+
+    @property
+    def by_time(self) -> bool:
+        """True when poses are matched to the ground truth by timestamp (TUM), false when pose k
+        is the estimate of dataset vertex k (g2o)."""
+        return self.layout == "tum"
 
 
 def _poses7(doc: G2oDocument) -> np.ndarray:
-    if doc.kind is PoseKind.SE3:
-        return doc.vertex_poses
-    out = np.zeros((len(doc.vertex_poses), 7))
-    out[:, 0:2] = doc.vertex_poses[:, 0:2]
-    out[:, 3:7] = yaw_to_quat_xyzw(doc.vertex_poses[:, 2])
-    return out
+    return doc.vertex_poses if doc.kind is PoseKind.SE3 else planar_poses_to_se3(doc.vertex_poses)
 
 
 def _range_text(first: int, count: int) -> str:
@@ -80,7 +73,7 @@ def _check_ids(ids: np.ndarray, first: int, count: int, where: str, agent: str) 
     return np.argsort(ids, kind="stable")
 
 
-def _read_single_g2o(path: Path, graph: PoseGraph) -> tuple[AgentEstimate, ...]:
+def _read_single_g2o(path: Path, graph: PoseGraph) -> tuple[Trajectory, ...]:
     doc = read_g2o(path, edges=False)
     offsets = agent_offsets(graph)
     total = int(offsets[-1])
@@ -97,7 +90,7 @@ def _read_single_g2o(path: Path, graph: PoseGraph) -> tuple[AgentEstimate, ...]:
         first, count = int(offsets[k]), agent.num_poses
         sel = (ids >= first) & (ids < first + count)
         order = _check_ids(ids[sel], first, count, str(path), agent.name)
-        out.append(AgentEstimate(agent.name, poses[sel][order], None))
+        out.append(Trajectory.from_poses(agent.name, agent.stamps_ns, poses[sel][order], str(path)))
     return tuple(out)
 
 
@@ -105,7 +98,7 @@ def _agent_dirs(folder: Path) -> dict[str, Path]:
     return {p.name: p for p in folder.iterdir() if p.is_dir() and (p / "posegraph.g2o").is_file()}
 
 
-def _read_multi_g2o(folder: Path, graph: PoseGraph) -> tuple[AgentEstimate, ...]:
+def _read_multi_g2o(folder: Path, graph: PoseGraph) -> tuple[Trajectory, ...]:
     subs = _agent_dirs(folder)
     names = [a.name for a in graph.agents]
     extra = sorted(set(subs) - set(names))
@@ -122,7 +115,7 @@ def _read_multi_g2o(folder: Path, graph: PoseGraph) -> tuple[AgentEstimate, ...]
                 f"{path}: {agent.name} has {len(doc.vertex_ids)} vertices, the dataset {agent.num_poses}"
             )
         order = _check_ids(doc.vertex_ids, 0, agent.num_poses, str(path), agent.name)
-        out.append(AgentEstimate(agent.name, _poses7(doc)[order], None))
+        out.append(Trajectory.from_poses(agent.name, agent.stamps_ns, _poses7(doc)[order], str(path)))
     return tuple(out)
 
 
@@ -141,12 +134,8 @@ def _tum_files(folder: Path, graph: PoseGraph) -> dict[str, Path]:
     return found
 
 
-def _read_tum_folder(folder: Path, graph: PoseGraph) -> tuple[AgentEstimate, ...]:
-    out = []
-    for name, path in _tum_files(folder, graph).items():
-        traj = read_tum(path)
-        out.append(AgentEstimate(name, traj.poses, traj.stamps_ns))
-    return tuple(out)
+def _read_tum_folder(folder: Path, graph: PoseGraph) -> tuple[Trajectory, ...]:
+    return tuple(read_tum(path, name=name) for name, path in _tum_files(folder, graph).items())
 
 
 def estimate_layout(path: str | os.PathLike) -> EstimateLayout:

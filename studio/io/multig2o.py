@@ -25,10 +25,11 @@ from typing import Literal
 import numpy as np
 
 from studio.core.errors import FormatError, GraphError
-from studio.core.geometry import normalize_angle
+from studio.core.geometry import se3_poses_to_planar
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.io.inter_lc_dat import Precision, read_inter_lc_dat, write_inter_lc_dat
 from studio.io.tum import read_tum, write_tum
+from studio.core.trajectory import Trajectory
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.units import NS_PER_S
 
@@ -69,7 +70,8 @@ def write_multi_g2o(graph: PoseGraph, folder: str | os.PathLike, *, records: Rec
         sub.mkdir()
         write_g2o(sub / "posegraph.g2o", agent_g2o_document(agent))
         if agent3.ground_truth is not None:
-            write_tum(sub / f"{agent.name}_GT.tum", agent3.stamps_ns, agent3.ground_truth)
+            write_tum(sub / f"{agent.name}_GT.tum",
+                      Trajectory.from_poses(agent.name, agent3.stamps_ns, agent3.ground_truth))
     write_inter_lc_dat(folder / "inter_agent_lc.dat", g.inter, precision)
 
 
@@ -122,7 +124,8 @@ def read_multi_g2o(folder: str | os.PathLike, *, edges: bool = True) -> PoseGrap
             if len(traj.stamps_ns) != n:
                 raise FormatError(f"{gt_path}: {len(traj.stamps_ns)} poses for {n} vertices in {g2o_path.name}")
             stamps = traj.stamps_ns
-            gt = traj.poses if kind is PoseKind.SE3 else _planar(traj.poses)
+            poses = traj.poses_xyz_quat_xyzw
+            gt = poses if kind is PoseKind.SE3 else se3_poses_to_planar(poses)
         try:
             agents.append(AgentGraph(sub.name, kind, stamps, initial, gt, edge_slice(slice(0, n_odo)),
                                      edge_slice(slice(n_odo, None))))
@@ -135,8 +138,3 @@ def read_multi_g2o(folder: str | os.PathLike, *, edges: bool = True) -> PoseGrap
         return PoseGraph(kind, tuple(agents), inter, {"source": str(folder)})
     except GraphError as err:
         raise FormatError(f"{dat}: {err}") from None
-
-
-def _planar(poses7: np.ndarray) -> np.ndarray:
-    theta = normalize_angle(2.0 * np.arctan2(poses7[:, 5], poses7[:, 6]))
-    return np.column_stack([poses7[:, 0], poses7[:, 1], theta])

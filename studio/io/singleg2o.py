@@ -18,6 +18,7 @@ from studio.core.geometry import planar_poses_to_se3, relative_planar_pose, se2_
 from studio.io.g2o import G2oDocument, g2o_lines
 from studio.io.multig2o import Records
 from studio.io.tum import tum_lines
+from studio.core.trajectory import Trajectory
 from studio.core.model import PoseGraph, PoseKind
 from studio.core.units import NS_PER_S
 
@@ -91,4 +92,4 @@ def write_single_tum(graph: PoseGraph, path: str | os.PathLike, *, ground_truth:
     poses = np.concatenate([a.ground_truth if ground_truth else a.initial for a in g.agents])
     stamps = np.arange(len(poses), dtype=np.int64) * NS_PER_S
     with open(Path(path), "w", encoding="ascii", newline="\n") as f:
-        f.write("".join(tum_lines(stamps, poses)))
+        f.write("".join(tum_lines(Trajectory.from_poses(Path(path).stem, stamps, poses))))

@@ -5,7 +5,8 @@ node indices); other timestamps exactly from their nanoseconds (``1634567890.123
 numbers use ``%.17g``; a positive zero in tz, qx or qy is written ``0.0`` (kollagen's planar files).
 
 Reading accepts space- or comma-separated columns, ``#`` comments and one header line, and returns
-int64 nanosecond stamps and ``(n, 7)`` poses with normalised quaternions.
+a :class:`~studio.core.trajectory.Trajectory` (int64 nanosecond stamps, normalised quaternions), or
+with :func:`read_tum_rows` the rows in file order for a caller that sorts them itself.
 """
 
 from __future__ import annotations
@@ -14,27 +15,20 @@ import io
 import math
 import os
 import re
-from dataclasses import dataclass
+from pathlib import Path
 from typing import IO
 
 import numpy as np
 
 from studio.core.errors import FormatError
+from studio.core.trajectory import Trajectory
 from studio.io.g2o import SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
 from studio.io.textfmt import format_column, format_columns, write_lines
 from studio.core.units import NS_PER_S
 
-__all__ = ["TumTrajectory", "write_tum", "read_tum", "tum_lines", "format_stamps"]
+__all__ = ["write_tum", "read_tum", "read_tum_rows", "tum_lines", "format_stamps"]
 
 _DECIMAL = re.compile(r"^([+-]?)(\d*)(?:\.(\d*))?$")
-
-
-@dataclass(frozen=True, eq=False)
-class TumTrajectory:
-    stamps_ns: np.ndarray
-    """int64 nanoseconds."""
-    poses: np.ndarray
-    """``(n, 7)``: x, y, z, qx, qy, qz, qw."""
 
 
 def format_stamps(stamps_ns: np.ndarray) -> list[str]:
@@ -46,14 +40,14 @@ def format_stamps(stamps_ns: np.ndarray) -> list[str]:
     return [f"{g}{s}.{f:09d}" for g, s, f in zip(sign.tolist(), sec.tolist(), frac.tolist())]
 
 
-def tum_lines(stamps_ns: np.ndarray, poses: np.ndarray) -> list[str]:
-    stamps = format_stamps(stamps_ns)
-    body = format_columns(np.asarray(poses, dtype=np.float64), ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
+def tum_lines(traj: Trajectory) -> list[str]:
+    stamps = format_stamps(traj.stamps_ns)
+    body = format_columns(traj.poses_xyz_quat_xyzw, ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
     return [f"{t} {b}\n" for t, b in zip(stamps, body)]
 
 
-def write_tum(target: str | os.PathLike | IO[str], stamps_ns: np.ndarray, poses: np.ndarray) -> None:
-    write_lines(target, tum_lines(stamps_ns, poses))
+def write_tum(target: str | os.PathLike | IO[str], traj: Trajectory) -> None:
+    write_lines(target, tum_lines(traj))
 
 
 def _stamp_ns(token: str) -> int:
@@ -71,16 +65,29 @@ def _stamp_ns(token: str) -> int:
     return int(round(value * NS_PER_S))
 
 
-def read_tum(source: str | os.PathLike | IO[str], *, require_increasing: bool = True) -> TumTrajectory:
-    """Parse a TUM file; errors name ``file:line``.
+def read_tum(source: str | os.PathLike | IO[str], *, name: str | None = None) -> Trajectory:
+    """Parse a TUM file whose stamps increase; errors name ``file:line``.
 
-    With ``require_increasing=False`` the rows are returned in file order even when their stamps
-    do not increase (the caller sorts and de-duplicates them, see ``studio.core.trajectory``).
+    The trajectory is named ``name``, or after the file (its stem), or ``trajectory`` for a stream.
     """
+    stamps, poses, where = _parse(source, require_increasing=True)
+    if name is None:
+        name = Path(source).stem if isinstance(source, (str, os.PathLike)) else "trajectory"
+    return Trajectory.from_poses(name, stamps, poses, where)
+
+
+def read_tum_rows(source: str | os.PathLike | IO[str]) -> tuple[np.ndarray, np.ndarray]:
+    """``(stamps_ns, poses)`` of a TUM file in file order, even where the stamps do not increase (the
+    caller sorts and de-duplicates them, see :func:`studio.core.trajectory.clean_trajectory`)."""
+    stamps, poses, _ = _parse(source, require_increasing=False)
+    return stamps, poses
+
+
+def _parse(source: str | os.PathLike | IO[str], *, require_increasing: bool) -> tuple[np.ndarray, np.ndarray, str]:
     text, name = _open_text(source)
     fast = _read_tum_fast(text, require_increasing)
     if fast is not None:
-        return fast
+        return fast[0], fast[1], name
     stamps: list[int] = []
     rows: list[list[float]] = []
     lines: list[int] = []
@@ -130,13 +137,13 @@ def read_tum(source: str | os.PathLike | IO[str], *, require_increasing: bool = 
     if len(dec):
         k = int(dec[0]) + 1
         raise FormatError(f"{name}:{lines[k]}: timestamps must increase")
-    return TumTrajectory(st, poses)
+    return st, poses, name
 
 
 _FAST_MIN_CHARS = 1 << 18
 
 
-def _read_tum_fast(text: str, require_increasing: bool) -> TumTrajectory | None:
+def _read_tum_fast(text: str, require_increasing: bool) -> tuple[np.ndarray, np.ndarray] | None:
     """Bulk parse of a large, regular file with pandas' C parser (exact: round-trip floats, stamps
     from their digits). Returns None when anything is irregular (exponent stamps, NaN, a wrong
     column count, a zero quaternion, ...) so that the line-by-line parser names the offending line.
@@ -195,7 +202,7 @@ def _read_tum_fast(text: str, require_increasing: bool) -> TumTrajectory | None:
     far = np.flatnonzero(np.abs(norms - 1.0) > 1e-12)
     if far.size:
         poses[far, 3:7] /= norms[far, None]
-    return TumTrajectory(stamps, poses)
+    return stamps, poses
 
 
 _POW10 = 10 ** np.arange(19, dtype=np.int64)

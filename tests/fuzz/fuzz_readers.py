@@ -200,10 +200,10 @@ def _read_g2o(path: Path) -> None:
 
 
 def _read_tum(path: Path) -> None:
-    from studio.io.tum import read_tum
+    from studio.io.tum import read_tum, read_tum_rows
 
     read_tum(path)
-    read_tum(path, require_increasing=False)
+    read_tum_rows(path)
 
 
 def _read_dat(path: Path) -> None:

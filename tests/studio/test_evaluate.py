@@ -15,7 +15,8 @@ from studio.generator.presets import preset
 from studio.cli import app
 from studio.core.errors import EvaluationError, FormatError
 from studio.evaluate import Alignment, evaluate, format_markdown, format_table, score
-from studio.io.estimate import AgentEstimate, read_estimate
+from studio.core.trajectory import Trajectory
+from studio.io.estimate import read_estimate
 from studio.io.g2o import G2oDocument, write_g2o
 from studio.io.multig2o import read_multi_g2o
 from studio.io.tum import write_tum
@@ -74,7 +75,7 @@ def _write_multi(folder, graph, poses):
 def _write_tum(folder, graph, poses, suffix="", shift_ns=0):
     folder.mkdir(parents=True, exist_ok=True)
     for a, p in zip(graph.agents, poses):
-        write_tum(folder / f"{a.name}{suffix}.tum", a.stamps_ns + shift_ns, p)
+        write_tum(folder / f"{a.name}{suffix}.tum", Trajectory.from_poses(a.name, a.stamps_ns + shift_ns, p))
 
 
 def _numbers(ev):
@@ -108,7 +109,7 @@ def test_metrics_equal_evo_metric_objects(graph):
     from evo.core.trajectory import PoseTrajectory3D
 
     est = _perturbed(graph)
-    ev = score(graph, [AgentEstimate(a.name, p, None) for a, p in zip(graph.agents, est)])
+    ev = score(graph, [Trajectory.from_poses(a.name, a.stamps_ns, p) for a, p in zip(graph.agents, est)])
 
     def traj(p, a):
         return PoseTrajectory3D(positions_xyz=p[:, 0:3], orientations_quat_wxyz=p[:, [6, 3, 4, 5]],
@@ -140,7 +141,7 @@ def test_metrics_equal_evo_metric_objects(graph):
 
 
 def test_ground_truth_as_estimate_scores_zero(graph):
-    ev = score(graph, [AgentEstimate(a.name, a.ground_truth, None) for a in graph.agents])
+    ev = score(graph, [Trajectory.from_poses(a.name, a.stamps_ns, a.ground_truth) for a in graph.agents])
     assert ev.overall.ape_translation_m.max == 0.0
     assert ev.overall.ape_rotation_deg.max < 1e-6
     assert ev.overall.rpe_node_translation_m.max < 1e-12
@@ -160,7 +161,7 @@ def test_single_g2o_multi_g2o_and_tum_estimates_give_the_same_numbers(small, gra
                (tmp_path / "opt.g2o", tmp_path / "multi", tmp_path / "tum")]
     assert [r.estimate_layout for r in results] == ["single-g2o", "multi-g2o", "tum"]
     assert _numbers(results[0]) == _numbers(results[1]) == _numbers(results[2])
-    direct = score(graph, [AgentEstimate(a.name, p, None) for a, p in zip(graph.agents, est)])
+    direct = score(graph, [Trajectory.from_poses(a.name, a.stamps_ns, p) for a, p in zip(graph.agents, est)])
     assert results[0].overall.ape_translation_m.mean == direct.overall.ape_translation_m.mean
     assert 0.3 < results[0].overall.ape_translation_m.mean < 0.6  # 3D noise of 0.3 m per axis
 
@@ -182,7 +183,7 @@ def test_tum_estimate_matched_within_tolerance(small, graph, tmp_path):
     half = tmp_path / "half"
     half.mkdir()
     for a, p in zip(graph.agents, est):
-        write_tum(half / f"{a.name}.tum", a.stamps_ns[::2], p[::2])
+        write_tum(half / f"{a.name}.tum", Trajectory.from_poses(a.name, a.stamps_ns[::2], p[::2]))
     ev = evaluate(small.dataset_dir, estimate=half)
     assert [a.poses for a in ev.agents] == [121, 121, 121]
     assert ev.overall.poses == 363
@@ -204,7 +205,7 @@ def _moved(poses, r, t, s=1.0):
 
 def test_alignment_removes_a_common_transform(graph):
     r = Rotation.from_euler("z", 30, degrees=True)
-    est = [AgentEstimate(a.name, _moved(a.ground_truth, r, [5.0, -3.0, 1.0], 1.2), None) for a in graph.agents]
+    est = [Trajectory.from_poses(a.name, a.stamps_ns, _moved(a.ground_truth, r, [5.0, -3.0, 1.0], 1.2)) for a in graph.agents]
     assert score(graph, est).overall.ape_translation_m.mean > 1.0
     assert score(graph, est, align="se3").overall.ape_translation_m.mean > 0.1  # scale is left
     ev = score(graph, est, align="sim3")
@@ -223,8 +224,9 @@ def test_unknown_alignment_is_a_studio_error(graph):
 
 
 def test_align_per_agent_removes_one_transform_per_agent(graph):
-    est = [AgentEstimate(a.name, _moved(a.ground_truth, Rotation.from_euler("z", 10 * k, degrees=True), [k, 0, 0]),
-                         None) for k, a in enumerate(graph.agents)]
+    est = [Trajectory.from_poses(a.name, a.stamps_ns,
+                                 _moved(a.ground_truth, Rotation.from_euler("z", 10 * k, degrees=True), [k, 0, 0]))
+           for k, a in enumerate(graph.agents)]
     assert score(graph, est, align="se3").overall.ape_translation_m.mean > 0.1
     ev = score(graph, est, align="se3", align_per_agent=True)
     assert ev.overall.ape_translation_m.max < 1e-9
@@ -281,7 +283,7 @@ def test_nan_pose_is_rejected(small, graph, tmp_path):
     bad = [p.copy() for p in est]
     bad[2][9, 1] = np.nan
     with pytest.raises(EvaluationError, match=r"estimate of agent3: pose 9 is not finite"):
-        score(graph, [AgentEstimate(a.name, p, None) for a, p in zip(graph.agents, bad)])
+        score(graph, [Trajectory.from_poses(a.name, a.stamps_ns, p) for a, p in zip(graph.agents, bad)])
 
 
 def test_missing_ground_truth_file(small, tmp_path):
@@ -297,8 +299,8 @@ def test_tum_folder_without_a_file_for_an_agent(small, graph, tmp_path):
     (tmp_path / "tum" / "agent3.tum").unlink()
     with pytest.raises(EvaluationError, match=r"no agent3.tum or agent3_\*.tum for agent agent3"):
         read_estimate(tmp_path / "tum", graph)
-    write_tum(tmp_path / "tum" / "agent3.tum", graph.agents[2].stamps_ns, graph.agents[2].ground_truth)
-    write_tum(tmp_path / "tum" / "agent3_b.tum", graph.agents[2].stamps_ns, graph.agents[2].ground_truth)
+    write_tum(tmp_path / "tum" / "agent3.tum", Trajectory.from_poses("agent3", graph.agents[2].stamps_ns, graph.agents[2].ground_truth))
+    write_tum(tmp_path / "tum" / "agent3_b.tum", Trajectory.from_poses("agent3", graph.agents[2].stamps_ns, graph.agents[2].ground_truth))
     with pytest.raises(EvaluationError, match=r"several TUM files for agent agent3: agent3.tum, agent3_b.tum"):
         read_estimate(tmp_path / "tum", graph)
 

@@ -14,6 +14,7 @@ from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.io.inter_lc_dat import read_inter_lc_dat
 from studio.io.multig2o import read_multi_g2o, write_multi_g2o
 from studio.io.synth_config import read_synth_config
+from studio.core.trajectory import Trajectory
 from studio.io.tum import read_tum, write_tum
 from studio.core.model import PoseKind, graphs_equal
 
@@ -110,18 +111,18 @@ def test_tum_round_trip_exact_and_fractional_stamps(tmp_path):
     poses = np.array([[1.0, 2.0, 3.0, 0.0, 0.0, 0.0, 1.0],
                       [0.1, -0.2, 0.0, 0.5, 0.5, 0.5, 0.5],
                       [1e-9, 2.0, -3.0, 0.0, 0.0, -1.0, 0.0]])
-    write_tum(tmp_path / "t.tum", stamps, poses)
+    write_tum(tmp_path / "t.tum", Trajectory.from_poses("t", stamps, poses))
     assert (tmp_path / "t.tum").read_text().splitlines()[0] == "1634567890.123456789 1 2 3 0.0 0.0 0 1"
     back = read_tum(tmp_path / "t.tum")
     assert back.stamps_ns.tolist() == stamps.tolist()
-    assert np.array_equal(back.poses, poses)
+    assert np.array_equal(back.poses_xyz_quat_xyzw, poses)
 
 
 def test_tum_reader_accepts_commas_comments_header_and_normalises():
     text = "timestamp,tx,ty,tz,qx,qy,qz,qw\n# comment\n1.5,0,0,0,0,0,0,2\n2.5,1,0,0,0,0,0,1\n"
     t = read_tum(io.StringIO(text))
     assert t.stamps_ns.tolist() == [1_500_000_000, 2_500_000_000]
-    assert t.poses[0, 6] == 1.0
+    assert t.quat_xyzw[0, 3] == 1.0
 
 
 @pytest.mark.parametrize(

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from studio.core.errors import FormatError
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.io.inter_lc_dat import read_inter_lc_dat, write_inter_lc_dat
+from studio.core.trajectory import Trajectory
 from studio.io.tum import read_tum, write_tum
 from studio.core.model import InterAgentEdges, PoseKind
 
@@ -57,11 +58,11 @@ def test_tum_round_trip_bit_exact(data, n):
     poses[:, :3] = np.array(data.draw(st.lists(finite, min_size=3 * n, max_size=3 * n))).reshape(n, 3)
     poses[:, 3:7] = unit_quats(n, data)
     buf = io.StringIO()
-    write_tum(buf, stamps, poses)
+    write_tum(buf, Trajectory.from_poses("t", stamps, poses))
     back = read_tum(io.StringIO(buf.getvalue()))
     assert back.stamps_ns.tolist() == stamps.tolist()
     # unit quaternions within 1e-12 of norm 1 are kept as written
-    assert back.poses.tobytes() == poses.tobytes()
+    assert back.poses_xyz_quat_xyzw.tobytes() == poses.tobytes()
 
 
 @settings(max_examples=40, deadline=None)
