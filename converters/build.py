@@ -34,6 +34,8 @@ import numpy as np
 from studio.core.errors import ConfigError
 from studio.core.geometry import (
     normalize_angle,
+    relative_planar_pose,
+    yaw_from_quat_xyzw,
     quat_angle,
     quat_canonical,
     quat_conj,
@@ -45,9 +47,11 @@ from studio.core.trajectory import Trajectory
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.units import NS_PER_S
 
-__all__ = ["GraphOptions", "Gap", "BuildResult", "build_graph", "pairs_within", "select_keyframes"]
+__all__ = ["GraphOptions", "Gap", "BuildResult", "build_graph", "pairs_within", "select_keyframes",
+           "step_turns_rad"]
 
 _DIAG21 = np.array([0, 6, 11, 15, 18, 20])  # diagonal entries of a 6x6 upper triangle
+_DIAG6 = np.array([0, 3, 5])  # diagonal entries of a 3x3 upper triangle
 _STREAM_ODOMETRY, _STREAM_LOOPS, _STREAM_OUTLIERS = 1, 2, 3
 
 Progress = Callable[[str, int, int], None]
@@ -163,9 +167,17 @@ def _rng(seed: int, stream: int) -> np.random.Generator:
     return np.random.default_rng([seed, stream])
 
 
-def select_keyframes(stamps_ns: np.ndarray, positions_xyz: np.ndarray, quat_xyzw: np.ndarray,
+def step_turns_rad(quat_xyzw: np.ndarray) -> np.ndarray:
+    """Rotation angle [rad] between consecutive orientations (``n - 1`` values)."""
+    return quat_angle(quat_mul(quat_conj(quat_xyzw[:-1]), quat_xyzw[1:]))
+
+
+def select_keyframes(stamps_ns: np.ndarray, positions: np.ndarray, step_turn_rad: np.ndarray,
                      opts: GraphOptions) -> tuple[np.ndarray, np.ndarray]:
-    """Indices of the keyframes, and the boolean "a gap follows this pose" of every pose."""
+    """Indices of the keyframes, and the boolean "a gap follows this pose" of every pose.
+
+    ``positions`` are ``(n, 2)`` or ``(n, 3)`` metres; ``step_turn_rad`` the ``n - 1`` rotation angles
+    between consecutive poses (:func:`step_turns_rad`, or the yaw increments of a planar path)."""
     n = len(stamps_ns)
     gap_after = np.zeros(n, dtype=bool)
     gap_after[:-1] = np.diff(stamps_ns) > int(round(opts.max_gap * NS_PER_S))
@@ -174,12 +186,11 @@ def select_keyframes(stamps_ns: np.ndarray, positions_xyz: np.ndarray, quat_xyzw
     new |= gap_after
     new[1:] |= gap_after[:-1]
     if opts.keyframe_distance > 0:
-        step = np.linalg.norm(np.diff(positions_xyz, axis=0), axis=1)
+        step = np.linalg.norm(np.diff(positions, axis=0), axis=1)
         b = np.floor(np.concatenate([[0.0], np.cumsum(step)]) / opts.keyframe_distance)
         new[1:] |= b[1:] != b[:-1]
     if opts.keyframe_angle > 0:
-        turn = quat_angle(quat_mul(quat_conj(quat_xyzw[:-1]), quat_xyzw[1:]))
-        b = np.floor(np.concatenate([[0.0], np.cumsum(turn)]) / math.radians(opts.keyframe_angle))
+        b = np.floor(np.concatenate([[0.0], np.cumsum(step_turn_rad)]) / math.radians(opts.keyframe_angle))
         new[1:] |= b[1:] != b[:-1]
     if opts.keyframe_time > 0:
         b = (stamps_ns - stamps_ns[0]) // max(1, int(round(opts.keyframe_time * NS_PER_S)))
@@ -193,14 +204,12 @@ def _relative(p_a, q_a, p_b, q_b):
     return quat_rotate(qa_inv, p_b - p_a), quat_mul(qa_inv, q_b)
 
 
-def _perturb(t_rel, q_rel, sigma_t, sigma_r, rng, planar):
+def _perturb(t_rel, q_rel, sigma_t, sigma_r, rng):
     """Measurement ``(t + n_t, q * Exp(n_r))`` with the diagonal information of the noise."""
     m = len(t_rel)
     z = rng.standard_normal((m, 6))
     sig = np.column_stack([sigma_t, sigma_t, sigma_t, sigma_r, sigma_r, sigma_r])
     noise = z * sig
-    if planar:
-        noise[:, [2, 3, 4]] = 0.0
     t = t_rel + noise[:, :3]
     q = quat_canonical(quat_mul(q_rel, quat_from_rotvec(noise[:, 3:])))
     info = np.zeros((m, 21))
@@ -225,6 +234,39 @@ def _compose_chain(p0, q0, t_steps, q_steps):
     pos = p0 + quat_rotate(qs, T)
     quat = quat_canonical(quat_mul(qs, Q))
     return (np.vstack([p0[None, :], pos]), np.vstack([quat_canonical(q0[None, :]), quat]))
+
+
+def _relative_se2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Planar poses ``b`` in the frames of ``a`` (rows ``x y yaw``)."""
+    dx, dy, dth = relative_planar_pose(a[:, 0], a[:, 1], a[:, 2], b[:, 0], b[:, 1], b[:, 2])
+    return np.column_stack([dx, dy, dth])
+
+
+def _perturb_se2(rel: np.ndarray, sigma_t: np.ndarray, sigma_r: np.ndarray,
+                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Planar measurement ``(dx + n_x, dy + n_y, dyaw + n_yaw)`` with its diagonal information.
+
+    Six normals are drawn per edge as in the spatial model (x, y and the z rotation are used), so a
+    stream gives the same noise to a planar and a spatial conversion of the same path."""
+    m = len(rel)
+    z = rng.standard_normal((m, 6))
+    sig = np.column_stack([sigma_t, sigma_t, sigma_r])
+    noise = z[:, [0, 1, 5]] * sig
+    meas = np.column_stack([rel[:, 0:2] + noise[:, 0:2], normalize_angle(rel[:, 2] + noise[:, 2])])
+    info = np.zeros((m, 6))
+    info[:, _DIAG6] = 1.0 / np.maximum(sig, 1e-9) ** 2
+    return meas, info
+
+
+def _compose_se2(first: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    """Planar poses obtained by composing ``steps`` (rows ``dx dy dyaw``) from the pose ``first``."""
+    yaw = first[2] + np.concatenate([[0.0], np.cumsum(steps[:, 2])])
+    c, s = np.cos(yaw[:-1]), np.sin(yaw[:-1])
+    dx = c * steps[:, 0] - s * steps[:, 1]
+    dy = s * steps[:, 0] + c * steps[:, 1]
+    xy = first[0:2] + np.column_stack([np.concatenate([[0.0], np.cumsum(dx)]),
+                                       np.concatenate([[0.0], np.cumsum(dy)])])
+    return np.column_stack([xy, normalize_angle(yaw)])
 
 
 #: Memory for one candidate pair while loop closures are searched (indices, distance, temporaries).
@@ -292,27 +334,6 @@ def pairs_within(points_xyz: np.ndarray, radius: float, *,
     return i[o], j[o], d[o]
 
 
-def _planarise(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
-    q = traj.quat_xyzw
-    yaw = np.arctan2(2.0 * (q[:, 3] * q[:, 2] + q[:, 0] * q[:, 1]), 1.0 - 2.0 * (q[:, 1] ** 2 + q[:, 2] ** 2))
-    pos = traj.positions_xyz.copy()
-    pos[:, 2] = 0.0
-    quat = np.zeros((len(q), 4))
-    quat[:, 2] = np.sin(yaw / 2)
-    quat[:, 3] = np.cos(yaw / 2)
-    return pos, quat
-
-
-def _se3_rows_to_se2(rows7: np.ndarray) -> np.ndarray:
-    yaw = normalize_angle(2.0 * np.arctan2(rows7[:, 5], rows7[:, 6]))
-    return np.column_stack([rows7[:, 0], rows7[:, 1], yaw])
-
-
-def _info_to_se2(info21: np.ndarray) -> np.ndarray:
-    # (x, y, rz) entries of the 6x6 upper triangle: xx xy x-rz yy y-rz rz-rz
-    return info21[:, [0, 1, 5, 6, 10, 20]]
-
-
 def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
                 progress: Progress | None = None, max_memory_gb: float | None = None) -> BuildResult:
     """Build the pose graph of ``trajectories`` (agent order kept); see the module docstring.
@@ -325,48 +346,62 @@ def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
         raise ConfigError(f"two agents are named {dup!r}; rename one of the inputs")
+    planar = opts.planar
     origin = trajectories[0].positions_xyz[0].copy()
-    if opts.planar:
+    if planar:
         origin[2] = 0.0
     rng_odo = _rng(opts.seed, _STREAM_ODOMETRY)
     gaps: list[Gap] = []
-    kf_pos, kf_quat, kf_stamps, kf_agent, kf_index = [], [], [], [], []
+    kf_pos, kf_heading, kf_stamps, kf_agent, kf_index = [], [], [], [], []
     agents_data = []
     for a, traj in enumerate(trajectories):
         if progress:
             progress("keyframes and odometry", a, len(trajectories))
-        if opts.planar:
-            pos, quat = _planarise(traj)
+        if planar:
+            # planar graphs are built in SE(2) from the start: x, y and the heading (ZYX yaw)
+            pos = traj.positions_xyz[:, 0:2] - origin[0:2]
+            yaw = yaw_from_quat_xyzw(traj.quat_xyzw)
+            kf, gap_after = select_keyframes(traj.stamps_ns, pos, np.abs(normalize_angle(np.diff(yaw))), opts)
+            gt = np.column_stack([pos[kf], yaw[kf]])
+            rel = _relative_se2(gt[:-1], gt[1:])
+            dist = np.linalg.norm(rel[:, 0:2], axis=1)
+            turn = np.abs(rel[:, 2])
         else:
-            pos, quat = traj.positions_xyz, traj.quat_xyzw
-        pos = pos - origin
-        kf, gap_after = select_keyframes(traj.stamps_ns, pos, quat, opts)
-        p, q, st = pos[kf], quat_canonical(quat[kf]), traj.stamps_ns[kf]
-        t_rel, q_rel = _relative(p[:-1], q[:-1], p[1:], q[1:])
-        dist = np.linalg.norm(t_rel, axis=1)
-        turn = quat_angle(q_rel)
+            pos = traj.positions_xyz - origin
+            kf, gap_after = select_keyframes(traj.stamps_ns, pos, step_turns_rad(traj.quat_xyzw), opts)
+            p, q = pos[kf], quat_canonical(traj.quat_xyzw[kf])
+            t_rel, q_rel = _relative(p[:-1], q[:-1], p[1:], q[1:])
+            dist = np.linalg.norm(t_rel, axis=1)
+            turn = quat_angle(q_rel)
+        st = traj.stamps_ns[kf]
         sigma_t = opts.odo_sigma_min_m + opts.odo_sigma_m_per_m * dist
         sigma_r = opts.odo_sigma_min_rad + opts.odo_sigma_rad_per_rad * turn + opts.odo_sigma_rad_per_m * dist
         bridge = gap_after[kf[:-1]]
         dt = np.diff(st) / NS_PER_S
         sigma_t = sigma_t + np.where(bridge, opts.gap_sigma_m_per_s * dt, 0.0)
         sigma_r = sigma_r + np.where(bridge, opts.gap_sigma_rad_per_s * dt, 0.0)
-        meas, info = _perturb(t_rel, q_rel, sigma_t, sigma_r, rng_odo, opts.planar)
-        init_p, init_q = _compose_chain(p[0], q[0], meas[:, :3], meas[:, 3:])
+        if planar:
+            meas, info = _perturb_se2(rel, sigma_t, sigma_r, rng_odo)
+            init = _compose_se2(gt[0], meas)
+            kf_pos.append(np.column_stack([gt[:, 0:2], np.zeros(len(gt))]))
+            kf_heading.append(gt[:, 2])
+        else:
+            meas, info = _perturb(t_rel, q_rel, sigma_t, sigma_r, rng_odo)
+            init_p, init_q = _compose_chain(p[0], q[0], meas[:, :3], meas[:, 3:])
+            init, gt = np.column_stack([init_p, init_q]), np.column_stack([p, q])
+            kf_pos.append(p)
+            kf_heading.append(q)
         for v in np.flatnonzero(bridge).tolist():
             gaps.append(Gap(traj.name, int(v), int(st[v]), int(st[v + 1]), float(dist[v])))
         m = len(kf)
-        agents_data.append((traj.name, st, np.column_stack([init_p, init_q]), np.column_stack([p, q]),
-                            meas, info))
-        kf_pos.append(p)
-        kf_quat.append(q)
+        agents_data.append((traj.name, st, init, gt, meas, info))
         kf_stamps.append(st)
         kf_agent.append(np.full(m, a, dtype=np.int64))
         kf_index.append(np.arange(m, dtype=np.int64))
     if progress:
         progress("loop closures", 0, 1)
     P = np.concatenate(kf_pos)
-    Qk = np.concatenate(kf_quat)
+    H = np.concatenate(kf_heading)  # yaw (planar) or quaternion rows
     S = np.concatenate(kf_stamps)
     A = np.concatenate(kf_agent)
     V = np.concatenate(kf_index)
@@ -378,20 +413,28 @@ def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
     if opts.rendezvous > 0:
         ok &= same | (dt_ns <= int(round(opts.rendezvous * NS_PER_S)))
     if opts.lc_max_heading > 0:
-        ex = np.zeros((len(i), 3))
-        ex[:, 0] = 1.0
-        fi, fj = quat_rotate(Qk[i], ex), quat_rotate(Qk[j], ex)
-        ok &= np.einsum("ij,ij->i", fi, fj) >= math.cos(math.radians(opts.lc_max_heading))
+        if planar:
+            cos_between = np.cos(H[j] - H[i])
+        else:
+            ex = np.zeros((len(i), 3))
+            ex[:, 0] = 1.0
+            cos_between = np.einsum("ij,ij->i", quat_rotate(H[i], ex), quat_rotate(H[j], ex))
+        ok &= cos_between >= math.cos(math.radians(opts.lc_max_heading))
     i, j, d, same = i[ok], j[ok], d[ok], same[ok]
     p0 = np.where(same, opts.lc_prob_intra, opts.lc_prob_inter)
     prob = p0 * np.exp(-5.0 * (d / opts.lc_radius) ** 2)
     rng_lc = _rng(opts.seed, _STREAM_LOOPS)
     accept = rng_lc.random(len(i)) < prob
     i, j, same = i[accept], j[accept], same[accept]
-    t_rel, q_rel = _relative(P[i], Qk[i], P[j], Qk[j])
     n_lc = len(i)
-    meas_lc, info_lc = _perturb(t_rel, q_rel, np.full(n_lc, opts.lc_sigma_m), np.full(n_lc, opts.lc_sigma_rad),
-                                rng_lc, opts.planar)
+    sig_t, sig_r = np.full(n_lc, opts.lc_sigma_m), np.full(n_lc, opts.lc_sigma_rad)
+    if planar:
+        meas_lc, info_lc = _perturb_se2(
+            _relative_se2(np.column_stack([P[i, 0:2], H[i]]), np.column_stack([P[j, 0:2], H[j]])),
+            sig_t, sig_r, rng_lc)
+    else:
+        t_rel, q_rel = _relative(P[i], H[i], P[j], H[j])
+        meas_lc, info_lc = _perturb(t_rel, q_rel, sig_t, sig_r, rng_lc)
     j_out = j.copy()
     outlier = np.zeros(n_lc, dtype=bool)
     if opts.outlier_fraction > 0 and n_lc:
@@ -407,17 +450,19 @@ def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
                 j_out[e] = cand[rng_out.integers(cand.size)]
                 outlier[e] = True
     agents = []
-    kind = PoseKind.SE2 if opts.planar else PoseKind.SE3
+    kind = PoseKind.SE2 if planar else PoseKind.SE3
     for a, (name, st, init, gt, meas, info) in enumerate(agents_data):
         sel = same & (A[i] == a)
         m = len(st)
-        odo = Edges(PoseKind.SE3, np.arange(m - 1), np.arange(1, m), meas, info)
-        lc = Edges(PoseKind.SE3, V[i[sel]], V[j_out[sel]], meas_lc[sel], info_lc[sel])
-        agents.append((name, st, init, gt, odo, lc))
+        agents.append(AgentGraph(
+            name, kind, st, init, gt,
+            Edges(kind, np.arange(m - 1), np.arange(1, m), meas, info),
+            Edges(kind, V[i[sel]], V[j_out[sel]], meas_lc[sel], info_lc[sel]),
+        ))
     inter_sel = ~same
-    inter_cols = (A[i[inter_sel]], V[i[inter_sel]], A[j_out[inter_sel]], V[j_out[inter_sel]],
-                  meas_lc[inter_sel], info_lc[inter_sel])
-    graph = _assemble(kind, agents, inter_cols)
+    inter = InterAgentEdges(kind, A[i[inter_sel]], V[i[inter_sel]], A[j_out[inter_sel]], V[j_out[inter_sel]],
+                            meas_lc[inter_sel], info_lc[inter_sel])
+    graph = PoseGraph(kind, tuple(agents), inter)
     out_rows = np.column_stack([A[i], V[i], A[j_out], V[j_out]])[outlier].astype(np.int64).reshape(-1, 4)
     counts = {
         "candidate_pairs": int(len(ok)),
@@ -426,24 +471,3 @@ def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
         "outliers": int(np.count_nonzero(outlier)),
     }
     return BuildResult(graph, origin, tuple(gaps), out_rows, counts)
-
-
-def _assemble(kind: PoseKind, agents, inter_cols) -> PoseGraph:
-    planar = kind is PoseKind.SE2
-
-    def rows(x):
-        return _se3_rows_to_se2(x) if planar else x
-
-    def info(x):
-        return _info_to_se2(x) if planar else x
-
-    out = []
-    for name, st, init, gt, odo, lc in agents:
-        out.append(AgentGraph(
-            name, kind, st, rows(init), rows(gt),
-            Edges(kind, odo.from_index, odo.to_index, rows(odo.measurements), info(odo.information_upper)),
-            Edges(kind, lc.from_index, lc.to_index, rows(lc.measurements), info(lc.information_upper)),
-        ))
-    fa, fv, ta, tv, meas, inf = inter_cols
-    inter = InterAgentEdges(kind, fa, fv, ta, tv, rows(meas), info(inf))
-    return PoseGraph(kind, tuple(out), inter)

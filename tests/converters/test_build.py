@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from studio.converters.build import GraphOptions, build_graph, pairs_within, select_keyframes
-from studio.core.geometry import quat_conj, quat_mul, quat_rotate
+from studio.converters.build import GraphOptions, build_graph, pairs_within, select_keyframes, step_turns_rad
+from studio.core.geometry import quat_conj, quat_mul, quat_rotate, se3_poses_to_planar
+from studio.core.model import PoseKind
 from studio.core.trajectory import Trajectory
 from studio.core.errors import ConfigError
 from tests.converters.synthetic import UTM_EAST, UTM_NORTH, loop_trajectory
@@ -34,13 +35,13 @@ def test_pairs_within_matches_brute_force():
 
 def test_keyframes_every_distance_and_angle():
     s, p, q = loop_trajectory(1001, radius=10.0, laps=1.0)  # 62.8 m of path and 360 degrees of turn
-    kf, gaps = select_keyframes(s, p, q, GraphOptions(keyframe_distance=2.0, keyframe_angle=0.0))
+    kf, gaps = select_keyframes(s, p, step_turns_rad(q), GraphOptions(keyframe_distance=2.0, keyframe_angle=0.0))
     assert not gaps.any()
     assert kf[0] == 0 and kf[-1] == 1000
     assert len(kf) == 32 + 1  # floor(62.8 / 2) = 31 crossings + first + last
-    kf2, _ = select_keyframes(s, p, q, GraphOptions(keyframe_distance=0.0, keyframe_angle=30.0))
+    kf2, _ = select_keyframes(s, p, step_turns_rad(q), GraphOptions(keyframe_distance=0.0, keyframe_angle=30.0))
     assert len(kf2) == 12 + 1  # 11 crossings of 30 degrees before 360 (reached at the last pose) + first + last
-    kf3, _ = select_keyframes(s, p, q, GraphOptions(keyframe_distance=0.0, keyframe_angle=0.0, keyframe_time=10.0))
+    kf3, _ = select_keyframes(s, p, step_turns_rad(q), GraphOptions(keyframe_distance=0.0, keyframe_angle=0.0, keyframe_time=10.0))
     assert np.all(np.diff(s[kf3][:-1]) == 10_000_000_000)
 
 
@@ -215,3 +216,30 @@ def test_duplicate_agent_names_are_rejected():
 def test_integer_options_become_floats():
     o = GraphOptions(lc_radius=3, seed=2)
     assert isinstance(o.lc_radius, float) and o.lc_radius == 3.0 and o.seed == 2
+
+
+def test_planar_build_agrees_with_the_spatial_one_on_a_flat_path():
+    """Planar graphs are built in SE(2) directly; on a flat path they match the spatial build: the
+    same keyframes, ground truth, loop-closure pairs and translation noise (one random stream)."""
+    trajs = [traj("a"), traj("b", phase=1.0)]
+    opts = dict(seed=5, lc_radius=3.0)
+    flat = build_graph(trajs, GraphOptions(planar=True, **opts)).graph
+    full = build_graph(trajs, GraphOptions(**opts)).graph
+    assert flat.kind is PoseKind.SE2 and full.kind is PoseKind.SE3
+    for a2, a3 in zip(flat.agents, full.agents):
+        np.testing.assert_array_equal(a2.stamps_ns, a3.stamps_ns)
+        np.testing.assert_allclose(a2.ground_truth, se3_poses_to_planar(a3.ground_truth), atol=1e-9)
+        np.testing.assert_allclose(a2.odometry.measurements[:, 0:2], a3.odometry.measurements[:, 0:2], atol=1e-9)
+        np.testing.assert_array_equal(a2.loop_closures.from_index, a3.loop_closures.from_index)
+        np.testing.assert_array_equal(a2.loop_closures.to_index, a3.loop_closures.to_index)
+        # the planar information is the x, y, yaw block of the spatial one
+        np.testing.assert_allclose(a2.odometry.information_upper[:, [0, 3, 5]],
+                                   a3.odometry.information_upper[:, [0, 6, 20]], rtol=1e-12)
+        assert not a2.odometry.information_upper[:, [1, 2, 4]].any()
+    assert len(flat.inter) == len(full.inter) > 0
+    # dead reckoning composes the noisy planar steps
+    a = flat.agents[0]
+    step = a.odometry.measurements[0]
+    c, s = np.cos(a.ground_truth[0, 2]), np.sin(a.ground_truth[0, 2])
+    np.testing.assert_allclose(a.initial[1, 0:2], a.ground_truth[0, 0:2] + [c * step[0] - s * step[1],
+                                                                            s * step[0] + c * step[1]])
