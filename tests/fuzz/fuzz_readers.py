@@ -317,7 +317,11 @@ def _hypothesis_round(report: FuzzReport, target: Target, work: Path, examples: 
 
 def fuzz(seconds: float, *, seed: int | None = None, readers: list[str] | None = None,
          log: Callable[[str], None] | None = None) -> FuzzReport:
-    """Fuzz every reader (or those named) for about ``seconds`` in total, round-robin."""
+    """Fuzz every reader (or those named) for about ``seconds`` in total, round-robin.
+
+    The first round always runs, with plain mutations, so every reader is tried at least once even
+    when the machine is too busy for the time budget (a hypothesis round may spend it all starting).
+    """
     names = readers or [*READERS, MULTI]
     rng = random.Random(seed)
     report = FuzzReport(tried={n: 0 for n in names})
@@ -326,7 +330,7 @@ def fuzz(seconds: float, *, seed: int | None = None, readers: list[str] | None =
     work = Path(tempfile.mkdtemp(prefix="studio-fuzz-"))
     try:
         k = 0
-        while time.monotonic() < stop:
+        while k < len(names) or time.monotonic() < stop:
             if log is not None and k and k % len(names) == 0:
                 log(f"\r{time.monotonic() - t0:6.1f} s: {sum(report.tried.values())} inputs, "
                     f"{len(report.failures)} failures")
@@ -340,7 +344,7 @@ def fuzz(seconds: float, *, seed: int | None = None, readers: list[str] | None =
                     _run_multi(report, {rel: mutate(seed_data, rng)}, work)
                 continue
             target = READERS[name]
-            if rng.random() < 0.35:
+            if k > len(names) and rng.random() < 0.35:
                 _hypothesis_round(report, target, work, 30, stop)
             else:
                 for _ in range(30):
