@@ -175,6 +175,9 @@ class AgentGraph:
     """Ground truth, one row per pose, or None where a dataset has none."""
     odometry: Edges
     loop_closures: Edges
+    ground_truth_se3: np.ndarray | None = field(default=None, repr=False)
+    """Planar agents only, optional: the ground truth as read from a 3D file (``(n, 7)``), kept so
+    that :meth:`to_se3` returns the file's quaternions instead of re-deriving them from the yaw."""
 
     def __post_init__(self) -> None:
         if not self.name:
@@ -197,6 +200,13 @@ class AgentGraph:
                 raise GraphError(f"{self.name}: {len(gt)} ground-truth poses for {n} poses")
             _check_poses(gt, self.kind, f"{self.name}: ground_truth")
             object.__setattr__(self, "ground_truth", gt)
+        if self.ground_truth_se3 is not None:
+            if self.kind is not PoseKind.SE2 or self.ground_truth is None:
+                raise GraphError(f"{self.name}: ground_truth_se3 belongs to a planar agent with ground truth")
+            gt3 = _as_rows(self.ground_truth_se3, 7, f"{self.name}: ground_truth_se3")
+            if len(gt3) != n:
+                raise GraphError(f"{self.name}: {len(gt3)} 3D ground-truth poses for {n} poses")
+            object.__setattr__(self, "ground_truth_se3", gt3)
         for label, edges in (("odometry", self.odometry), ("loop closure", self.loop_closures)):
             if edges.kind is not self.kind:
                 raise GraphError(f"{self.name}: {label} edges are {edges.kind.value}, poses {self.kind.value}")
@@ -220,7 +230,8 @@ class AgentGraph:
             PoseKind.SE3,
             self.stamps_ns,
             planar_poses_to_se3(self.initial),
-            None if self.ground_truth is None else planar_poses_to_se3(self.ground_truth),
+            self.ground_truth_se3 if self.ground_truth_se3 is not None
+            else None if self.ground_truth is None else planar_poses_to_se3(self.ground_truth),
             self.odometry.to_se3(),
             self.loop_closures.to_se3(),
         )

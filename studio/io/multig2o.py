@@ -117,18 +117,19 @@ def read_multi_g2o(folder: str | os.PathLike, *, edges: bool = True) -> PoseGrap
             return Edges(kind, fr[sl], to[sl], doc.edge_measurements[sl], doc.edge_information_upper[sl])
 
         gt_path = sub / f"{sub.name}_GT.tum"
-        gt = None
+        gt = gt3 = None
         stamps = np.arange(n, dtype=np.int64) * NS_PER_S
         if gt_path.is_file():
             traj = read_tum(gt_path)
             if len(traj.stamps_ns) != n:
                 raise FormatError(f"{gt_path}: {len(traj.stamps_ns)} poses for {n} vertices in {g2o_path.name}")
             stamps = traj.stamps_ns
-            poses = traj.poses_xyz_quat_xyzw
-            gt = poses if kind is PoseKind.SE3 else se3_poses_to_planar(poses)
+            gt3 = traj.poses_xyz_quat_xyzw
+            gt = gt3 if kind is PoseKind.SE3 else se3_poses_to_planar(gt3)
         try:
             agents.append(AgentGraph(sub.name, kind, stamps, initial, gt, edge_slice(slice(0, n_odo)),
-                                     edge_slice(slice(n_odo, None))))
+                                     edge_slice(slice(n_odo, None)),
+                                     ground_truth_se3=gt3 if kind is PoseKind.SE2 else None))
         except GraphError as err:
             raise FormatError(f"{sub}: {err}") from None
     dat = folder / "inter_agent_lc.dat"

@@ -46,6 +46,23 @@ def test_multi_g2o_round_trip_2d_records(graph, tmp_path):
     assert np.array_equal(back.inter.measurements, graph.inter.measurements)
 
 
+def test_planar_dataset_keeps_the_ground_truth_quaternions_it_read(graph, tmp_path):
+    """A planar dataset read from disk lifts to 3D with the ground-truth file's own quaternions,
+    not with quaternions re-derived from the yaw (no yaw-and-back round trip)."""
+    write_multi_g2o(graph, tmp_path, records="2d", precision="full")
+    path = tmp_path / "agent1" / "agent1_GT.tum"
+    text = path.read_text().splitlines()
+    parts = text[3].split()
+    parts[6], parts[7] = "0.4", "0.9"  # a quaternion that no yaw_to_quat gives (read normalised)
+    text[3] = " ".join(parts)
+    path.write_text("\n".join(text) + "\n")
+    back = read_multi_g2o(tmp_path)
+    assert back.kind is PoseKind.SE2
+    lifted = back.to_se3().agents[0].ground_truth
+    assert lifted.tobytes() == read_tum(path).poses_xyz_quat_xyzw.tobytes()
+    np.testing.assert_allclose(lifted[3, 5:7], np.array([0.4, 0.9]) / np.hypot(0.4, 0.9), rtol=0, atol=1e-15)
+
+
 def test_kollagen_precision_dat_reads_back_to_six_decimals(graph, tmp_path):
     write_multi_g2o(graph, tmp_path)  # kollagen's %f
     back = read_multi_g2o(tmp_path)
