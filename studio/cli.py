@@ -14,6 +14,7 @@ from pathlib import Path
 
 import typer
 
+from studio.core.alignment import Alignment
 from studio.core.errors import StudioError
 
 app = typer.Typer(
@@ -121,12 +122,6 @@ def record(
         )
 
 
-class AlignChoice(str, enum.Enum):
-    none = "none"
-    se3 = "se3"
-    sim3 = "sim3"
-
-
 @app.command()
 @cli_errors
 def evaluate(
@@ -136,7 +131,9 @@ def evaluate(
         help="An optimizer's output: a single g2o file (ids as in the dataset's single g2o), a multi-g2o "
              "folder, or a folder of <agent>.tum / <agent>_*.tum files. Default: the dataset's initial estimate.",
     ),
-    align: AlignChoice = typer.Option(AlignChoice.none, "--align", help="Umeyama alignment before scoring."),
+    align: Alignment = typer.Option(Alignment.none, "--align",
+                                    help="Alignment before scoring: none, first-pose (each agent's first pose on its "
+                                         "ground truth), se3 or sim3 (Umeyama). See docs/evaluation.md."),
     align_per_agent: bool = typer.Option(False, "--align-per-agent", help="One alignment per agent, not one for all."),
     rpe_delta_m: float = typer.Option(1.0, "--rpe-delta-m", help="RPE distance in metres of ground-truth path."),
     rpe_delta_nodes: int = typer.Option(1, "--rpe-delta-nodes", help="RPE distance in nodes."),
@@ -162,7 +159,7 @@ def evaluate(
 
     if as_json and markdown:
         raise ConfigError("--json and --markdown exclude each other")
-    if align_per_agent and align is AlignChoice.none:
+    if align_per_agent and align not in (Alignment.se3, Alignment.sim3):
         raise ConfigError("--align-per-agent needs --align se3 or --align sim3")
     ev = evaluate_dataset(dataset, estimate=estimate, align=align.value, align_per_agent=align_per_agent,
                           rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes, tum_max_diff_s=tum_max_diff)
@@ -338,6 +335,72 @@ def convert(
         )
         for gap in res.build.gaps:
             typer.echo(f"  gap: {gap.agent} vertex {gap.vertex}: {gap.seconds:.3f} s, {gap.metres:.2f} m bridged")
+
+
+class MethodChoice(str, enum.Enum):
+    gtsam = "gtsam"
+    g2o = "g2o"
+    gnc = "gnc"
+    command = "command"
+
+
+class OptimizerChoice(str, enum.Enum):
+    gn = "gn"
+    lm = "lm"
+
+
+class InitChoice(str, enum.Enum):
+    chordal = "chordal"
+    spanning_tree = "spanning-tree"
+    odometry = "odometry"
+
+
+class DimensionChoice(str, enum.Enum):
+    auto = "auto"
+    d2 = "2d"
+    d3 = "3d"
+
+
+@app.command()
+@cli_errors
+def solve(
+    dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder or a single .g2o file."),
+    out: Path = typer.Option(..., "-o", "--out", help="Folder to write: the estimate and solve.json."),
+    method: MethodChoice = typer.Option(MethodChoice.gtsam, "--method", "-m",
+                                        help="gtsam (chordal guess + GN), g2o (paper's setup), gnc (robust), "
+                                             "command (an external program)."),
+    optimizer: OptimizerChoice = typer.Option(OptimizerChoice.gn, "--optimizer", help="gn or lm (gtsam)."),
+    init: InitChoice = typer.Option(InitChoice.chordal, "--init", help="Initial guess (gtsam, gnc)."),
+    iterations: int | None = typer.Option(None, "--iterations",
+                                          help="Most iterations (default 20; g2o: exactly 10, as the paper)."),
+    command: str = typer.Option("", "--command",
+                                help="Program for --method command, with {input} and {output}, "
+                                     "e.g. 'se-sync {input} {output}'."),
+    dimension: DimensionChoice = typer.Option(DimensionChoice.auto, "--dimension",
+                                              help="auto: planar 3D data is solved in SE(2)."),
+    rrd: Path | None = typer.Option(None, "--rrd", help="Also write the run as a Rerun recording (.rrd)."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing OUT (and --rrd file)."),
+    as_json: bool = typer.Option(False, "--json", help="Print solve.json instead of a summary."),
+) -> None:
+    """Optimize a dataset's pose graph and write the estimate (multi-g2o or g2o) with solve.json.
+
+    Example: studio solve out/multi3500x8 -o out/multi3500x8-solved ; then
+    studio evaluate out/multi3500x8 --estimate out/multi3500x8-solved/estimate --align se3
+    """
+    import json
+
+    from studio.solve import solve as run_solve
+
+    res = run_solve(dataset, out, method=method.value, optimizer=optimizer.value, init=init.value,
+                    max_iterations=iterations, command=command, dimension=dimension.value,  # type: ignore[arg-type]
+                    force=force, rrd=rrd)
+    if as_json:
+        typer.echo(json.dumps(res.to_dict(), indent=2))
+        return
+    rejected = "" if res.rejected is None else f", {len(res.rejected)} loop closures rejected"
+    typer.echo(f"{dataset.name}: {res.method}, {res.iterations} iterations, chi2 {res.chi2_initial:.6g} -> "
+               f"{res.chi2_final:.6g} (dead reckoning {res.chi2_dataset:.6g}){rejected}, {res.seconds:.2f} s\n"
+               f"  {res.estimate_path}" + ("" if res.rrd_path is None else f"\n  {res.rrd_path}"))
 
 
 def main() -> None:

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from studio.core.alignment import Alignment
 from studio.core.errors import EvaluationError
 from studio.core.model import PoseGraph
 from studio.core.units import NS_PER_S
@@ -55,12 +56,6 @@ __all__ = [
 
 #: Largest time difference [s] at which a TUM estimate pose is matched to a ground-truth pose (evo's default).
 DEFAULT_TUM_MAX_DIFF_S = 0.01
-
-
-class Alignment(str, enum.Enum):
-    none = "none"
-    se3 = "se3"
-    sim3 = "sim3"
 
 
 @dataclass(frozen=True)
@@ -154,6 +149,8 @@ class Evaluation:
     def alignment_text(self) -> str:
         if self.alignment is Alignment.none:
             return "unaligned"
+        if self.alignment is Alignment.first_pose:
+            return "first pose of each agent put on its ground truth"
         return f"{self.alignment.value} Umeyama alignment, " + (
             "one per agent" if self.align_per_agent else "one for all agents")
 
@@ -251,6 +248,14 @@ def _apply(poses: np.ndarray, r: np.ndarray, t: np.ndarray, s: float) -> np.ndar
     return out
 
 
+def _first_pose_transform(gt0: np.ndarray, est0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(R, t)`` of the rigid transform that takes the pose ``est0`` onto ``gt0``: ``T = G E^-1``."""
+    from scipy.spatial.transform import Rotation
+
+    r = (Rotation.from_quat(gt0[3:7]) * Rotation.from_quat(est0[3:7]).inv()).as_matrix()
+    return r, gt0[0:3] - r @ est0[0:3]
+
+
 def _rpe(gt: np.ndarray, est: np.ndarray, delta: float, unit) -> tuple[np.ndarray, np.ndarray]:
     """RPE translation [m] and rotation [deg] of evo's consecutive pairs, pairs taken on the ground truth."""
     from evo.core import filters, metrics
@@ -300,7 +305,8 @@ def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_
     try:
         align = Alignment(align)
     except ValueError:
-        raise EvaluationError(f"unknown alignment {align!r} (known: none, se3, sim3)") from None
+        raise EvaluationError(f"unknown alignment {align!r} "
+                              f"(known: {', '.join(a.value for a in Alignment)})") from None
     if not (math.isfinite(rpe_delta_m) and rpe_delta_m > 0):
         raise EvaluationError(f"the RPE distance must be a positive number of metres, got {rpe_delta_m!r}")
     if rpe_delta_nodes < 1:
@@ -311,7 +317,14 @@ def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_
     matched = _matched(graph, estimate, by_time, tum_max_diff_s, warnings)
     names = [a.name for a in graph.agents]
     transforms = []
-    if align is not Alignment.none:
+    if align is Alignment.first_pose:
+        aligned = []
+        for gt, est, st, idx in matched:
+            r, t = _first_pose_transform(gt[0], est[0])
+            transforms.append((r, t, 1.0))
+            aligned.append((gt, _apply(est, r, t, 1.0), st, idx))
+        matched = aligned
+    elif align is not Alignment.none:
         sim3 = align is Alignment.sim3
         if align_per_agent:
             aligned = []
@@ -353,7 +366,8 @@ def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_
         dataset=dataset or str(graph.metadata.get("source", "")),
         estimate=estimate_label or ("initial estimate" if estimate is None else "estimate"),
         estimate_layout=estimate_layout or ("initial" if estimate is None else "arrays"),
-        alignment=align, align_per_agent=align_per_agent and align is not Alignment.none,
+        alignment=align,
+        align_per_agent=align is Alignment.first_pose or (align_per_agent and align is not Alignment.none),
         rpe_delta_m=float(rpe_delta_m), rpe_delta_nodes=int(rpe_delta_nodes),
         agents=rows, overall=overall,
         node_indices=tuple(np.asarray(m[3], dtype=np.int64) for m in matched),

@@ -10,7 +10,8 @@ __all__ = [
     "APPLICATION_ID", "TIMELINE_NODE", "TIMELINE_TIME", "WORLD", "PATH_GROUND_TRUTH", "PATH_INITIAL",
     "POSE_GROUND_TRUTH", "POSE_INITIAL", "LOOP_CLOSURES_INTRA", "LOOP_CLOSURES_INTER", "METRICS",
     "SERIES_POSITION_ERROR", "SERIES_LOOP_CLOSURES", "SERIES_INTER_LOOP_CLOSURES", "PROPERTY_DATASET",
-    "PROPERTY_CONFIG", "EVALUATION", "EVALUATION_SUMMARY", "EVALUATION_SERIES",
+    "PROPERTY_CONFIG", "EVALUATION", "EVALUATION_SUMMARY", "EVALUATION_SERIES", "TIMELINE_ITERATION",
+    "SOLVE", "SOLVE_ESTIMATE", "SOLVE_GROUND_TRUTH", "SOLVE_CHI2", "SOLVE_ERROR",
 ]
 
 #: Fixed application id of every recording the studio writes, so recordings of one dataset (its
@@ -55,3 +56,16 @@ EVALUATION = "evaluation"
 EVALUATION_SUMMARY = "evaluation/summary"
 #: Scalar per node of one agent: ``{metric}`` is e.g. ``ape_translation_m``.
 EVALUATION_SERIES = "evaluation/{agent}/{metric}"
+
+# Solve ------------------------------------------------------------------------------------------------
+#: Sequence timeline of an optimizer run: 0 is the initial guess, k the estimate after iteration k.
+TIMELINE_ITERATION = "iteration"
+SOLVE = "solve"
+#: Points (coloured by their error against the ground truth) and path of an agent's estimate, per iteration.
+SOLVE_ESTIMATE = "solve/{agent}/estimate"
+#: Static path of an agent's ground truth, beside the estimate.
+SOLVE_GROUND_TRUTH = "solve/{agent}/ground_truth"
+#: Scalar per iteration: the graph's chi2 (g2o convention).
+SOLVE_CHI2 = "solve/metrics/chi2"
+#: Scalar per iteration: mean position error of the estimate against the ground truth [m].
+SOLVE_ERROR = "solve/metrics/position_error_m"

@@ -219,7 +219,7 @@ def test_alignment_removes_a_common_transform(graph):
 
 
 def test_unknown_alignment_is_a_studio_error(graph):
-    with pytest.raises(EvaluationError, match=r"unknown alignment 'se2' \(known: none, se3, sim3\)"):
+    with pytest.raises(EvaluationError, match=r"unknown alignment 'se2' \(known: none, first-pose, se3, sim3\)"):
         score(graph, align="se2")
 
 

@@ -1,0 +1,111 @@
+"""An optimizer run as Rerun data: the estimate at every iteration on the ``iteration`` timeline,
+beside the ground truth, the cost per iteration, and per-node error colouring.
+
+Recorded with the dataset recording's application id and, for a multi-g2o dataset, its recording id,
+so that opening both files shows the run on top of the dataset.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from studio.core.geometry import planar_poses_to_se3
+from studio.core.model import PoseGraph, PoseKind
+from studio.recording.entities import (
+    APPLICATION_ID,
+    SOLVE,
+    SOLVE_CHI2,
+    SOLVE_ERROR,
+    SOLVE_ESTIMATE,
+    SOLVE_GROUND_TRUTH,
+    TIMELINE_ITERATION,
+)
+
+__all__ = ["log_solve", "write_solve_recording", "solve_blueprint"]
+
+
+def _error_colours(err: np.ndarray, scale: float) -> np.ndarray:
+    """Green (0) to red (``scale`` or more), RGBA bytes."""
+    t = np.clip(err / max(scale, 1e-12), 0.0, 1.0)[:, None]
+    green, red = np.array([40, 180, 60, 255.0]), np.array([220, 40, 40, 255.0])
+    return (green + t * (red - green)).astype(np.uint8)
+
+
+def solve_blueprint(names: Sequence[str]) -> Any:
+    import rerun.blueprint as rrb
+
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial3DView(name="estimate vs ground truth", origin=SOLVE),
+            rrb.Vertical(
+                rrb.TimeSeriesView(name="chi2 (g2o convention)", origin=SOLVE_CHI2),
+                rrb.TimeSeriesView(name="mean position error [m]", origin=SOLVE_ERROR),
+            ),
+            column_shares=[3, 1],
+        ),
+        rrb.TimePanel(timeline=TIMELINE_ITERATION),
+        collapse_panels=True,
+    )
+
+
+def log_solve(rec: Any, graph: PoseGraph | None, offsets: np.ndarray, kind: PoseKind,
+              iterates: Sequence[tuple[int, np.ndarray]], chi2_history: Sequence[float]) -> None:
+    """Log the iterates (global-id poses, ``kind`` rows) split per agent by ``offsets``."""
+    import rerun as rr
+
+    names = [a.name for a in graph.agents] if graph is not None else ["graph"]
+    lifted = [(k, planar_poses_to_se3(p) if kind is PoseKind.SE2 else p) for k, p in iterates]
+    truth = None
+    if graph is not None and all(a.ground_truth is not None for a in graph.agents):
+        g3 = graph.to_se3()
+        truth = np.concatenate([a.ground_truth for a in g3.agents])  # type: ignore[misc]
+        for j, a in enumerate(g3.agents):
+            rec.log(SOLVE_GROUND_TRUTH.format(agent=rr.escape_entity_path_part(a.name)),
+                    rr.LineStrips3D([a.ground_truth[:, 0:3]], colors=[(200, 200, 200, 160)], radii=-1.0),  # type: ignore[index]
+                    static=True)
+    scale = 1.0
+    if truth is not None and lifted:
+        scale = float(np.percentile(np.linalg.norm(lifted[0][1][:, 0:3] - truth[:, 0:3], axis=1), 95))
+    rec.log(SOLVE_CHI2, rr.SeriesLines(names="chi2"), static=True)
+    rec.log(SOLVE_ERROR, rr.SeriesLines(names="mean position error [m]"), static=True)
+    for k, poses in lifted:
+        rec.set_time(TIMELINE_ITERATION, sequence=k)
+        err = None if truth is None else np.linalg.norm(poses[:, 0:3] - truth[:, 0:3], axis=1)
+        for j, name in enumerate(names):
+            lo, hi = int(offsets[j]), int(offsets[j + 1])
+            pts = poses[lo:hi, 0:3]
+            colours = None if err is None else _error_colours(err[lo:hi], scale)
+            path = SOLVE_ESTIMATE.format(agent=rr.escape_entity_path_part(name))
+            rec.log(path, rr.Points3D(pts, colors=colours, radii=-2.0),
+                    rr.LineStrips3D([pts], colors=[(90, 140, 230, 200)], radii=-0.75))
+        if k < len(chi2_history):
+            rec.log(SOLVE_CHI2, rr.Scalars(chi2_history[k]))
+        if err is not None:
+            rec.log(SOLVE_ERROR, rr.Scalars(float(err.mean())))
+
+
+def write_solve_recording(path: str | os.PathLike, graph: PoseGraph | None, offsets: np.ndarray, kind: PoseKind,
+                          iterates: Sequence[tuple[int, np.ndarray]], chi2_history: Sequence[float], *,
+                          name: str, force: bool = False) -> Path:
+    """Write the run to a new ``.rrd`` (staged, renamed into place)."""
+    import rerun as rr
+
+    from studio.io.atomic import staged_outputs
+    from studio.recording.dataset import recording_id_for
+
+    path = Path(path)
+    rid = recording_id_for(graph) if graph is not None else None
+    names = [a.name for a in graph.agents] if graph is not None else ["graph"]
+    with staged_outputs(path.parent, [path.name], force=force) as staging:
+        rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)
+        try:
+            rec.save(staging / path.name, default_blueprint=solve_blueprint(names))
+            rec.send_recording_name(name)
+            log_solve(rec, graph, offsets, kind, iterates, chi2_history)
+        finally:
+            rec.disconnect()
+    return path

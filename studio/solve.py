@@ -1,0 +1,277 @@
+"""``studio solve`` as a library function: optimize a dataset's pose graph with a back-end of
+:mod:`studio.solvers` and write the estimate.
+
+DATASET is a multi-g2o folder (synth, convert or anywhere) or a single g2o file (kollagen's single
+view, as the kollagen paper's optimizers read it: every agent's vertices with concatenated ids, and
+kollagen's connector edges joining agent k's last pose to agent k+1's first).
+
+* A multi-g2o folder is flattened to global ids (agent k's vertices after agents 0..k-1's); vertex 0
+  of the first agent is held fixed. The estimate is written as a multi-g2o folder (the dataset's
+  edges, the optimized vertices, no ground truth) with one TUM file per agent in ``tum/``.
+* A single g2o file is solved as it is (vertex 0 fixed) and the estimate written as
+  ``<stem>.g2o`` with the same ids, which ``studio evaluate DATASET --estimate`` scores directly.
+* A 3D dataset whose poses and measurements are all planar (z, roll and pitch zero, as kollagen's
+  3D records of its planar walk) is solved in SE(2) (``dimension="auto"``) and written back in 3D;
+  its chi2 is the planar one.
+
+``solve.json`` beside the estimate holds the method, options, iterations, chi2 (g2o convention,
+sum of e^T Omega e) at the dataset's initial values, after the initial guess and at the end, the
+wall time and, for ``gnc``, the loop closures it rejected. Outputs are staged and renamed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from studio.core.errors import ConfigError, FormatError
+from studio.core.geometry import planar_poses_to_se3, se2_information_to_se3, se3_poses_to_planar
+from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
+from studio.core.trajectory import Trajectory
+from studio.solvers import DEFAULT_METHOD, get_method
+from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
+
+__all__ = ["SolveResult", "solve", "load_problem", "Dimension", "SOLVE_JSON"]
+
+Dimension = Literal["auto", "2d", "3d"]
+SOLVE_JSON = "solve.json"
+_PLANAR_TOLERANCE = 1e-9
+_SE2_FROM_SE3 = [0, 1, 5, 6, 10, 20]  # x, y, yaw entries of a 6x6 upper triangle
+
+
+@dataclass(frozen=True, eq=False)
+class Loaded:
+    """A dataset read for solving: the problem and what is needed to write the estimate back."""
+
+    problem: Problem
+    source_kind: PoseKind
+    """The pose kind of the files (the problem may be planar while the files are 3D)."""
+    graph: PoseGraph | None
+    """The dataset (multi-g2o input), or None for a single g2o file."""
+    offsets: np.ndarray
+    """First global id of each agent (multi-g2o), or ``[0, n]`` for a single g2o file."""
+    single_doc: Any = None
+
+
+@dataclass(frozen=True, eq=False)
+class SolveResult:
+    out_dir: Path
+    estimate_path: Path
+    """What ``studio evaluate --estimate`` takes: the multi-g2o folder, or the ``.g2o`` file."""
+    method: str
+    options: SolveOptions
+    iterations: int
+    chi2_dataset: float
+    """chi2 at the dataset's own initial values (dead reckoning)."""
+    chi2_initial: float
+    """chi2 after the initial guess (what the iterations start from)."""
+    chi2_final: float
+    seconds: float
+    """Wall time of loading, initial guess and iterations (not writing)."""
+    planar: bool
+    rejected: np.ndarray | None
+    """``gnc``: rows ``from_agent from_vertex to_agent to_vertex`` (0-based) of rejected closures."""
+    solution: Solution
+    rrd_path: Path | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "method": self.method,
+            "options": dataclasses.asdict(self.options),
+            "planar": self.planar,
+            "iterations": self.iterations,
+            "chi2_dataset": self.chi2_dataset,
+            "chi2_initial": self.chi2_initial,
+            "chi2_final": self.chi2_final,
+            "chi2_history": list(self.solution.chi2_history),
+            "seconds": self.seconds,
+            "estimate": self.estimate_path.name,
+            "rejected_loop_closures": None if self.rejected is None else self.rejected.tolist(),
+            "notes": self.solution.notes,
+        }
+
+
+def _is_planar(poses: np.ndarray) -> bool:
+    return bool(np.all(np.abs(poses[:, [2, 3, 4]]) <= _PLANAR_TOLERANCE))
+
+
+def _planar_problem(p: Problem) -> Problem:
+    return Problem(PoseKind.SE2, se3_poses_to_planar(p.initial), p.edge_from, p.edge_to,
+                   se3_poses_to_planar(p.measurements), p.information_upper[:, _SE2_FROM_SE3], p.robust, p.anchor)
+
+
+def _flatten(graph: PoseGraph) -> tuple[Problem, np.ndarray]:
+    sizes = np.array([a.num_poses for a in graph.agents])
+    offsets = np.concatenate([[0], np.cumsum(sizes)])
+    fr, to, meas, info, robust = [], [], [], [], []
+    for k, a in enumerate(graph.agents):
+        for edges, is_lc in ((a.odometry, False), (a.loop_closures, True)):
+            fr.append(edges.from_index + offsets[k])
+            to.append(edges.to_index + offsets[k])
+            meas.append(edges.measurements)
+            info.append(edges.information_upper)
+            robust.append(np.full(len(edges), is_lc))
+    inter = graph.inter
+    fr.append(inter.from_index + offsets[inter.from_agent])
+    to.append(inter.to_index + offsets[inter.to_agent])
+    meas.append(inter.measurements)
+    info.append(inter.information_upper)
+    robust.append(np.ones(len(inter), dtype=bool))
+    problem = Problem(graph.kind, np.concatenate([a.initial for a in graph.agents]),
+                      np.concatenate(fr).astype(np.int64), np.concatenate(to).astype(np.int64),
+                      np.concatenate(meas), np.concatenate(info), np.concatenate(robust))
+    return problem, offsets
+
+
+def load_problem(dataset: str | os.PathLike, *, dimension: Dimension = "auto") -> Loaded:
+    """Read a multi-g2o folder or a single g2o file into a :class:`Problem` (see the module doc)."""
+    from studio.io.g2o import read_g2o
+    from studio.io.multig2o import read_multi_g2o
+
+    path = Path(dataset)
+    if dimension not in ("auto", "2d", "3d"):
+        raise ConfigError(f"dimension: expected auto, 2d or 3d, got {dimension!r}")
+    graph: PoseGraph | None = None
+    doc = None
+    if path.is_dir():
+        graph = read_multi_g2o(path)
+        problem, offsets = _flatten(graph)
+    elif path.is_file():
+        doc = read_g2o(path)
+        n = len(doc.vertex_ids)
+        order = np.argsort(doc.vertex_ids, kind="stable")
+        if n == 0 or not np.array_equal(doc.vertex_ids[order], np.arange(n)):
+            raise FormatError(f"{path}: vertex ids must be 0..{n - 1} to be solved")
+        fr, to = doc.edge_from, doc.edge_to
+        problem = Problem(doc.kind, doc.vertex_poses[order], fr, to, doc.edge_measurements,
+                          doc.edge_information_upper, to != fr + 1)
+        offsets = np.array([0, n])
+    else:
+        raise FormatError(f"{path}: no such dataset (a multi-g2o folder or a .g2o file)")
+    if problem.num_edges == 0:
+        raise FormatError(f"{path}: the graph has no edges to optimize")
+    source_kind = problem.kind
+    if source_kind is PoseKind.SE2 and dimension == "3d":
+        raise ConfigError(f"dimension: {path} is planar (2D records); it cannot be solved in 3D")
+    if source_kind is PoseKind.SE3 and dimension != "3d":
+        planar = _is_planar(problem.initial) and _is_planar(problem.measurements)
+        if dimension == "2d" and not planar:
+            raise ConfigError(f"dimension: {path} is not planar (z, roll or pitch non-zero); use --dimension 3d")
+        if planar:
+            problem = _planar_problem(problem)
+    return Loaded(problem, source_kind, graph, offsets, doc)
+
+
+def _agent_rows(offsets: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    agent = np.searchsorted(offsets, ids, side="right") - 1
+    return agent, ids - offsets[agent]
+
+
+def _write_estimate(loaded: Loaded, poses: np.ndarray, staging: Path, stem: str) -> str:
+    """Write the estimate into ``staging``; return the name of the file or folder evaluate takes."""
+    from studio.io.g2o import G2oDocument, write_g2o
+    from studio.io.multig2o import write_multi_g2o
+    from studio.io.tum import write_tum
+
+    lifted = poses
+    if loaded.problem.kind is PoseKind.SE2 and loaded.source_kind is PoseKind.SE3:
+        lifted = planar_poses_to_se3(poses)
+    if loaded.graph is None:
+        doc = loaded.single_doc
+        name = f"{stem}.g2o"
+        write_g2o(staging / name, G2oDocument(doc.kind, np.arange(len(lifted)), lifted, doc.edge_from,
+                                              doc.edge_to, doc.edge_measurements, doc.edge_information_upper))
+        return name
+    graph = loaded.graph
+    agents = []
+    for k, a in enumerate(graph.agents):
+        est = lifted[loaded.offsets[k]:loaded.offsets[k + 1]]
+        agents.append(AgentGraph(a.name, a.kind, a.stamps_ns, est, None, a.odometry, a.loop_closures))
+    estimate = PoseGraph(graph.kind, tuple(agents), graph.inter)
+    folder = staging / "estimate"
+    folder.mkdir()
+    write_multi_g2o(estimate, folder, records="3d" if graph.kind is PoseKind.SE3 else "2d", precision="full")
+    tum = folder / "tum"
+    tum.mkdir()
+    lifted3 = estimate.to_se3()
+    for a in lifted3.agents:
+        write_tum(tum / f"{a.name}.tum", Trajectory.from_poses(a.name, a.stamps_ns, a.initial))
+    return "estimate"
+
+
+def solve(dataset: str | os.PathLike, out: str | os.PathLike, *, method: str = DEFAULT_METHOD,
+          optimizer: str = "gn", init: str = "chordal", max_iterations: int | None = None,
+          relative_tolerance: float = 1e-9, command: str = "", dimension: Dimension = "auto",
+          force: bool = False, rrd: str | os.PathLike | None = None) -> SolveResult:
+    """Optimize ``dataset`` with ``method`` and write the estimate and ``solve.json`` into the folder
+    ``out`` (staged, renamed into place; an existing ``out`` is replaced only with ``force``).
+
+    ``rrd`` also writes a Rerun recording of the run (every iteration on an ``iteration`` timeline,
+    beside the ground truth, with the cost per iteration)."""
+    from studio.io.atomic import staged_outputs
+    from studio.solvers.g2o_method import G2O_DEFAULT_ITERATIONS
+
+    solver = get_method(method)
+    if optimizer not in ("gn", "lm"):
+        raise ConfigError(f"optimizer: expected gn or lm, got {optimizer!r}")
+    if init not in ("chordal", "spanning-tree", "odometry"):
+        raise ConfigError(f"init: expected chordal, spanning-tree or odometry, got {init!r}")
+    if max_iterations is None:
+        max_iterations = G2O_DEFAULT_ITERATIONS if method == "g2o" else 20
+    if isinstance(max_iterations, bool) or not isinstance(max_iterations, int) or not 1 <= max_iterations <= 10_000:
+        raise ConfigError(f"max_iterations: expected an integer in 1..10000, got {max_iterations!r}")
+    if not (isinstance(relative_tolerance, (int, float)) and 0 <= relative_tolerance < 1):
+        raise ConfigError(f"relative_tolerance: expected a number in [0, 1), got {relative_tolerance!r}")
+    options = SolveOptions(optimizer, init, max_iterations, float(relative_tolerance), command)  # type: ignore[arg-type]
+    out = Path(out)
+    rrd_path = None if rrd is None else Path(rrd)
+    if rrd_path is not None and rrd_path.suffix != ".rrd":
+        raise ConfigError(f"rrd: {rrd_path} must end in .rrd")
+    t0 = time.perf_counter()
+    loaded = load_problem(dataset, dimension=dimension)
+    problem = loaded.problem
+    iterates: list[tuple[int, np.ndarray]] = []
+    on_iteration: Iteration | None = None
+    if rrd_path is not None:
+        def on_iteration(k: int, poses: np.ndarray) -> None:
+            iterates.append((k, poses.copy()))
+    solution = solver(problem, options, on_iteration)
+    seconds = time.perf_counter() - t0
+    rejected = None
+    if solution.rejected is not None:
+        ids = np.flatnonzero(solution.rejected)
+        fa, fv = _agent_rows(loaded.offsets, problem.edge_from[ids])
+        ta, tv = _agent_rows(loaded.offsets, problem.edge_to[ids])
+        rejected = np.column_stack([fa, fv, ta, tv]).astype(np.int64).reshape(-1, 4)
+    chi2_initial = solution.chi2_history[0] if solution.chi2_history else graph_chi2(problem, problem.initial)
+    result = SolveResult(out, out, method, options, solution.iterations, graph_chi2(problem, problem.initial),
+                         chi2_initial, graph_chi2(problem, solution.poses), seconds,
+                         problem.kind is PoseKind.SE2 and loaded.source_kind is PoseKind.SE3,
+                         rejected, solution, rrd_path)
+    stem = Path(dataset).stem
+    with staged_outputs(out.parent, [out.name], force=force) as staging:
+        folder = staging / out.name
+        folder.mkdir()
+        name = _write_estimate(loaded, solution.poses, folder, stem)
+        result = dataclasses.replace(result, estimate_path=out / name)
+        (folder / SOLVE_JSON).write_text(json.dumps(result.to_dict(), indent=2, default=_json_default) + "\n",
+                                         encoding="utf-8")
+    if rrd_path is not None:
+        from studio.recording.solve import write_solve_recording
+
+        write_solve_recording(rrd_path, loaded.graph, loaded.offsets, problem.kind, iterates,
+                              solution.chi2_history, name=f"{stem} ({method})", force=force)
+    return result
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"not JSON: {type(value).__name__}")

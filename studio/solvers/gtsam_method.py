@@ -1,0 +1,189 @@
+"""The ``gtsam`` and ``gnc`` methods: GTSAM's factor graphs and optimizers (``pip install gtsam``).
+
+``gtsam``: a global initial guess (planar chordal relaxation of :mod:`studio.solvers.init`, GTSAM's
+``InitializePose3`` chordal relaxation in 3D, or the spanning tree), then Gauss-Newton or
+Levenberg-Marquardt on ``BetweenFactorPose2/3`` with each edge's full information matrix, the
+anchor held by a hard prior. Every iterate is passed to the callback.
+
+``gnc``: the same factors under GTSAM's graduated non-convexity (``GncLMOptimizer``, truncated least
+squares) from the same initial guess; odometry edges are known inliers, loop closures whose final
+weight is below 0.5 are reported as rejected.
+
+GTSAM orders a Pose3 tangent vector ``(rotation, translation)`` while the g2o files and the studio's
+information matrices are ``(translation, rotation)``: 3D information is permuted on the way in.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from studio.core.errors import ConfigError
+from studio.core.geometry import upper_to_matrix
+from studio.core.model import PoseKind
+from studio.solvers.init import chordal_se2, spanning_tree
+from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
+
+__all__ = ["solve_gtsam", "solve_gnc"]
+
+_PERMUTE_SE3 = np.array([3, 4, 5, 0, 1, 2])
+
+
+def _gtsam() -> Any:
+    try:
+        import gtsam
+    except ImportError:
+        raise ConfigError("method gtsam needs GTSAM: pip install 'cslam-studio[solve]'") from None
+    return gtsam
+
+
+def _pose(gtsam: Any, kind: PoseKind, row: np.ndarray) -> Any:
+    if kind is PoseKind.SE2:
+        return gtsam.Pose2(float(row[0]), float(row[1]), float(row[2]))
+    q = row[3:7]
+    return gtsam.Pose3(gtsam.Rot3.Quaternion(float(q[3]), float(q[0]), float(q[1]), float(q[2])),
+                       gtsam.Point3(float(row[0]), float(row[1]), float(row[2])))
+
+
+def _values(gtsam: Any, kind: PoseKind, poses: np.ndarray) -> Any:
+    values = gtsam.Values()
+    for k in range(len(poses)):
+        values.insert(k, _pose(gtsam, kind, poses[k]))
+    return values
+
+
+def _poses(gtsam: Any, kind: PoseKind, values: Any) -> np.ndarray:
+    if kind is PoseKind.SE2:
+        return np.asarray(gtsam.utilities.extractPose2(values), dtype=np.float64)
+    from scipy.spatial.transform import Rotation
+
+    m = np.asarray(gtsam.utilities.extractPose3(values), dtype=np.float64)
+    quat = Rotation.from_matrix(m[:, 0:9].reshape(-1, 3, 3)).as_quat()
+    quat[quat[:, 3] < 0] *= -1.0
+    return np.column_stack([m[:, 9:12], quat])
+
+
+def _graph(gtsam: Any, problem: Problem) -> tuple[Any, int]:
+    """The factor graph of the problem's edges (factor k is edge k), then the anchor's prior."""
+    kind = problem.kind
+    graph = gtsam.NonlinearFactorGraph()
+    d = 3 if kind is PoseKind.SE2 else 6
+    omega = upper_to_matrix(problem.information_upper, d)
+    if kind is PoseKind.SE3:
+        omega = omega[:, _PERMUTE_SE3][:, :, _PERMUTE_SE3]
+    factor = gtsam.BetweenFactorPose2 if kind is PoseKind.SE2 else gtsam.BetweenFactorPose3
+    gaussian = gtsam.noiseModel.Gaussian.Information
+    fr, to, z = problem.edge_from.tolist(), problem.edge_to.tolist(), problem.measurements
+    for k in range(problem.num_edges):
+        graph.add(factor(fr[k], to[k], _pose(gtsam, kind, z[k]), gaussian(omega[k])))
+    prior = gtsam.PriorFactorPose2 if kind is PoseKind.SE2 else gtsam.PriorFactorPose3
+    graph.add(prior(problem.anchor, _pose(gtsam, kind, problem.initial[problem.anchor]),
+                    gtsam.noiseModel.Constrained.All(d)))
+    return graph, problem.num_edges
+
+
+def _chordal_se3(gtsam: Any, problem: Problem, graph: Any) -> np.ndarray:
+    """GTSAM's chordal relaxation (``InitializePose3``: rotations, then one Gauss-Newton step on full
+    poses; the graph's prior holds the gauge), moved so the anchor keeps its pose exactly."""
+    return _reanchor(problem, _poses(gtsam, PoseKind.SE3, gtsam.InitializePose3.initialize(graph)))
+
+
+def initial_guess(gtsam: Any, problem: Problem, options: SolveOptions, graph: Any) -> np.ndarray:
+    if options.init == "odometry":
+        return problem.initial
+    if options.init == "spanning-tree":
+        return spanning_tree(problem)
+    if problem.kind is PoseKind.SE2:
+        return chordal_se2(problem)
+    return _chordal_se3(gtsam, problem, graph)
+
+
+def _optimizer(gtsam: Any, graph: Any, values: Any, options: SolveOptions) -> Any:
+    if options.optimizer == "lm":
+        params = gtsam.LevenbergMarquardtParams()
+        params.setMaxIterations(options.max_iterations)
+        params.setRelativeErrorTol(options.relative_tolerance)
+        return gtsam.LevenbergMarquardtOptimizer(graph, values, params)
+    params = gtsam.GaussNewtonParams()
+    params.setMaxIterations(options.max_iterations)
+    params.setRelativeErrorTol(options.relative_tolerance)
+    return gtsam.GaussNewtonOptimizer(graph, values, params)
+
+
+def _reanchor(problem: Problem, poses: np.ndarray) -> np.ndarray:
+    """``poses`` moved by the rigid transform that puts the anchor back on its initial pose."""
+    from studio.core.geometry import normalize_angle, quat_conj, quat_mul, quat_rotate
+
+    a, target = poses[problem.anchor], problem.initial[problem.anchor]
+    if problem.kind is PoseKind.SE2:
+        dth = target[2] - a[2]
+        c, s = np.cos(dth), np.sin(dth)
+        xy = (poses[:, 0:2] - a[0:2]) @ np.array([[c, s], [-s, c]]) + target[0:2]
+        out = np.column_stack([xy, normalize_angle(poses[:, 2] + dth)])
+    else:
+        dq = np.repeat(quat_mul(target[None, 3:7], quat_conj(a[None, 3:7])), len(poses), axis=0)
+        q = quat_mul(dq, poses[:, 3:7])
+        out = np.column_stack([quat_rotate(dq, poses[:, 0:3] - a[0:3]) + target[0:3],
+                               q / np.linalg.norm(q, axis=1, keepdims=True)])
+    out[problem.anchor] = target
+    return out
+
+
+def solve_gtsam(problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution:
+    gtsam = _gtsam()
+    t0 = time.perf_counter()
+    graph, _ = _graph(gtsam, problem)
+    t_build = time.perf_counter() - t0
+    guess = initial_guess(gtsam, problem, options, graph)
+    t_init = time.perf_counter() - t0 - t_build
+    if on_iteration is not None:
+        on_iteration(0, guess)
+    history = [graph_chi2(problem, guess)]
+    opt = _optimizer(gtsam, graph, _values(gtsam, problem.kind, guess), options)
+    error = opt.error()
+    iterations = 0
+    poses = guess
+    while iterations < options.max_iterations:
+        opt.iterate()
+        iterations += 1
+        new_error = opt.error()
+        poses = _poses(gtsam, problem.kind, opt.values())
+        history.append(graph_chi2(problem, poses))
+        if on_iteration is not None:
+            on_iteration(iterations, poses)
+        if abs(error - new_error) <= options.relative_tolerance * max(error, 1e-300) or new_error > error:
+            break
+        error = new_error
+    return Solution(poses, iterations, tuple(history),
+                    notes={"build_s": t_build, "init_s": t_init, "init": options.init,
+                           "optimizer": options.optimizer})
+
+
+def solve_gnc(problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution:
+    gtsam = _gtsam()
+    graph, n_edges = _graph(gtsam, problem)
+    guess = initial_guess(gtsam, problem, options, graph)
+    if on_iteration is not None:
+        on_iteration(0, guess)
+    params = gtsam.GncLMParams()
+    params.setMaxIterations(max(options.max_iterations, 100))
+    trusted = [int(k) for k in np.flatnonzero(~problem.robust)] + [n_edges]  # and the anchor's prior
+    params.setKnownInliers(trusted)
+    opt = gtsam.GncLMOptimizer(graph, _values(gtsam, problem.kind, guess), params)
+    result = opt.optimize()
+    # GNC re-weights factors and does not keep the anchor's hard prior exactly: put it back
+    poses = _reanchor(problem, _poses(gtsam, problem.kind, result))
+    weights = np.asarray(opt.getWeights(), dtype=np.float64)[:n_edges]
+    rejected = problem.robust & (weights < 0.5)
+    # GNC stops once the weights settle; finish with plain least squares on the inliers
+    inliers = gtsam.NonlinearFactorGraph()
+    for k in np.flatnonzero(~rejected).tolist() + [n_edges]:
+        inliers.add(graph.at(k))
+    refine = _optimizer(gtsam, inliers, _values(gtsam, problem.kind, poses), options)
+    poses = _reanchor(problem, _poses(gtsam, problem.kind, refine.optimize()))
+    if on_iteration is not None:
+        on_iteration(1, poses)
+    return Solution(poses, 1, (graph_chi2(problem, guess), graph_chi2(problem, poses)), rejected,
+                    notes={"init": options.init, "rejected": int(rejected.sum())})

@@ -1,0 +1,118 @@
+"""Global initial guesses on columns: planar chordal relaxation and the spanning tree of measurements.
+
+Planar chordal relaxation: each rotation is unknown as the first column ``(cos t, sin t)`` of its
+matrix; every edge asks ``R_j = R_i R_ij``, two linear equations weighted by the square root of the
+edge's rotation information; the least-squares solution (anchor fixed) is projected back to SO(2)
+by normalising each column. Positions then solve ``t_j - t_i = R_i t_ij``, weighted by the square root
+of the translation information, by linear least squares. Both are sparse normal equations solved with
+SuperLU (scipy). The spatial chordal guess is GTSAM's (``InitializePose3``), see ``gtsam_method``.
+
+Spanning tree: breadth-first from the anchor over all edges, composing measurements along the tree
+(g2o's ``computeInitialGuess`` does the same with odometry-like costs).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from studio.core.geometry import normalize_angle, quat_conj, quat_mul, quat_rotate, upper_to_matrix
+from studio.core.model import PoseKind
+from studio.solvers.problem import Problem
+
+__all__ = ["chordal_se2", "spanning_tree"]
+
+
+def _solve_normal(a, b):  # type: ignore[no-untyped-def]
+    import scipy.sparse.linalg as spla
+
+    return spla.splu((a.T @ a).tocsc()).solve(a.T @ b)
+
+
+def chordal_se2(problem: Problem) -> np.ndarray:
+    """Planar poses ``(n, 3)`` from the chordal relaxation, the anchor keeping its initial pose."""
+    import scipy.sparse as sp
+
+    n, m = problem.num_vertices, problem.num_edges
+    fr, to, z = problem.edge_from, problem.edge_to, problem.measurements
+    omega = upper_to_matrix(problem.information_upper, 3)
+    anchor = problem.anchor
+    x0 = problem.initial[anchor]
+    rows = np.arange(m)
+    w = np.sqrt(np.maximum(omega[:, 2, 2], 0.0))
+    cz, sz = np.cos(z[:, 2]), np.sin(z[:, 2])
+    # R_i R_ij first column: [c_i cz - s_i sz, s_i cz + c_i sz]
+    r = np.concatenate([2 * rows] * 3 + [2 * rows + 1] * 3)
+    c = np.concatenate([2 * to, 2 * fr, 2 * fr + 1, 2 * to + 1, 2 * fr + 1, 2 * fr])
+    v = np.concatenate([w, -w * cz, w * sz, w, -w * cz, -w * sz])
+    a = sp.csr_matrix((v, (r, c)), shape=(2 * m, 2 * n))
+    keep = np.setdiff1d(np.arange(2 * n), [2 * anchor, 2 * anchor + 1])
+    fixed = np.array([np.cos(x0[2]), np.sin(x0[2])])
+    b = -(a[:, [2 * anchor, 2 * anchor + 1]] @ fixed)
+    sol = np.empty(2 * n)
+    sol[keep] = _solve_normal(a[:, keep], b)
+    sol[[2 * anchor, 2 * anchor + 1]] = fixed
+    cs = sol.reshape(n, 2)
+    theta = np.arctan2(cs[:, 1], cs[:, 0])
+
+    wt = np.sqrt(np.maximum(0.5 * (omega[:, 0, 0] + omega[:, 1, 1]), 0.0))
+    ci, si = np.cos(theta[fr]), np.sin(theta[fr])
+    bx = wt * (ci * z[:, 0] - si * z[:, 1])
+    by = wt * (si * z[:, 0] + ci * z[:, 1])
+    bmat = sp.csr_matrix((np.concatenate([wt, -wt]), (np.concatenate([rows, rows]), np.concatenate([to, fr]))),
+                         shape=(m, n))
+    others = np.setdiff1d(np.arange(n), [anchor])
+    col = bmat[:, [anchor]].toarray().ravel()
+    reduced = bmat[:, others]
+    import scipy.sparse.linalg as spla
+
+    lu = spla.splu((reduced.T @ reduced).tocsc())
+    xy = np.empty((n, 2))
+    xy[anchor] = x0[0:2]
+    xy[others, 0] = lu.solve(reduced.T @ (bx - col * x0[0]))
+    xy[others, 1] = lu.solve(reduced.T @ (by - col * x0[1]))
+    return np.column_stack([xy, theta])
+
+
+def _compose(kind: PoseKind, parent: np.ndarray, z: np.ndarray, forward: np.ndarray) -> np.ndarray:
+    """``parent * z`` where ``forward``, else ``parent * z^-1``, row by row."""
+    if kind is PoseKind.SE2:
+        th = np.where(forward, z[:, 2], -z[:, 2])
+        cz, sz = np.cos(z[:, 2]), np.sin(z[:, 2])
+        zx = np.where(forward, z[:, 0], -(cz * z[:, 0] + sz * z[:, 1]))
+        zy = np.where(forward, z[:, 1], -(-sz * z[:, 0] + cz * z[:, 1]))
+        c, s = np.cos(parent[:, 2]), np.sin(parent[:, 2])
+        return np.column_stack([parent[:, 0] + c * zx - s * zy, parent[:, 1] + s * zx + c * zy,
+                                normalize_angle(parent[:, 2] + th)])
+    qz = np.where(forward[:, None], z[:, 3:7], quat_conj(z[:, 3:7]))
+    tz = np.where(forward[:, None], z[:, 0:3], -quat_rotate(quat_conj(z[:, 3:7]), z[:, 0:3]))
+    q = quat_mul(parent[:, 3:7], qz)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return np.column_stack([parent[:, 0:3] + quat_rotate(parent[:, 3:7], tz), q])
+
+
+def spanning_tree(problem: Problem) -> np.ndarray:
+    """Poses composed along a breadth-first spanning tree of all edges from the anchor; vertices the
+    tree does not reach keep their initial values."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import breadth_first_order
+
+    n, m = problem.num_vertices, problem.num_edges
+    fr, to = problem.edge_from, problem.edge_to
+    # edge k stored as +(k + 1) from -> to and -(k + 1) to -> from; the first edge of a pair wins
+    rows, cols = np.concatenate([fr, to]), np.concatenate([to, fr])
+    vals = np.concatenate([np.arange(1, m + 1), -np.arange(1, m + 1)])
+    _, first = np.unique(rows * n + cols, return_index=True)
+    adj = sp.csr_matrix((vals[first], (rows[first], cols[first])), shape=(n, n))
+    order, pred = breadth_first_order(abs(adj), problem.anchor, directed=True, return_predecessors=True)
+    poses = problem.initial.copy()
+    depth = np.zeros(n, dtype=np.int64)
+    for v in order[1:]:
+        depth[v] = depth[pred[v]] + 1
+    reached = order[1:]
+    for level in range(1, int(depth.max(initial=0)) + 1):
+        vs = reached[depth[reached] == level]
+        ps = pred[vs]
+        signed = np.asarray(adj[ps, vs]).ravel()
+        k = np.abs(signed) - 1
+        poses[vs] = _compose(problem.kind, poses[ps], problem.measurements[k], signed > 0)
+    return poses

@@ -1,0 +1,86 @@
+"""What every optimizer back-end takes and returns: a pose graph flattened to global vertex ids, as
+columns, and the optimized poses with their history."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Literal, Protocol
+
+import numpy as np
+
+from studio.core.model import PoseKind
+from studio.core.residuals import chi2_terms, edge_errors
+
+__all__ = ["Problem", "Solution", "SolveOptions", "Iteration", "Method", "Optimizer", "Init", "graph_chi2"]
+
+Optimizer = Literal["gn", "lm"]
+Init = Literal["chordal", "spanning-tree", "odometry"]
+
+#: Called after every iteration with ``(iteration, poses)`` (iteration 0: the initial guess).
+Iteration = Callable[[int, np.ndarray], None]
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """A pose graph over global vertex ids ``0..n-1``; vertex :attr:`anchor` is held fixed."""
+
+    kind: PoseKind
+    initial: np.ndarray
+    """``(n, 3)`` planar or ``(n, 7)`` spatial poses: the starting values (e.g. dead reckoning)."""
+    edge_from: np.ndarray
+    edge_to: np.ndarray
+    measurements: np.ndarray
+    information_upper: np.ndarray
+    robust: np.ndarray
+    """Per edge, True where a robust method may reject it (loop closures); odometry is trusted."""
+    anchor: int = 0
+
+    @property
+    def num_vertices(self) -> int:
+        return len(self.initial)
+
+    @property
+    def num_edges(self) -> int:
+        return len(self.edge_from)
+
+
+@dataclass(frozen=True)
+class SolveOptions:
+    """Options every method reads (each uses the ones that apply to it)."""
+
+    optimizer: Optimizer = "gn"
+    """Gauss-Newton or Levenberg-Marquardt."""
+    init: Init = "chordal"
+    """Initial guess: chordal relaxation, spanning tree of the measurements, or the dataset's values."""
+    max_iterations: int = 20
+    """Iterations at most (the ``g2o`` method runs exactly this many, 10 by default as the paper)."""
+    relative_tolerance: float = 1e-9
+    """Stop when the cost decreases by less than this fraction."""
+    command: str = ""
+    """``command`` method: the program to run, with ``{input}`` and ``{output}`` placeholders."""
+
+
+@dataclass(frozen=True, eq=False)
+class Solution:
+    poses: np.ndarray
+    """Optimized poses, same layout as :attr:`Problem.initial`."""
+    iterations: int
+    chi2_history: tuple[float, ...] = ()
+    """chi2 (g2o convention) of the initial guess and after each iteration, when the method has it."""
+    rejected: np.ndarray | None = None
+    """Robust methods: per edge, True where the edge was rejected as an outlier."""
+    notes: dict[str, object] = field(default_factory=dict)
+    """Facts about the run worth saving (initialisation time, library versions...)."""
+
+
+class Method(Protocol):
+    """An optimizer back-end: solve ``problem``; call ``on_iteration`` with each iterate if given."""
+
+    def __call__(self, problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution:
+        ...
+
+
+def graph_chi2(problem: Problem, poses: np.ndarray) -> float:
+    """Sum of ``e^T Omega e`` over the edges at ``poses`` (g2o's convention, see studio.core.residuals)."""
+    e = edge_errors(poses[problem.edge_from], poses[problem.edge_to], problem.measurements)
+    return float(chi2_terms(e, problem.information_upper).sum())

@@ -1,0 +1,139 @@
+"""studio solve: the pipeline on synthetic datasets, its outputs, the CLI, and the iteration recording."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from studio.cli import app
+from studio.evaluate import evaluate
+from studio.solve import load_problem, solve
+from studio.synth import load_synth_config, synthesize
+
+DATA = Path(__file__).resolve().parent.parent / "data"
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    root = tmp_path_factory.mktemp("solve")
+    return synthesize(load_synth_config(DATA / "configs" / "small3x100.json"), root, rrd=False, jobs=1)
+
+
+def test_solving_a_multi_g2o_folder_lowers_the_error_and_writes_an_estimate(small, tmp_path):
+    res = solve(small.dataset_dir, tmp_path / "est")
+    assert res.planar  # kollagen's 3D records of a planar walk are solved in SE(2)
+    assert res.chi2_final < res.chi2_initial <= res.chi2_dataset
+    before = evaluate(small.dataset_dir, align="se3").overall.ape_translation_m.mean
+    after = evaluate(small.dataset_dir, estimate=res.estimate_path, align="se3").overall.ape_translation_m.mean
+    assert after < 0.2 * before
+    info = json.loads((tmp_path / "est" / "solve.json").read_text())
+    assert info["method"] == "gtsam" and info["iterations"] == res.iterations >= 1
+    assert info["chi2_final"] == pytest.approx(res.chi2_final)
+    assert info["chi2_history"][0] == pytest.approx(res.chi2_initial)
+    names = sorted(p.name for p in (tmp_path / "est" / "estimate").iterdir())
+    assert names == ["agent1", "agent2", "agent3", "inter_agent_lc.dat", "tum"]
+    assert sorted(p.name for p in (tmp_path / "est" / "estimate" / "tum").iterdir()) == \
+        ["agent1.tum", "agent2.tum", "agent3.tum"]
+    # the TUM files score exactly like the g2o estimate
+    by_tum = evaluate(small.dataset_dir, estimate=tmp_path / "est" / "estimate" / "tum", align="se3")
+    assert by_tum.overall.ape_translation_m.mean == pytest.approx(after, rel=1e-9)
+
+
+def test_the_single_g2o_and_the_folder_reach_the_same_optimum_up_to_the_connectors(small, tmp_path):
+    single = small.single_dir / f"{small.config.name}.g2o"
+    a = solve(single, tmp_path / "a")
+    b = solve(small.dataset_dir, tmp_path / "b")
+    assert a.estimate_path.name == "small3x100.g2o"
+    assert load_problem(single).problem.num_edges == load_problem(small.dataset_dir).problem.num_edges + 2
+    # kollagen's two connector edges (agent k's last pose to agent k+1's first) add a little cost
+    assert b.chi2_final <= a.chi2_final < 1.05 * b.chi2_final
+    ev = evaluate(small.dataset_dir, estimate=a.estimate_path, align="first-pose")
+    assert ev.overall.ape_translation_m.mean < 1.0
+
+
+def test_the_same_inputs_give_the_same_bytes(small, tmp_path):
+    solve(small.dataset_dir, tmp_path / "a")
+    solve(small.dataset_dir, tmp_path / "b")
+    for f in ("agent1/posegraph.g2o", "inter_agent_lc.dat", "tum/agent2.tum"):
+        assert (tmp_path / "a" / "estimate" / f).read_bytes() == (tmp_path / "b" / "estimate" / f).read_bytes()
+
+
+def test_g2o_method_matches_the_default_optimum(small, tmp_path):
+    a = solve(small.dataset_dir, tmp_path / "a")
+    b = solve(small.dataset_dir, tmp_path / "b", method="g2o")
+    assert b.iterations == 10
+    assert b.chi2_final == pytest.approx(a.chi2_final, rel=1e-3)
+
+
+def test_solve_recording_has_every_iteration(small, tmp_path):
+    from studio.recording.checks import rrd_verify
+
+    res = solve(small.dataset_dir, tmp_path / "est", rrd=tmp_path / "run.rrd")
+    rrd_verify(tmp_path / "run.rrd")
+    import rerun.chunk as rc
+
+    reader = rc.RrdReader(tmp_path / "run.rrd")
+    store = reader.recordings()[0]
+    steps = set()
+    entities = set()
+    for chunk in reader.stream(store=store):
+        entities.add(str(chunk.entity_path))
+        batch = chunk.to_record_batch()
+        if "iteration" in batch.schema.names:
+            steps.update(batch.column("iteration").cast("int64").to_pylist())
+    assert steps == set(range(res.iterations + 1))
+    assert {"/solve/agent1/estimate", "/solve/agent1/ground_truth", "/solve/metrics/chi2"} <= entities
+
+
+def test_cli_solve_then_evaluate(small, tmp_path):
+    out = tmp_path / "est"
+    res = runner.invoke(app, ["solve", str(small.dataset_dir), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "gtsam" in res.output and str(out / "estimate") in res.output
+    again = runner.invoke(app, ["solve", str(small.dataset_dir), "-o", str(out)])
+    assert again.exit_code == 2 and "already exists" in again.output
+    ev = runner.invoke(app, ["evaluate", str(small.dataset_dir), "--estimate", str(out / "estimate"),
+                             "--align", "first-pose"])
+    assert ev.exit_code == 0 and "first pose of each agent" in ev.output
+
+
+@pytest.mark.parametrize("args, message", [
+    (["solve", "missing-folder", "-o", "x"], "no such dataset"),
+    (["solve", "{ds}", "-o", "{tmp}/x", "--iterations", "0"], "max_iterations: expected an integer in 1..10000"),
+    (["solve", "{ds}", "-o", "{tmp}/x", "--method", "command"], "command: method command needs the program"),
+    (["solve", "{ds}", "-o", "{tmp}/x", "--rrd", "{tmp}/run.png"], "must end in .rrd"),
+])
+def test_cli_bad_input_is_one_line(small, tmp_path, args, message):
+    argv = [a.format(ds=small.dataset_dir, tmp=tmp_path) for a in args]
+    res = runner.invoke(app, argv)
+    assert res.exit_code == 2
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and message in lines[0], res.output
+    assert not (tmp_path / "x").exists()
+
+
+def test_first_pose_alignment_removes_one_rigid_transform_per_agent(small):
+    from scipy.spatial.transform import Rotation
+
+    from studio.core.trajectory import Trajectory
+    from studio.evaluate import score
+    from studio.io.multig2o import read_multi_g2o
+
+    graph = read_multi_g2o(small.dataset_dir, edges=False).to_se3()
+    est = []
+    for k, a in enumerate(graph.agents):
+        r = Rotation.from_euler("z", 20 * (k + 1), degrees=True)
+        p = a.ground_truth.copy()
+        p[:, 0:3] = r.apply(p[:, 0:3]) + [k, 2.0 * k, 0]
+        p[:, 3:7] = (r * Rotation.from_quat(p[:, 3:7])).as_quat()
+        est.append(Trajectory.from_poses(a.name, a.stamps_ns, p))
+    assert score(graph, est).overall.ape_translation_m.mean > 1.0
+    ev = score(graph, est, align="first-pose")
+    assert ev.overall.ape_translation_m.max < 1e-9
+    assert ev.overall.ape_rotation_deg.max < 1e-6
+    assert len(ev.alignment_transforms) == len(graph.agents)
