@@ -204,8 +204,15 @@ def _relative(p_a, q_a, p_b, q_b):
     return quat_rotate(qa_inv, p_b - p_a), quat_mul(qa_inv, q_b)
 
 
+#: g2o's ``EDGE_SE3:QUAT`` error uses the quaternion's vector part, ``sin(theta/2) axis``, about half
+#: the rotation vector: the information of a rotation noise of std dev s is ``4 / s^2`` in that
+#: convention (docs/formats.md). Planar (``EDGE_SE2``) information is on the angle itself.
+SE3_QUAT_INFORMATION_SCALE = 4.0
+
+
 def _perturb(t_rel, q_rel, sigma_t, sigma_r, rng):
-    """Measurement ``(t + n_t, q * Exp(n_r))`` with the diagonal information of the noise."""
+    """Measurement ``(t + n_t, q * Exp(n_r))`` with the diagonal information of the noise in g2o's
+    ``EDGE_SE3:QUAT`` convention (rotation information on the quaternion's vector part)."""
     m = len(t_rel)
     z = rng.standard_normal((m, 6))
     sig = np.column_stack([sigma_t, sigma_t, sigma_t, sigma_r, sigma_r, sigma_r])
@@ -214,6 +221,7 @@ def _perturb(t_rel, q_rel, sigma_t, sigma_r, rng):
     q = quat_canonical(quat_mul(q_rel, quat_from_rotvec(noise[:, 3:])))
     info = np.zeros((m, 21))
     info[:, _DIAG21] = 1.0 / np.maximum(sig, 1e-9) ** 2
+    info[:, _DIAG21[3:]] *= SE3_QUAT_INFORMATION_SCALE
     return np.column_stack([t, q]), info
 
 

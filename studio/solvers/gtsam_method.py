@@ -10,7 +10,10 @@ squares) from the same initial guess; odometry edges are known inliers, loop clo
 weight is below 0.5 are reported as rejected.
 
 GTSAM orders a Pose3 tangent vector ``(rotation, translation)`` while the g2o files and the studio's
-information matrices are ``(translation, rotation)``: 3D information is permuted on the way in.
+information matrices are ``(translation, rotation)``: 3D information is permuted on the way in. The
+files' rotation information refers to g2o's error (the quaternion's vector part, about half the
+rotation vector GTSAM uses), so it is converted: ``Omega_gtsam = J^T Omega J`` with
+``J = diag(1, 1, 1, 1/2, 1/2, 1/2)``; without that GTSAM would weigh rotations 4 times too much.
 """
 
 from __future__ import annotations
@@ -72,7 +75,8 @@ def _graph(gtsam: Any, problem: Problem) -> tuple[Any, int]:
     d = 3 if kind is PoseKind.SE2 else 6
     omega = upper_to_matrix(problem.information_upper, d)
     if kind is PoseKind.SE3:
-        omega = omega[:, _PERMUTE_SE3][:, :, _PERMUTE_SE3]
+        half = np.array([1.0, 1.0, 1.0, 0.5, 0.5, 0.5])
+        omega = (omega * half[None, :, None] * half[None, None, :])[:, _PERMUTE_SE3][:, :, _PERMUTE_SE3]
     factor = gtsam.BetweenFactorPose2 if kind is PoseKind.SE2 else gtsam.BetweenFactorPose3
     gaussian = gtsam.noiseModel.Gaussian.Information
     fr, to, z = problem.edge_from.tolist(), problem.edge_to.tolist(), problem.measurements

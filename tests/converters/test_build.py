@@ -81,7 +81,8 @@ def test_odometry_information_matches_the_noise_model_and_initial_is_dead_reckon
     sig_r = 0.002 + 0.05 * theta + 0.01 * d
     info = ag.odometry.information_upper
     np.testing.assert_allclose(info[:, 0], 1 / sig_t**2, rtol=1e-9)
-    np.testing.assert_allclose(info[:, 20], 1 / sig_r**2, rtol=1e-9)
+    # rotation information in g2o's EDGE_SE3:QUAT convention (quaternion vector part ~ angle / 2)
+    np.testing.assert_allclose(info[:, 20], 4 / sig_r**2, rtol=1e-9)
     assert np.count_nonzero(info[:, [1, 2, 3, 4, 5]]) == 0
     # the translation errors are distributed as the model says (standardised std dev ~ 1)
     z = (ag.odometry.measurements[:, :3] - t_rel) / sig_t[:, None]
@@ -232,9 +233,10 @@ def test_planar_build_agrees_with_the_spatial_one_on_a_flat_path():
         np.testing.assert_allclose(a2.odometry.measurements[:, 0:2], a3.odometry.measurements[:, 0:2], atol=1e-9)
         np.testing.assert_array_equal(a2.loop_closures.from_index, a3.loop_closures.from_index)
         np.testing.assert_array_equal(a2.loop_closures.to_index, a3.loop_closures.to_index)
-        # the planar information is the x, y, yaw block of the spatial one
+        # the planar information is the x, y, yaw block of the spatial one, whose rotation
+        # information is on the quaternion's vector part (4 times the angle's)
         np.testing.assert_allclose(a2.odometry.information_upper[:, [0, 3, 5]],
-                                   a3.odometry.information_upper[:, [0, 6, 20]], rtol=1e-12)
+                                   a3.odometry.information_upper[:, [0, 6, 20]] / [1, 1, 4], rtol=1e-12)
         assert not a2.odometry.information_upper[:, [1, 2, 4]].any()
     assert len(flat.inter) == len(full.inter) > 0
     # dead reckoning composes the noisy planar steps

@@ -1,0 +1,339 @@
+"""``studio check`` as a library function: is a dataset's noise model consistent with its errors?
+
+At the ground truth, each edge's error ``e`` (g2o's, see :mod:`studio.core.residuals`) and its
+written information ``Omega`` give ``chi2 = e^T Omega e``. If the measurements were drawn from the
+Gaussian the information claims, the sum over ``n`` edges of dimension ``d`` follows a chi-square
+distribution with ``n d`` degrees of freedom: its mean per degree of freedom (the **factor**) is 1.
+The report gives, per edge class (odometry, intra-agent and inter-agent loop closures), per agent
+and per component (translation, rotation), the chi2, the degrees of freedom and the factor, with a
+verdict:
+
+* ``consistent``: the total is within the chi-square distribution's central 99.9 % interval, or
+  the factor is within 10 % of 1 (with tens of thousands of edges a 2 % mismatch is "significant"
+  without mattering to anyone);
+* ``over-confident x F``: errors F times larger (in chi2) than the information says;
+* ``under-confident x F``: errors smaller than the information says (F < 1).
+
+Outlier candidates are edges whose chi2 exceeds the chi-square quantile 1 - 1e-6 of their dimension,
+after scaling by the class's robust scale (its median chi2 over the distribution's median, at least
+1), so a mis-scaled class does not flag all its edges. When a class's candidates are at most 10 % of
+its edges they are left out of its sums (a few gross outliers would otherwise swamp the factor) and
+the report says how many; more than that is a systematic mismatch and stays in. Where the dataset
+lists its outliers (``outliers.txt``, written by ``studio convert``), the report says how many were
+flagged.
+
+3D datasets whose poses and measurements are all planar (kollagen's 3D records of its planar walk)
+are checked in SE(2), as ``studio solve`` solves them. For 3D data the rotation error follows
+``convention``: ``g2o`` (the quaternion's vector part, about half the angle: what g2o's
+``EDGE_SE3:QUAT`` computes and what the studio's writers' information refers to) or ``rotvec`` (the
+rotation vector, as GTSAM's ``readG2o`` + ``BetweenFactorPose3`` use the same numbers).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from studio.core.errors import FormatError
+from studio.core.model import PoseKind
+from studio.core.residuals import Convention, chi2_parts, chi2_terms, edge_errors
+
+__all__ = ["ClassCheck", "CheckReport", "check", "format_check", "CONSISTENT_TOLERANCE", "SIGNIFICANCE"]
+
+#: Factors within this distance of 1 are called consistent whatever their significance.
+CONSISTENT_TOLERANCE = 0.10
+#: Two-sided significance of the chi-square test of a class.
+SIGNIFICANCE = 1e-3
+#: Tail probability above which an edge is an outlier candidate.
+OUTLIER_TAIL = 1e-6
+#: A class's candidates are left out of its sums when they are at most this fraction of its edges.
+MAX_EXCLUDED_FRACTION = 0.10
+_SE2_FROM_SE3 = [0, 1, 5, 6, 10, 20]
+
+
+@dataclass(frozen=True)
+class Component:
+    chi2: float
+    dof: int
+
+    @property
+    def factor(self) -> float:
+        return self.chi2 / self.dof if self.dof else math.nan
+
+
+def verdict(chi2: float, dof: int) -> str:
+    """``consistent``, ``over-confident x F`` or ``under-confident x F`` (see the module doc)."""
+    from scipy.stats import chi2 as chi2_dist
+
+    if dof == 0:
+        return "no edges"
+    factor = chi2 / dof
+    lo, hi = chi2_dist.ppf(SIGNIFICANCE / 2, dof), chi2_dist.ppf(1 - SIGNIFICANCE / 2, dof)
+    if lo <= chi2 <= hi or abs(factor - 1.0) <= CONSISTENT_TOLERANCE:
+        return "consistent"
+    return f"{'over' if factor > 1 else 'under'}-confident x {factor:.3g}"
+
+
+@dataclass(frozen=True)
+class ClassCheck:
+    """One edge class (optionally of one agent)."""
+
+    name: str
+    agent: str
+    """An agent's name, or ``all``."""
+    edges: int
+    total: Component
+    translation: Component
+    rotation: Component
+    excluded: int = 0
+    """Outlier candidates left out of the sums (when they are rare, see the module doc)."""
+
+    @property
+    def verdicts(self) -> dict[str, str]:
+        return {part: verdict(c.chi2, c.dof) for part, c in
+                (("total", self.total), ("translation", self.translation), ("rotation", self.rotation))}
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"class": self.name, "agent": self.agent, "edges": self.edges,
+                               "excluded_outlier_candidates": self.excluded}
+        for part in ("total", "translation", "rotation"):
+            c = getattr(self, part)
+            out[part] = {"chi2": c.chi2, "dof": c.dof, "factor": c.factor, "verdict": verdict(c.chi2, c.dof)}
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class CheckReport:
+    dataset: str
+    kind: PoseKind
+    """The kind the check ran in (SE2 for planar 3D data)."""
+    convention: Convention
+    classes: tuple[ClassCheck, ...]
+    outliers: np.ndarray
+    """Candidate rows ``from_agent from_vertex to_agent to_vertex chi2`` (agents and vertices 0-based)."""
+    listed_outliers: int | None = None
+    """Outliers the dataset lists (``outliers.txt``), or None where it lists none."""
+    listed_flagged: int | None = None
+    """How many of the listed outliers are among the candidates."""
+    notes: tuple[str, ...] = field(default=())
+
+    def summary(self, name: str) -> ClassCheck:
+        return next(c for c in self.classes if c.name == name and c.agent == "all")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "dataset": self.dataset,
+            "checked_as": self.kind.value,
+            "rotation_convention": self.convention,
+            "classes": [c.to_dict() for c in self.classes],
+            "outlier_candidates": [
+                {"from_agent": int(r[0]), "from_vertex": int(r[1]), "to_agent": int(r[2]), "to_vertex": int(r[3]),
+                 "chi2": float(r[4])} for r in self.outliers],
+            "listed_outliers": self.listed_outliers,
+            "listed_outliers_flagged": self.listed_flagged,
+            "notes": list(self.notes),
+        }
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2)
+
+
+def _is_planar(rows: np.ndarray) -> bool:
+    return bool(np.all(np.abs(rows[:, [2, 3, 4]]) <= 1e-9))
+
+
+def _read_listed_outliers(folder: Path) -> np.ndarray | None:
+    path = folder / "outliers.txt"
+    if not path.is_file():
+        return None
+    rows = []
+    for lineno, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        parts = line.split()
+        if len(parts) != 4 or not all(p.lstrip("-").isdigit() for p in parts):
+            raise FormatError(f"{path}:{lineno}: expected 'agent_from vertex_from agent_to vertex_to'")
+        a, b, c, d = (int(p) for p in parts)
+        rows.append((a - 1, b, c - 1, d))
+    return np.array(rows, dtype=np.int64).reshape(-1, 4)
+
+
+#: Edge classes in report order (``loop closures``: a single g2o file cannot tell intra from inter).
+CLASSES = ("odometry", "intra", "inter", "loop closures")
+
+EdgeSet = tuple[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def _multi_g2o(graph: Any, folder: Path) -> tuple[PoseKind, list[np.ndarray], list[EdgeSet], list[str]]:
+    missing = [a.name for a in graph.agents if a.ground_truth is None]
+    if missing:
+        raise FormatError(f"{folder}: agent {missing[0]} has no ground truth ({missing[0]}_GT.tum); "
+                          "a dataset is checked at its ground truth")
+    sets: list[EdgeSet] = []
+    for k, a in enumerate(graph.agents):
+        for name, edges in (("odometry", a.odometry), ("intra", a.loop_closures)):
+            ks = np.full(len(edges), k)
+            sets.append((name, ks, edges.from_index, ks, edges.to_index, edges.measurements, edges.information_upper))
+    i = graph.inter
+    sets.append(("inter", i.from_agent, i.from_index, i.to_agent, i.to_index, i.measurements, i.information_upper))
+    return graph.kind, [a.ground_truth for a in graph.agents], sets, [a.name for a in graph.agents]
+
+
+def _single_g2o(path: Path) -> tuple[PoseKind, list[np.ndarray], list[EdgeSet], list[str]]:
+    """kollagen's single view: ``NAME.g2o`` with ``NAME_GT.tum`` beside it (ids concatenated).
+    Edges between consecutive ids are odometry (kollagen's connectors included), others loop closures."""
+    from studio.io.g2o import read_g2o
+    from studio.io.tum import read_tum
+
+    gt_path = path.with_name(f"{path.stem}_GT.tum")
+    if not gt_path.is_file():
+        raise FormatError(f"{path}: no ground truth beside it ({gt_path.name}); a dataset is checked at its "
+                          "ground truth")
+    doc = read_g2o(path)
+    gt = read_tum(gt_path).poses_xyz_quat_xyzw
+    n = len(doc.vertex_ids)
+    if len(gt) != n or not np.array_equal(np.sort(doc.vertex_ids), np.arange(n)):
+        raise FormatError(f"{gt_path}: {len(gt)} poses for the {n} vertices (ids 0..{n - 1}) of {path.name}")
+    if doc.kind is PoseKind.SE2:
+        from studio.core.geometry import se3_poses_to_planar
+
+        gt = se3_poses_to_planar(gt)
+    odo = doc.edge_to == doc.edge_from + 1
+    zeros = np.zeros(len(doc.edge_from), dtype=np.int64)
+    sets: list[EdgeSet] = [
+        (name, zeros[sel], doc.edge_from[sel], zeros[sel], doc.edge_to[sel], doc.edge_measurements[sel],
+         doc.edge_information_upper[sel]) for name, sel in (("odometry", odo), ("loop closures", ~odo))]
+    return doc.kind, [gt], sets, [path.stem]
+
+
+def check(dataset: str | os.PathLike, *, convention: Convention = "g2o") -> CheckReport:
+    """Check ``dataset`` at its ground truth (see the module docstring): a multi-g2o folder, or a
+    single g2o file with ``<stem>_GT.tum`` beside it (kollagen's single view)."""
+    from scipy.stats import chi2 as chi2_dist
+
+    from studio.core.errors import ConfigError
+    from studio.io.multig2o import read_multi_g2o
+
+    if convention not in ("g2o", "rotvec"):
+        raise ConfigError(f"convention: expected g2o or rotvec, got {convention!r}")
+    folder = Path(dataset)
+    if folder.is_file():
+        loaded = _single_g2o(folder)
+    else:
+        loaded = _multi_g2o(read_multi_g2o(folder), folder)
+    kind, truth, edge_sets, names = loaded
+    notes = []
+    planar = kind is PoseKind.SE3 and all(_is_planar(t) for t in truth) and \
+        all(_is_planar(e[5]) for e in edge_sets if len(e[5]))
+    if planar:
+        notes.append("3D records of planar data: checked in SE(2) (x, y, yaw); z, roll and pitch are not scored")
+
+    def rows(poses: np.ndarray) -> np.ndarray:
+        from studio.core.geometry import se3_poses_to_planar
+
+        return se3_poses_to_planar(poses) if planar else poses
+
+    checked = PoseKind.SE2 if planar or kind is PoseKind.SE2 else PoseKind.SE3
+    d = 3 if checked is PoseKind.SE2 else 6
+    dt = 2 if checked is PoseKind.SE2 else 3
+    stacked = np.concatenate([rows(t) for t in truth])
+    offsets = np.concatenate([[0], np.cumsum([len(t) for t in truth])])
+
+    cls, agent_of, fa, fv, ta, tv, total, ttrans, trot = [], [], [], [], [], [], [], [], []
+    for name, a_from, v_from, a_to, v_to, meas, upper in edge_sets:
+        if len(v_from) == 0:
+            continue
+        e = edge_errors(stacked[offsets[a_from] + v_from], stacked[offsets[a_to] + v_to], rows(meas),
+                        convention=convention)
+        up = upper[:, _SE2_FROM_SE3] if planar else upper
+        t, r = chi2_parts(e, up)
+        cls.append(np.full(len(e), name))
+        agent_of.append(np.asarray(a_from))
+        fa.append(a_from)
+        fv.append(v_from)
+        ta.append(a_to)
+        tv.append(v_to)
+        total.append(chi2_terms(e, up))
+        ttrans.append(t)
+        trot.append(r)
+    if not cls:
+        raise FormatError(f"{folder}: the dataset has no edges to check")
+    c = np.concatenate(cls)
+    ag = np.concatenate(agent_of)
+    tot, tr, ro = np.concatenate(total), np.concatenate(ttrans), np.concatenate(trot)
+    rows_out = np.column_stack([np.concatenate(fa), np.concatenate(fv), np.concatenate(ta), np.concatenate(tv)])
+
+    # outlier candidates, per class with its robust scale
+    flagged = np.zeros(len(tot), dtype=bool)
+    limit = chi2_dist.ppf(1 - OUTLIER_TAIL, d)
+    for name in CLASSES:
+        sel = c == name
+        if not sel.any():
+            continue
+        scale = max(1.0, float(np.median(tot[sel])) / chi2_dist.median(d))
+        flagged |= sel & (tot > limit * scale)
+    order = np.argsort(-tot[flagged], kind="stable")
+    candidates = np.column_stack([rows_out[flagged][order].astype(np.float64), tot[flagged][order]])
+
+    classes = []
+    for name in CLASSES:
+        sel = c == name
+        if not sel.any():
+            continue
+        # a few gross outliers would swamp a class's sum: leave them out when they are rare
+        rare = flagged[sel].sum() <= MAX_EXCLUDED_FRACTION * sel.sum()
+        use = sel & ~flagged if rare else sel
+        excluded = int((sel & ~use).sum())
+        groups = [("all", use)] + ([(names[k], use & (ag == k)) for k in range(len(names))]
+                                   if name in ("odometry", "intra") and len(names) > 1 else [])
+        for label, s_ in groups:
+            n = int(s_.sum())
+            classes.append(ClassCheck(name, label, n, Component(float(tot[s_].sum()), n * d),
+                                      Component(float(tr[s_].sum()), n * dt), Component(float(ro[s_].sum()), n * (d - dt)),
+                                      excluded if label == "all" else 0))
+
+    listed = _read_listed_outliers(folder)
+    listed_n = listed_flagged = None
+    if listed is not None:
+        listed_n = len(listed)
+        have = {tuple(r) for r in rows_out[flagged].tolist()}
+        listed_flagged = sum(tuple(r) in have for r in listed.tolist())
+    return CheckReport(str(folder), checked, convention, tuple(classes), candidates, listed_n, listed_flagged,
+                       tuple(notes))
+
+
+def format_check(report: CheckReport, *, per_agent: bool = False) -> str:
+    """A plain-text table: one row per class (and per agent with ``per_agent``)."""
+    lines = [f"dataset:    {report.dataset}",
+             f"checked as: {report.kind.value}; rotation error: "
+             + ("quaternion vector part (g2o's EDGE_SE3:QUAT)" if report.convention == "g2o"
+                else "rotation vector (GTSAM)") + (" [planar: angle]" if report.kind is PoseKind.SE2 else ""),
+             "factor:     chi2 / degrees of freedom at the ground truth (1 = consistent)"]
+    lines += [f"note:       {n}" for n in report.notes]
+    head = ("class", "agent", "edges", "chi2/dof", "t chi2/dof", "r chi2/dof", "verdict (total; translation; rotation)")
+    body = []
+    for c in report.classes:
+        if c.agent != "all" and not per_agent:
+            continue
+        v = c.verdicts
+        body.append((c.name, c.agent, str(c.edges) + (f" (+{c.excluded} out)" if c.excluded else ""), f"{c.total.factor:.4g}", f"{c.translation.factor:.4g}",
+                     f"{c.rotation.factor:.4g}", f"{v['total']}; {v['translation']}; {v['rotation']}"))
+    widths = [max(len(r[i]) for r in [head, *body]) for i in range(len(head))]
+    lines += ["", "  ".join(h.ljust(w) for h, w in zip(head, widths))]
+    lines += ["  ".join(x.ljust(w) for x, w in zip(r, widths)) for r in body]
+    n = len(report.outliers)
+    lines += ["", f"outlier candidates: {n}" + ("" if report.listed_outliers is None else
+                                                f" (the dataset lists {report.listed_outliers} outliers; "
+                                                f"{report.listed_flagged} of them flagged)")]
+    for r in report.outliers[:10]:
+        lines.append(f"  agent {int(r[0]) + 1} vertex {int(r[1])} -> agent {int(r[2]) + 1} vertex {int(r[3])}: "
+                     f"chi2 {r[4]:.4g}")
+    if n > 10:
+        lines.append(f"  ... {n - 10} more (--json lists all)")
+    return "\n".join(lines) + "\n"
