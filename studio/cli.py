@@ -431,6 +431,41 @@ def check(
     typer.echo(report.to_json() if as_json else format_check(report, per_agent=per_agent), nl=not as_json or True)
 
 
+@app.command()
+@cli_errors
+def bench(
+    spec: str = typer.Argument(..., metavar="SPEC.toml|SPEC.json|paper",
+                               help="A bench spec, or the built-in 'paper' (the kollagen paper's Tables I-II)."),
+    out: Path = typer.Option(..., "-o", "--out", help="Folder of the bench: datasets, runs, tables, plot."),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="No progress bar and no table."),
+) -> None:
+    """Run datasets x cases x methods and write one table (CSV, Parquet, Markdown) and a plot.
+
+    Cells already finished in OUT are not run again. Example: studio bench paper -o out/bench
+    """
+    from studio.bench import bench as run_bench
+    from studio.bench import format_paper_table, load_bench_spec
+
+    parsed = load_bench_spec(spec)
+    show = not quiet and sys.stderr.isatty()
+    if show:
+        from rich.progress import Progress as RichProgress
+
+        with RichProgress(transient=True) as bar:
+            task = bar.add_task("bench", total=None)
+
+            def progress(done: int, total: int, label: str) -> None:
+                bar.update(task, completed=done, total=total, description=label)
+
+            res = run_bench(parsed, out, progress=progress)
+    else:
+        res = run_bench(parsed, out)
+    if not quiet:
+        typer.echo(format_paper_table(res.rows, parsed, parsed.alignments[0]), nl=False)
+        typer.echo(f"{res.computed} cells run, {len([r for r in res.rows if r['method'] != 'odometry']) - res.computed} "
+                   f"reused\n  {res.markdown_path}\n  {res.csv_path}" + (f"\n  {res.plot_path}" if res.plot_path else ""))
+
+
 def _tune_allocator() -> None:
     """glibc tuning for the commands that make many short-lived arrays (synth, convert); it keeps
     freed memory for reuse, so the other commands (solve: +80 MB peak) do without it."""

@@ -1,0 +1,433 @@
+"""``studio bench`` as a library function: datasets x cases x methods -> one table, like the kollagen
+paper's Tables I and II.
+
+A bench spec (TOML or JSON, or the built-in name ``paper``) names
+
+* ``datasets``: presets (``multi3500x8``), kollagen JSON files, or existing multi-g2o folders;
+* ``cases``: ``diagonal`` and/or ``exact`` (kollagen's ``exact_information_matrix``; it changes the
+  single g2o only, which is why the paper's optimizers read the single g2o); folders are taken as
+  they are (case ``as-is``);
+* ``methods``: solver methods of :mod:`studio.solvers` (``gtsam``, ``g2o``, ``gnc``, ``command``);
+* ``input``: ``single-g2o`` (kollagen's single file, as the paper) or ``multi-g2o``;
+* ``alignments``: the ``studio evaluate`` alignments to score every estimate under;
+* ``options``: per-method solver options (``[options.command] command = "..."``).
+
+Each cell (dataset, case, method) runs in a fresh process so its peak memory is its own; its results
+are written to ``OUT/runs/<cell>/cell.json`` and a finished cell is never recomputed. Synthetic
+datasets are generated once into ``OUT/datasets/``. The table goes to ``OUT/bench.csv``,
+``OUT/bench.md`` (the paper's layout: one row per dataset and case, one APE column per method, and
+the dead-reckoning row) and, when pyarrow is installed, ``OUT/bench.parquet``; a plot of APE per
+method and dataset to ``OUT/bench.png``.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import dataclasses
+import json
+import math
+import multiprocessing
+import os
+import resource
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+from studio.core.errors import ConfigError, StudioError
+
+__all__ = ["BenchSpec", "BenchResult", "Cell", "load_bench_spec", "bench", "PAPER_SPEC", "format_paper_table"]
+
+CASES = ("diagonal", "exact")
+INPUTS = ("single-g2o", "multi-g2o")
+DEFAULT_ALIGNMENTS = ("none", "first-pose", "se3")
+
+#: The built-in spec ``paper``: the kollagen paper's two datasets, both cases, the methods we have,
+#: read from the single g2o as the paper's optimizers did.
+PAPER_SPEC: dict[str, Any] = {
+    "name": "paper",
+    "datasets": ["multi3500x8", "multi10000x5"],
+    "cases": ["diagonal", "exact"],
+    "methods": ["gtsam", "g2o"],
+    "input": "single-g2o",
+    "alignments": list(DEFAULT_ALIGNMENTS),
+}
+
+#: The kollagen paper's published figures (APE translation mean [m], unaligned evo on the single
+#: files; g2o: spanning tree + Gauss-Newton, 10 iterations) as quoted in issue 15 of this project.
+PAPER_FIGURES = {
+    ("multi3500x8", "diagonal", "odometry"): 14.883697,
+    ("multi10000x5", "diagonal", "odometry"): 17.427713,
+    ("multi3500x8", "diagonal", "g2o"): 0.385161,
+    ("multi10000x5", "diagonal", "g2o"): 1.019478,
+    ("multi3500x8", "exact", "g2o"): 0.390065,
+    ("multi10000x5", "exact", "g2o"): 1.426272,
+}
+
+
+@dataclass(frozen=True)
+class BenchSpec:
+    name: str
+    datasets: tuple[str, ...]
+    cases: tuple[str, ...] = ("diagonal",)
+    methods: tuple[str, ...] = ("gtsam",)
+    input: str = "single-g2o"
+    alignments: tuple[str, ...] = DEFAULT_ALIGNMENTS
+    options: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    source: str = "<built-in>"
+
+
+@dataclass(frozen=True)
+class Cell:
+    dataset: str
+    case: str
+    method: str
+
+    @property
+    def key(self) -> str:
+        stem = Path(self.dataset).name if os.sep in self.dataset or self.dataset.endswith(".json") else self.dataset
+        stem = stem.removesuffix(".json")
+        return f"{stem}-{self.case}-{self.method}"
+
+
+@dataclass(frozen=True, eq=False)
+class BenchResult:
+    spec: BenchSpec
+    out_dir: Path
+    rows: tuple[dict[str, Any], ...]
+    """One dict per cell (and one ``odometry`` row per dataset and case), the table's rows."""
+    computed: int
+    """Cells run now (the others were finished by an earlier run)."""
+    csv_path: Path
+    markdown_path: Path
+    plot_path: Path | None
+    parquet_path: Path | None
+
+
+_KEYS = {"name", "datasets", "cases", "methods", "input", "alignments", "options"}
+#: Keyword options of :func:`studio.solve.solve` a spec may set per method.
+SOLVE_OPTIONS = {"optimizer", "init", "max_iterations", "relative_tolerance", "command", "dimension"}
+
+
+def _as_list(value: Any, where: str) -> tuple[str, ...]:
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, list) or not value or not all(isinstance(v, str) and v for v in value):
+        raise ConfigError(f"{where}: expected a non-empty list of names")
+    return tuple(value)
+
+
+def bench_spec_from_dict(data: Mapping[str, Any], source: str) -> BenchSpec:
+    """Validate a spec read from TOML/JSON; errors name ``source: key``."""
+    import difflib
+
+    from studio.evaluate import Alignment
+    from studio.solvers import method_names
+
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{source}: a bench spec is a table of keys ({', '.join(sorted(_KEYS))})")
+    for key in data:
+        if key not in _KEYS:
+            hint = difflib.get_close_matches(str(key), sorted(_KEYS), n=1)
+            raise ConfigError(f"{source}: {key}: unknown key" + (f" (did you mean {hint[0]!r}?)" if hint else "")
+                              + f"; known: {', '.join(sorted(_KEYS))}")
+    if "datasets" not in data:
+        raise ConfigError(f"{source}: datasets: missing key")
+    datasets = _as_list(data["datasets"], f"{source}: datasets")
+    cases = _as_list(data.get("cases", ["diagonal"]), f"{source}: cases")
+    for c in cases:
+        if c not in CASES:
+            raise ConfigError(f"{source}: cases: unknown case {c!r} (known: {', '.join(CASES)})")
+    methods = _as_list(data.get("methods", ["gtsam"]), f"{source}: methods")
+    known = method_names()
+    for m in methods:
+        if m not in known:
+            raise ConfigError(f"{source}: methods: unknown method {m!r} (known: {', '.join(known)})")
+    inp = data.get("input", "single-g2o")
+    if inp not in INPUTS:
+        raise ConfigError(f"{source}: input: expected one of {', '.join(INPUTS)}, got {inp!r}")
+    alignments = _as_list(data.get("alignments", list(DEFAULT_ALIGNMENTS)), f"{source}: alignments")
+    for a in alignments:
+        try:
+            Alignment(a)
+        except ValueError:
+            raise ConfigError(f"{source}: alignments: unknown alignment {a!r} "
+                              f"(known: {', '.join(x.value for x in Alignment)})") from None
+    options = data.get("options", {})
+    if not isinstance(options, Mapping) or not all(isinstance(v, Mapping) for v in options.values()):
+        raise ConfigError(f"{source}: options: expected a table per method ([options.gtsam] ...)")
+    for m, opts in options.items():
+        if m not in methods:
+            raise ConfigError(f"{source}: options.{m}: not one of the spec's methods ({', '.join(methods)})")
+        for key in opts:
+            if key not in SOLVE_OPTIONS:
+                raise ConfigError(f"{source}: options.{m}.{key}: unknown solve option "
+                                  f"(known: {', '.join(sorted(SOLVE_OPTIONS))})")
+    name = data.get("name", Path(source).stem if source != "<built-in>" else "bench")
+    if not isinstance(name, str) or not name or "/" in name:
+        raise ConfigError(f"{source}: name: expected a plain name")
+    return BenchSpec(name, datasets, cases, methods, inp, alignments,
+                     {k: dict(v) for k, v in options.items()}, source)
+
+
+def load_bench_spec(source: str | os.PathLike) -> BenchSpec:
+    """``paper`` (the built-in spec) or the path of a ``.toml`` / ``.json`` spec."""
+    text = str(source)
+    if text == "paper" and not Path(text).exists():
+        return bench_spec_from_dict(PAPER_SPEC, "<built-in paper>")
+    path = Path(text)
+    if not path.is_file():
+        raise ConfigError(f"{text}: no such spec file, and not a built-in spec (built-in: paper)")
+    try:
+        raw = path.read_bytes()
+        if path.suffix == ".json":
+            data = json.loads(raw.decode("utf-8"))
+        else:
+            data = tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{path}: not UTF-8 text (byte {err.start})") from None
+    except json.JSONDecodeError as err:
+        raise ConfigError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(f"{path}: not valid TOML ({err})") from None
+    return bench_spec_from_dict(data, str(path))
+
+
+# ------------------------------------------------------------------------------------------- datasets
+
+
+def _is_folder_dataset(name: str) -> bool:
+    return Path(name).is_dir()
+
+
+def _prepare_dataset(name: str, case: str, datasets_dir: Path) -> tuple[Path, Path | None]:
+    """``(multi-g2o folder, single g2o file or None)`` of a dataset in a case, generated once."""
+    if _is_folder_dataset(name):
+        folder = Path(name)
+        return folder, None
+    from studio.synth import load_synth_config, synthesize
+
+    config = load_synth_config(name)
+    config = dataclasses.replace(config, exact_information_matrix=(case == "exact"),
+                                 name=f"{config.name}-{case}")
+    dataset = datasets_dir / config.name
+    single = datasets_dir / f"{config.name}_singleg2o" / f"{config.name}.g2o"
+    if not (dataset.is_dir() and single.is_file()):
+        synthesize(config, datasets_dir, rrd=False, force=True)
+    return dataset, single
+
+
+# ------------------------------------------------------------------------------------------- one cell
+
+
+def _run_cell(cell: Cell, spec: BenchSpec, dataset: str, single: str | None, run_dir: str) -> dict[str, Any]:
+    """Solve and score one cell (in a fresh process); returns the row, with the process's peak memory."""
+    from studio.evaluate import evaluate
+    from studio.solve import solve
+
+    source = single if (spec.input == "single-g2o" and single is not None) else dataset
+    t0 = time.perf_counter()
+    res = solve(source, run_dir, method=cell.method, force=True, **spec.options.get(cell.method, {}))
+    info = {"estimate": str(res.estimate_path), "planar": res.planar}
+    wall = time.perf_counter() - t0
+    row: dict[str, Any] = {
+        "dataset": cell.dataset, "case": cell.case, "method": cell.method, "input": spec.input,
+        "iterations": res.iterations, "chi2_initial": res.chi2_initial, "chi2_final": res.chi2_final,
+        "solve_s": res.seconds, "wall_s": wall, **info,
+    }
+    for align in spec.alignments:
+        ev = evaluate(dataset, estimate=res.estimate_path, align=align)
+        row[f"ape_{align}_m"] = ev.overall.ape_translation_m.mean
+    row["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    return row
+
+
+def _odometry_row(name: str, case: str, dataset: Path, spec: BenchSpec) -> dict[str, Any]:
+    from studio.evaluate import evaluate
+
+    row: dict[str, Any] = {"dataset": name, "case": case, "method": "odometry", "input": spec.input}
+    for align in spec.alignments:
+        row[f"ape_{align}_m"] = evaluate(dataset, align=align).overall.ape_translation_m.mean
+    return row
+
+
+def _in_fresh_process(func: Callable[..., dict[str, Any]], *args: Any) -> dict[str, Any]:
+    ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
+    with concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx) as pool:
+        return pool.submit(func, *args).result()
+
+
+# ------------------------------------------------------------------------------------------- the bench
+
+
+Progress = Callable[[int, int, str], None]
+
+
+def bench(spec: BenchSpec, out_dir: str | os.PathLike, *, progress: Progress | None = None,
+          isolate: bool = True) -> BenchResult:
+    """Run every cell of ``spec`` not finished yet under ``out_dir`` and write the tables and plot.
+
+    ``isolate`` runs each cell in a fresh process (its own peak memory); tests may turn it off.
+    """
+    out = Path(out_dir)
+    datasets_dir, runs_dir = out / "datasets", out / "runs"
+    runs_dir.mkdir(parents=True, exist_ok=True)
+    datasets_dir.mkdir(parents=True, exist_ok=True)
+    for d in spec.datasets:
+        if _is_folder_dataset(d):
+            continue
+        from studio.synth import load_synth_config
+
+        load_synth_config(d)  # bad names fail before any work
+    cells = [Cell(d, c if not _is_folder_dataset(d) else "as-is", m)
+             for d in spec.datasets for c in (spec.cases if not _is_folder_dataset(d) else ("as-is",))
+             for m in spec.methods]
+    cells = list(dict.fromkeys(cells))
+    rows: list[dict[str, Any]] = []
+    computed = 0
+    prepared: dict[tuple[str, str], tuple[Path, Path | None]] = {}
+    total = len(cells)
+    for k, cell in enumerate(cells):
+        if progress:
+            progress(k, total, cell.key)
+        pair = (cell.dataset, cell.case)
+        if pair not in prepared:
+            prepared[pair] = _prepare_dataset(cell.dataset, cell.case if cell.case != "as-is" else "diagonal",
+                                              datasets_dir) if not _is_folder_dataset(cell.dataset) \
+                else (Path(cell.dataset), None)
+            odo_path = runs_dir / f"{Cell(cell.dataset, cell.case, 'odometry').key}.json"
+            if odo_path.is_file():
+                rows.append(json.loads(odo_path.read_text(encoding="utf-8")))
+            else:
+                row = _odometry_row(cell.dataset, cell.case, prepared[pair][0], spec)
+                _write_json(odo_path, row)
+                rows.append(row)
+        dataset, single = prepared[pair]
+        done = runs_dir / cell.key / "cell.json"
+        if done.is_file():
+            rows.append(json.loads(done.read_text(encoding="utf-8")))
+            continue
+        args = (cell, spec, str(dataset), None if single is None else str(single), str(runs_dir / cell.key / "estimate"))
+        try:
+            row = _in_fresh_process(_run_cell, *args) if isolate else _run_cell(*args)
+        except StudioError as err:
+            row = {"dataset": cell.dataset, "case": cell.case, "method": cell.method, "input": spec.input,
+                   "error": str(err)}
+        computed += 1
+        _write_json(done, row)
+        rows.append(row)
+    if progress:
+        progress(total, total, "done")
+    return _write_tables(spec, out, rows, computed)
+
+
+def _replace(path: Path, write: Callable[[Path], Any]) -> None:
+    """Write ``path`` through a temporary file beside it, renamed into place (never half-written)."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def _write_json(path: Path, row: Mapping[str, Any]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(row, indent=2, sort_keys=True, default=float) + "\n", encoding="utf-8")
+    os.replace(tmp, path)
+
+
+# ------------------------------------------------------------------------------------------- output
+
+
+def _fmt(v: Any) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.6f}" if abs(v) < 1e5 else f"{v:.6g}"
+    return str(v)
+
+
+def format_paper_table(rows: Sequence[Mapping[str, Any]], spec: BenchSpec, align: str) -> str:
+    """Markdown like the paper's Table I: one row per dataset and case, one APE column per method
+    (plus dead reckoning), the paper's figure beside ours where the paper has one."""
+    methods = ["odometry", *spec.methods]
+    head = ["dataset", "case"] + [f"{m} APE [m]" for m in methods]
+    lines = ["| " + " | ".join(head) + " |", "|" + "|".join([":---", ":---"] + ["---:"] * len(methods)) + "|"]
+    keys = list(dict.fromkeys((r["dataset"], r["case"]) for r in rows))
+    for d, c in keys:
+        cells = [d, c]
+        for m in methods:
+            r = next((x for x in rows if x["dataset"] == d and x["case"] == c and x["method"] == m), None)
+            v = None if r is None else r.get(f"ape_{align}_m")
+            text = r["error"].split(":")[0] if r is not None and "error" in r else _fmt(v)
+            paper = PAPER_FIGURES.get((Path(d).name.lower(), c, m))
+            if paper is not None:
+                text += f" (paper {paper:.6f})"
+            cells.append(text)
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _write_tables(spec: BenchSpec, out: Path, rows: list[dict[str, Any]], computed: int) -> BenchResult:
+    import pandas as pd
+
+    df = pd.DataFrame(rows)
+    first = ["dataset", "case", "method", "input"] + [f"ape_{a}_m" for a in spec.alignments] + [
+        "iterations", "chi2_initial", "chi2_final", "solve_s", "wall_s", "peak_rss_mb", "planar", "estimate", "error"]
+    df = df[[c for c in first if c in df.columns] + sorted(c for c in df.columns if c not in first)]
+    csv_path = out / "bench.csv"
+    _replace(csv_path, lambda tmp: df.to_csv(tmp, index=False))
+    parquet_path: Path | None = out / "bench.parquet"
+    try:
+        _replace(parquet_path, lambda tmp: df.to_parquet(tmp, index=False))  # type: ignore[arg-type]
+    except ImportError:
+        parquet_path = None
+    md = [f"# Bench `{spec.name}`", "",
+          f"Input: {spec.input}. APE: evo translation mean over all agents [m].", ""]
+    for align in spec.alignments:
+        md += [f"## APE, alignment `{align}`", "", format_paper_table(rows, spec, align)]
+    cols = [c for c in ("dataset", "case", "method", "iterations", "chi2_initial", "chi2_final", "solve_s",
+                        "wall_s", "peak_rss_mb", "error") if c in df.columns]
+    md += ["## Runs", "", "| " + " | ".join(cols) + " |", "|" + "|".join(["---"] * len(cols)) + "|"]
+    for r in rows:
+        if r["method"] == "odometry":
+            continue
+        md.append("| " + " | ".join(_fmt(r.get(c)) for c in cols) + " |")
+    markdown_path = out / "bench.md"
+    _replace(markdown_path, lambda tmp: tmp.write_text("\n".join(md) + "\n", encoding="utf-8"))
+    plot_path = _plot(spec, out, rows)
+    return BenchResult(spec, out, tuple(rows), computed, csv_path, markdown_path, plot_path, parquet_path)
+
+
+def _plot(spec: BenchSpec, out: Path, rows: list[dict[str, Any]]) -> Path | None:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    keys = list(dict.fromkeys((r["dataset"], r["case"]) for r in rows))
+    methods = list(spec.methods)
+    fig, axes = plt.subplots(1, len(spec.alignments), figsize=(4.5 * len(spec.alignments), 3.6), squeeze=False)
+    width = 0.8 / max(1, len(methods))
+    for ax, align in zip(axes[0], spec.alignments):
+        for k, m in enumerate(methods):
+            vals = []
+            for d, c in keys:
+                r = next((x for x in rows if x["dataset"] == d and x["case"] == c and x["method"] == m), {})
+                vals.append(r.get(f"ape_{align}_m", float("nan")))
+            ax.bar([i + k * width for i in range(len(keys))], vals, width, label=m)
+        ax.set_xticks([i + width * (len(methods) - 1) / 2 for i in range(len(keys))])
+        ax.set_xticklabels([f"{Path(d).name}\n{c}" for d, c in keys], fontsize=8)
+        ax.set_ylabel("APE translation mean [m]")
+        ax.set_title(f"alignment: {align}")
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    path = out / "bench.png"
+    _replace(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
+    plt.close(fig)
+    return path
