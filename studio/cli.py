@@ -466,6 +466,42 @@ def bench(
                    f"reused\n  {res.markdown_path}\n  {res.csv_path}" + (f"\n  {res.plot_path}" if res.plot_path else ""))
 
 
+@app.command()
+@cli_errors
+def sweep(
+    spec: Path = typer.Argument(..., metavar="SPEC.toml|SPEC.json", help="The sweep: base, grid, steps."),
+    out: Path = typer.Option(..., "-o", "--out", help="Folder of the sweep (shared by every worker)."),
+    scheduler: str | None = typer.Option(None, "--scheduler",
+                                         help="A Dask scheduler, e.g. tcp://host:8786 (default: a local cluster)."),
+    workers: int | None = typer.Option(None, "--workers", help="Workers of the local cluster (default: cores).",
+                                       min=1),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="No progress bar and no summary."),
+) -> None:
+    """Run a parameter grid of datasets (and solve/evaluate/check on each) on Dask; one table.
+
+    Finished cells are not run again. Example: studio sweep radius.toml -o out/sweep --workers 2
+    """
+    from studio.sweep import load_sweep_spec
+    from studio.sweep import sweep as run_sweep
+
+    parsed = load_sweep_spec(spec)
+    if not quiet and sys.stderr.isatty():
+        from rich.progress import Progress as RichProgress
+
+        with RichProgress(transient=True) as bar:
+            task = bar.add_task("cells", total=None)
+
+            def progress(done: int, total: int, label: str) -> None:
+                bar.update(task, completed=done, total=total, description=label)
+
+            res = run_sweep(parsed, out, scheduler=scheduler, workers=workers, progress=progress)
+    else:
+        res = run_sweep(parsed, out, scheduler=scheduler, workers=workers)
+    if not quiet:
+        typer.echo(f"{parsed.name}: {len(res.rows)} cells ({res.computed} run now, {res.failed} failed)\n"
+                   f"  {res.table_path}\n  {res.markdown_path}" + "".join(f"\n  {p}" for p in res.plot_paths))
+
+
 def _tune_allocator() -> None:
     """glibc tuning for the commands that make many short-lived arrays (synth, convert); it keeps
     freed memory for reuse, so the other commands (solve: +80 MB peak) do without it."""

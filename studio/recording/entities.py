@@ -11,7 +11,8 @@ __all__ = [
     "POSE_GROUND_TRUTH", "POSE_INITIAL", "LOOP_CLOSURES_INTRA", "LOOP_CLOSURES_INTER", "METRICS",
     "SERIES_POSITION_ERROR", "SERIES_LOOP_CLOSURES", "SERIES_INTER_LOOP_CLOSURES", "PROPERTY_DATASET",
     "PROPERTY_CONFIG", "EVALUATION", "EVALUATION_SUMMARY", "EVALUATION_SERIES", "TIMELINE_ITERATION",
-    "SOLVE", "SOLVE_ESTIMATE", "SOLVE_GROUND_TRUTH", "SOLVE_CHI2", "SOLVE_ERROR",
+    "SOLVE", "SOLVE_ESTIMATE", "SOLVE_GROUND_TRUTH", "SOLVE_CHI2", "SOLVE_ERROR", "TIMELINE_CELL",
+    "SWEEP_TABLE", "SWEEP_SERIES",
 ]
 
 #: Fixed application id of every recording the studio writes, so recordings of one dataset (its
@@ -69,3 +70,11 @@ SOLVE_GROUND_TRUTH = "solve/{agent}/ground_truth"
 SOLVE_CHI2 = "solve/metrics/chi2"
 #: Scalar per iteration: mean position error of the estimate against the ground truth [m].
 SOLVE_ERROR = "solve/metrics/position_error_m"
+
+# Sweep ------------------------------------------------------------------------------------------------
+#: Sequence timeline of a sweep: the cell's position in the sweep's table.
+TIMELINE_CELL = "cell"
+#: Static Markdown table of the sweep.
+SWEEP_TABLE = "sweep/table"
+#: Scalar per cell of one numeric column (``{metric}``: the column's name).
+SWEEP_SERIES = "sweep/{metric}"

@@ -18,6 +18,7 @@ rotation vector GTSAM uses), so it is converted: ``Omega_gtsam = J^T Omega J`` w
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Any
 
@@ -149,10 +150,19 @@ def solve_gtsam(problem: Problem, options: SolveOptions, on_iteration: Iteration
     error = opt.error()
     iterations = 0
     poses = guess
+    switched = False
     while iterations < options.max_iterations:
+        before = gtsam.Values(opt.values())  # a copy: the optimizer owns its values
         opt.iterate()
-        iterations += 1
         new_error = opt.error()
+        if new_error > error and options.optimizer == "gn" and not switched:
+            # a Gauss-Newton step that raises the cost (over-confident information far from the
+            # optimum, e.g. kollagen's Exact odometry): go on with Levenberg-Marquardt from the last
+            # good values instead of stopping there
+            switched = True
+            opt = _optimizer(gtsam, graph, before, dataclasses.replace(options, optimizer="lm"))
+            continue
+        iterations += 1
         poses = _poses(gtsam, problem.kind, opt.values())
         history.append(graph_chi2(problem, poses))
         if on_iteration is not None:
@@ -162,7 +172,7 @@ def solve_gtsam(problem: Problem, options: SolveOptions, on_iteration: Iteration
         error = new_error
     return Solution(poses, iterations, tuple(history),
                     notes={"build_s": t_build, "init_s": t_init, "init": options.init,
-                           "optimizer": options.optimizer})
+                           "optimizer": options.optimizer + (" then lm (a gn step raised the cost)" if switched else "")})
 
 
 def solve_gnc(problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution:

@@ -1,0 +1,44 @@
+"""A sweep's summary as Rerun data: one point per cell on the ``cell`` timeline, one series per metric."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from studio.recording.entities import APPLICATION_ID, SWEEP_SERIES, SWEEP_TABLE, TIMELINE_CELL
+
+__all__ = ["log_sweep", "write_sweep_recording"]
+
+
+def log_sweep(rec: Any, table: Any) -> None:
+    """``table``: a pandas DataFrame, one row per cell; numeric columns become series."""
+    import rerun as rr
+
+    rec.log(SWEEP_TABLE, rr.TextDocument(table.to_string(index=False)), static=True)
+    index = [rr.TimeColumn(TIMELINE_CELL, sequence=np.arange(len(table)))]
+    for col in table.columns:
+        if col.startswith("param:") or table[col].dtype.kind not in "fiu":
+            continue
+        values = table[col].to_numpy(dtype=np.float64)
+        path = SWEEP_SERIES.format(metric=rr.escape_entity_path_part(col))
+        rec.log(path, rr.SeriesLines(names=col), static=True)
+        rec.send_columns(path, indexes=index, columns=rr.Scalars.columns(scalars=values))
+
+
+def write_sweep_recording(path: str | os.PathLike, name: str, table: Any) -> Path:
+    import rerun as rr
+
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
+    rec = rr.RecordingStream(APPLICATION_ID, recording_id=f"sweep-{name}", send_properties=False)
+    try:
+        rec.save(tmp)
+        rec.send_recording_name(f"sweep {name}")
+        log_sweep(rec, table)
+    finally:
+        rec.disconnect()
+    os.replace(tmp, path)
+    return path

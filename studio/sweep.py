@@ -1,0 +1,523 @@
+"""``studio sweep`` as a library function: a parameter grid of datasets (and steps on each) fanned out
+over a Dask cluster, collected into one table.
+
+A sweep spec (TOML or JSON) names
+
+* ``base``: a preset (``multi3500x8``), a kollagen JSON file, or a converted dataset's
+  ``convert.json``;
+* ``grid``: parameter -> list of values; every combination is a cell. For a kollagen base a parameter
+  is a dotted JSON path (``number_of_agents``, ``inter_agent_loop_closure_parameters.loop_closure_radius``,
+  ``agent_parameters.agent_specific.std_dev_position``, which sets every agent's entry); for a
+  ``convert.json`` base it is an option name (``lc_radius``, ``outlier_fraction``...). ``seed`` is a
+  replicate number: for kollagen every ``random_number_generator_seed`` becomes
+  ``(seed_in_base + 1000003 * seed) mod (2^31 - 1)``; for convert it is the ``seed`` option;
+* ``cells``: an optional list of parameter tables, run besides the grid's;
+* ``steps``: what to run on each dataset: ``evaluate`` (APE of the dead reckoning), ``solve`` (then
+  the APE of the estimate), ``check`` (chi2 factors), ``record`` (the ``.rrd``), or
+  ``module:function`` (a function ``(cell_dir, dataset, row) -> dict`` of extra columns);
+* ``options``: per step, keyword options (``[options.solve] method = "g2o"``).
+
+Each cell gets a deterministic name (``<sweep>-<hash of its parameters>``) and its effective config
+in ``OUT/configs/<cell>.json``, so any cell can be made alone with the command the table lists
+(``studio synth OUT/configs/<cell>.json -o DIR``). Cells run on Dask workers (a local cluster by
+default, or ``scheduler``'s): each writes ``OUT/cells/<cell>/`` (the dataset is staged and renamed
+by ``studio synth``/``convert``) and last ``result.json``, the completion marker. A finished cell is
+never recomputed; a cell whose worker dies is retried (the retry removes what the dead one left);
+a cell that fails records its one-line error in the table, leaves no files, and the sweep goes on.
+The client writes ``OUT/sweep.parquet``, ``OUT/sweep.csv``, ``OUT/sweep.md``, a plot per swept
+parameter in ``OUT/plots/`` and ``OUT/sweep.rrd`` (the summary series over the cells).
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import importlib
+import itertools
+import json
+import logging
+import math
+import os
+import shutil
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+from studio.core.errors import ConfigError, StudioError
+
+__all__ = ["SweepSpec", "SweepResult", "CellTask", "load_sweep_spec", "sweep_spec_from_dict", "expand", "sweep",
+           "run_cell", "STEPS"]
+
+STEPS = ("evaluate", "solve", "check", "record")
+_KEYS = {"name", "base", "grid", "cells", "steps", "options"}
+_SEED_STRIDE = 1_000_003
+_INT32 = 2**31 - 1
+RESULT = "result.json"
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    name: str
+    base: str
+    grid: Mapping[str, Sequence[Any]]
+    cells: tuple[Mapping[str, Any], ...] = ()
+    steps: tuple[str, ...] = ("evaluate",)
+    options: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    source: str = "<spec>"
+
+
+@dataclass(frozen=True)
+class CellTask:
+    """Everything a worker needs for one cell (plain data: it travels to the worker)."""
+
+    name: str
+    kind: str
+    """``synth`` or ``convert``."""
+    config: dict[str, Any]
+    params: dict[str, Any]
+    out_root: str
+    steps: tuple[str, ...]
+    options: dict[str, dict[str, Any]]
+
+
+@dataclass(frozen=True, eq=False)
+class SweepResult:
+    out_dir: Path
+    rows: tuple[dict[str, Any], ...]
+    computed: int
+    """Cells run now (the others were finished by an earlier run)."""
+    failed: int
+    table_path: Path
+    markdown_path: Path
+    plot_paths: tuple[Path, ...]
+    rrd_path: Path | None
+
+
+# ------------------------------------------------------------------------------------------- the spec
+
+
+def sweep_spec_from_dict(data: Any, source: str) -> SweepSpec:
+    import difflib
+
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{source}: a sweep spec is a table of keys ({', '.join(sorted(_KEYS))})")
+    for key in data:
+        if key not in _KEYS:
+            hint = difflib.get_close_matches(str(key), sorted(_KEYS), n=1)
+            raise ConfigError(f"{source}: {key}: unknown key" + (f" (did you mean {hint[0]!r}?)" if hint else "")
+                              + f"; known: {', '.join(sorted(_KEYS))}")
+    if "base" not in data:
+        raise ConfigError(f"{source}: base: missing key (a preset, a kollagen JSON or a convert.json)")
+    base = data["base"]
+    if not isinstance(base, str) or not base:
+        raise ConfigError(f"{source}: base: expected a preset name or a path")
+    grid = data.get("grid", {})
+    if not isinstance(grid, Mapping):
+        raise ConfigError(f"{source}: grid: expected a table of parameter = [values]")
+    for key, values in grid.items():
+        if not isinstance(values, list) or not values:
+            raise ConfigError(f"{source}: grid.{key}: expected a non-empty list of values")
+    cells = data.get("cells", [])
+    if not isinstance(cells, list) or not all(isinstance(c, Mapping) for c in cells):
+        raise ConfigError(f"{source}: cells: expected a list of parameter tables")
+    steps = data.get("steps", ["evaluate"])
+    if isinstance(steps, str):
+        steps = [steps]
+    if not isinstance(steps, list) or not all(isinstance(s, str) for s in steps):
+        raise ConfigError(f"{source}: steps: expected a list of step names")
+    for s in steps:
+        if s not in STEPS and ":" not in s:
+            raise ConfigError(f"{source}: steps: unknown step {s!r} (known: {', '.join(STEPS)}, or module:function)")
+    options = data.get("options", {})
+    if not isinstance(options, Mapping) or not all(isinstance(v, Mapping) for v in options.values()):
+        raise ConfigError(f"{source}: options: expected a table per step ([options.solve] ...)")
+    for s in options:
+        if s not in steps:
+            raise ConfigError(f"{source}: options.{s}: not one of the spec's steps ({', '.join(steps)})")
+    name = data.get("name", Path(source).stem if source != "<spec>" else "sweep")
+    if not isinstance(name, str) or not name or not all(ch.isalnum() or ch in "-_." for ch in name):
+        raise ConfigError(f"{source}: name: expected letters, digits, '-', '_' or '.'")
+    return SweepSpec(name, base, {k: list(v) for k, v in grid.items()}, tuple(dict(c) for c in cells),
+                     tuple(steps), {k: dict(v) for k, v in options.items()}, source)
+
+
+def load_sweep_spec(path: str | os.PathLike) -> SweepSpec:
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such sweep spec")
+    try:
+        text = path.read_bytes().decode("utf-8")
+        data = json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{path}: not UTF-8 text (byte {err.start})") from None
+    except json.JSONDecodeError as err:
+        raise ConfigError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(f"{path}: not valid TOML ({err})") from None
+    spec = sweep_spec_from_dict(data, str(path))
+    base = spec.base
+    if not Path(base).is_absolute() and (path.parent / base).is_file():
+        spec = SweepSpec(spec.name, str(path.parent / base), spec.grid, spec.cells, spec.steps, spec.options,
+                         spec.source)
+    return spec
+
+
+# ------------------------------------------------------------------------------------------- cells
+
+
+def _base(spec: SweepSpec) -> tuple[str, dict[str, Any]]:
+    """``(kind, JSON)`` of the base: a kollagen config (presets written out) or a convert.json."""
+    from studio.generator.presets import PRESETS, preset
+    from studio.io.synth_config import synth_config_to_json
+
+    if spec.base.lower() in PRESETS and not Path(spec.base).exists():
+        return "synth", synth_config_to_json(preset(spec.base))
+    path = Path(spec.base)
+    if not path.is_file():
+        raise ConfigError(f"{spec.source}: base: {spec.base}: no such file, and not a preset "
+                          f"(presets: {', '.join(sorted(PRESETS))})")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise ConfigError(f"{path}: not a readable JSON file ({err})") from None
+    if isinstance(data, dict) and "source" in data and "inputs" in data:
+        return "convert", data
+    return "synth", data
+
+
+def _set_path(doc: dict[str, Any], key: str, value: Any, where: str) -> None:
+    parts = key.split(".")
+    targets: list[Any] = [doc]
+    for k, part in enumerate(parts):
+        last = k == len(parts) - 1
+        nxt: list[Any] = []
+        for t in targets:
+            if not isinstance(t, dict) or part not in t:
+                raise ConfigError(f"{where}: {key}: no such key in the base config")
+            if last:
+                t[part] = value
+            elif isinstance(t[part], list):
+                nxt.extend(t[part])  # a list of objects (agent_specific): set the key in every entry
+            else:
+                nxt.append(t[part])
+        targets = nxt
+
+
+def _apply(kind: str, base: dict[str, Any], params: Mapping[str, Any], where: str) -> dict[str, Any]:
+    doc = copy.deepcopy(base)
+    for key, value in params.items():
+        if kind == "convert":
+            from studio.converters.build import GraphOptions
+
+            names = sorted(GraphOptions.__dataclass_fields__)
+            if key not in names:
+                raise ConfigError(f"{where}: {key}: not a convert option (known: {', '.join(names)})")
+            doc[key] = value
+            continue
+        if key == "seed":
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise ConfigError(f"{where}: seed: expected a non-negative integer, got {value!r}")
+            continue
+        _set_path(doc, key, value, where)
+    if kind == "synth":
+        seed = int(params.get("seed", 0))
+        entries = doc.get("agent_parameters", {}).get("agent_specific", [])
+        n = doc.get("number_of_agents")
+        if isinstance(entries, list) and entries and isinstance(n, int) and 1 < len(entries) != n:
+            # a cell that changes the number of agents cycles through the base's agent entries
+            doc["agent_parameters"]["agent_specific"] = [copy.deepcopy(entries[k % len(entries)]) for k in range(n)]
+        if seed:
+            for entry in doc["agent_parameters"]["agent_specific"]:
+                entry["random_number_generator_seed"] = (entry["random_number_generator_seed"] + _SEED_STRIDE * seed) % _INT32
+            inter = doc["inter_agent_loop_closure_parameters"]
+            inter["random_number_generator_seed"] = (inter["random_number_generator_seed"] + _SEED_STRIDE * seed) % _INT32
+    return doc
+
+
+def cell_name(spec_name: str, params: Mapping[str, Any]) -> str:
+    digest = hashlib.sha256(json.dumps(params, sort_keys=True, default=str).encode()).hexdigest()[:10]
+    return f"{spec_name}-{digest}"
+
+
+def expand(spec: SweepSpec, out: str | os.PathLike) -> list[CellTask]:
+    """Every cell of the spec (grid combinations, then the explicit cells), validated."""
+    kind, base = _base(spec)
+    keys = list(spec.grid)
+    combos = [dict(zip(keys, values)) for values in itertools.product(*(spec.grid[k] for k in keys))] if keys else []
+    combos += [dict(c) for c in spec.cells]
+    if not combos:
+        combos = [{}]
+    tasks, seen = [], set()
+    for k, params in enumerate(combos):
+        where = f"{spec.source}: cell {k + 1}"
+        doc = _apply(kind, base, params, where)
+        name = cell_name(spec.name, params)
+        if name in seen:
+            continue
+        seen.add(name)
+        # a bad value fails here, before any work
+        if kind == "synth":
+            from studio.io.synth_config import parse_synth_config
+
+            parse_synth_config(doc, source=where, name=name)
+        else:
+            from studio.convert import config_from_mapping
+
+            config_from_mapping(doc, where)
+        tasks.append(CellTask(name, kind, doc, params, str(Path(out)), spec.steps,
+                              {s: dict(o) for s, o in spec.options.items()}))
+    return tasks
+
+
+# ------------------------------------------------------------------------------------------- one cell
+
+
+def _evaluate(dataset: Path, row: dict[str, Any], prefix: str, estimate: Path | None = None) -> None:
+    from studio.evaluate import evaluate
+
+    for align in ("none", "se3"):
+        ev = evaluate(dataset, estimate=estimate, align=align)
+        row[f"{prefix}_{align}_m"] = ev.overall.ape_translation_m.mean
+
+
+def _step(step: str, task: CellTask, cell_dir: Path, dataset: Path, row: dict[str, Any]) -> None:
+    opts = task.options.get(step, {})
+    if step == "evaluate":
+        _evaluate(dataset, row, "ape_initial")
+    elif step == "solve":
+        from studio.solve import solve
+
+        res = solve(dataset, cell_dir / "solved", **opts)
+        row.update(solve_method=res.method, solve_iterations=res.iterations, chi2_final=res.chi2_final,
+                   solve_s=res.seconds)
+        _evaluate(dataset, row, "ape_solved", res.estimate_path)
+    elif step == "check":
+        from studio.check import check
+
+        report = check(dataset, **opts)
+        for c in report.classes:
+            if c.agent == "all":
+                row[f"check_{c.name.replace(' ', '_')}_factor"] = c.total.factor
+    elif step == "record":
+        pass  # written with the dataset
+    else:
+        module, _, func = step.partition(":")
+        row.update(getattr(importlib.import_module(module), func)(cell_dir, dataset, dict(row)) or {})
+
+
+def run_cell(task: CellTask) -> dict[str, Any]:
+    """Make one cell's dataset and run its steps (on a worker). Returns the cell's table row.
+
+    A cell with ``result.json`` is done; anything else in its folder is what a killed attempt left,
+    removed first. A StudioError becomes the row's ``error`` and the cell's files are removed.
+    """
+    out = Path(task.out_root)
+    cell_dir = out / "cells" / task.name
+    done = cell_dir / RESULT
+    if done.is_file():
+        return dict(json.loads(done.read_text(encoding="utf-8")), reused=True)
+    if cell_dir.exists():
+        shutil.rmtree(cell_dir)
+    row: dict[str, Any] = {"cell": task.name, **{f"param:{k}": v for k, v in task.params.items()}}
+    t0 = time.perf_counter()
+    try:
+        cell_dir.mkdir(parents=True)
+        if task.kind == "synth":
+            from studio.io.synth_config import parse_synth_config
+            from studio.synth import synthesize
+
+            config = parse_synth_config(task.config, source=str(out / "configs" / f"{task.name}.json"), name=task.name)
+            res = synthesize(config, cell_dir, jobs=1, rrd="record" in task.steps)
+            dataset = res.dataset_dir
+            g = res.output.graph
+        else:
+            from studio.convert import config_from_mapping, convert
+
+            res_c = convert(config_from_mapping(task.config, str(out / "configs" / f"{task.name}.json")),
+                            cell_dir / task.name, rrd="record" in task.steps)
+            dataset = res_c.dataset_dir
+            g = res_c.build.graph
+        row["make_s"] = time.perf_counter() - t0
+        row.update(agents=len(g.agents), poses=g.num_poses, **g.edge_counts())
+        for step in task.steps:
+            _step(step, task, cell_dir, dataset, row)
+    except StudioError as err:
+        shutil.rmtree(cell_dir, ignore_errors=True)
+        row["error"] = str(err).splitlines()[0]
+        return row
+    row["cell_s"] = time.perf_counter() - t0
+    tmp = done.with_name(RESULT + ".tmp")
+    tmp.write_text(json.dumps(row, indent=2, sort_keys=True, default=float) + "\n", encoding="utf-8")
+    os.replace(tmp, done)
+    return row
+
+
+# ------------------------------------------------------------------------------------------- the sweep
+
+
+Progress = Callable[[int, int, str], None]
+
+
+def _client(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise ConfigError("studio sweep needs Dask: pip install 'cslam-studio[sweep]'") from None
+    for name in ("distributed", "distributed.worker", "distributed.scheduler", "distributed.nanny",
+                 "distributed.core", "distributed.comm", "tornado"):
+        logging.getLogger(name).setLevel(logging.ERROR)
+    if scheduler:
+        try:
+            return Client(scheduler, timeout="20s"), None
+        except (OSError, TimeoutError) as err:
+            raise ConfigError(f"scheduler: cannot connect to {scheduler} ({err})") from None
+    from studio.core.parallel import default_jobs
+
+    n = workers or default_jobs()
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+def sweep(spec: SweepSpec, out: str | os.PathLike, *, scheduler: str | None = None, workers: int | None = None,
+          progress: Progress | None = None, retries: int = 2) -> SweepResult:
+    """Run every cell of ``spec`` not finished yet (see the module docstring); returns the table."""
+    out = Path(out).resolve()
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ConfigError(f"workers: expected a positive integer, got {workers!r}")
+    tasks = expand(spec, out)
+    (out / "configs").mkdir(parents=True, exist_ok=True)
+    for t in tasks:
+        path = out / "configs" / f"{t.name}.json"
+        text = json.dumps(t.config, indent=4) + "\n"
+        if not path.is_file() or path.read_text(encoding="utf-8") != text:
+            path.write_text(text, encoding="utf-8")
+    rows: dict[str, dict[str, Any]] = {}
+    todo = []
+    for t in tasks:
+        done = out / "cells" / t.name / RESULT
+        if done.is_file():
+            rows[t.name] = json.loads(done.read_text(encoding="utf-8"))
+        else:
+            todo.append(t)
+    if progress:
+        progress(len(rows), len(tasks), "cells")
+    if todo:
+        client, cluster = _client(scheduler, workers)
+        try:
+            from distributed import as_completed
+
+            futures = client.map(run_cell, todo, key=[f"studio-cell-{t.name}" for t in todo], retries=retries,
+                                 pure=False)
+            for fut in as_completed(futures):
+                row = fut.result()
+                rows[row["cell"]] = row
+                if progress:
+                    progress(len(rows), len(tasks), row["cell"])
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    ordered = [dict(rows[t.name], command=_command(t, out, spec)) for t in tasks]
+    return _write_outputs(spec, out, ordered, computed=len(todo))
+
+
+def _command(task: CellTask, out: Path, spec: SweepSpec) -> str:
+    cfg = out / "configs" / f"{task.name}.json"
+    if task.kind == "synth":
+        cmd = f"studio synth {cfg} -o DIR" + ("" if "record" in task.steps else " --no-rrd")
+        dataset = f"DIR/{task.name}"
+    else:
+        cmd = f"studio convert --config {cfg} -o DIR/{task.name}"
+        dataset = f"DIR/{task.name}"
+    if "solve" in task.steps:
+        opts = task.options.get("solve", {})
+        flags = "".join(f" --{k.replace('_', '-')} {v}" for k, v in sorted(opts.items()))
+        cmd += f" && studio solve {dataset} -o DIR/solved{flags}"
+    return cmd
+
+
+def _write_outputs(spec: SweepSpec, out: Path, rows: list[dict[str, Any]], computed: int) -> SweepResult:
+    import pandas as pd
+
+    df = pd.DataFrame(rows)
+    for col in df.columns:
+        if df[col].dtype == object:
+            df[col] = df[col].map(lambda v: v if v is None or isinstance(v, str) else json.dumps(v))
+    table = out / "sweep.parquet"
+    _replace(table, lambda tmp: df.to_parquet(tmp, index=False))
+    _replace(out / "sweep.csv", lambda tmp: df.to_csv(tmp, index=False))
+    failed = int(df["error"].notna().sum()) if "error" in df.columns else 0
+    md = [f"# Sweep `{spec.name}`", "", f"Base: `{spec.base}`; steps: {', '.join(spec.steps)}; "
+          f"{len(rows)} cells ({computed} run now, {failed} failed).", ""]
+    cols = [c for c in df.columns if c not in ("command",)]
+    md += ["| " + " | ".join(cols) + " |", "|" + "|".join(["---"] * len(cols)) + "|"]
+    for _, r in df.iterrows():
+        md.append("| " + " | ".join(_fmt(r[c]) for c in cols) + " |")
+    md += ["", "Re-run a cell alone (DIR: any folder):", ""]
+    md += [f"* `{r['cell']}`: `{r['command']}`" for r in rows]
+    markdown = out / "sweep.md"
+    _replace(markdown, lambda tmp: tmp.write_text("\n".join(md) + "\n", encoding="utf-8"))
+    plots = _plots(spec, out, df)
+    rrd = None
+    try:
+        from studio.recording.sweep import write_sweep_recording
+
+        rrd = write_sweep_recording(out / "sweep.rrd", spec.name, df)
+    except ImportError:
+        rrd = None
+    return SweepResult(out, tuple(rows), computed, failed, table, markdown, tuple(plots), rrd)
+
+
+def _fmt(v: Any) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+def _replace(path: Path, write: Callable[[Path], Any]) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+#: Columns plotted against each swept parameter, when present.
+PLOTTED = ("cell_s", "make_s", "odometry", "intra_loop_closures", "inter_loop_closures", "ape_initial_none_m",
+           "ape_solved_se3_m", "ape_solved_none_m", "solve_s")
+
+
+def _plots(spec: SweepSpec, out: Path, df: Any) -> list[Path]:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return []
+    paths = []
+    (out / "plots").mkdir(exist_ok=True)
+    params = [c for c in df.columns if c.startswith("param:")]
+    metrics = [c for c in PLOTTED if c in df.columns]
+    for p in params:
+        if df[p].nunique() < 2 or not metrics:
+            continue
+        fig, axes = plt.subplots(1, len(metrics), figsize=(3.2 * len(metrics), 3.0), squeeze=False)
+        means = df.groupby(p)[metrics].mean(numeric_only=True)
+        for ax, m in zip(axes[0], metrics):
+            ax.plot(means.index.astype(str), means[m], marker="o")
+            ax.set_xlabel(p.removeprefix("param:").split(".")[-1], fontsize=8)
+            ax.set_title(m, fontsize=8)
+            ax.tick_params(labelsize=7)
+        fig.tight_layout()
+        path = out / "plots" / f"{p.removeprefix('param:').replace('.', '_')}.png"
+        _replace(path, lambda tmp: fig.savefig(tmp, dpi=90, format="png"))
+        plt.close(fig)
+        paths.append(path)
+    return paths

@@ -1,0 +1,17 @@
+"""Custom sweep steps for the tests (``steps = ["tests.studio.sweep_steps:die_once"]``)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+
+def die_once(cell_dir: Path, dataset: Path, row: dict) -> dict:
+    """Kill the worker process the first time a cell reaches this step (a marker outside the cell
+    remembers it): the dataset is then on disk but the cell is unfinished."""
+    marker = cell_dir.parent.parent / "killed" / cell_dir.name
+    if not marker.exists():
+        marker.parent.mkdir(exist_ok=True)
+        marker.write_text(str(os.getpid()))
+        os._exit(17)
+    return {"survived_kill": True}

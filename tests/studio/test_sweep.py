@@ -1,0 +1,164 @@
+"""studio sweep on Dask: same bytes as sequential synth runs, resuming, a killed worker, a failing
+cell, and a separate scheduler process."""
+
+from __future__ import annotations
+
+import filecmp
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from studio.cli import app
+from studio.core.errors import ConfigError
+from studio.sweep import expand, load_sweep_spec, sweep, sweep_spec_from_dict
+
+DATA = Path(__file__).resolve().parent.parent / "data"
+REPO = DATA.parent.parent
+runner = CliRunner()
+pytest.importorskip("distributed")
+
+
+def _spec(tmp_path: Path, steps: str = '["evaluate"]', extra: str = "") -> Path:
+    path = tmp_path / "spec.toml"
+    path.write_text(
+        f'name = "grid"\nbase = "{DATA / "configs" / "tiny_three.json"}"\nsteps = {steps}\n{extra}'
+        '[grid]\nnumber_of_steps = [20, 40, 60]\n'
+        '"inter_agent_loop_closure_parameters.loop_closure_radius" = [1.0, 2.0]\nseed = [0, 1]\n')
+    return path
+
+
+def _same_tree(a: Path, b: Path) -> bool:
+    files = sorted(p.relative_to(a) for p in a.rglob("*") if p.is_file())
+    return bool(files) and files == sorted(p.relative_to(b) for p in b.rglob("*") if p.is_file()) and \
+        all(filecmp.cmp(a / f, b / f, shallow=False) for f in files)
+
+
+def test_twelve_cells_on_two_workers_give_the_bytes_of_sequential_synth_runs_and_resume(tmp_path):
+    spec = load_sweep_spec(_spec(tmp_path))
+    out = tmp_path / "out"
+    res = sweep(spec, out, workers=2)
+    assert len(res.rows) == 12 and res.computed == 12 and res.failed == 0
+    df = pd.read_parquet(res.table_path)
+    assert len(df) == 12 and df["ape_initial_none_m"].gt(0).all()
+    assert sorted(df["param:number_of_steps"].unique()) == [20, 40, 60]
+    # every cell is what `studio synth configs/<cell>.json` makes on its own
+    for row in res.rows[:12]:
+        cell = row["cell"]
+        alone = tmp_path / "alone" / cell
+        done = subprocess.run([sys.executable, "-m", "studio.cli", "synth", str(out / "configs" / f"{cell}.json"),
+                               "-o", str(alone), "-q", "--no-rrd"], capture_output=True, text=True, cwd=REPO,
+                              env=dict(os.environ, CI="true"))
+        assert done.returncode == 0, done.stderr
+        assert row["command"].startswith(f"studio synth {out / 'configs' / cell}.json -o DIR")
+        assert _same_tree(alone / cell, out / "cells" / cell / cell)
+        assert _same_tree(alone / f"{cell}_singleg2o", out / "cells" / cell / f"{cell}_singleg2o")
+    # an interrupted run: three cells unfinished (one with a half-made folder); the rest is kept
+    names = [r["cell"] for r in res.rows]
+    stamps = {n: (out / "cells" / n / "result.json").stat().st_mtime_ns for n in names}
+    for n in names[:3]:
+        (out / "cells" / n / "result.json").unlink()
+    (out / "cells" / names[0] / names[0] / "agent1" / "posegraph.g2o").write_text("half")
+    again = sweep(spec, out, workers=2)
+    assert again.computed == 3
+    for n in names[3:]:
+        assert (out / "cells" / n / "result.json").stat().st_mtime_ns == stamps[n]
+    assert _same_tree(tmp_path / "alone" / names[0] / names[0], out / "cells" / names[0] / names[0])
+    assert sweep(spec, out, workers=2).computed == 0
+
+
+def test_a_killed_worker_leaves_no_partial_cell_and_the_cell_completes(tmp_path):
+    spec = load_sweep_spec(_spec(tmp_path, '["evaluate", "tests.studio.sweep_steps:die_once"]'))
+    spec = sweep_spec_from_dict({"name": "kill", "base": spec.base, "steps": list(spec.steps),
+                                 "grid": {"number_of_steps": [20, 30]}}, "kill.toml")
+    out = tmp_path / "out"
+    res = sweep(spec, out, workers=2)
+    assert res.failed == 0 and len(res.rows) == 2
+    assert all(r["survived_kill"] for r in res.rows)
+    assert sorted(p.name for p in (out / "killed").iterdir()) == sorted(r["cell"] for r in res.rows)
+    for r in res.rows:
+        cell = out / "cells" / r["cell"]
+        assert sorted(p.name for p in cell.iterdir()) == sorted(
+            [r["cell"], f"{r['cell']}_singleg2o", f"{r['cell']}.config.json", "result.json"])
+
+
+def test_a_failing_cell_records_its_error_and_the_sweep_goes_on(tmp_path):
+    spec = sweep_spec_from_dict({"name": "fail", "base": str(DATA / "configs" / "tiny_three.json"),
+                                 "steps": ["evaluate", "solve"], "options": {"solve": {"method": "command"}},
+                                 "grid": {"number_of_steps": [20, 30]}}, "fail.toml")
+    res = sweep(spec, tmp_path / "out", workers=1)
+    assert res.failed == 2
+    assert all(r["error"].startswith("command: method command needs the program") for r in res.rows)
+    assert not any((tmp_path / "out" / "cells").iterdir())  # nothing half-made is left
+
+
+@pytest.mark.parametrize("data, message", [
+    ({"grid": {}}, "base: missing key"),
+    ({"base": "multi3500x8", "grids": {}}, "grids: unknown key (did you mean 'grid'?)"),
+    ({"base": "multi3500x8", "steps": ["plot"]}, "steps: unknown step 'plot'"),
+    ({"base": "multi3500x8", "grid": {"number_of_agent": [2]}}, "cell 1: number_of_agent: no such key"),
+    ({"base": "multi3500x8", "grid": {"number_of_agents": [0]}}, "number_of_agents"),
+    ({"base": "multi3500x8", "grid": {"seed": [-1]}}, "seed: expected a non-negative integer"),
+])
+def test_bad_specs_are_refused_before_any_work(tmp_path, data, message):
+    with pytest.raises(ConfigError, match=message.replace("(", r"\(").replace(")", r"\)").replace("?", r"\?")):
+        expand(sweep_spec_from_dict(data, "s.toml"), tmp_path)
+    assert not any(tmp_path.iterdir())
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_a_sweep_on_a_scheduler_started_as_a_separate_process(tmp_path):
+    port = _free_port()
+    env = dict(os.environ, CI="true", PYTHONPATH=str(REPO))
+    sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                              "--port", str(port), "--no-dashboard"], env=env, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL, start_new_session=True)
+    worker = None
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                time.sleep(0.2)
+        worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", f"tcp://127.0.0.1:{port}",
+                                   "--nworkers", "1", "--nthreads", "1", "--no-dashboard", "--host", "127.0.0.1"],
+                                  env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                  start_new_session=True, cwd=tmp_path)
+        spec_path = tmp_path / "s.toml"
+        spec_path.write_text(f'name = "remote"\nbase = "{DATA / "configs" / "tiny_three.json"}"\n'
+                             '[grid]\nnumber_of_steps = [20, 30]\n')
+        res = runner.invoke(app, ["sweep", str(spec_path), "-o", str(tmp_path / "out"),
+                                  "--scheduler", f"tcp://127.0.0.1:{port}"])
+        assert res.exit_code == 0, res.output
+        assert "remote: 2 cells (2 run now, 0 failed)" in res.output
+        assert len(pd.read_parquet(tmp_path / "out" / "sweep.parquet")) == 2
+        assert (tmp_path / "out" / "sweep.rrd").stat().st_size > 0
+    finally:
+        for proc in (worker, sched):
+            if proc is not None:
+                os.killpg(proc.pid, 15)
+                proc.wait(timeout=30)
+
+
+def test_cli_bad_spec_is_one_line(tmp_path):
+    spec = tmp_path / "s.toml"
+    spec.write_text('base = "multi3500x8"\nstep = ["evaluate"]\n')
+    res = runner.invoke(app, ["sweep", str(spec), "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2
+    assert res.output.strip() == (f"error: {spec}: step: unknown key (did you mean 'steps'?); "
+                                  "known: base, cells, grid, name, options, steps")
+    assert json.dumps(1)
