@@ -1,0 +1,66 @@
+"""`studio sweep` on the local Dask cluster against a sequential loop of CLI calls.
+
+    python benchmarks/bench_sweep.py [--cells 200] [--workers 2] [--config tests/data/configs/tiny_three.json] [--out DIR]
+
+Makes CELLS small datasets (the config with replicate seeds 0..CELLS-1) and evaluates each, once
+with `studio sweep` (steps: evaluate) and once as a loop of `studio synth ... && studio evaluate ...`
+processes, and prints both wall times, the speed-up and the per-cell overhead of the sweep (its wall
+time per cell minus the cell's own work, as measured inside the cells).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--cells", type=int, default=200, help="datasets to make (default 200)")
+    ap.add_argument("--workers", type=int, default=2, help="local Dask workers (default 2)")
+    ap.add_argument("--config", type=Path, default=REPO / "tests" / "data" / "configs" / "tiny_three.json",
+                    help="kollagen JSON of one dataset")
+    ap.add_argument("--out", type=Path, default=None, help="work folder (default: a temporary folder)")
+    args = ap.parse_args()
+    studio = shutil.which("studio") or str(Path(sys.executable).parent / "studio")
+    tmp_ctx = tempfile.TemporaryDirectory() if args.out is None else None
+    work = Path(tmp_ctx.name) if tmp_ctx else args.out
+    work.mkdir(parents=True, exist_ok=True)
+    spec = work / "bench.toml"
+    spec.write_text(f'name = "bench"\nbase = "{args.config.resolve()}"\nsteps = ["evaluate"]\n'
+                    f'[grid]\nseed = {list(range(args.cells))}\n')
+    print(f"# {time.strftime('%Y-%m-%d')}  {os.cpu_count()} cores  python {sys.version.split()[0]}  "
+          f"load {os.getloadavg()[0]:.2f}  {args.cells} cells of {args.config.name}")
+    t0 = time.perf_counter()
+    subprocess.run([studio, "sweep", str(spec), "-o", str(work / "sweep"), "--workers", str(args.workers), "-q"],
+                   check=True)
+    t_sweep = time.perf_counter() - t0
+    rows = [json.loads(p.read_text()) for p in (work / "sweep" / "cells").glob("*/result.json")]
+    work_s = sum(r["cell_s"] for r in rows)
+    configs = sorted((work / "sweep" / "configs").glob("*.json"))
+    loop_dir = work / "loop"
+    t0 = time.perf_counter()
+    for cfg in configs:
+        subprocess.run([studio, "synth", str(cfg), "-o", str(loop_dir), "-q", "--no-rrd"], check=True)
+        subprocess.run([studio, "evaluate", str(loop_dir / cfg.stem), "--json"], check=True, stdout=subprocess.DEVNULL)
+    t_loop = time.perf_counter() - t0
+    print(f"sweep ({args.workers} workers): {t_sweep:8.1f} s  ({t_sweep / len(configs) * 1000:.0f} ms per cell; "
+          f"cells' own work {work_s / len(rows) * 1000:.0f} ms each)")
+    print(f"CLI loop (sequential):  {t_loop:8.1f} s  ({t_loop / len(configs) * 1000:.0f} ms per cell)")
+    print(f"speed-up: {t_loop / t_sweep:.2f}x; sweep overhead per cell beyond its work on {args.workers} workers: "
+          f"{(t_sweep * args.workers - work_s) / len(rows) * 1000:.0f} ms")
+    if tmp_ctx:
+        tmp_ctx.cleanup()
+
+
+if __name__ == "__main__":
+    main()
