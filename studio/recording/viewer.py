@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from studio.core.errors import ConfigError, FormatError, OutputError, StudioError
+from studio.recording.entities import TIMELINE_CELL, TIMELINE_ITERATION, TIMELINE_NODE
 
 __all__ = ["SnapshotResult", "rerun_executable", "vulkan_drivers", "snapshot", "view_command",
            "view_web_command", "web_viewer_address"]
@@ -150,19 +151,21 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
             time.sleep(0.1)
         rec = state.recordings[0]
         timelines = {t.name: t for t in rec.timelines}
-        if "node" not in timelines:
-            raise FormatError(f"{rrd}: no `node` timeline (not a studio recording?)")
-        tl = timelines["node"]
+        # a dataset's `node`, a solve's `iteration`, a sweep's `cell`
+        name = next((t for t in (TIMELINE_NODE, TIMELINE_ITERATION, TIMELINE_CELL) if t in timelines), None)
+        if name is None:
+            raise FormatError(f"{rrd}: no `node`, `iteration` or `cell` timeline (not a studio recording?)")
+        tl = timelines[name]
         at = tl.end if node is None else node
         if at is not None and tl.start is not None and not tl.start <= at <= tl.end:
-            raise ConfigError(f"--node {node}: the recording has nodes {tl.start}..{tl.end}")
-        client.set_time("node", sequence=int(at), play_state="paused")
+            raise ConfigError(f"--node {node}: the recording's {name} timeline spans {tl.start}..{tl.end}")
+        client.set_time(name, sequence=int(at), play_state="paused")
         time.sleep(settle_s)  # chunks stream in lazily after the cursor moves
         client.save_screenshot(str(tmp.resolve()))
         if not tmp.is_file():
             raise StudioError("the viewer did not write a screenshot")
         os.replace(tmp, png)
-        return SnapshotResult(png, "node", int(at))
+        return SnapshotResult(png, name, int(at))
     finally:
         _stop_group(proc)
         log.close()
