@@ -1,9 +1,16 @@
 """AirMuseum sequences: one ground-truth text file per robot (``# timestamp tx ty tz qx qy qz qw``).
 
-A ground-truth file is a ``.txt``, ``.tum`` or ``.csv`` file whose name contains ``gt``,
-``groundtruth`` or ``ground_truth`` (any case), in ``DIR`` or one of its immediate sub-folders. The
-agent is named after its sub-folder (``DIR/robot_1/groundtruth.txt`` -> ``robot_1``) or, for a file
-directly in ``DIR``, after the file without the ground-truth word (``drone_gt.txt`` -> ``drone``).
+As AirMuseum ships them, a scenario folder holds ``<Scenario>/data/{robotA,robotB,robotC,drone}/
+body_stamped_groundtruth.txt`` (one ``#`` header line, then ``t x y z qx qy qz qw``). A ground-truth
+file is a ``.txt``, ``.tum`` or ``.csv`` file whose name contains ``gt``, ``groundtruth`` or
+``ground_truth`` (any case), in ``DIR``, one of its sub-folders, or a sub-folder of ``DIR/data``
+(search depth 2). The agent is named after its folder (``data/robotA/...`` -> ``robotA``) or, for a
+file directly in ``DIR``, after the file without the ground-truth word (``drone_gt.txt`` -> ``drone``).
+
+The robots' body frames differ (the drone's is FLU: x forward, y left, z up; robots A and B's
+"UFL": x up, y forward, z left; robot C's "FUR"): :data:`BODY_FRAMES` holds these documented
+defaults, which the convert pipeline applies (``--body-frame NAME=CODE`` overrides) so that a planar
+conversion takes yaw about the true up axis.
 """
 
 from __future__ import annotations
@@ -18,7 +25,10 @@ from studio.core.trajectory import Trajectory, Warn
 from studio.converters.tum import read_tum_trajectory
 from studio.core.errors import ConfigError, FormatError
 
-__all__ = ["read_airmuseum", "find_ground_truth_files"]
+__all__ = ["read_airmuseum", "find_ground_truth_files", "BODY_FRAMES"]
+
+#: AirMuseum's body frames per robot name, lower case (x, y, z axes as Forward/Left/Up/Right/Down/Back).
+BODY_FRAMES = {"drone": "flu", "robota": "ufl", "robotb": "ufl", "robotc": "fur"}
 
 _GT_WORD = re.compile(r"(ground[_-]?truth|(?<![a-z])gt(?![a-z]))", re.IGNORECASE)
 _EXT = (".txt", ".tum", ".csv")
@@ -27,6 +37,11 @@ _EXT = (".txt", ".tum", ".csv")
 def find_ground_truth_files(root: Path) -> list[tuple[str, Path]]:
     """(agent name, file) pairs, in natural order of the agent names."""
     found: list[tuple[str, Path]] = []
+    data = root / "data"
+    if data.is_dir() and not any(p.is_file() and _GT_WORD.search(p.stem) for p in root.iterdir()):
+        inner = find_ground_truth_files(data)  # the shipped scenario layout: <Scenario>/data/<robot>/
+        if inner:
+            return inner
     for p in sorted(root.iterdir()):
         if p.is_file() and p.suffix.lower() in _EXT and _GT_WORD.search(p.stem):
             stem = _GT_WORD.sub("", p.stem).strip("_- .") or p.stem

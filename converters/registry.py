@@ -8,15 +8,19 @@ where ``inputs`` are the paths given on the command line and ``agents`` the ``NA
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from typing import Callable, Sequence
 
 from studio.converters.airmuseum import read_airmuseum
+from studio.converters.euroc import euroc_ground_truth, read_euroc
+from studio.converters.kimera_multi import kimera_files, read_kimera_multi
+from studio.converters.kitti import read_kitti
 from studio.converters.s3e import read_s3e
 from studio.core.trajectory import Trajectory, Warn
 from studio.converters.tum import read_tum_sources
 from studio.core.errors import ConfigError
 
-__all__ = ["READERS", "get_reader", "source_names"]
+__all__ = ["READERS", "get_reader", "source_names", "guess_source"]
 
 Reader = Callable[..., list[Trajectory]]
 
@@ -33,6 +37,9 @@ READERS: dict[str, Reader] = {
     "s3e": read_s3e,
     "airmuseum": read_airmuseum,
     "bag": _read_bag,
+    "euroc": read_euroc,
+    "kitti": read_kitti,
+    "kimera-multi": read_kimera_multi,
 }
 
 
@@ -45,3 +52,54 @@ def get_reader(name: str) -> Reader:
         return READERS[name]
     except KeyError:
         raise ConfigError(f"unknown source format {name!r} (known: {', '.join(READERS)})") from None
+
+
+def _kind_of(path: Path) -> str | None:
+    """The source one input path unambiguously belongs to, or None."""
+    from studio.converters.airmuseum import find_ground_truth_files
+    from studio.converters.s3e import _GT as S3E_GT
+
+    if path.suffix in (".bag", ".mcap") or (path.is_dir() and (path / "metadata.yaml").is_file()):
+        return "bag"
+    if path.is_dir():
+        if euroc_ground_truth(path) is not None:
+            return "euroc"
+        if kimera_files(path):
+            return "kimera-multi"
+        entries = [*path.iterdir(), *(q for d in path.iterdir() if d.is_dir() for q in d.iterdir())]
+        if any(S3E_GT.match(q.name) for q in entries):
+            return "s3e"
+        if (path / "data").is_dir() and find_ground_truth_files(path):
+            return "airmuseum"
+        return None
+    if path.name == "data.csv" and euroc_ground_truth(path) is not None:
+        return "euroc"
+    if path.name.endswith("_gt_odom.csv"):
+        return "kimera-multi"
+    if path.suffix == ".tum":
+        return "tum"
+    if path.suffix == ".txt" and path.is_file():
+        with open(path, encoding="utf-8", errors="replace") as f:
+            for line in f:
+                fields = line.replace(",", " ").split()
+                if fields and not line.lstrip().startswith("#"):
+                    return "kitti" if len(fields) == 12 else "tum" if len(fields) == 8 else None
+    return None
+
+
+def guess_source(inputs: Sequence[str | os.PathLike]) -> str:
+    """The source format of ``inputs`` where the paths tell it unambiguously (a ``.bag``/``.mcap``
+    or a folder with ``metadata.yaml``: bag; an EuRoC sequence folder; a Kimera-Multi ground-truth
+    folder; an S3E or AirMuseum sequence; ``.tum`` files; a KITTI poses file of 12 numbers per line).
+    Otherwise a ConfigError asks for the source by name."""
+    from pathlib import Path
+
+    if not inputs:
+        raise ConfigError("give a source (" + ", ".join(READERS) + ") and its inputs, or --config")
+    kinds = {str(p): _kind_of(Path(p)) for p in inputs}
+    found = set(kinds.values())
+    if None in found or len(found) != 1:
+        unknown = [p for p, k in kinds.items() if k is None]
+        why = f"cannot tell the source of {unknown[0]}" if unknown else f"the inputs look like {', '.join(sorted(found))}"
+        raise ConfigError(f"{why}: name it (studio convert SOURCE INPUT..., SOURCE one of {', '.join(READERS)})")
+    return found.pop()  # type: ignore[return-value]

@@ -24,7 +24,7 @@ from __future__ import annotations
 import os
 import sqlite3
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -293,11 +293,13 @@ def _open_errors() -> tuple[type[BaseException], ...]:
 
 
 def read_bag(bag: str | os.PathLike | Sequence[str | os.PathLike], specs: Sequence[AgentSpec] | Mapping[str, str], *,
-             warn: Warn | None = None, skip_missing: bool = False, progress=None) -> list[Trajectory]:
+             warn: Warn | None = None, skip_missing: bool = False, progress=None,
+             ignore_case: bool = False) -> list[Trajectory]:
     """One trajectory per agent spec, read in one pass over the bag.
 
     ``specs`` is a list of :class:`AgentSpec` or a ``{name: SPEC}`` mapping. With ``skip_missing`` an
-    agent whose topics are not in the bag is left out instead of raising.
+    agent whose topics are not in the bag is left out instead of raising. With ``ignore_case`` a
+    topic matches the bag's topic of the same name in any case (S3E's ``/Alpha/fix``).
     """
     from rosbags.highlevel import AnyReader
 
@@ -328,6 +330,13 @@ def read_bag(bag: str | os.PathLike | Sequence[str | os.PathLike], specs: Sequen
             listing = ", ".join(f"{t} [{(m or '?').replace('/msg/', '/')}]" for t, m in sorted(topics.items()))
             cols: list[_Collector] = []
             by_topic: dict[str, list[tuple[_Collector, bool]]] = {}
+            if ignore_case:
+                lower = {t.lower(): t for t in topics}
+
+                def actual(t: str | None) -> str | None:
+                    return None if t is None else lower.get(t.lower(), t)
+
+                specs = [replace(sp, topic=actual(sp.topic), heading_topic=actual(sp.heading_topic)) for sp in specs]
             for spec in specs:
                 missing = [t for t in (spec.topic, spec.heading_topic) if t is not None and not known(t)]
                 if missing:

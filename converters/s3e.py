@@ -1,10 +1,16 @@
-"""S3E sequences: ground truth per robot as ``<agent>_gt.txt`` (alpha, bob, carol; any case).
+"""S3E sequences: ground truth per robot as ``<agent>_gt.txt`` (alpha, bob, carol).
 
-The files are TUM-like text in UTM coordinates (``timestamp tx ty tz qx qy qz qw``), present only
-where the RTK receiver had a fixed solution, so they have gaps. They are looked for in ``DIR`` and its
-immediate sub-folders. An agent without a ground-truth file is read from a ROS 2 bag found in the
-same places (a folder holding ``metadata.yaml``) through its ``/<agent>/fix`` + ``/<agent>/heading``
-topics (see :mod:`converters.rosbag`).
+As S3E ships them: file names in any case (v1 has ``Alpha_gt.txt``), agents written lower case;
+TUM-like text in UTM coordinates (``timestamp tx ty tz qx qy qz qw``), present only where the RTK
+receiver had a fixed solution, so they have gaps; and **no orientation**: RTK gives positions only,
+so every line carries the identity quaternion (``... 0 0 0 1``). ``studio convert`` derives headings
+from the motion for such trajectories (``--orientation auto``, see
+:mod:`studio.converters.transforms`). Indoor (Laboratory) sequences have only a start and an end pose
+per robot: such an agent is left out with a warning naming its file, and the sequence is refused
+when no agent is left. Files are looked for in ``DIR`` and its immediate sub-folders. An agent
+without a ground-truth file is read from a ROS 2 bag found in the same places (a folder holding
+``metadata.yaml``) through its ``/<agent>/fix`` + ``/<agent>/heading`` topics, matched in any case
+(``/Alpha/fix``; see :mod:`studio.converters.rosbag`).
 """
 
 from __future__ import annotations
@@ -14,13 +20,18 @@ import re
 from pathlib import Path
 from typing import Sequence
 
+import numpy as np
+
 from studio.core.trajectory import Trajectory, Warn
+from studio.io.tum import read_tum_rows
 from studio.converters.tum import read_tum_trajectory
 from studio.core.errors import ConfigError, FormatError
 
 __all__ = ["S3E_AGENTS", "read_s3e"]
 
 S3E_AGENTS = ("alpha", "bob", "carol")
+#: A ground truth of this many poses or fewer is an indoor sequence's start and end only.
+MIN_GT_POSES = 2
 _GT = re.compile(r"^(alpha|bob|carol)_gt\.txt$", re.IGNORECASE)
 
 
@@ -58,12 +69,25 @@ def read_s3e(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
         from studio.converters.rosbag import read_bag
 
         specs = {a: f"/{a}/fix+/{a}/heading" for a in missing}
-        bag_trajs = {t.name: t for t in read_bag(bags[0], specs, warn=warn, skip_missing=True, progress=progress)}
+        bag_trajs = {t.name: t for t in read_bag(bags[0], specs, warn=warn, skip_missing=True, progress=progress,
+                                                  ignore_case=True)}
+    short = []
     for agent in S3E_AGENTS:
         if agent in files:
+            stamps, _ = read_tum_rows(files[agent])
+            n = len(np.unique(stamps))
+            if n <= MIN_GT_POSES:
+                short.append(files[agent])
+                if warn is not None:
+                    warn(f"{files[agent]}: only {n} poses (an indoor S3E sequence has just its start and end); "
+                         f"agent {agent} left out")
+                continue
             out.append(read_tum_trajectory(files[agent], name=agent, warn=warn))
         elif agent in bag_trajs:
             out.append(bag_trajs[agent])
+    if not out and short:
+        raise FormatError(f"{short[0]}: only start and end poses in every ground-truth file of {root} "
+                          "(an indoor S3E sequence): nothing to convert")
     if not out:
         raise FormatError(f"{root}: no S3E ground truth (alpha_gt.txt, bob_gt.txt, carol_gt.txt) "
                           "and no ROS 2 bag with /<agent>/fix topics")

@@ -252,10 +252,13 @@ def _stderr_progress(label: str, done: int, total: int) -> None:
 @cli_errors
 def convert(
     ctx: typer.Context,
-    source: str = typer.Argument(None, metavar="FORMAT", show_default=False,
-                                 help="Source format: tum, s3e, airmuseum or bag."),
+    source: str = typer.Argument(None, metavar="[FORMAT]", show_default=False,
+                                 help="Source format: tum, s3e, airmuseum, bag, euroc, kitti, kimera-multi; "
+                                      "guessed from the inputs when left out and unambiguous."),
     inputs: list[Path] = typer.Argument(None, metavar="INPUT...", show_default=False,
-                                        help="TUM files (tum), a sequence folder (s3e, airmuseum) or a bag (.bag, ROS 2 folder, .mcap)."),
+                                        help="TUM files (tum), a sequence folder (s3e, airmuseum, euroc), a bag "
+                                             "(.bag, ROS 2 folder, .mcap), KITTI poses files, a Kimera-Multi "
+                                             "ground-truth folder."),
     out: Path = typer.Option(..., "-o", "--out", help="The dataset folder to write."),
     agent: list[str] = typer.Option([], "--agent", metavar="NAME=SPEC",
                                     help="Bag agents: NAME=/odom, NAME=/fix+/heading or NAME=/tf:PARENT:CHILD."),
@@ -266,6 +269,18 @@ def convert(
     max_memory_gb: float = typer.Option(8.0, "--max-memory-gb",
                                         help="Refuse a loop-closure search estimated to need more memory."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
+    orientation: str = typer.Option("auto", "--orientation",
+                                    help="keep the trajectories' orientation, derive headings from the motion, or "
+                                         "auto: derive where it carries no information (S3E)."),
+    heading_window_m: float = typer.Option(2.0, "--heading-window-m",
+                                           help="Path length over which a derived heading is measured, in metres."),
+    body_frame: list[str] = typer.Option([], "--body-frame", metavar="NAME=CODE",
+                                         help="An agent's body axes, e.g. robotA=ufl (AirMuseum's are the default)."),
+    split: int = typer.Option(0, "--split", help="Split each trajectory into this many agents over time (0: off)."),
+    overlap: float = typer.Option(0.0, "--overlap", help="Overlap of consecutive --split windows, in seconds."),
+    folder_names: str = typer.Option("agents", "--folder-names",
+                                     help="agents: folders agent1..agentN with agents.json (kollagen's reader); "
+                                          "robots: folders named after the robots."),
     seed: int = typer.Option(0, help=_CONVERT_HELP["seed"]),
     keyframe_distance: float = typer.Option(1.0, help=_CONVERT_HELP["keyframe_distance"]),
     keyframe_angle: float = typer.Option(15.0, help=_CONVERT_HELP["keyframe_angle"]),
@@ -306,20 +321,31 @@ def convert(
 
     # options typed on the command line win over the --config file (compared by name: typer may
     # vendor click, so its ParameterSource enum is not imported)
+    from studio.converters.registry import guess_source, source_names
+
     given = {name for name in ctx.params
              if getattr(ctx.get_parameter_source(name), "name", "") in ("COMMANDLINE", "ENVIRONMENT")}
     option_names = [f.name for f in dataclasses.fields(GraphOptions)]
+    pipeline = {"orientation": orientation, "heading_window_m": heading_window_m, "body_frames": tuple(body_frame),
+                "split": split, "overlap_s": overlap, "folder_names": folder_names}
+    flags = {"orientation": "orientation", "heading_window_m": "heading_window_m", "body_frames": "body_frame",
+             "split": "split", "overlap_s": "overlap", "folder_names": "folder_names"}
+    if source is not None and source not in source_names():
+        inputs = [Path(source), *(inputs or [])]  # no FORMAT given: the first input
+        source = guess_source(inputs)
     if config is not None:
         base = read_convert_config(config)
         overrides = {k: ctx.params[k] for k in option_names if k in given}
         cfg = ConvertConfig(source or base.source, tuple(str(p) for p in inputs) if inputs else base.inputs,
                             tuple(agent) if agent else base.agents,
-                            dataclasses.replace(base.options, **overrides))
+                            dataclasses.replace(base.options, **overrides),
+                            **{k: (pipeline[k] if flags[k] in given else getattr(base, k)) for k in pipeline})
     else:
         if not source:
-            raise ConfigError("give a FORMAT (tum, s3e, airmuseum, bag) or --config")
+            raise ConfigError(f"give a FORMAT ({', '.join(source_names())}), inputs whose format can be guessed, "
+                              "or --config")
         cfg = ConvertConfig(source, tuple(str(p) for p in inputs or ()), tuple(agent),
-                            GraphOptions(**{k: ctx.params[k] for k in option_names}))
+                            GraphOptions(**{k: ctx.params[k] for k in option_names}), **pipeline)
     show = not quiet and sys.stderr.isatty()
     t0 = time.perf_counter()
     res = run_convert(cfg, out, force=force, warn=_warn, progress=_stderr_progress if show else None, rrd=rrd,
@@ -335,6 +361,9 @@ def convert(
             f"{counts['inter_loop_closures']} inter-agent loop closures ({res.build.candidates['outliers']} "
             f"outliers), {len(res.build.gaps)} gaps, in {time.perf_counter() - t0:.2f} s\n  {res.dataset_dir}"
         )
+        if res.orientation:
+            typer.echo(f"  headings derived from motion (the orientation carried no information): "
+                       f"{', '.join(sorted(res.orientation))}")
         for gap in res.build.gaps:
             typer.echo(f"  gap: {gap.agent} vertex {gap.vertex}: {gap.seconds:.3f} s, {gap.metres:.2f} m bridged")
 

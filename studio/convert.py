@@ -3,11 +3,18 @@
 The dataset folder ``OUT`` holds::
 
     OUT/
-    ├── <agent>/posegraph.g2o, <agent>/<agent>_GT.tum   # 3D records (2D with planar=True); real stamps
+    ├── agentK/posegraph.g2o, agentK/agentK_GT.tum     # 3D records (2D with planar=True); real stamps
+    ├── agents.json                                    # agentK -> robot name and source file
     ├── inter_agent_lc.dat                             # full precision (%.17g)
     ├── convert.json                                   # every option and the seed: --config reproduces OUT
     ├── report.json                                    # origin, agents, gaps, counts, warnings
     └── outliers.txt                                   # the loop closures that are outliers (ground truth)
+
+Between reading and building, trajectories may be re-expressed in FLU body axes (``body_frames``;
+AirMuseum's robots by default), given headings from their motion when their orientation carries no
+information (``orientation``: S3E's RTK ground truth), and split into several agents (``split``,
+``overlap_s``). Agent folders are ``agent1..agentN`` (kollagen's reader needs them) with the robots'
+names in ``agents.json``, or named after the robots with ``folder_names="robots"``.
 
 Everything is written in a staging folder beside ``OUT`` and renamed into place at the end; an
 existing ``OUT`` is replaced only with ``force``.
@@ -18,12 +25,20 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 from studio.converters.build import BuildResult, GraphOptions, Progress, build_graph
+from studio.converters.transforms import (
+    apply_body_frame,
+    body_frame_rotation,
+    derive_orientation,
+    orientation_is_uninformative,
+    split_trajectory,
+)
 from studio.converters.registry import get_reader
 from studio.core.trajectory import Trajectory
 from studio.core.errors import ConfigError, FormatError, OutputError
@@ -51,11 +66,41 @@ class ConvertConfig:
     agents: tuple[str, ...] = ()
     """``NAME=SPEC`` strings (bags only)."""
     options: GraphOptions = field(default_factory=GraphOptions)
+    orientation: str = "auto"
+    """``keep`` the trajectories' orientation, ``derive`` headings from the motion, or ``auto``: derive
+    where the orientation carries no information (all the same, e.g. identity)."""
+    heading_window_m: float = 2.0
+    """Path length [m] over which a derived heading is measured."""
+    body_frames: tuple[str, ...] = ()
+    """``NAME=CODE`` body frames (``robotA=ufl``), besides the source's defaults (AirMuseum's)."""
+    split: int = 0
+    """Split every trajectory into this many agents over consecutive time windows (0: off)."""
+    overlap_s: float = 0.0
+    """Overlap [s] of consecutive split windows."""
+    folder_names: str = "agents"
+    """``agents``: folders agent1..agentN with agents.json (kollagen's reader needs them); ``robots``."""
 
     def __post_init__(self) -> None:
         get_reader(self.source)  # unknown names raise and list the known ones
         object.__setattr__(self, "inputs", tuple(str(p) for p in self.inputs))
         object.__setattr__(self, "agents", tuple(self.agents))
+        object.__setattr__(self, "body_frames", tuple(self.body_frames))
+        if self.orientation not in ("auto", "keep", "derive"):
+            raise ConfigError(f"orientation: expected auto, keep or derive, got {self.orientation!r}")
+        if self.folder_names not in ("agents", "robots"):
+            raise ConfigError(f"folder_names: expected agents or robots, got {self.folder_names!r}")
+        if isinstance(self.split, bool) or not isinstance(self.split, int) or self.split < 0 or self.split == 1:
+            raise ConfigError(f"split: expected 0 (off) or an integer of at least 2, got {self.split!r}")
+        for name, value in (("heading_window_m", self.heading_window_m), ("overlap_s", self.overlap_s)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0 \
+                    or (name == "heading_window_m" and value == 0):
+                raise ConfigError(f"{name}: expected a {'positive' if name == 'heading_window_m' else 'non-negative'} "
+                                  f"number, got {value!r}")
+        for spec in self.body_frames:
+            name, sep, code = spec.partition("=")
+            if not sep or not name:
+                raise ConfigError(f"body_frames: {spec!r}: expected NAME=CODE (e.g. robotA=ufl)")
+            body_frame_rotation(code)
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,18 +112,27 @@ class ConvertResult:
     warnings: tuple[str, ...]
     rrd_path: Path | None = None
     """``OUT/<name>.rrd`` inside the dataset folder, or None when no recording was asked for."""
+    orientation: dict[str, str] = field(default_factory=dict)
+    """Agents whose headings were derived from their motion (value ``"derived from motion"``)."""
+
+
+#: The pipeline's own keys of convert.json (besides the source, inputs, agents and graph options).
+_PIPELINE_FIELDS = ("orientation", "heading_window_m", "body_frames", "split", "overlap_s", "folder_names")
 
 
 def convert_config_to_json(cfg: ConvertConfig) -> dict[str, Any]:
     out: dict[str, Any] = {"format": _FORMAT, "source": cfg.source, "inputs": list(cfg.inputs),
                            "agents": list(cfg.agents)}
     out.update(dataclasses.asdict(cfg.options))
+    for key in _PIPELINE_FIELDS:
+        value = getattr(cfg, key)
+        out[key] = list(value) if isinstance(value, tuple) else value
     return out
 
 
 def config_from_mapping(data: Mapping[str, Any], where: str = "config") -> ConvertConfig:
     """A config from a JSON object; unknown keys are rejected with a hint."""
-    known = {"format", "source", "inputs", "agents", *_OPTION_FIELDS}
+    known = {"format", "source", "inputs", "agents", *_OPTION_FIELDS, *_PIPELINE_FIELDS}
     for key in data:
         if key not in known:
             hint = difflib.get_close_matches(key, sorted(known), n=1)
@@ -87,7 +141,7 @@ def config_from_mapping(data: Mapping[str, Any], where: str = "config") -> Conve
         raise ConfigError(f"{where}: format {data['format']!r} is not {_FORMAT!r}")
     if "source" not in data:
         raise ConfigError(f"{where}: missing key 'source'")
-    for key in ("inputs", "agents"):
+    for key in ("inputs", "agents", "body_frames"):
         if not isinstance(data.get(key, []), list) or not all(isinstance(x, str) for x in data.get(key, [])):
             raise ConfigError(f"{where}: {key!r} must be a list of strings")
     opts = {k: data[k] for k in _OPTION_FIELDS if k in data}
@@ -95,7 +149,12 @@ def config_from_mapping(data: Mapping[str, Any], where: str = "config") -> Conve
         options = GraphOptions(**opts)
     except ConfigError as err:
         raise ConfigError(f"{where}: {err}") from None
-    return ConvertConfig(str(data["source"]), tuple(data.get("inputs", [])), tuple(data.get("agents", [])), options)
+    extra = {k: (tuple(data[k]) if k == "body_frames" else data[k]) for k in _PIPELINE_FIELDS if k in data}
+    try:
+        return ConvertConfig(str(data["source"]), tuple(data.get("inputs", [])), tuple(data.get("agents", [])),
+                             options, **extra)
+    except ConfigError as err:
+        raise ConfigError(f"{where}: {err}") from None
 
 
 def read_convert_config(path: str | os.PathLike) -> ConvertConfig:
@@ -125,15 +184,17 @@ def _resolve_inputs(cfg: ConvertConfig) -> ConvertConfig:
     return dataclasses.replace(cfg, inputs=tuple(inputs))
 
 
-def _report(result_build: BuildResult, trajs: Sequence[Trajectory], warnings: Sequence[str]) -> dict[str, Any]:
+def _report(result_build: BuildResult, trajs: Sequence[Trajectory], warnings: Sequence[str],
+            orientation: Mapping[str, str]) -> dict[str, Any]:
     g = result_build.graph
     return {
         "origin_xyz": [float(v) for v in result_build.origin_xyz],
         "agents": [
-            {"name": a.name, "source": t.source, "poses_in": len(t), "keyframes": a.num_poses,
+            {"name": a.name, "folder": f"agent{k + 1}", "source": t.source, "poses_in": len(t),
+             "keyframes": a.num_poses, "orientation": orientation.get(a.name, "as given"),
              "first_stamp_ns": int(a.stamps_ns[0]), "last_stamp_ns": int(a.stamps_ns[-1]),
              "odometry": len(a.odometry), "intra_loop_closures": len(a.loop_closures)}
-            for a, t in zip(g.agents, trajs)
+            for k, (a, t) in enumerate(zip(g.agents, trajs))
         ],
         "gaps": [{"agent": gap.agent, "vertex": gap.vertex, "start_ns": gap.start_ns, "end_ns": gap.end_ns,
                   "seconds": gap.seconds, "metres": gap.metres} for gap in result_build.gaps],
@@ -148,6 +209,43 @@ def _outlier_lines(build: BuildResult) -> str:
             "# inter_agent_lc.dat, vertices 0-based; equal agents: an intra-agent loop closure.\n")
     rows = "".join(f"{a + 1} {b} {c + 1} {d}\n" for a, b, c, d in build.outliers.tolist())
     return head + rows
+
+
+DERIVED = "derived from motion"
+
+
+def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tuple[list[Trajectory], dict[str, str]]:
+    """Body frames, derived headings and the split, in that order (see the module docstring).
+
+    Returns the trajectories to build and, per agent whose headings were derived, ``DERIVED``."""
+    frames = {}
+    if cfg.source == "airmuseum":
+        from studio.converters.airmuseum import BODY_FRAMES
+
+        frames = {t.name: BODY_FRAMES[t.name.lower()] for t in trajs if t.name.lower() in BODY_FRAMES}
+    names = {t.name for t in trajs}
+    for spec in cfg.body_frames:
+        name, _, code = spec.partition("=")
+        if name not in names:
+            raise ConfigError(f"body_frames: {spec}: no agent {name!r} (agents: {', '.join(sorted(names))})")
+        frames[name] = code
+    out = [apply_body_frame(t, frames[t.name]) if t.name in frames and frames[t.name] != "flu" else t for t in trajs]
+    orientation = {}
+    derived = []
+    for t in out:
+        if cfg.orientation == "derive" or (cfg.orientation == "auto" and orientation_is_uninformative(t)):
+            t = derive_orientation(t, cfg.heading_window_m)
+            orientation[t.name] = DERIVED
+        derived.append(t)
+    if cfg.split:
+        split = []
+        for t in derived:
+            parts = split_trajectory(t, cfg.split, cfg.overlap_s)
+            split += parts
+            if t.name in orientation:
+                orientation.update({p.name: DERIVED for p in parts})
+        derived = split
+    return derived, orientation
 
 
 def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
@@ -177,16 +275,18 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
             warn(msg)
 
     reader = get_reader(cfg.source)
-    trajs = reader(cfg.inputs, agents=cfg.agents, warn=_warn, progress=progress)
+    trajs, orientation = prepare_trajectories(cfg, reader(cfg.inputs, agents=cfg.agents, warn=_warn, progress=progress))
     build = build_graph(trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb)
     with staged_outputs(out.parent, [out.name], force=force) as staging:
         ds = staging / out.name
         ds.mkdir()
         if progress:
             progress("writing", 0, 1)
-        write_multi_g2o(build.graph, ds, records="2d" if cfg.options.planar else "3d", precision="full")
+        write_multi_g2o(build.graph, ds, records="2d" if cfg.options.planar else "3d", precision="full",
+                        folder_names=cfg.folder_names,  # type: ignore[arg-type]
+                        sources={t.name: Path(t.source).name for t in trajs})
         _write_text(ds / CONFIG_NAME, json.dumps(convert_config_to_json(cfg), indent=2) + "\n")
-        _write_text(ds / "report.json", json.dumps(_report(build, trajs, warnings), indent=2) + "\n")
+        _write_text(ds / "report.json", json.dumps(_report(build, trajs, warnings, orientation), indent=2) + "\n")
         _write_text(ds / "outliers.txt", _outlier_lines(build))
         if recorder is not None:
             recorder(build.graph, ds)
@@ -199,7 +299,7 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
             record_graph(build.graph, ds / f"{out.name}.rrd", name=out.name,
                          config_json=json.dumps(shown, sort_keys=True))
     return ConvertResult(cfg, out, tuple(trajs), build, tuple(warnings),
-                         out / f"{out.name}.rrd" if rrd else None)
+                         out / f"{out.name}.rrd" if rrd else None, orientation)
 
 
 def _write_text(path: Path, text: str) -> None:

@@ -26,6 +26,7 @@ import numpy as np
 from studio.core.errors import EvaluationError, FormatError
 from studio.core.geometry import planar_poses_to_se3
 from studio.io.g2o import G2oDocument, read_g2o
+from studio.io.multig2o import agent_folders
 from studio.io.singleg2o import agent_offsets
 from studio.io.tum import read_tum
 from studio.core.model import PoseGraph, PoseKind
@@ -94,12 +95,12 @@ def _read_single_g2o(path: Path, graph: PoseGraph) -> tuple[Trajectory, ...]:
     return tuple(out)
 
 
-def _agent_dirs(folder: Path) -> dict[str, Path]:
-    return {p.name: p for p in folder.iterdir() if p.is_dir() and (p / "posegraph.g2o").is_file()}
+def _has_agent_dirs(folder: Path) -> bool:
+    return any(p.is_dir() and (p / "posegraph.g2o").is_file() for p in folder.iterdir())
 
 
 def _read_multi_g2o(folder: Path, graph: PoseGraph) -> tuple[Trajectory, ...]:
-    subs = _agent_dirs(folder)
+    subs = dict(agent_folders(folder))
     names = [a.name for a in graph.agents]
     extra = sorted(set(subs) - set(names))
     if extra:
@@ -145,7 +146,7 @@ def estimate_layout(path: str | os.PathLike) -> EstimateLayout:
         return "single-g2o"
     if not path.is_dir():
         raise FormatError(f"{path}: no such file or folder")
-    if _agent_dirs(path):
+    if _has_agent_dirs(path):
         return "multi-g2o"
     if any(p.suffix == ".tum" for p in path.iterdir() if p.is_file()):
         return "tum"

@@ -13,10 +13,23 @@
 Agents are the sub-folders holding a ``posegraph.g2o``, in natural order (``agent2`` before
 ``agent10``); agent ``k`` in ``inter_agent_lc.dat`` is the k-th of them. On reading, the leading run of
 edges ``0->1, 1->2, ...`` is the odometry and every later edge an intra-agent loop closure.
+
+Folders are named ``agent1 .. agentN`` by default, as kollagen's own reader (``multig2o::open``)
+requires: it accepts only folders whose name starts with ``agent`` and that hold
+``<folder>_GT.tum``. When the agents have other names (robots of a converted dataset), those names
+and their sources are kept in ``agents.json`` beside the folders and read back as the agents' names::
+
+    {"format": "cslam-studio agents 1",
+     "agents": [{"folder": "agent1", "name": "alpha", "source": "alpha_gt.txt"}, ...]}
+
+``folder_names="robots"`` writes the folders under the agents' own names instead (no ``agents.json``).
+kollagen's reader sorts folders as strings (``agent10`` before ``agent2``): a dataset of 10 or more
+agents is read by it in another order than ``inter_agent_lc.dat`` numbers them.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import re
 from pathlib import Path
@@ -33,9 +46,14 @@ from studio.core.trajectory import Trajectory
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.units import NS_PER_S
 
-__all__ = ["write_multi_g2o", "read_multi_g2o", "agent_g2o_document", "Records"]
+__all__ = ["write_multi_g2o", "read_multi_g2o", "agent_g2o_document", "agent_folders", "Records", "FolderNames",
+           "AGENTS_FILE"]
 
 Records = Literal["2d", "3d"]
+FolderNames = Literal["agents", "robots"]
+#: The mapping of agent folders to agent names and sources, beside the folders.
+AGENTS_FILE = "agents.json"
+_AGENTS_FORMAT = "cslam-studio agents 1"
 
 
 def _natural_key(name: str):
@@ -58,30 +76,71 @@ def agent_g2o_document(agent: AgentGraph, offset: int = 0, odometry_information:
 
 
 def write_multi_g2o(graph: PoseGraph, folder: str | os.PathLike, *, records: Records = "3d",
-                    precision: Precision = "kollagen") -> None:
-    """Write ``graph`` into ``folder`` (which must exist). ``records`` picks 2D or 3D g2o records."""
+                    precision: Precision = "kollagen", folder_names: FolderNames = "agents",
+                    sources: dict[str, str] | None = None) -> None:
+    """Write ``graph`` into ``folder`` (which must exist). ``records`` picks 2D or 3D g2o records;
+    ``folder_names`` names the agent folders ``agent1..agentN`` (``agents.json`` keeps the agents'
+    names where they differ, with ``sources``) or after the agents."""
     folder = Path(folder)
+    if folder_names not in ("agents", "robots"):
+        raise GraphError(f"folder_names must be agents or robots, got {folder_names!r}")
+    dirs = [f"agent{k + 1}" if folder_names == "agents" else a.name for k, a in enumerate(graph.agents)]
     g = graph.to_se3() if records == "3d" else graph
     if records == "2d" and graph.kind is not PoseKind.SE2:
         raise GraphError("2D records need a planar (SE2) graph")
     lifted = graph.to_se3()
-    for agent, agent3 in zip(g.agents, lifted.agents):
-        sub = folder / agent.name
+    for agent, agent3, name in zip(g.agents, lifted.agents, dirs):
+        sub = folder / name
         sub.mkdir()
         write_g2o(sub / "posegraph.g2o", agent_g2o_document(agent))
         if agent3.ground_truth is not None:
-            write_tum(sub / f"{agent.name}_GT.tum",
-                      Trajectory.from_poses(agent.name, agent3.stamps_ns, agent3.ground_truth))
+            write_tum(sub / f"{name}_GT.tum", Trajectory.from_poses(agent.name, agent3.stamps_ns, agent3.ground_truth))
     write_inter_lc_dat(folder / "inter_agent_lc.dat", g.inter, precision)
+    if any(d != a.name for d, a in zip(dirs, graph.agents)):
+        entries = [{"folder": d, "name": a.name, **({"source": sources[a.name]} if sources and a.name in sources else {})}
+                   for d, a in zip(dirs, graph.agents)]
+        (folder / AGENTS_FILE).write_text(json.dumps({"format": _AGENTS_FORMAT, "agents": entries}, indent=2) + "\n",
+                                          encoding="utf-8")
 
 
-def _agent_folders(folder: Path) -> list[Path]:
+def _read_agents_file(folder: Path) -> list[tuple[str, str]] | None:
+    """``[(folder, name), ...]`` from ``agents.json``, or None where there is none."""
+    path = folder / AGENTS_FILE
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise FormatError(f"{path}: not a readable agents file ({err})") from None
+    entries = data.get("agents") if isinstance(data, dict) else None
+    if data.get("format") != _AGENTS_FORMAT or not isinstance(entries, list) or not entries:  # type: ignore[union-attr]
+        raise FormatError(f"{path}: expected {{\"format\": \"{_AGENTS_FORMAT}\", \"agents\": [...]}}")
+    out = []
+    for k, e in enumerate(entries):
+        if not (isinstance(e, dict) and isinstance(e.get("folder"), str) and isinstance(e.get("name"), str)
+                and e["name"] and Path(e["folder"]).name == e["folder"] and e["folder"] not in ("", ".", "..")):
+            raise FormatError(f"{path}: agents[{k}]: expected a plain folder and a non-empty name")
+        out.append((e["folder"], e["name"]))
+    return out
+
+
+def agent_folders(folder: str | os.PathLike) -> list[tuple[str, Path]]:
+    """``[(agent name, folder), ...]`` of a multi-g2o folder, in agent order (see the module doc)."""
+    folder = Path(folder)
     if not folder.is_dir():
         raise FormatError(f"{folder}: not a folder")
+    mapping = _read_agents_file(folder)
+    if mapping is not None:
+        out = []
+        for sub, name in mapping:
+            if not (folder / sub / "posegraph.g2o").is_file():
+                raise FormatError(f"{folder / AGENTS_FILE}: agent {name}: no {sub}/posegraph.g2o")
+            out.append((name, folder / sub))
+        return out
     subs = [p for p in folder.iterdir() if p.is_dir() and (p / "posegraph.g2o").is_file()]
     if not subs:
         raise FormatError(f"{folder}: no agent folder with a posegraph.g2o")
-    return sorted(subs, key=lambda p: _natural_key(p.name))
+    return [(p.name, p) for p in sorted(subs, key=lambda p: _natural_key(p.name))]
 
 
 def read_multi_g2o(folder: str | os.PathLike, *, edges: bool = True) -> PoseGraph:
@@ -95,7 +154,7 @@ def read_multi_g2o(folder: str | os.PathLike, *, edges: bool = True) -> PoseGrap
     folder = Path(folder)
     agents = []
     kind = None
-    for sub in _agent_folders(folder):
+    for name, sub in agent_folders(folder):
         g2o_path = sub / "posegraph.g2o"
         doc = read_g2o(g2o_path, edges=edges)
         if kind is None:
@@ -127,7 +186,7 @@ def read_multi_g2o(folder: str | os.PathLike, *, edges: bool = True) -> PoseGrap
             gt3 = traj.poses_xyz_quat_xyzw
             gt = gt3 if kind is PoseKind.SE3 else se3_poses_to_planar(gt3)
         try:
-            agents.append(AgentGraph(sub.name, kind, stamps, initial, gt, edge_slice(slice(0, n_odo)),
+            agents.append(AgentGraph(name, kind, stamps, initial, gt, edge_slice(slice(0, n_odo)),
                                      edge_slice(slice(n_odo, None)),
                                      ground_truth_se3=gt3 if kind is PoseKind.SE2 else None))
         except GraphError as err:

@@ -56,9 +56,13 @@ def test_tum_end_to_end_reads_back_and_keeps_real_stamps(tmp_path, tum_files):
     g = read_multi_g2o(out)
     assert [a.name for a in g.agents] == ["alpha", "bob", "carol"]
     assert g.kind.value == "SE3" and len(g.inter) > 0
-    assert (out / "alpha" / "posegraph.g2o").read_text().startswith("VERTEX_SE3:QUAT 0 ")
+    # kollagen's folder names, the robots' names in agents.json
+    assert (out / "agent1" / "posegraph.g2o").read_text().startswith("VERTEX_SE3:QUAT 0 ")
+    agents = json.loads((out / "agents.json").read_text())["agents"]
+    assert [(a["folder"], a["name"], a["source"]) for a in agents] == [
+        ("agent1", "alpha", "alpha.txt"), ("agent2", "bob", "bob.txt"), ("agent3", "carol", "carol.txt")]
     # the ground truth of every keyframe carries its real (UTM-run) timestamp
-    gt = read_tum(out / "alpha" / "alpha_GT.tum")
+    gt = read_tum(out / "agent1" / "agent1_GT.tum")
     src = read_tum(tum_files[0])
     assert np.isin(gt.stamps_ns, src.stamps_ns).all() and gt.stamps_ns[0] == src.stamps_ns[0]
     report = json.loads((out / "report.json").read_text())
@@ -88,7 +92,7 @@ def test_same_inputs_and_seed_give_byte_identical_output(tmp_path, tum_files):
     assert a == b
     fa, fb = rrd_fingerprint(tmp_path / "a"), rrd_fingerprint(tmp_path / "b")
     assert len(fa) > 50 and fa == fb
-    assert a["alpha/posegraph.g2o"] != c["alpha/posegraph.g2o"]
+    assert a["agent1/posegraph.g2o"] != c["agent1/posegraph.g2o"]
 
 
 def test_config_reproduces_the_dataset_and_cli_options_win(tmp_path, tum_files):
@@ -110,7 +114,7 @@ def test_existing_output_needs_force(tmp_path, tum_files):
     assert r.exit_code == 2 and "already exists (use --force" in r.output
     assert folder_bytes(out) == before
     assert run("tum", *tum_files[:1], "-o", out, "--force").exit_code == 0
-    assert [p.name for p in sorted(out.iterdir()) if p.is_dir()] == ["alpha"]
+    assert [p.name for p in sorted(out.iterdir()) if p.is_dir()] == ["agent1"]
 
 
 def bad(tmp_path: Path, body: str) -> Path:
@@ -142,7 +146,8 @@ def test_unsorted_stamps_warn_with_counts(tmp_path, tum_files):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["nope", "x"], "unknown source format 'nope' (known: tum, s3e, airmuseum, bag)"),
+    (["nope", "x"], "cannot tell the source of nope: name it (studio convert SOURCE INPUT..., SOURCE one of "
+                    "tum, s3e, airmuseum, bag, euroc, kitti, kimera-multi)"),
     (["tum", "missing.txt"], "missing.txt: no such file or folder"),
     (["tum", "{f}", "--lc-radius", "0"], "--lc-radius: must be > 0"),
     ([], "give a FORMAT"),
@@ -163,7 +168,7 @@ def test_bad_config_keys_are_rejected_with_a_hint(tmp_path, tum_files):
 
 def test_planar_writes_2d_records(tmp_path, tum_files):
     assert run("tum", *tum_files[:2], "-o", tmp_path / "ds", "--planar").exit_code == 0
-    assert (tmp_path / "ds" / "alpha" / "posegraph.g2o").read_text().startswith("VERTEX_SE2 0 ")
+    assert (tmp_path / "ds" / "agent1" / "posegraph.g2o").read_text().startswith("VERTEX_SE2 0 ")
     assert read_multi_g2o(tmp_path / "ds").kind.value == "SE2"
 
 

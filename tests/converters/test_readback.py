@@ -24,8 +24,8 @@ def two_files(tmp_path):
 def test_gtsam_reads_every_agent_file(tmp_path, two_files):
     gtsam = pytest.importorskip("gtsam")
     res = convert(ConvertConfig("tum", two_files, options=GraphOptions(lc_prob_intra=1.0)), tmp_path / "ds")
-    for agent in res.build.graph.agents:
-        graph, values = gtsam.readG2o(str(tmp_path / "ds" / agent.name / "posegraph.g2o"), True)
+    for k, agent in enumerate(res.build.graph.agents):
+        graph, values = gtsam.readG2o(str(tmp_path / "ds" / f"agent{k + 1}" / "posegraph.g2o"), True)
         assert values.size() == agent.num_poses
         assert graph.size() == len(agent.odometry) + len(agent.loop_closures)
         last = values.atPose3(agent.num_poses - 1)

@@ -1,0 +1,63 @@
+"""EuRoC MAV sequences (e.g. MH_01_easy .. MH_05_difficult) as agents in one frame, as the COVINS
+and CCM-SLAM collaborative benchmarks use them.
+
+A sequence's ground truth is ``<sequence>/mav0/state_groundtruth_estimate0/data.csv``: a ``#``
+header, then ``timestamp [ns], p_RS_R_x, p_RS_R_y, p_RS_R_z [m], q_RS_w, q_RS_x, q_RS_y, q_RS_z,
+v_RS_R (3), b_w_RS_S (3), b_a_RS_S (3)``: 17 comma-separated columns, **nanosecond** stamps and the
+quaternion **scalar first** (``w x y z``). The machine-hall sequences share one world frame (the
+Leica/Vicon frame), so their trajectories are agents of one map. Inputs are sequence folders (or
+their ``mav0`` folder, or the ``data.csv`` files themselves); each agent is named after its
+sequence folder (``mh_01_easy``).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Sequence
+
+from studio.converters.names import safe_agent_name
+from studio.converters.text import read_table
+from studio.core.errors import ConfigError, FormatError
+from studio.core.trajectory import Trajectory, Warn, clean_trajectory
+
+__all__ = ["read_euroc", "euroc_ground_truth", "GT_RELATIVE"]
+
+GT_RELATIVE = Path("mav0") / "state_groundtruth_estimate0" / "data.csv"
+_WHAT = "EuRoC ground truth: timestamp [ns], p xyz [m], q wxyz, v xyz, b_w xyz, b_a xyz"
+
+
+def euroc_ground_truth(path: Path) -> tuple[str, Path] | None:
+    """``(agent name, data.csv)`` of a sequence folder, its ``mav0`` folder or the file; or None."""
+    if path.is_file() and path.name == "data.csv":
+        seq = path.parent.parent.parent if path.parent.name == "state_groundtruth_estimate0" else path.parent
+        return safe_agent_name(seq.name.lower()), path
+    for base, rel in ((path, GT_RELATIVE), (path, Path(*GT_RELATIVE.parts[1:]))):
+        if (base / rel).is_file():
+            seq = base if rel == GT_RELATIVE else base.parent
+            return safe_agent_name(seq.name.lower()), base / rel
+    return None
+
+
+def read_euroc(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None,
+               progress: object = None) -> list[Trajectory]:
+    """``studio convert euroc SEQ...``: one agent per sequence, in the order given."""
+    if agents:
+        raise ConfigError("--agent is only for `studio convert bag`; EuRoC agents are named after their sequences")
+    if not inputs:
+        raise ConfigError("studio convert euroc needs at least one sequence folder (e.g. MH_01_easy)")
+    out = []
+    for raw in inputs:
+        found = euroc_ground_truth(Path(raw))
+        if found is None:
+            raise FormatError(f"{raw}: no EuRoC ground truth ({GT_RELATIVE})")
+        name, csv = found
+        table, stamps = read_table(csv, 17, what=_WHAT, int_first=True)
+        assert stamps is not None
+        quat_xyzw = table[:, [5, 6, 7, 4]]  # w x y z in the file
+        out.append(clean_trajectory(name, stamps, table[:, 1:4], quat_xyzw, str(csv), warn))
+    names = [t.name for t in out]
+    for n in names:
+        if names.count(n) > 1:
+            raise ConfigError(f"two EuRoC inputs would both be agent {n!r}")
+    return out

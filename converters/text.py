@@ -1,0 +1,79 @@
+"""Numeric text tables as the real-data sources ship them (CSV or whitespace, ``#`` comments, one
+header line), parsed with errors that name ``file:line``. Shared by the EuRoC, KITTI and
+Kimera-Multi readers."""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from studio.core.errors import FormatError
+
+__all__ = ["read_table"]
+
+#: Larger files are refused before reading (ground-truth files of real datasets are a few MB).
+MAX_TABLE_BYTES = 1 << 30
+
+
+def read_table(path: str | os.PathLike, columns: int | tuple[int, ...], *, what: str,
+               int_first: bool = False, header: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+    """Rows of ``columns`` numbers (or any of several counts), as ``(values, first_column_int)``.
+
+    ``int_first`` keeps the first column exactly as an int64 (nanosecond stamps) besides the float
+    table. A first non-numeric line is a header; ``#`` lines are comments; commas or whitespace
+    separate. ``what`` names the expected layout in messages.
+    """
+    path = Path(path)
+    counts = (columns,) if isinstance(columns, int) else columns
+    try:
+        if path.stat().st_size > MAX_TABLE_BYTES:
+            raise FormatError(f"{path}: larger than {MAX_TABLE_BYTES >> 30} GiB")
+        text = path.read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        raise FormatError(f"{path}: not UTF-8 text (byte {err.start})") from None
+    except OSError as err:
+        raise FormatError(f"{path}: cannot read ({err.strerror})") from None
+    rows: list[list[float]] = []
+    firsts: list[int] = []
+    width = None
+    seen = False
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = [p for p in line.replace(",", " ").split()]
+        try:
+            values = [float(p) for p in parts]
+        except ValueError:
+            if not seen and header:
+                seen = True  # one header line
+                continue
+            bad = next(p for p in parts if not _is_float(p))
+            raise FormatError(f"{path}:{lineno}: {bad[:40]!r} is not a number ({what})") from None
+        seen = True
+        if len(values) not in counts or (width is not None and len(values) != width):
+            expected = width if width is not None else " or ".join(map(str, counts))
+            raise FormatError(f"{path}:{lineno}: expected {expected} columns ({what}), found {len(values)}")
+        width = len(values)
+        if not all(map(math.isfinite, values)):
+            raise FormatError(f"{path}:{lineno}: value is not finite")
+        if int_first:
+            token = parts[0]
+            if not token.lstrip("-").isdigit() or len(token) > 19:
+                raise FormatError(f"{path}:{lineno}: timestamp {token[:40]!r} is not an integer of nanoseconds")
+            firsts.append(int(token))
+        rows.append(values)
+    if not rows:
+        raise FormatError(f"{path}: no data rows ({what})")
+    return np.array(rows, dtype=np.float64), (np.array(firsts, dtype=np.int64) if int_first else None)
+
+
+def _is_float(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True

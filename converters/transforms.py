@@ -1,0 +1,103 @@
+"""What the convert pipeline may do to trajectories between reading and building (pure numpy):
+
+* **body frames**: a robot whose body axes are not x forward, y left, z up (AirMuseum's robots are
+  ``ufl`` and ``fur``) is re-expressed in FLU, so a planar conversion takes yaw about the true up axis;
+* **orientation from motion**: a trajectory whose orientation carries no information (S3E's RTK
+  ground truth has the identity quaternion on every line) gets headings from its motion;
+* **split**: one long trajectory becomes N agents over consecutive, optionally overlapping, windows.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from studio.core.errors import ConfigError, FormatError
+from studio.core.geometry import quat_angle, quat_conj, quat_mul
+from studio.core.trajectory import Trajectory
+from studio.core.units import NS_PER_S
+
+__all__ = ["body_frame_rotation", "apply_body_frame", "orientation_is_uninformative", "derive_orientation",
+           "split_trajectory", "FRAME_LETTERS"]
+
+#: Directions a body axis may point to, in FLU coordinates.
+FRAME_LETTERS = {"f": (1, 0, 0), "b": (-1, 0, 0), "l": (0, 1, 0), "r": (0, -1, 0), "u": (0, 0, 1), "d": (0, 0, -1)}
+
+
+def body_frame_rotation(code: str) -> np.ndarray:
+    """``R_flu_body`` of a frame code such as ``ufl`` (body x points up, y forward, z left)."""
+    code = code.lower()
+    if len(code) != 3 or any(c not in FRAME_LETTERS for c in code):
+        raise ConfigError(f"body frame {code!r}: expected three letters of f, b, l, r, u, d (e.g. flu, ufl, fur)")
+    m = np.array([FRAME_LETTERS[c] for c in code], dtype=np.float64).T  # columns: body axes in FLU
+    if abs(np.linalg.det(m) - 1.0) > 1e-9:
+        raise ConfigError(f"body frame {code!r}: not a right-handed frame")
+    return m
+
+
+def apply_body_frame(traj: Trajectory, code: str) -> Trajectory:
+    """The same motion with FLU body axes: ``q_world_flu = q_world_body * q_body_flu``."""
+    from scipy.spatial.transform import Rotation
+
+    r_body_flu = Rotation.from_matrix(body_frame_rotation(code).T).as_quat()
+    q = quat_mul(traj.quat_xyzw, np.broadcast_to(r_body_flu, traj.quat_xyzw.shape))
+    return Trajectory(traj.name, traj.stamps_ns, traj.positions_xyz, q / np.linalg.norm(q, axis=1, keepdims=True),
+                      traj.source)
+
+
+def orientation_is_uninformative(traj: Trajectory, tolerance_rad: float = 1e-6) -> bool:
+    """True when every orientation is the same (identity included): it says nothing of the motion."""
+    q = traj.quat_xyzw
+    return bool(np.all(quat_angle(quat_mul(quat_conj(q[:1]), q)) <= tolerance_rad))
+
+
+def derive_orientation(traj: Trajectory, window_m: float) -> Trajectory:
+    """Headings from the motion: the yaw of the chord from ``window_m / 2`` of path behind each pose to
+    ``window_m / 2`` ahead (clipped at the ends); while the robot moves less than a quarter of the
+    window (stationary, or turning on the spot) the last heading is held. Roll and pitch are zero."""
+    if not window_m > 0:
+        raise ConfigError(f"heading_window_m: expected a positive length, got {window_m!r}")
+    p = traj.positions_xyz
+    step = np.linalg.norm(np.diff(p[:, 0:2], axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(step)])
+    ahead = np.minimum(np.searchsorted(s, s + window_m / 2, side="left"), len(s) - 1)
+    behind = np.maximum(np.searchsorted(s, s - window_m / 2, side="right") - 1, 0)
+    chord = p[ahead, 0:2] - p[behind, 0:2]
+    moving = np.linalg.norm(chord, axis=1) >= window_m / 4
+    if not moving.any():
+        raise FormatError(f"{traj.source or traj.name}: the trajectory moves less than {window_m / 4:g} m: "
+                          "no heading can be derived from its motion")
+    yaw = np.arctan2(chord[:, 1], chord[:, 0])
+    idx = np.where(moving, np.arange(len(yaw)), 0)
+    np.maximum.accumulate(idx, out=idx)  # hold the last heading
+    first = int(np.flatnonzero(moving)[0])
+    idx[:first] = first  # and before the first motion, the first heading
+    yaw = yaw[idx]
+    q = np.zeros((len(yaw), 4))
+    q[:, 2], q[:, 3] = np.sin(yaw / 2), np.cos(yaw / 2)
+    return Trajectory(traj.name, traj.stamps_ns, p, q, traj.source)
+
+
+def split_trajectory(traj: Trajectory, parts: int, overlap_s: float) -> list[Trajectory]:
+    """``parts`` agents over consecutive windows of equal length overlapping by ``overlap_s``, named
+    ``<name>_1 .. <name>_N``; each keeps its own slice of the poses (its own ground truth)."""
+    if isinstance(parts, bool) or not isinstance(parts, int) or parts < 2:
+        raise ConfigError(f"split: expected an integer of at least 2, got {parts!r}")
+    if not (overlap_s >= 0):
+        raise ConfigError(f"overlap: expected a non-negative number of seconds, got {overlap_s!r}")
+    t0, t1 = int(traj.stamps_ns[0]), int(traj.stamps_ns[-1])
+    overlap_ns = int(round(overlap_s * NS_PER_S))
+    length = (t1 - t0 + (parts - 1) * overlap_ns) / parts
+    if length <= overlap_ns:
+        raise ConfigError(f"overlap: {overlap_s:g} s is not shorter than each of the {parts} windows "
+                          f"({length / NS_PER_S:.3g} s) of {traj.name}")
+    out = []
+    for k in range(parts):
+        start = t0 + k * (length - overlap_ns)
+        end = start + length
+        sel = (traj.stamps_ns >= start) & (traj.stamps_ns <= end if k == parts - 1 else traj.stamps_ns < end)
+        if sel.sum() < 2:
+            raise FormatError(f"{traj.source or traj.name}: window {k + 1} of {parts} holds {int(sel.sum())} poses; "
+                              "a trajectory needs at least 2")
+        out.append(Trajectory(f"{traj.name}_{k + 1}", traj.stamps_ns[sel], traj.positions_xyz[sel],
+                              traj.quat_xyzw[sel], traj.source))
+    return out
