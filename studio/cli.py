@@ -31,8 +31,19 @@ class RecordKind(str, enum.Enum):
     d3 = "3d"
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from studio import __version__
+
+        typer.echo(f"studio {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
-def _root() -> None:
+def _root(
+    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                 help="Print the version and exit."),
+) -> None:
     """cslam-studio: collaborative-SLAM pose-graph datasets."""
 
 

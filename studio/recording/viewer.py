@@ -22,7 +22,7 @@ from pathlib import Path
 from studio.core.errors import ConfigError, FormatError, OutputError, StudioError
 from studio.recording.entities import TIMELINE_CELL, TIMELINE_ITERATION, TIMELINE_NODE
 
-__all__ = ["SnapshotResult", "rerun_executable", "vulkan_drivers", "snapshot", "view_command",
+__all__ = ["SnapshotResult", "has_display", "rerun_executable", "vulkan_drivers", "snapshot", "view_command",
            "view_web_command", "web_viewer_address"]
 
 #: Where the Vulkan loader looks for installed drivers (ICD manifests).
@@ -73,9 +73,20 @@ def _env() -> dict[str, str]:
     return env
 
 
+def has_display() -> bool:
+    """False on Linux when neither ``DISPLAY`` nor ``WAYLAND_DISPLAY`` is set (no window can open)."""
+    if not sys.platform.startswith("linux"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
 def view_command(rrd: str | os.PathLike) -> list[str]:
-    """The command that opens ``rrd`` in the native viewer."""
-    return [rerun_executable(), str(_check_rrd(Path(rrd)))]
+    """The command that opens ``rrd`` in the native viewer (refused without a display)."""
+    path = _check_rrd(Path(rrd))
+    if not has_display():
+        raise ConfigError(f"{rrd}: no display (DISPLAY and WAYLAND_DISPLAY are unset): use "
+                          f"`studio view {rrd} --web` for the web viewer, or `studio snapshot {rrd} -o FILE.png`")
+    return [rerun_executable(), str(path)]
 
 
 #: Port of the gRPC server that ``rerun --serve-web`` starts beside the web viewer (Rerun's default).
