@@ -16,6 +16,7 @@ import typer
 
 from studio.core.alignment import Alignment
 from studio.core.errors import StudioError
+from studio.core.progress import terminal_progress
 
 app = typer.Typer(
     name="studio",
@@ -95,9 +96,10 @@ def synth(
 
     t0 = time.perf_counter()
     cfg = load_synth_config(config, warn=_warn)
-    res = synthesize(cfg, out, force=force, multi_records=multi_records.value,
-                     single_records=single_records.value, jobs=jobs or None,
-                     max_memory_gb=max_memory_gb, max_output_gb=max_output_gb, rrd=rrd)
+    with terminal_progress(not quiet) as progress:
+        res = synthesize(cfg, out, force=force, multi_records=multi_records.value,
+                         single_records=single_records.value, jobs=jobs or None,
+                         max_memory_gb=max_memory_gb, max_output_gb=max_output_gb, rrd=rrd, progress=progress)
     if not quiet:
         counts = res.output.graph.edge_counts()
         typer.echo(
@@ -124,7 +126,8 @@ def record(
     from studio.recording.dataset import record_dataset
 
     t0 = time.perf_counter()
-    res = record_dataset(dataset, out, force=force)
+    with terminal_progress(not quiet) as progress:
+        res = record_dataset(dataset, out, force=force, progress=progress)
     if not quiet:
         counts = res.edge_counts
         typer.echo(
@@ -173,14 +176,16 @@ def evaluate(
         raise ConfigError("--json and --markdown exclude each other")
     if align_per_agent and align not in (Alignment.se3, Alignment.sim3):
         raise ConfigError("--align-per-agent needs --align se3 or --align sim3")
-    ev = evaluate_dataset(dataset, estimate=estimate, align=align.value, align_per_agent=align_per_agent,
-                          rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes, tum_max_diff_s=tum_max_diff)
+    with terminal_progress() as progress:
+        ev = evaluate_dataset(dataset, estimate=estimate, align=align.value, align_per_agent=align_per_agent,
+                              rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes,
+                              tum_max_diff_s=tum_max_diff, progress=progress)
+        if rrd is not None:
+            from studio.evaluate import write_evaluation_recording
+
+            write_evaluation_recording(ev, rrd, force=force, progress=progress)
     for msg in ev.warnings:
         _warn(msg)
-    if rrd is not None:
-        from studio.evaluate import write_evaluation_recording
-
-        write_evaluation_recording(ev, rrd, force=force)
     if as_json:
         typer.echo(ev.to_json())
     else:
@@ -222,7 +227,8 @@ def snapshot(
     """
     from studio.recording.viewer import snapshot as render
 
-    res = render(rrd, out, node=node, window_size=size)
+    with terminal_progress() as progress:
+        res = render(rrd, out, node=node, window_size=size, progress=progress)
     typer.echo(f"{res.path}: node {res.time}")
 
 
@@ -253,10 +259,6 @@ _CONVERT_HELP = {
     "outlier_fraction": "Fraction of loop closures made outliers (listed in outliers.txt).",
     "planar": "Project to SE(2) and write 2D records.",
 }
-
-
-def _stderr_progress(label: str, done: int, total: int) -> None:
-    typer.echo(f"\r{label}: {done}/{total}\033[K", err=True, nl=False)
 
 
 @app.command()
@@ -331,12 +333,10 @@ def convert(
             raise ConfigError("give a FORMAT (tum, s3e, airmuseum, bag) or --config")
         cfg = ConvertConfig(source, tuple(str(p) for p in inputs or ()), tuple(agent),
                             GraphOptions(**{k: ctx.params[k] for k in option_names}))
-    show = not quiet and sys.stderr.isatty()
     t0 = time.perf_counter()
-    res = run_convert(cfg, out, force=force, warn=_warn, progress=_stderr_progress if show else None, rrd=rrd,
-                      max_memory_gb=max_memory_gb)
-    if show:
-        typer.echo("\r\033[K", err=True, nl=False)
+    with terminal_progress(not quiet) as progress:
+        res = run_convert(cfg, out, force=force, warn=_warn, progress=progress, rrd=rrd,
+                          max_memory_gb=max_memory_gb)
     if not quiet:
         g = res.build.graph
         counts = g.edge_counts()

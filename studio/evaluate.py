@@ -36,6 +36,7 @@ import numpy as np
 from studio.core.alignment import Alignment
 from studio.core.errors import EvaluationError
 from studio.core.model import PoseGraph
+from studio.core.progress import Progress, report
 from studio.core.units import NS_PER_S
 
 if TYPE_CHECKING:
@@ -380,7 +381,7 @@ def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_
 def evaluate(dataset: str | os.PathLike, *, estimate: str | os.PathLike | None = None,
              align: Alignment | str = Alignment.none, align_per_agent: bool = False,
              rpe_delta_m: float = 1.0, rpe_delta_nodes: int = 1,
-             tum_max_diff_s: float = DEFAULT_TUM_MAX_DIFF_S) -> Evaluation:
+             tum_max_diff_s: float = DEFAULT_TUM_MAX_DIFF_S, progress: Progress | None = None) -> Evaluation:
     """Read the multi-g2o folder ``dataset`` and score ``estimate`` (or, if None, the dataset's
     initial estimate) against its ground truth. See the module docstring for the conventions.
 
@@ -390,13 +391,19 @@ def evaluate(dataset: str | os.PathLike, *, estimate: str | os.PathLike | None =
     from studio.io.estimate import read_estimate
     from studio.io.multig2o import read_multi_g2o
 
+    step = "evaluate"
+    report(progress, step, 0, 3, "stages")
     graph = read_multi_g2o(dataset, edges=False)
+    report(progress, step, 1, 3, "stages")
     est = None if estimate is None else read_estimate(estimate, graph)
-    return score(graph, None if est is None else est.agents, by_time=est is not None and est.by_time,
+    report(progress, step, 2, 3, "stages")
+    ev = score(graph, None if est is None else est.agents, by_time=est is not None and est.by_time,
                  align=align, align_per_agent=align_per_agent,
                  rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes, tum_max_diff_s=tum_max_diff_s,
                  dataset=str(dataset), estimate_label="initial estimate" if est is None else est.source,
                  estimate_layout="initial" if est is None else est.layout)
+    report(progress, step, 3, 3, "stages")
+    return ev
 
 
 # ---------------------------------------------------------------------------------------------- output
@@ -468,7 +475,7 @@ def format_markdown(ev: Evaluation) -> str:
 
 
 def write_evaluation_recording(ev: Evaluation, path: str | os.PathLike, *, force: bool = False,
-                               recording_id: str | None = None) -> Path:
+                               recording_id: str | None = None, progress: Progress | None = None) -> Path:
     """Write the per-node APE series and the statistics table of ``ev`` as a new ``.rrd``, atomically.
 
     Pass the dataset recording's id as ``recording_id`` to have the viewer merge both files.
@@ -483,6 +490,8 @@ def write_evaluation_recording(ev: Evaluation, path: str | os.PathLike, *, force
                      "ape_rotation_deg": ev.ape_rotation_series_deg[k]})
         for k, a in enumerate(ev.agents)
     ]
+    report(progress, "evaluation recording", 0, 1, "files")
     with staged_outputs(path.parent, [path.name], force=force) as staging:
         save_evaluation_recording(staging / path.name, format_markdown(ev), series, recording_id=recording_id)
+    report(progress, "evaluation recording", 1, 1, "files")
     return path

@@ -27,6 +27,7 @@ import numpy as np
 
 from studio.core.errors import FormatError, OutputError
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
+from studio.core.progress import Progress, report
 from studio.core.units import NS_PER_S
 from studio.io.atomic import staged_outputs
 from studio.recording.entities import (
@@ -414,7 +415,7 @@ def default_blueprint(scene: _Scene) -> rrb.Blueprint:
 
 
 def record_graph(graph: PoseGraph, path: str | os.PathLike, *, name: str,
-                 config_json: str | None = None) -> RecordResult:
+                 config_json: str | None = None, progress: Progress | None = None) -> RecordResult:
     """Log ``graph`` to a new ``.rrd`` at ``path`` (written in place; see :func:`record_dataset`)."""
     import rerun as rr
 
@@ -429,13 +430,17 @@ def record_graph(graph: PoseGraph, path: str | os.PathLike, *, name: str,
         log_properties(rec, graph, name, config_json)
         log_world(rec)
         axis_length = 0.04 * scene.extent_m
+        steps = len(g.agents) + 1
+        report(progress, "recording", 0, steps, "parts")
         for k, agent in enumerate(g.agents):
             log_paths(rec, agent, k)
             log_current_pose(rec, agent, k, real_time, axis_length)
             log_intra_loop_closures(rec, agent, k, real_time)
             log_position_error(rec, agent, k, real_time)
+            report(progress, "recording", k + 1, steps, "parts")
         log_inter_loop_closures(rec, g, real_time)
         log_loop_closure_counts(rec, g, real_time)
+        report(progress, "recording", steps, steps, "parts")
     finally:
         rec.disconnect()
     return RecordResult(path, rid, graph.num_poses, graph.edge_counts(), real_time)
@@ -451,7 +456,8 @@ def _sibling_config(dataset: Path) -> str | None:
         raise FormatError(f"{cfg}: not a readable JSON config ({err})") from None
 
 
-def record_dataset(dataset: str | os.PathLike, out: str | os.PathLike, *, force: bool = False) -> RecordResult:
+def record_dataset(dataset: str | os.PathLike, out: str | os.PathLike, *, force: bool = False,
+                   progress: Progress | None = None) -> RecordResult:
     """Read a multi-g2o folder (ours or kollagen's) and write its recording to ``out`` atomically.
 
     The config beside the dataset (``<dataset>.config.json``, as ``studio synth`` writes it) becomes
@@ -462,9 +468,11 @@ def record_dataset(dataset: str | os.PathLike, out: str | os.PathLike, *, force:
     dataset, out = Path(dataset), Path(out)
     if out.suffix != ".rrd":
         raise OutputError(f"{out}: a recording must end in .rrd")
+    report(progress, "reading", 0, 1, "datasets")
     graph = read_multi_g2o(dataset)
+    report(progress, "reading", 1, 1, "datasets")
     config_json = _sibling_config(dataset)
     name = dataset.resolve().name
     with staged_outputs(out.parent, [out.name], force=force) as staging:
-        res = record_graph(graph, staging / out.name, name=name, config_json=config_json)
+        res = record_graph(graph, staging / out.name, name=name, config_json=config_json, progress=progress)
     return RecordResult(out, res.recording_id, res.num_poses, res.edge_counts, res.real_time)
