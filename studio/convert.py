@@ -201,7 +201,8 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
             shown = convert_config_to_json(cfg)
             shown["inputs"] = [Path(p).name for p in cfg.inputs]
             record_graph(build.graph, ds / f"{out.name}.rrd", name=out.name,
-                         config_json=json.dumps(shown, sort_keys=True), progress=progress)
+                         config_json=json.dumps(shown, sort_keys=True), outliers=build.outliers,
+                         progress=progress)
     return ConvertResult(cfg, out, tuple(trajs), build, tuple(warnings),
                          out / f"{out.name}.rrd" if rrd else None)
 
