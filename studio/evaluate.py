@@ -141,6 +141,10 @@ class Evaluation:
     ape_translation_series_m: tuple[np.ndarray, ...] = field(repr=False)
     """Per agent, the APE translation error of each scored pose (for plots and recordings)."""
     ape_rotation_series_deg: tuple[np.ndarray, ...] = field(repr=False)
+    ground_truth_xyz: tuple[np.ndarray, ...] = field(repr=False, default=())
+    """Per agent, the ground-truth positions of the scored poses (n, 3)."""
+    estimate_xyz: tuple[np.ndarray, ...] = field(repr=False, default=())
+    """Per agent, the estimate's positions of the scored poses (n, 3), after any alignment."""
     alignment_transforms: tuple[tuple[np.ndarray, np.ndarray, float], ...] = field(repr=False, default=())
     """``(R, t, s)`` of each Umeyama fit (one, or one per agent); empty when unaligned."""
     warnings: tuple[str, ...] = ()
@@ -374,6 +378,8 @@ def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_
         node_indices=tuple(np.asarray(m[3], dtype=np.int64) for m in matched),
         stamps_ns=tuple(m[2] for m in matched),
         ape_translation_series_m=tuple(ape_t), ape_rotation_series_deg=tuple(ape_r),
+        ground_truth_xyz=tuple(np.ascontiguousarray(m[0][:, 0:3]) for m in matched),
+        estimate_xyz=tuple(np.ascontiguousarray(m[1][:, 0:3]) for m in matched),
         alignment_transforms=tuple(transforms), warnings=tuple(warnings),
     )
 
@@ -476,7 +482,9 @@ def format_markdown(ev: Evaluation) -> str:
 
 def write_evaluation_recording(ev: Evaluation, path: str | os.PathLike, *, force: bool = False,
                                recording_id: str | None = None, progress: Progress | None = None) -> Path:
-    """Write the per-node APE series and the statistics table of ``ev`` as a new ``.rrd``, atomically.
+    """Write ``ev`` as a new ``.rrd``, atomically: the estimate against the ground truth in 3D (the
+    estimate coloured by its APE translation), one plot per metric with every agent, and the table
+    of statistics, laid out by :func:`studio.recording.evaluation.evaluation_blueprint`.
 
     Pass the dataset recording's id as ``recording_id`` to have the viewer merge both files.
     """
@@ -487,7 +495,9 @@ def write_evaluation_recording(ev: Evaluation, path: str | os.PathLike, *, force
     series = [
         ErrorSeries(a.name, ev.node_indices[k], ev.stamps_ns[k],
                     {"ape_translation_m": ev.ape_translation_series_m[k],
-                     "ape_rotation_deg": ev.ape_rotation_series_deg[k]})
+                     "ape_rotation_deg": ev.ape_rotation_series_deg[k]},
+                    ground_truth_xyz=ev.ground_truth_xyz[k] if ev.ground_truth_xyz else None,
+                    estimate_xyz=ev.estimate_xyz[k] if ev.estimate_xyz else None)
         for k, a in enumerate(ev.agents)
     ]
     report(progress, "evaluation recording", 0, 1, "files")
