@@ -17,7 +17,7 @@ Conventions (those of the kollagen paper, Tables I and II, unless an option says
 
 evo computes APE rotation and RPE in Python loops over 4x4 matrices (about 15 s for the 50,005 poses
 of Multi10000x5). Here the same formulas are evaluated on whole columns with scipy's ``Rotation``
-(which evo's ``so3_log`` uses too); ``tests/test_evaluate.py`` checks them against evo's metric objects.
+(which evo's ``so3_log`` uses too); ``tests/studio/test_evaluate.py`` checks them against evo's metric objects.
 The translation APE is evo's own ``APE.process_data``.
 """
 
