@@ -1,13 +1,17 @@
 """The README's and docs' commands run, and the paths and links they name exist.
 
 Every fenced ``studio ...`` line of README.md and docs/*.md (continuation lines joined, ``$ ``
-prompts and ``# comments`` dropped) runs, in document order, as ``python -m studio.cli ...`` in a
-fresh folder per document. That folder holds small stand-ins for the inputs the docs name (the
-kollagen presets are replaced by small3x100, a 3-agent x 100-step config with the same parameters;
-``alpha.txt`` and friends are the test trajectories; S3E, AirMuseum and bag inputs are made by the
-converter tests' own writers). A command that fails, or names an input that is not in
-:data:`INPUTS`, fails the test: when a doc gains a command with a new input, add the input here.
-Commands that cannot run here are in :data:`SKIP`, each with its reason.
+prompts and ``# comments`` dropped) runs, in document order, as ``python -m studio.cli ...`` in one
+work folder shared by the documents (README first). That folder holds small stand-ins for the inputs
+the docs name (the kollagen presets are replaced by small3x100, a 3-agent x 100-step config with the
+same parameters; ``alpha.txt`` and friends are the test trajectories; S3E, AirMuseum and bag inputs
+are made by the converter tests' own writers) and the outputs several docs start from
+(``out/multi3500x8`` from ``studio synth multi3500x8 -o out/``, ``out/three_loops`` from
+``recordings/three_loops.command``). Docs repeat ``studio synth ... -o out/``: a command refused
+only because its output already exists is run again with ``--force``. A command that fails
+otherwise, or names an input that is not here, fails the test: when a doc gains a command with a new
+input, add the input to :data:`INPUTS`. Commands that cannot run here are in :data:`SKIP`, each
+with its reason.
 """
 
 from __future__ import annotations
@@ -111,13 +115,37 @@ INPUTS: dict[str, Callable[[Path], None]] = {
 }
 
 
-def _work_folder(root: Path) -> Path:
-    root.mkdir(parents=True, exist_ok=True)
+#: Outputs several docs start from, made before any doc runs (the commands are the docs' own).
+SETUP = (
+    "studio synth multi3500x8 -o out/",
+    "studio convert tum alpha.txt bob.txt carol.txt --seed 7 --outlier-fraction 0.05 -o out/three_loops",
+)
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ, RERUN_ANALYTICS="0", PYTHONPATH=str(REPO))
+    env.pop("DISPLAY", None)
+    env.pop("WAYLAND_DISPLAY", None)
+    return env
+
+
+def _run(words: list[str], work: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "studio.cli", *words[1:]], cwd=work, env=_env(),
+                          capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL)
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("docs") / "work"
+    root.mkdir()
     for make in dict.fromkeys(INPUTS.values()):  # each maker once
         make(root)
     (root / "tests").symlink_to(REPO / "tests")
     shutil.copytree(REPO / "recordings", root / "recordings")
     (root / "docs" / "img").mkdir(parents=True)
+    for command in SETUP:
+        proc = _run(shlex.split(command), root)
+        assert proc.returncode == 0, f"setup `{command}`: {proc.stderr}"
     return root
 
 
@@ -172,18 +200,15 @@ def test_the_docs_have_commands_to_run():
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("doc", "commands"), _cases())
-def test_documented_commands_run(doc: Path, commands: list[tuple[int, str]], tmp_path):
-    work = _work_folder(tmp_path / "work")
-    env = dict(os.environ, RERUN_ANALYTICS="0", PYTHONPATH=str(REPO))
-    env.pop("DISPLAY", None)
-    env.pop("WAYLAND_DISPLAY", None)
+def test_documented_commands_run(doc: Path, commands: list[tuple[int, str]], work: Path):
     ran = 0
     for line, command in commands:
         words = shlex.split(command, comments=True)
         if _skip_reason(words):
             continue
-        proc = subprocess.run([sys.executable, "-m", "studio.cli", *words[1:]], cwd=work, env=env,
-                              capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL)
+        proc = _run(words, work)
+        if proc.returncode == 2 and "already exists (use --force" in proc.stderr and "--force" not in words:
+            proc = _run(words + ["--force"], work)
         assert proc.returncode == 0, (
             f"{doc.name}:{line}: `{command}` exited {proc.returncode}:\n{proc.stderr[-2000:]}{proc.stdout[-500:]}")
         assert "Traceback" not in proc.stderr, f"{doc.name}:{line}: {proc.stderr[-2000:]}"
