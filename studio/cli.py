@@ -34,9 +34,13 @@ class RecordKind(str, enum.Enum):
 
 def _print_version(value: bool) -> None:
     if value:
-        from studio import __version__
+        from importlib.metadata import PackageNotFoundError, version
 
-        typer.echo(f"studio {__version__}")
+        try:
+            installed = version("cslam-studio")
+        except PackageNotFoundError:  # run from a source tree that was not installed
+            from studio import __version__ as installed
+        typer.echo(f"studio {installed}")
         raise typer.Exit()
 
 

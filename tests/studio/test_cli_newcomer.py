@@ -18,9 +18,12 @@ runner = CliRunner()
 
 
 def test_version_prints_the_package_version():
+    from importlib.metadata import version
+
     res = runner.invoke(app, ["--version"])
     assert res.exit_code == 0
-    assert res.output.strip() == f"studio {__version__}"
+    assert res.output.strip() == f"studio {version('cslam-studio')}"
+    assert version("cslam-studio") == __version__  # pyproject.toml and studio/__init__.py agree
 
 
 def test_view_without_a_display_names_web_and_snapshot(tmp_path):
