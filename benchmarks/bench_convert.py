@@ -1,15 +1,16 @@
-"""Benchmark of `studio convert` (not a timed test): run ``python benchmarks/bench_convert.py [WORKDIR]``.
+"""Benchmark of `studio convert` (not a timed test): ``python benchmarks/bench_convert.py [--out DIR] [tum] [bag]``.
 
 1. TUM: 3 agents, 1,000,000 poses in total (100 Hz, UTM-sized coordinates), converted end to end.
 2. Bag: a ROS 2 (mcap) bag with 300,000 geometry_msgs/PoseStamped messages on 3 topics.
 
-Inputs are generated once into WORKDIR (default: a temporary folder) and reused; the figures are
+Inputs are generated once into ``--out`` (default: a temporary folder, removed after) and reused; the figures are
 wall-clock seconds of :func:`studio.convert.convert` (reading, building and writing the dataset,
 without the recording, whose time is printed separately) and the peak resident memory of the process.
 """
 
 from __future__ import annotations
 
+import argparse
 import resource
 import sys
 import tempfile
@@ -81,10 +82,26 @@ def timed(label: str, cfg: ConvertConfig, out: Path) -> None:
           f"the .rrd recording adds {rec_s:.2f} s")
 
 
-def main() -> None:
-    work = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(tempfile.mkdtemp(prefix="bench-convert-"))
-    work.mkdir(parents=True, exist_ok=True)
-    what = sys.argv[2:] or ["tum", "bag"]
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("what", nargs="*", metavar="{tum,bag}", help="which benchmarks to run (default: both)")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="folder for the generated inputs and outputs, kept and reused (default: a temporary "
+                         "folder, removed after)")
+    args = ap.parse_args(argv)
+    bad = [w for w in args.what if w not in ("tum", "bag")]
+    if bad:
+        ap.error(f"unknown benchmark {bad[0]!r} (choose from tum, bag)")
+    args.what = args.what or ["tum", "bag"]
+    if args.out is None:
+        with tempfile.TemporaryDirectory(prefix="bench-convert-") as tmp:
+            run(Path(tmp), args.what)
+    else:
+        args.out.mkdir(parents=True, exist_ok=True)
+        run(args.out, args.what)
+
+
+def run(work: Path, what: list[str]) -> None:
     if "tum" in what:
         timed("tum 3 agents", ConvertConfig("tum", make_tum(work)), work / "out_tum")
     if "bag" in what:

@@ -1,6 +1,6 @@
 """Logging speed of a paper-size dataset: wall seconds, peak memory and file size of its recording.
 
-Usage: python benchmarks/bench_record.py [--repeat N] [PRESET ...]   (default: multi10000x5, 3 runs)
+Usage: python benchmarks/bench_record.py [--repeat N] [--out DIR] [PRESET ...]   (default: multi10000x5, 3 runs)
 
 Generation is timed separately; the figure that matters is the logging time (budget: 1.5 s and
 30 MB for Multi10000x5, 50,005 poses and 76,134 edges).
@@ -8,6 +8,7 @@ Generation is timed separately; the figure that matters is the logging time (bud
 
 from __future__ import annotations
 
+import argparse
 import os
 import resource
 import sys
@@ -26,7 +27,7 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: kB
 
 
-def bench(name: str, repeat: int) -> None:
+def bench(name: str, repeat: int, out_dir: Path | None = None) -> None:
     cfg = preset(name)
     t0 = time.perf_counter()
     graph = generate(cfg).graph
@@ -38,8 +39,10 @@ def bench(name: str, repeat: int) -> None:
 
     times = []
     with tempfile.TemporaryDirectory() as tmp:
+        folder = out_dir or Path(tmp)
+        folder.mkdir(parents=True, exist_ok=True)
         for k in range(repeat):
-            out = Path(tmp) / f"{cfg.name}-{k}.rrd"
+            out = folder / f"{cfg.name}-{k}.rrd"
             t0 = time.perf_counter()
             record_graph(graph, out, name=cfg.name)
             times.append(time.perf_counter() - t0)
@@ -53,12 +56,20 @@ def bench(name: str, repeat: int) -> None:
     )
 
 
-def main(argv: list[str]) -> None:
-    repeat = 3
-    if argv[:1] == ["--repeat"]:
-        repeat, argv = int(argv[1]), argv[2:]
-    for name in argv or ["multi10000x5"]:
-        bench(name, repeat)
+def main(argv: list[str] | None = None) -> None:
+    from studio.generator.presets import preset_names
+
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("presets", nargs="*", default=["multi10000x5"], metavar="PRESET",
+                    help=f"presets to record (default: multi10000x5; known: {', '.join(preset_names())})")
+    ap.add_argument("--repeat", type=int, default=3, help="recordings per preset (default: 3)")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="folder for the .rrd files (default: a temporary folder, removed after)")
+    args = ap.parse_args(argv)
+    for name in args.presets:
+        if name not in preset_names():
+            ap.error(f"unknown preset {name!r} (known: {', '.join(preset_names())})")
+        bench(name, args.repeat, args.out)
 
 
 if __name__ == "__main__":

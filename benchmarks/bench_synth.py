@@ -52,14 +52,17 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--kollagen", type=Path, help="kollagen's `generate` binary, to run side by side")
     ap.add_argument("--presets", nargs="*", default=PRESETS)
+    ap.add_argument("--out", type=Path, default=None,
+                    help="work folder for the outputs (default: a temporary folder, removed after)")
     args = ap.parse_args()
     studio = shutil.which("studio") or str(Path(sys.executable).parent / "studio")
     print(f"# {time.strftime('%Y-%m-%d')}  {os.cpu_count()} cores  python {sys.version.split()[0]}")
     print(f"{'dataset':14} {'tool':10} {'median s':>9} {'best s':>8} {'peak MiB':>9}  runs")
     for name in args.presets:
         cfg = preset(name)
-        with tempfile.TemporaryDirectory() as tmp:
-            tmp = Path(tmp)
+        with tempfile.TemporaryDirectory() as tmp_dir:
+            tmp = Path(tmp_dir) if args.out is None else args.out / name
+            tmp.mkdir(parents=True, exist_ok=True)
             rows = {"studio": [], "studio+rrd": [], "kollagen": []}
             peaks = {"studio": 0.0, "studio+rrd": 0.0, "kollagen": 0.0}
             cfg_file = tmp / f"{cfg.name}.json"

@@ -31,6 +31,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from studio.core.progress import Progress  # the callback type of build_graph (re-exported)
 from studio.core.errors import ConfigError
 from studio.core.geometry import (
     normalize_angle,
@@ -53,8 +54,6 @@ __all__ = ["GraphOptions", "Gap", "BuildResult", "build_graph", "pairs_within", 
 _DIAG21 = np.array([0, 6, 11, 15, 18, 20])  # diagonal entries of a 6x6 upper triangle
 _DIAG6 = np.array([0, 3, 5])  # diagonal entries of a 3x3 upper triangle
 _STREAM_ODOMETRY, _STREAM_LOOPS, _STREAM_OUTLIERS = 1, 2, 3
-
-Progress = Callable[[str, int, int], None]
 
 
 @dataclass(frozen=True)
@@ -281,13 +280,15 @@ def _compose_se2(first: np.ndarray, steps: np.ndarray) -> np.ndarray:
 BYTES_PER_CANDIDATE = 64
 
 
-def pairs_within(points_xyz: np.ndarray, radius: float, *,
-                 max_bytes: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pairs_within(points_xyz: np.ndarray, radius: float, *, max_bytes: float | None = None,
+                 on_step: Callable[[int, int], None] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All pairs ``i < j`` with ``|p_i - p_j| < radius``, found with a grid of ``radius``-sized cells.
 
     Returns ``(i, j, d)`` sorted by ``(i, j)``. Cost: sort + binary search per neighbour cell, and
     memory linear in the number of points plus pairs in neighbouring cells. With ``max_bytes``, the
     candidates are counted first and a search that would need more memory raises ConfigError.
+    ``on_step(examined, candidates)`` hears of the candidate pairs examined so far (``candidates`` is
+    0 when they were not counted).
     """
     n = len(points_xyz)
     if n < 2:
@@ -300,8 +301,8 @@ def pairs_within(points_xyz: np.ndarray, radius: float, *,
     order = np.argsort(key, kind="stable")
     skey = key[order]
     idx = np.arange(n)
+    candidates = 0
     if max_bytes is not None:
-        candidates = 0
         for dx in (-1, 0, 1):
             for dy in (-1, 0, 1):
                 nk = key + (dx * dims[1] + dy) * dims[2] + np.arange(-1, 2)[:, None]
@@ -314,6 +315,7 @@ def pairs_within(points_xyz: np.ndarray, radius: float, *,
                 f"--lc-radius, a larger --keyframe-distance, or raise --max-memory-gb"
             )
     out_i, out_j, out_d = [], [], []
+    examined = 0
     for dx in (-1, 0, 1):
         for dy in (-1, 0, 1):
             for dz in (-1, 0, 1):
@@ -322,6 +324,9 @@ def pairs_within(points_xyz: np.ndarray, radius: float, *,
                 hi = np.searchsorted(skey, nk, "right")
                 cnt = hi - lo
                 total = int(cnt.sum())
+                examined += total
+                if on_step is not None:
+                    on_step(examined, max(candidates, examined))
                 if total == 0:
                     continue
                 i = np.repeat(idx, cnt)
@@ -364,7 +369,7 @@ def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
     agents_data = []
     for a, traj in enumerate(trajectories):
         if progress:
-            progress("keyframes and odometry", a, len(trajectories))
+            progress("keyframes and odometry", a, len(trajectories), "agents")
         if planar:
             # planar graphs are built in SE(2) from the start: x, y and the heading (ZYX yaw)
             pos = traj.positions_xyz[:, 0:2] - origin[0:2]
@@ -407,13 +412,16 @@ def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
         kf_agent.append(np.full(m, a, dtype=np.int64))
         kf_index.append(np.arange(m, dtype=np.int64))
     if progress:
-        progress("loop closures", 0, 1)
+        progress("keyframes and odometry", len(trajectories), len(trajectories), "agents")
+        progress("loop-closure search", 0, 0, "pairs")
     P = np.concatenate(kf_pos)
     H = np.concatenate(kf_heading)  # yaw (planar) or quaternion rows
     S = np.concatenate(kf_stamps)
     A = np.concatenate(kf_agent)
     V = np.concatenate(kf_index)
-    i, j, d = pairs_within(P, opts.lc_radius, max_bytes=None if max_memory_gb is None else max_memory_gb * 1e9)
+    i, j, d = pairs_within(P, opts.lc_radius, max_bytes=None if max_memory_gb is None else max_memory_gb * 1e9,
+                           on_step=None if progress is None else
+                           (lambda done, total: progress("loop-closure search", done, total, "pairs")))
     same = A[i] == A[j]
     dt_ns = np.abs(S[j] - S[i])
     ok = np.where(same, (dt_ns >= int(round(opts.lc_min_time * NS_PER_S))) & (np.abs(V[j] - V[i]) >= opts.lc_min_index),

@@ -376,8 +376,8 @@ def read_bag(bag: str | os.PathLike | Sequence[str | os.PathLike], specs: Sequen
                     else:
                         _take(col, conn.msgtype, msg)
                 done += 1
-                if progress is not None and done % 20000 == 0:
-                    progress("reading bag", done, total)
+                if progress is not None and (done % 20000 == 0 or done == total):
+                    progress("reading bag", done, total, "messages")
     except FormatError:
         raise
     except errors as err:

@@ -39,8 +39,19 @@ def read_tum_sources(inputs: Sequence[str | os.PathLike], *, agents: Sequence[st
     if not inputs:
         raise ConfigError("studio convert tum needs at least one trajectory file")
     sizes = [Path(p).stat().st_size if Path(p).is_file() else 0 for p in inputs]
+    total = sum(sizes)
+
+    def tick(done: int, _n: int) -> None:
+        if progress is not None:
+            progress("reading", sum(sizes[:done]), total, "bytes")
+
     if len(inputs) < 2 or sum(sizes) < _PARALLEL_MIN_BYTES:
-        return [read_tum_trajectory(p, warn=warn) for p in inputs]
+        trajs = []
+        tick(0, len(inputs))
+        for k, p in enumerate(inputs):
+            trajs.append(read_tum_trajectory(p, warn=warn))
+            tick(k + 1, len(inputs))
+        return trajs
 
     # large files are parsed by several processes; their warnings are replayed here, in order
     def read_one(k: int):
@@ -48,7 +59,7 @@ def read_tum_sources(inputs: Sequence[str | os.PathLike], *, agents: Sequence[st
         return read_tum_trajectory(inputs[k], warn=messages.append), messages
 
     out = []
-    for traj, messages in parallel_map(read_one, len(inputs)):
+    for traj, messages in parallel_map(read_one, len(inputs), on_done=tick):
         for msg in messages:
             if warn is not None:
                 warn(msg)

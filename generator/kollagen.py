@@ -26,6 +26,7 @@ import numpy as np
 
 from studio.generator.config import SynthConfig
 from studio.core.parallel import parallel_map
+from studio.core.progress import Progress, report
 from studio.generator.rng import MT19937Stream, canonical_doubles, polar_normal
 from studio.core.geometry import libm_cos_sin, normalize_angle, relative_planar_pose
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
@@ -432,7 +433,7 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     return Edges(PoseKind.SE2, j_from, i_to, meas.reshape(-1, 3), info)
 
 
-def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None):
+def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None, progress: Progress | None = None):
     p = cfg.inter
     radius = _round_to_int(p.loop_closure_radius * cfg.step_fragment / cfg.stepsize)
     circle = _CircleTable(radius)
@@ -462,7 +463,8 @@ def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None):
         ])
         return np.full(len(acc), b), i_from, np.full(len(acc), a), j_to, meas.reshape(-1, 3)
 
-    done = parallel_map(one_pair, len(pairs), jobs)
+    done = parallel_map(one_pair, len(pairs), jobs,
+                        on_done=lambda d, n: report(progress, "synth: inter-agent loop closures", d, n, "pairs"))
     cols = {c: [d[k] for d in done] for k, c in enumerate(("fa", "fi", "ta", "ti", "m"))}
     meas = np.concatenate(cols["m"])
     info = _diag_information(len(meas), p.estimated_information_position, p.estimated_information_angle)
@@ -512,11 +514,11 @@ def _exact_odometry_information(walk: _Walk, cfg: SynthConfig, agent) -> np.ndar
 # --------------------------------------------------------------------------------------------------
 
 
-def generate(cfg: SynthConfig, *, jobs: int | None = None) -> SynthOutput:
+def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | None = None) -> SynthOutput:
     """Run kollagen's generator: walk, intra-agent loop closures, alignment, inter-agent loop closures.
 
     ``jobs`` processes share the agents and then the agent pairs (default: every core this process
-    may use); the output does not depend on it.
+    may use); the output does not depend on it. ``progress`` hears of each agent and pair done.
     """
     seeds = effective_seeds([a.random_number_generator_seed for a in cfg.agents])
 
@@ -525,7 +527,9 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None) -> SynthOutput:
         walk = _random_walk(stream, cfg, cfg.agents[k])
         return walk, _intra_loop_closures(stream, walk, cfg, cfg.agents[k])
 
-    done = parallel_map(one_agent, len(seeds), jobs)
+    done = parallel_map(one_agent, len(seeds), jobs,
+                        on_done=lambda d, n: report(progress, "synth: walks and intra-agent loop closures", d, n,
+                                                    "agents"))
     walks = [w for w, _ in done]
     intra = [lc for _, lc in done]
 
@@ -534,7 +538,7 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None) -> SynthOutput:
 
     cells = [_grid_cells(w.x, w.y, cfg) for w in walks]
     inter = (
-        _inter_loop_closures(walks, cells, cfg, jobs) if len(walks) > 1 else InterAgentEdges.empty(PoseKind.SE2)
+        _inter_loop_closures(walks, cells, cfg, jobs, progress) if len(walks) > 1 else InterAgentEdges.empty(PoseKind.SE2)
     )
 
     agents = []

@@ -16,6 +16,7 @@ import typer
 
 from studio.core.alignment import Alignment
 from studio.core.errors import StudioError
+from studio.core.progress import terminal_progress
 
 app = typer.Typer(
     name="studio",
@@ -31,8 +32,23 @@ class RecordKind(str, enum.Enum):
     d3 = "3d"
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            installed = version("cslam-studio")
+        except PackageNotFoundError:  # run from a source tree that was not installed
+            from studio import __version__ as installed
+        typer.echo(f"studio {installed}")
+        raise typer.Exit()
+
+
 @app.callback()
-def _root() -> None:
+def _root(
+    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                 help="Print the version and exit."),
+) -> None:
     """cslam-studio: collaborative-SLAM pose-graph datasets."""
 
 
@@ -84,9 +100,10 @@ def synth(
 
     t0 = time.perf_counter()
     cfg = load_synth_config(config, warn=_warn)
-    res = synthesize(cfg, out, force=force, multi_records=multi_records.value,
-                     single_records=single_records.value, jobs=jobs or None,
-                     max_memory_gb=max_memory_gb, max_output_gb=max_output_gb, rrd=rrd)
+    with terminal_progress(not quiet) as progress:
+        res = synthesize(cfg, out, force=force, multi_records=multi_records.value,
+                         single_records=single_records.value, jobs=jobs or None,
+                         max_memory_gb=max_memory_gb, max_output_gb=max_output_gb, rrd=rrd, progress=progress)
     if not quiet:
         counts = res.output.graph.edge_counts()
         typer.echo(
@@ -113,7 +130,8 @@ def record(
     from studio.recording.dataset import record_dataset
 
     t0 = time.perf_counter()
-    res = record_dataset(dataset, out, force=force)
+    with terminal_progress(not quiet) as progress:
+        res = record_dataset(dataset, out, force=force, progress=progress)
     if not quiet:
         counts = res.edge_counts
         typer.echo(
@@ -162,14 +180,16 @@ def evaluate(
         raise ConfigError("--json and --markdown exclude each other")
     if align_per_agent and align not in (Alignment.se3, Alignment.sim3):
         raise ConfigError("--align-per-agent needs --align se3 or --align sim3")
-    ev = evaluate_dataset(dataset, estimate=estimate, align=align.value, align_per_agent=align_per_agent,
-                          rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes, tum_max_diff_s=tum_max_diff)
+    with terminal_progress() as progress:
+        ev = evaluate_dataset(dataset, estimate=estimate, align=align.value, align_per_agent=align_per_agent,
+                              rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes,
+                              tum_max_diff_s=tum_max_diff, progress=progress)
+        if rrd is not None:
+            from studio.evaluate import write_evaluation_recording
+
+            write_evaluation_recording(ev, rrd, force=force, progress=progress)
     for msg in ev.warnings:
         _warn(msg)
-    if rrd is not None:
-        from studio.evaluate import write_evaluation_recording
-
-        write_evaluation_recording(ev, rrd, force=force)
     if as_json:
         typer.echo(ev.to_json())
     else:
@@ -211,7 +231,8 @@ def snapshot(
     """
     from studio.recording.viewer import snapshot as render
 
-    res = render(rrd, out, node=node, window_size=size)
+    with terminal_progress() as progress:
+        res = render(rrd, out, node=node, window_size=size, progress=progress)
     typer.echo(f"{res.path}: node {res.time}")
 
 
@@ -242,10 +263,6 @@ _CONVERT_HELP = {
     "outlier_fraction": "Fraction of loop closures made outliers (listed in outliers.txt).",
     "planar": "Project to SE(2) and write 2D records.",
 }
-
-
-def _stderr_progress(label: str, done: int, total: int) -> None:
-    typer.echo(f"\r{label}: {done}/{total}\033[K", err=True, nl=False)
 
 
 @app.command()
@@ -346,12 +363,10 @@ def convert(
                               "or --config")
         cfg = ConvertConfig(source, tuple(str(p) for p in inputs or ()), tuple(agent),
                             GraphOptions(**{k: ctx.params[k] for k in option_names}), **pipeline)
-    show = not quiet and sys.stderr.isatty()
     t0 = time.perf_counter()
-    res = run_convert(cfg, out, force=force, warn=_warn, progress=_stderr_progress if show else None, rrd=rrd,
-                      max_memory_gb=max_memory_gb)
-    if show:
-        typer.echo("\r\033[K", err=True, nl=False)
+    with terminal_progress(not quiet) as progress:
+        res = run_convert(cfg, out, force=force, warn=_warn, progress=progress, rrd=rrd,
+                          max_memory_gb=max_memory_gb)
     if not quiet:
         g = res.build.graph
         counts = g.edge_counts()

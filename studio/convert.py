@@ -281,13 +281,17 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
         ds = staging / out.name
         ds.mkdir()
         if progress:
-            progress("writing", 0, 1)
+            progress("writing", 0, 2, "parts")
         write_multi_g2o(build.graph, ds, records="2d" if cfg.options.planar else "3d", precision="full",
                         folder_names=cfg.folder_names,  # type: ignore[arg-type]
                         sources={t.name: Path(t.source).name for t in trajs})
+        if progress:
+            progress("writing", 1, 2, "parts")
         _write_text(ds / CONFIG_NAME, json.dumps(convert_config_to_json(cfg), indent=2) + "\n")
         _write_text(ds / "report.json", json.dumps(_report(build, trajs, warnings, orientation), indent=2) + "\n")
         _write_text(ds / "outliers.txt", _outlier_lines(build))
+        if progress:
+            progress("writing", 2, 2, "parts")
         if recorder is not None:
             recorder(build.graph, ds)
         if rrd:
@@ -297,7 +301,8 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
             shown = convert_config_to_json(cfg)
             shown["inputs"] = [Path(p).name for p in cfg.inputs]
             record_graph(build.graph, ds / f"{out.name}.rrd", name=out.name,
-                         config_json=json.dumps(shown, sort_keys=True))
+                         config_json=json.dumps(shown, sort_keys=True), outliers=build.outliers,
+                         progress=progress)
     return ConvertResult(cfg, out, tuple(trajs), build, tuple(warnings),
                          out / f"{out.name}.rrd" if rrd else None, orientation)
 

@@ -17,7 +17,7 @@ Conventions (those of the kollagen paper, Tables I and II, unless an option says
 
 evo computes APE rotation and RPE in Python loops over 4x4 matrices (about 15 s for the 50,005 poses
 of Multi10000x5). Here the same formulas are evaluated on whole columns with scipy's ``Rotation``
-(which evo's ``so3_log`` uses too); ``tests/test_evaluate.py`` checks them against evo's metric objects.
+(which evo's ``so3_log`` uses too); ``tests/studio/test_evaluate.py`` checks them against evo's metric objects.
 The translation APE is evo's own ``APE.process_data``.
 """
 
@@ -36,6 +36,7 @@ import numpy as np
 from studio.core.alignment import Alignment
 from studio.core.errors import EvaluationError
 from studio.core.model import PoseGraph
+from studio.core.progress import Progress, report
 from studio.core.units import NS_PER_S
 
 if TYPE_CHECKING:
@@ -140,6 +141,10 @@ class Evaluation:
     ape_translation_series_m: tuple[np.ndarray, ...] = field(repr=False)
     """Per agent, the APE translation error of each scored pose (for plots and recordings)."""
     ape_rotation_series_deg: tuple[np.ndarray, ...] = field(repr=False)
+    ground_truth_xyz: tuple[np.ndarray, ...] = field(repr=False, default=())
+    """Per agent, the ground-truth positions of the scored poses (n, 3)."""
+    estimate_xyz: tuple[np.ndarray, ...] = field(repr=False, default=())
+    """Per agent, the estimate's positions of the scored poses (n, 3), after any alignment."""
     alignment_transforms: tuple[tuple[np.ndarray, np.ndarray, float], ...] = field(repr=False, default=())
     """``(R, t, s)`` of each Umeyama fit (one, or one per agent); empty when unaligned."""
     warnings: tuple[str, ...] = ()
@@ -373,6 +378,8 @@ def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_
         node_indices=tuple(np.asarray(m[3], dtype=np.int64) for m in matched),
         stamps_ns=tuple(m[2] for m in matched),
         ape_translation_series_m=tuple(ape_t), ape_rotation_series_deg=tuple(ape_r),
+        ground_truth_xyz=tuple(np.ascontiguousarray(m[0][:, 0:3]) for m in matched),
+        estimate_xyz=tuple(np.ascontiguousarray(m[1][:, 0:3]) for m in matched),
         alignment_transforms=tuple(transforms), warnings=tuple(warnings),
     )
 
@@ -380,7 +387,7 @@ def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_
 def evaluate(dataset: str | os.PathLike, *, estimate: str | os.PathLike | None = None,
              align: Alignment | str = Alignment.none, align_per_agent: bool = False,
              rpe_delta_m: float = 1.0, rpe_delta_nodes: int = 1,
-             tum_max_diff_s: float = DEFAULT_TUM_MAX_DIFF_S) -> Evaluation:
+             tum_max_diff_s: float = DEFAULT_TUM_MAX_DIFF_S, progress: Progress | None = None) -> Evaluation:
     """Read the multi-g2o folder ``dataset`` and score ``estimate`` (or, if None, the dataset's
     initial estimate) against its ground truth. See the module docstring for the conventions.
 
@@ -390,13 +397,19 @@ def evaluate(dataset: str | os.PathLike, *, estimate: str | os.PathLike | None =
     from studio.io.estimate import read_estimate
     from studio.io.multig2o import read_multi_g2o
 
+    step = "evaluate"
+    report(progress, step, 0, 3, "stages")
     graph = read_multi_g2o(dataset, edges=False)
+    report(progress, step, 1, 3, "stages")
     est = None if estimate is None else read_estimate(estimate, graph)
-    return score(graph, None if est is None else est.agents, by_time=est is not None and est.by_time,
+    report(progress, step, 2, 3, "stages")
+    ev = score(graph, None if est is None else est.agents, by_time=est is not None and est.by_time,
                  align=align, align_per_agent=align_per_agent,
                  rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes, tum_max_diff_s=tum_max_diff_s,
                  dataset=str(dataset), estimate_label="initial estimate" if est is None else est.source,
                  estimate_layout="initial" if est is None else est.layout)
+    report(progress, step, 3, 3, "stages")
+    return ev
 
 
 # ---------------------------------------------------------------------------------------------- output
@@ -468,8 +481,10 @@ def format_markdown(ev: Evaluation) -> str:
 
 
 def write_evaluation_recording(ev: Evaluation, path: str | os.PathLike, *, force: bool = False,
-                               recording_id: str | None = None) -> Path:
-    """Write the per-node APE series and the statistics table of ``ev`` as a new ``.rrd``, atomically.
+                               recording_id: str | None = None, progress: Progress | None = None) -> Path:
+    """Write ``ev`` as a new ``.rrd``, atomically: the estimate against the ground truth in 3D (the
+    estimate coloured by its APE translation), one plot per metric with every agent, and the table
+    of statistics, laid out by :func:`studio.recording.evaluation.evaluation_blueprint`.
 
     Pass the dataset recording's id as ``recording_id`` to have the viewer merge both files.
     """
@@ -480,9 +495,13 @@ def write_evaluation_recording(ev: Evaluation, path: str | os.PathLike, *, force
     series = [
         ErrorSeries(a.name, ev.node_indices[k], ev.stamps_ns[k],
                     {"ape_translation_m": ev.ape_translation_series_m[k],
-                     "ape_rotation_deg": ev.ape_rotation_series_deg[k]})
+                     "ape_rotation_deg": ev.ape_rotation_series_deg[k]},
+                    ground_truth_xyz=ev.ground_truth_xyz[k] if ev.ground_truth_xyz else None,
+                    estimate_xyz=ev.estimate_xyz[k] if ev.estimate_xyz else None)
         for k, a in enumerate(ev.agents)
     ]
+    report(progress, "evaluation recording", 0, 1, "files")
     with staged_outputs(path.parent, [path.name], force=force) as staging:
         save_evaluation_recording(staging / path.name, format_markdown(ev), series, recording_id=recording_id)
+    report(progress, "evaluation recording", 1, 1, "files")
     return path

@@ -13,6 +13,7 @@ from studio.generator.kollagen import SynthOutput, generate
 from studio.core.parallel import parallel_map
 from studio.generator.presets import PRESETS, preset, preset_names
 from studio.core.errors import ConfigError
+from studio.core.progress import Progress, report
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.io.atomic import staged_outputs
 from studio.io.multig2o import Records, write_multi_g2o
@@ -49,7 +50,8 @@ def load_synth_config(source: str | os.PathLike, *, warn: Callable[[str], None] 
 
 
 def write_kollagen_outputs(out: SynthOutput, parent: Path, name: str, *, multi_records: Records = "3d",
-                           single_records: Records = "2d", jobs: int | None = None) -> None:
+                           single_records: Records = "2d", jobs: int | None = None,
+                           progress: Progress | None = None) -> None:
     """Write kollagen's files for ``out`` under ``parent`` (no staging; see :func:`synthesize`).
 
     The multi-g2o folder and the single-g2o files are written by two processes when ``jobs`` allows.
@@ -76,7 +78,7 @@ def write_kollagen_outputs(out: SynthOutput, parent: Path, name: str, *, multi_r
         with shared_formatting():
             tasks[k]()
 
-    parallel_map(run, len(tasks), jobs)
+    parallel_map(run, len(tasks), jobs, on_done=lambda d, n: report(progress, "synth: writing files", d, n, "parts"))
 
 
 
@@ -101,7 +103,8 @@ def check_resources(config: SynthConfig, *, max_memory_gb: float = DEFAULT_MAX_M
 def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool = False,
                multi_records: Records = "3d", single_records: Records = "2d",
                jobs: int | None = None, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
-               max_output_gb: float = DEFAULT_MAX_OUTPUT_GB, rrd: bool = True) -> SynthResult:
+               max_output_gb: float = DEFAULT_MAX_OUTPUT_GB, rrd: bool = True,
+               progress: Progress | None = None) -> SynthResult:
     """Generate ``config`` and write it as kollagen's ``generate CONFIG OUT`` does.
 
     Writes ``OUT/<name>/`` (multi-g2o), ``OUT/<name>_singleg2o/`` and ``OUT/<name>.config.json``,
@@ -109,6 +112,7 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
     into place at the end. Existing outputs are replaced only with ``force``.
     ``jobs`` caps the processes used (default: every core available); the bytes do not depend on it.
     Configs estimated to need more memory or disk than the limits are refused before any work.
+    ``progress`` hears of each agent, agent pair, written part and recorded agent.
     """
     check_resources(config, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
     out_dir = Path(out_dir)
@@ -117,9 +121,9 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
     if rrd:
         names.append(f"{name}.rrd")
     with staged_outputs(out_dir, names, force=force) as staging:
-        output = generate(config, jobs=jobs)
+        output = generate(config, jobs=jobs, progress=progress)
         write_kollagen_outputs(output, staging, name, multi_records=multi_records,
-                               single_records=single_records, jobs=jobs)
+                               single_records=single_records, jobs=jobs, progress=progress)
         with open(staging / names[2], "w", encoding="utf-8") as f:
             json.dump(synth_config_to_json(config), f, indent=4)
             f.write("\n")
@@ -127,6 +131,6 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
             from studio.recording.dataset import record_graph
 
             record_graph(output.graph, staging / names[3], name=name,
-                         config_json=json.dumps(synth_config_to_json(config), sort_keys=True))
+                         config_json=json.dumps(synth_config_to_json(config), sort_keys=True), progress=progress)
     return SynthResult(config, output, out_dir / name, out_dir / names[1], out_dir / names[2],
                        out_dir / names[3] if rrd else None)

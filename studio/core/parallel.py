@@ -42,17 +42,33 @@ def _worker_init() -> None:
     release_free_heap()
 
 
-def parallel_map(func: Callable[[int], T], n_items: int, jobs: int | None = None) -> list[T]:
-    """``[func(0), ..., func(n_items - 1)]``, computed by up to ``jobs`` forked processes."""
+def parallel_map(func: Callable[[int], T], n_items: int, jobs: int | None = None, *,
+                 on_done: Callable[[int, int], None] | None = None) -> list[T]:
+    """``[func(0), ..., func(n_items - 1)]``, computed by up to ``jobs`` forked processes.
+
+    ``on_done(done, n_items)``, if given, is called in this process as results arrive (in input order).
+    """
     jobs = default_jobs() if jobs is None else jobs
     jobs = min(jobs, n_items)
+    if on_done is not None:
+        on_done(0, n_items)
     if jobs <= 1 or "fork" not in multiprocessing.get_all_start_methods() or _TASK:
-        return [func(i) for i in range(n_items)]
+        out = []
+        for i in range(n_items):
+            out.append(func(i))
+            if on_done is not None:
+                on_done(i + 1, n_items)
+        return out
     _TASK.append(func)
     try:
         ctx = multiprocessing.get_context("fork")
         with ctx.Pool(jobs, initializer=_worker_init) as pool:
-            return pool.map(_run, range(n_items), chunksize=1)
+            results = []
+            for r in pool.imap(_run, range(n_items), chunksize=1):
+                results.append(r)
+                if on_done is not None:
+                    on_done(len(results), n_items)
+            return results
     finally:
         _TASK.clear()
 

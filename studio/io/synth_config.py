@@ -209,7 +209,9 @@ def parse_synth_config(data: Any, *, source: str = "<config>", name: str = "data
 
 
 def read_synth_config(path: str | os.PathLike, *, warn: Callable[[str], None] | None = None) -> SynthConfig:
-    """Read a kollagen JSON file; the dataset is named after the file's stem (as kollagen does)."""
+    """Read a kollagen JSON file; the dataset is named after the file's stem (as kollagen does), less a
+    ``.config`` suffix, so the effective config ``OUT/<name>.config.json`` written by ``studio synth``
+    makes ``<name>`` again."""
     path = Path(path)
     try:
         size = path.stat().st_size
@@ -235,7 +237,10 @@ def read_synth_config(path: str | os.PathLike, *, warn: Callable[[str], None] | 
         raise ConfigError(f"{path}: invalid JSON: nested too deeply") from None
     except ValueError as err:
         raise ConfigError(f"{path}: invalid JSON: {err}") from None
-    return parse_synth_config(data, source=str(path), name=path.stem, warn=warn)
+    name = path.stem
+    if name.endswith(".config") and len(name) > len(".config"):
+        name = name[: -len(".config")]
+    return parse_synth_config(data, source=str(path), name=name, warn=warn)
 
 
 def _reject_constant(name: str):

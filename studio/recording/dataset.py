@@ -1,11 +1,15 @@
 """Rerun recordings of pose graphs: one ``log_<kind>()`` per kind of data, one blueprint.
 
-A recording shows, per agent and in the agent's colour, the ground-truth and initial-estimate
-(dead-reckoning) paths, a current-pose marker that moves along the ``node`` timeline (and along
-``time`` when the data has real timestamps), intra- and inter-agent loop closures as thin segments on
-the ground truth that appear at the node where they are created, and two time series: the position
-error of the initial estimate and the number of loop closures so far. Dataset facts are recording
-properties; the default layout is saved inside the file.
+A recording shows, per agent and in the agent's colour, the ground-truth path (solid) and the
+initial-estimate (dead-reckoning) path (same hue, thinner and translucent), a current-pose marker
+that moves along the ``node`` timeline (and along ``time`` when the data has real timestamps),
+intra-agent loop closures per agent, inter-agent loop closures in one entity per agent pair (a grey
+that shows on dark and light themes; thinner and more translucent above
+:data:`MANY_INTER_LOOP_CLOSURES`), outlier loop closures (``outliers.txt``) in their own entity and
+colour, all as segments on the ground truth that appear at the node where they are created, and
+three plots: the position error of the initial estimate, intra-agent loop closures so far per agent,
+and inter-agent loop closures so far. Dataset facts are recording properties (``pose_kind`` is
+``SE2`` for planar data, whichever way it was read); the default layout is saved inside the file.
 
 Everything bulky goes through ``send_columns`` (never one ``log`` call per row). The content depends
 only on the dataset: the application id is fixed, the recording id is derived from the graph's
@@ -27,12 +31,14 @@ import numpy as np
 
 from studio.core.errors import FormatError, OutputError
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
+from studio.core.progress import Progress, report
 from studio.core.units import NS_PER_S
 from studio.io.atomic import staged_outputs
 from studio.recording.entities import (
     APPLICATION_ID,
     LOOP_CLOSURES_INTER,
     LOOP_CLOSURES_INTRA,
+    LOOP_CLOSURES_OUTLIERS,
     METRICS,
     PATH_GROUND_TRUTH,
     PATH_INITIAL,
@@ -53,7 +59,12 @@ if TYPE_CHECKING:
     import rerun.blueprint as rrb
 
 __all__ = [
+    "MANY_INTER_LOOP_CLOSURES",
     "RecordResult",
+    "inter_pair_path",
+    "inter_style",
+    "pose_kind_of",
+    "read_outliers",
     "record_graph",
     "record_dataset",
     "default_blueprint",
@@ -65,16 +76,22 @@ __all__ = [
 STRIP_CHUNK_ROWS = 1000
 
 _PALETTE = np.array(
-    [  # Tableau 10
+    [  # Tableau 10, its grey (kept for inter-agent loop closures) replaced by a gold
         [31, 119, 180], [255, 127, 14], [44, 160, 44], [214, 39, 40], [148, 103, 189],
-        [140, 86, 75], [227, 119, 194], [127, 127, 127], [188, 189, 34], [23, 190, 207],
+        [140, 86, 75], [227, 119, 194], [230, 185, 0], [188, 189, 34], [23, 190, 207],
     ],
     dtype=np.uint8,
 )
-_INTER_COLOUR = (235, 235, 235, 255)
+#: Mid grey: visible on the viewer's dark and light themes alike, and no agent's colour.
+_INTER_RGB = (128, 128, 128)
+#: Outlier loop closures: magenta, no agent's colour, visible on both themes.
+_OUTLIER_COLOUR = (255, 0, 200, 255)
+#: Above this many inter-agent loop closures they are drawn thinner and more translucent.
+MANY_INTER_LOOP_CLOSURES = 3000
 _PATH_RADIUS = -1.5  # negative: screen-space points
+_INITIAL_RADIUS = -0.75
 _LOOP_RADIUS = -0.75
-_INTER_RADIUS = -1.0
+_OUTLIER_RADIUS = -1.5
 _RECORDING_ID_NAMESPACE = uuid.UUID("6c1b3f0e-2f4c-4a8e-9a59-5f0d8a1c7e21")
 
 
@@ -85,8 +102,16 @@ def agent_colour(k: int) -> tuple[int, int, int, int]:
 
 
 def _initial_colour(k: int) -> tuple[int, int, int, int]:
+    """The estimate's colour: the agent's hue, translucent (the ground truth is opaque)."""
     r, g, b, _ = agent_colour(k)
-    return (r, g, b, 110)
+    return (r, g, b, 120)
+
+
+def inter_style(count: int) -> tuple[tuple[int, int, int, int], float]:
+    """Colour and radius of inter-agent loop closures: fainter and thinner when there are many."""
+    if count > MANY_INTER_LOOP_CLOSURES:
+        return (*_INTER_RGB, 60), -0.5
+    return (*_INTER_RGB, 200), -1.0
 
 
 def _path(template: str, agent: AgentGraph) -> str:
@@ -116,6 +141,8 @@ class _Scene:
     inter: bool = field(default=True)
     max_position_error_m: float = 1.0
     max_loop_closures: int = 1
+    """Most intra-agent loop closures of one agent."""
+    max_inter_loop_closures: int = 1
 
 
 # --------------------------------------------------------------------------------------------------
@@ -153,13 +180,48 @@ def has_real_stamps(graph: PoseGraph) -> bool:
 
 
 def _is_planar(graph: PoseGraph) -> bool:
+    """SE2 graphs, and SE3 graphs whose poses all lie in z = 0 and turn about z only."""
     if graph.kind is PoseKind.SE2:
         return True
     for a in graph.agents:
         for poses in (a.initial, a.ground_truth):
-            if poses is not None and np.any(poses[:, 2] != 0.0):
+            if poses is not None and (np.any(poses[:, 2] != 0.0) or np.any(poses[:, 3:5] != 0.0)):
                 return False
     return True
+
+
+def pose_kind_of(graph: PoseGraph) -> PoseKind:
+    """The pose kind a recording states: SE2 for planar data whether it was read from 2D or 3D
+    records (kollagen writes its planar graphs as 3D records), SE3 otherwise."""
+    return PoseKind.SE2 if _is_planar(graph) else PoseKind.SE3
+
+
+def _edge_keys(a_from: np.ndarray, v_from: np.ndarray, a_to: np.ndarray, v_to: np.ndarray,
+               n_agents: int, n_nodes: int) -> np.ndarray:
+    """One int64 per edge, the same whichever way round the edge is written."""
+    f = a_from.astype(np.int64) * n_nodes + v_from
+    t = a_to.astype(np.int64) * n_nodes + v_to
+    lo, hi = np.minimum(f, t), np.maximum(f, t)
+    return lo * (n_agents * n_nodes) + hi
+
+
+def _outlier_masks(graph: PoseGraph, outliers: np.ndarray | None) -> tuple[list[np.ndarray], np.ndarray]:
+    """Per agent, which intra-agent loop closures are outliers; and which inter-agent ones are."""
+    intra = [np.zeros(len(a.loop_closures), dtype=bool) for a in graph.agents]
+    inter = np.zeros(len(graph.inter), dtype=bool)
+    if outliers is None or len(outliers) == 0:
+        return intra, inter
+    n_agents = len(graph.agents)
+    n_nodes = max(a.num_poses for a in graph.agents)
+    o = np.asarray(outliers, dtype=np.int64).reshape(-1, 4)
+    keys = _edge_keys(o[:, 0], o[:, 1], o[:, 2], o[:, 3], n_agents, n_nodes)
+    for k, a in enumerate(graph.agents):
+        lc = a.loop_closures
+        ka = np.full(len(lc), k, dtype=np.int64)
+        intra[k] = np.isin(_edge_keys(ka, lc.from_index, ka, lc.to_index, n_agents, n_nodes), keys)
+    e = graph.inter
+    inter = np.isin(_edge_keys(e.from_agent, e.from_index, e.to_agent, e.to_index, n_agents, n_nodes), keys)
+    return intra, inter
 
 
 def _reference(agent: AgentGraph) -> np.ndarray:
@@ -190,7 +252,7 @@ def log_properties(rec: rr.RecordingStream, graph: PoseGraph, name: str, config_
         PROPERTY_DATASET,
         rr.AnyValues(
             name=name,
-            pose_kind=graph.kind.value,
+            pose_kind=pose_kind_of(graph).value,
             agents=len(graph.agents),
             agent_names=[a.name for a in graph.agents],
             nodes=graph.num_poses,
@@ -220,7 +282,7 @@ def log_paths(rec: rr.RecordingStream, agent: AgentGraph, k: int) -> None:
                 rr.LineStrips3D([agent.ground_truth[:, 0:3]], colors=[agent_colour(k)], radii=_PATH_RADIUS),
                 static=True)
     rec.log(_path(PATH_INITIAL, agent),
-            rr.LineStrips3D([agent.initial[:, 0:3]], colors=[_initial_colour(k)], radii=_PATH_RADIUS),
+            rr.LineStrips3D([agent.initial[:, 0:3]], colors=[_initial_colour(k)], radii=_INITIAL_RADIUS),
             static=True)
 
 
@@ -258,43 +320,94 @@ def _send_segments(rec: rr.RecordingStream, entity: str, segments: np.ndarray, n
         rec.send_columns(entity, index, rr.LineStrips3D.columns(strips=segments[sl]))
 
 
-def log_intra_loop_closures(rec: rr.RecordingStream, agent: AgentGraph, k: int, real_time: bool) -> None:
-    """Intra-agent loop closures as segments on the reference poses, at the later of their two nodes."""
+def log_intra_loop_closures(rec: rr.RecordingStream, agent: AgentGraph, k: int, real_time: bool,
+                            outlier: np.ndarray | None = None) -> None:
+    """Intra-agent loop closures (inliers: ``outlier`` marks the others) as segments on the reference
+    poses, at the later of their two nodes."""
     import rerun as rr
 
     lc = agent.loop_closures
-    if len(lc) == 0:
+    keep = np.ones(len(lc), dtype=bool) if outlier is None else ~outlier
+    if not keep.any():
         return
     ref = _reference(agent)[:, 0:3]
     created = np.maximum(lc.from_index, lc.to_index)
-    order = np.argsort(created, kind="stable")
+    order = np.flatnonzero(keep)[np.argsort(created[keep], kind="stable")]
     segments = np.stack([ref[lc.from_index[order]], ref[lc.to_index[order]]], axis=1)
     entity = _path(LOOP_CLOSURES_INTRA, agent)
     rec.log(entity, rr.LineStrips3D.from_fields(colors=[agent_colour(k)], radii=_LOOP_RADIUS), static=True)
     _send_segments(rec, entity, segments, created[order], agent.stamps_ns[created[order]] if real_time else None)
 
 
-def log_inter_loop_closures(rec: rr.RecordingStream, graph: PoseGraph, real_time: bool) -> None:
-    """Inter-agent loop closures in a distinct colour, at the later of their two nodes."""
+def inter_pair_path(graph: PoseGraph, a: int, b: int) -> str:
+    """The entity of the inter-agent loop closures between agents ``a < b``."""
+    import rerun as rr
+
+    pair = rr.escape_entity_path_part(f"{graph.agents[a].name}-{graph.agents[b].name}")
+    return LOOP_CLOSURES_INTER.format(pair=pair)
+
+
+def _global_rows(graph: PoseGraph) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Reference positions and stamps of every node, and the row offset of each agent."""
+    offsets = np.concatenate([[0], np.cumsum([a.num_poses for a in graph.agents])])
+    ref_all = np.concatenate([_reference(a)[:, 0:3] for a in graph.agents])
+    stamps_all = np.concatenate([a.stamps_ns for a in graph.agents])
+    return ref_all, stamps_all, offsets
+
+
+def log_inter_loop_closures(rec: rr.RecordingStream, graph: PoseGraph, real_time: bool,
+                            outlier: np.ndarray | None = None) -> None:
+    """Inter-agent loop closures (inliers), one entity per agent pair so each pair can be hidden, at
+    the later of their two nodes; grey, and thin and faint when there are many."""
     import rerun as rr
 
     inter = graph.inter
-    if len(inter) == 0:
+    keep = np.ones(len(inter), dtype=bool) if outlier is None else ~outlier
+    if not keep.any():
         return
-    refs = [_reference(a)[:, 0:3] for a in graph.agents]
-    offsets = np.concatenate([[0], np.cumsum([a.num_poses for a in graph.agents])])
-    ref_all = np.concatenate(refs)
-    stamps_all = np.concatenate([a.stamps_ns for a in graph.agents])
-    g_from = offsets[inter.from_agent] + inter.from_index
-    g_to = offsets[inter.to_agent] + inter.to_index
-    created = np.maximum(inter.from_index, inter.to_index)
-    order = np.argsort(created, kind="stable")
-    segments = np.stack([ref_all[g_from[order]], ref_all[g_to[order]]], axis=1)
-    # On `time`, the later of the two stamps (rows stay in node order; Rerun sorts each timeline).
-    stamps = np.maximum(stamps_all[g_from], stamps_all[g_to])[order] if real_time else None
-    rec.log(LOOP_CLOSURES_INTER, rr.LineStrips3D.from_fields(colors=[_INTER_COLOUR], radii=_INTER_RADIUS),
+    ref_all, stamps_all, offsets = _global_rows(graph)
+    colour, radius = inter_style(int(np.count_nonzero(keep)))
+    lo = np.minimum(inter.from_agent, inter.to_agent)
+    hi = np.maximum(inter.from_agent, inter.to_agent)
+    for a, b in sorted(set(zip(lo[keep].tolist(), hi[keep].tolist()))):
+        rows = np.flatnonzero(keep & (lo == a) & (hi == b))
+        g_from = offsets[inter.from_agent[rows]] + inter.from_index[rows]
+        g_to = offsets[inter.to_agent[rows]] + inter.to_index[rows]
+        created = np.maximum(inter.from_index[rows], inter.to_index[rows])
+        order = np.argsort(created, kind="stable")
+        segments = np.stack([ref_all[g_from[order]], ref_all[g_to[order]]], axis=1)
+        # On `time`, the later of the two stamps (rows stay in node order; Rerun sorts each timeline).
+        stamps = np.maximum(stamps_all[g_from], stamps_all[g_to])[order] if real_time else None
+        entity = inter_pair_path(graph, a, b)
+        rec.log(entity, rr.LineStrips3D.from_fields(colors=[colour], radii=radius), static=True)
+        _send_segments(rec, entity, segments, created[order], stamps)
+
+
+def log_outlier_loop_closures(rec: rr.RecordingStream, graph: PoseGraph, real_time: bool,
+                              intra: list[np.ndarray], inter: np.ndarray) -> None:
+    """The loop closures ``outliers.txt`` lists, intra- and inter-agent, in magenta in one entity."""
+    import rerun as rr
+
+    ref_all, stamps_all, offsets = _global_rows(graph)
+    g_from, g_to, created = [], [], []
+    for k, a in enumerate(graph.agents):
+        lc = a.loop_closures
+        g_from.append(offsets[k] + lc.from_index[intra[k]])
+        g_to.append(offsets[k] + lc.to_index[intra[k]])
+        created.append(np.maximum(lc.from_index, lc.to_index)[intra[k]])
+    e = graph.inter
+    g_from.append(offsets[e.from_agent[inter]] + e.from_index[inter])
+    g_to.append(offsets[e.to_agent[inter]] + e.to_index[inter])
+    created.append(np.maximum(e.from_index, e.to_index)[inter])
+    f, t, c = (np.concatenate(x).astype(np.int64) for x in (g_from, g_to, created))
+    if len(f) == 0:
+        return
+    order = np.argsort(c, kind="stable")
+    segments = np.stack([ref_all[f[order]], ref_all[t[order]]], axis=1)
+    stamps = np.maximum(stamps_all[f], stamps_all[t])[order] if real_time else None
+    rec.log(LOOP_CLOSURES_OUTLIERS, rr.LineStrips3D.from_fields(colors=[_OUTLIER_COLOUR], radii=_OUTLIER_RADIUS),
             static=True)
-    _send_segments(rec, LOOP_CLOSURES_INTER, segments, created[order], stamps)
+    _send_segments(rec, LOOP_CLOSURES_OUTLIERS, segments, c[order], stamps)
 
 
 def log_position_error(rec: rr.RecordingStream, agent: AgentGraph, k: int, real_time: bool) -> None:
@@ -329,7 +442,7 @@ def log_loop_closure_counts(rec: rr.RecordingStream, graph: PoseGraph, real_time
         n = max(a.num_poses for a in graph.agents)
         counts = _count_so_far(np.maximum(graph.inter.from_index, graph.inter.to_index), n)
         rec.log(SERIES_INTER_LOOP_CLOSURES,
-                rr.SeriesLines(colors=[_INTER_COLOUR], names=["inter-agent"]), static=True)
+                rr.SeriesLines(colors=[(*_INTER_RGB, 255)], names=["inter-agent, all agents"]), static=True)
         # The node timeline only: nodes of different agents have different stamps.
         rec.send_columns(SERIES_INTER_LOOP_CLOSURES, [rr.TimeColumn(TIMELINE_NODE, sequence=np.arange(n))],
                          rr.Scalars.columns(scalars=counts))
@@ -346,7 +459,7 @@ def _scene(graph: PoseGraph, real_time: bool) -> _Scene:
     extent = float(max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1.0))
     errors = [float(np.max(np.linalg.norm(a.initial[:, 0:3] - a.ground_truth[:, 0:3], axis=1)))
               for a in graph.agents if a.ground_truth is not None]
-    most_lcs = max([len(a.loop_closures) for a in graph.agents] + [len(graph.inter), 1])
+    most_lcs = max([len(a.loop_closures) for a in graph.agents] + [1])
     return _Scene(
         names=tuple(a.name for a in graph.agents),
         planar=_is_planar(graph),
@@ -357,6 +470,7 @@ def _scene(graph: PoseGraph, real_time: bool) -> _Scene:
         inter=len(graph.inter) > 0,
         max_position_error_m=max(errors + [1e-3]),
         max_loop_closures=most_lcs,
+        max_inter_loop_closures=max(len(graph.inter), 1),
     )
 
 
@@ -392,13 +506,21 @@ def default_blueprint(scene: _Scene) -> rrb.Blueprint:
     err = rrb.TimeSeriesView(origin=f"/{METRICS}/position_error", name="initial-estimate position error [m]",
                              axis_x=rrb.TimeAxis(view_range=whole),
                              axis_y=rrb.ScalarAxis(range=(0.0, 1.05 * scene.max_position_error_m)))
-    lcs = rrb.TimeSeriesView(origin=f"/{METRICS}/loop_closures", name="loop closures so far",
+    lcs = rrb.TimeSeriesView(origin=f"/{METRICS}/intra_loop_closures", name="intra-agent loop closures so far",
                              axis_x=rrb.TimeAxis(view_range=whole),
                              axis_y=rrb.ScalarAxis(range=(0.0, 1.05 * scene.max_loop_closures)))
-    series = rrb.Vertical(err, lcs)
+    parts = [(space, "agents"), (err, "position_error"), (lcs, "loop_closures")]
+    plots = [err, lcs]
+    if scene.inter:
+        inter = rrb.TimeSeriesView(origin=f"/{METRICS}/inter_loop_closures",
+                                   name="inter-agent loop closures so far (all agents)",
+                                   axis_x=rrb.TimeAxis(view_range=whole),
+                                   axis_y=rrb.ScalarAxis(range=(0.0, 1.05 * scene.max_inter_loop_closures)))
+        plots.append(inter)
+        parts.append((inter, "inter_loop_closures"))
+    series = rrb.Vertical(*plots)
     root = rrb.Horizontal(space, series, column_shares=[2, 1])
-    for part, label in ((space, "agents"), (err, "position_error"), (lcs, "loop_closures"),
-                        (series, "series"), (root, "root")):
+    for part, label in parts + [(series, "series"), (root, "root")]:
         _fixed_ids(part, label)
     return rrb.Blueprint(
         root,
@@ -414,8 +536,13 @@ def default_blueprint(scene: _Scene) -> rrb.Blueprint:
 
 
 def record_graph(graph: PoseGraph, path: str | os.PathLike, *, name: str,
-                 config_json: str | None = None) -> RecordResult:
-    """Log ``graph`` to a new ``.rrd`` at ``path`` (written in place; see :func:`record_dataset`)."""
+                 config_json: str | None = None, outliers: np.ndarray | None = None,
+                 progress: Progress | None = None) -> RecordResult:
+    """Log ``graph`` to a new ``.rrd`` at ``path`` (written in place; see :func:`record_dataset`).
+
+    ``outliers``: (k, 4) rows ``agent_from vertex_from agent_to vertex_to`` (0-based) of the loop
+    closures that are outliers, drawn apart from the inliers.
+    """
     import rerun as rr
 
     path = Path(path)
@@ -429,13 +556,19 @@ def record_graph(graph: PoseGraph, path: str | os.PathLike, *, name: str,
         log_properties(rec, graph, name, config_json)
         log_world(rec)
         axis_length = 0.04 * scene.extent_m
+        intra_out, inter_out = _outlier_masks(g, outliers)
+        steps = len(g.agents) + 1
+        report(progress, "recording", 0, steps, "parts")
         for k, agent in enumerate(g.agents):
             log_paths(rec, agent, k)
             log_current_pose(rec, agent, k, real_time, axis_length)
-            log_intra_loop_closures(rec, agent, k, real_time)
+            log_intra_loop_closures(rec, agent, k, real_time, intra_out[k])
             log_position_error(rec, agent, k, real_time)
-        log_inter_loop_closures(rec, g, real_time)
+            report(progress, "recording", k + 1, steps, "parts")
+        log_inter_loop_closures(rec, g, real_time, inter_out)
+        log_outlier_loop_closures(rec, g, real_time, intra_out, inter_out)
         log_loop_closure_counts(rec, g, real_time)
+        report(progress, "recording", steps, steps, "parts")
     finally:
         rec.disconnect()
     return RecordResult(path, rid, graph.num_poses, graph.edge_counts(), real_time)
@@ -451,7 +584,33 @@ def _sibling_config(dataset: Path) -> str | None:
         raise FormatError(f"{cfg}: not a readable JSON config ({err})") from None
 
 
-def record_dataset(dataset: str | os.PathLike, out: str | os.PathLike, *, force: bool = False) -> RecordResult:
+def read_outliers(path: str | os.PathLike, graph: PoseGraph) -> np.ndarray:
+    """``outliers.txt`` as ``studio convert`` writes it: ``agent_from vertex_from agent_to vertex_to``
+    per line, agents 1-based, ``#`` comments. Returns (k, 4) int64 rows with 0-based agents."""
+    path = Path(path)
+    rows = []
+    with open(path, encoding="utf-8") as f:
+        for n, line in enumerate(f, start=1):
+            text = line.split("#", 1)[0].strip()
+            if not text:
+                continue
+            parts = text.split()
+            try:
+                a, v, b, w = (int(x) for x in parts)
+            except ValueError:
+                raise FormatError(f"{path}:{n}: expected four integers `agent_from vertex_from agent_to "
+                                  f"vertex_to`, got {text[:60]!r}") from None
+            for agent, vertex in ((a, v), (b, w)):
+                if not 1 <= agent <= len(graph.agents):
+                    raise FormatError(f"{path}:{n}: agent {agent} is not in 1..{len(graph.agents)}")
+                if not 0 <= vertex < graph.agents[agent - 1].num_poses:
+                    raise FormatError(f"{path}:{n}: agent {agent} has no vertex {vertex}")
+            rows.append((a - 1, v, b - 1, w))
+    return np.array(rows, dtype=np.int64).reshape(-1, 4)
+
+
+def record_dataset(dataset: str | os.PathLike, out: str | os.PathLike, *, force: bool = False,
+                   progress: Progress | None = None) -> RecordResult:
     """Read a multi-g2o folder (ours or kollagen's) and write its recording to ``out`` atomically.
 
     The config beside the dataset (``<dataset>.config.json``, as ``studio synth`` writes it) becomes
@@ -462,9 +621,13 @@ def record_dataset(dataset: str | os.PathLike, out: str | os.PathLike, *, force:
     dataset, out = Path(dataset), Path(out)
     if out.suffix != ".rrd":
         raise OutputError(f"{out}: a recording must end in .rrd")
+    report(progress, "reading", 0, 1, "datasets")
     graph = read_multi_g2o(dataset)
+    report(progress, "reading", 1, 1, "datasets")
     config_json = _sibling_config(dataset)
+    outliers = read_outliers(dataset / "outliers.txt", graph) if (dataset / "outliers.txt").is_file() else None
     name = dataset.resolve().name
     with staged_outputs(out.parent, [out.name], force=force) as staging:
-        res = record_graph(graph, staging / out.name, name=name, config_json=config_json)
+        res = record_graph(graph, staging / out.name, name=name, config_json=config_json, outliers=outliers,
+                           progress=progress)
     return RecordResult(out, res.recording_id, res.num_poses, res.edge_counts, res.real_time)

@@ -8,9 +8,10 @@ from __future__ import annotations
 
 __all__ = [
     "APPLICATION_ID", "TIMELINE_NODE", "TIMELINE_TIME", "WORLD", "PATH_GROUND_TRUTH", "PATH_INITIAL",
-    "POSE_GROUND_TRUTH", "POSE_INITIAL", "LOOP_CLOSURES_INTRA", "LOOP_CLOSURES_INTER", "METRICS",
-    "SERIES_POSITION_ERROR", "SERIES_LOOP_CLOSURES", "SERIES_INTER_LOOP_CLOSURES", "PROPERTY_DATASET",
-    "PROPERTY_CONFIG", "EVALUATION", "EVALUATION_SUMMARY", "EVALUATION_SERIES", "TIMELINE_ITERATION",
+    "POSE_GROUND_TRUTH", "POSE_INITIAL", "LOOP_CLOSURES_INTRA", "LOOP_CLOSURES_INTER", "LOOP_CLOSURES_OUTLIERS",
+    "METRICS", "SERIES_POSITION_ERROR", "SERIES_LOOP_CLOSURES", "SERIES_INTER_LOOP_CLOSURES", "PROPERTY_DATASET",
+    "PROPERTY_CONFIG", "EVALUATION", "EVALUATION_SUMMARY", "EVALUATION_SERIES", "EVALUATION_WORLD",
+    "EVALUATION_GROUND_TRUTH", "EVALUATION_ESTIMATE", "TIMELINE_ITERATION",
     "SOLVE", "SOLVE_ESTIMATE", "SOLVE_GROUND_TRUTH", "SOLVE_CHI2", "SOLVE_ERROR", "TIMELINE_CELL",
     "SWEEP_TABLE", "SWEEP_SERIES",
 ]
@@ -35,17 +36,21 @@ PATH_INITIAL = "world/{agent}/initial"
 POSE_GROUND_TRUTH = "world/{agent}/ground_truth_pose"
 #: Transform moving along the timelines: the agent's current initial-estimate pose.
 POSE_INITIAL = "world/{agent}/initial_pose"
-#: One segment per intra-agent loop closure, at the node where it is created.
+#: One segment per intra-agent loop closure (inliers), at the node where it is created.
 LOOP_CLOSURES_INTRA = "world/{agent}/loop_closures"
-#: One segment per inter-agent loop closure, at the node where it is created.
-LOOP_CLOSURES_INTER = "world/inter_loop_closures"
+#: One segment per inter-agent loop closure (inliers) between two agents, at the node where it is
+#: created; one entity per agent pair (``{pair}`` is ``<agent a>-<agent b>``, in agent order).
+LOOP_CLOSURES_INTER = "world/inter_loop_closures/{pair}"
+#: One segment per loop closure listed in the dataset's ``outliers.txt`` (intra- and inter-agent).
+LOOP_CLOSURES_OUTLIERS = "world/outlier_loop_closures"
 METRICS = "metrics"
 #: Scalar per node: |initial - ground truth| position [m].
 SERIES_POSITION_ERROR = "metrics/position_error/{agent}"
-#: Scalar per node: intra-agent loop closures created so far.
-SERIES_LOOP_CLOSURES = "metrics/loop_closures/{agent}"
-#: Scalar per node: inter-agent loop closures created so far (all agents).
-SERIES_INTER_LOOP_CLOSURES = "metrics/loop_closures/inter_agent"
+#: Scalar per node: intra-agent loop closures created so far (one plot for all agents).
+SERIES_LOOP_CLOSURES = "metrics/intra_loop_closures/{agent}"
+#: Scalar per node: inter-agent loop closures created so far, all agents (a plot of its own: its
+#: count is often ten times an agent's intra-agent count).
+SERIES_INTER_LOOP_CLOSURES = "metrics/inter_loop_closures/all_agents"
 #: Recording property holding the dataset facts.
 PROPERTY_DATASET = "dataset"
 #: Recording property holding the config that made the dataset (JSON text), when known.
@@ -55,8 +60,14 @@ PROPERTY_CONFIG = "config"
 EVALUATION = "evaluation"
 #: Static Markdown table of an evaluation's statistics.
 EVALUATION_SUMMARY = "evaluation/summary"
-#: Scalar per node of one agent: ``{metric}`` is e.g. ``ape_translation_m``.
-EVALUATION_SERIES = "evaluation/{agent}/{metric}"
+#: Scalar per node of one agent: ``{metric}`` is e.g. ``ape_translation_m`` (one plot per metric).
+EVALUATION_SERIES = "evaluation/{metric}/{agent}"
+#: Root of the 3D view of an evaluation.
+EVALUATION_WORLD = "evaluation/world"
+#: Static line strip: an agent's ground truth at the scored poses.
+EVALUATION_GROUND_TRUTH = "evaluation/world/{agent}/ground_truth"
+#: Static segments: an agent's (aligned) estimate, each segment coloured by its APE translation.
+EVALUATION_ESTIMATE = "evaluation/world/{agent}/estimate"
 
 # Solve ------------------------------------------------------------------------------------------------
 #: Sequence timeline of an optimizer run: 0 is the initial guess, k the estimate after iteration k.

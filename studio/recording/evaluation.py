@@ -1,72 +1,172 @@
-"""Per-node errors of an evaluation as Rerun data (rerun-sdk 0.41).
+"""An evaluation as a Rerun recording (rerun-sdk 0.41): the picture a user wants, and the numbers.
 
-The series sit under :data:`~studio.recording.entities.EVALUATION` on the dataset recording's
-timelines (``node``: vertex index within its agent; ``time``: the ground-truth timestamp), so the
-errors line up with the poses when this recording is opened together with the dataset's own. Series
-are sent with ``send_columns``; the table of statistics is logged once, statically. This module takes
-columns, not the evaluation pipeline's result type, so it sits below the pipelines.
+The recording holds, under :data:`~studio.recording.entities.EVALUATION`:
+
+* a 3D view (``evaluation/world``): each agent's ground truth as a solid grey line (grey shows on
+  the dark and light themes and is not on the error scale) and its estimate (after any alignment) as segments coloured by APE translation on one scale for
+  all agents (blue: no error, through green and yellow, to red: the largest error);
+* one plot per metric (``evaluation/<metric>/<agent>``) with every agent in its colour, on the
+  dataset recording's timelines (``node``: vertex index within its agent; ``time``: the
+  ground-truth timestamp), so the errors line up with the poses when this recording is opened
+  together with the dataset's own;
+* the table of statistics (static Markdown);
+
+and a blueprint that lays these out (:func:`evaluation_blueprint`). Series are sent with
+``send_columns``. This module takes columns, not the evaluation pipeline's result type, so it sits
+below the pipelines.
 """
 
 from __future__ import annotations
 
 import os
+import uuid
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
+from studio.recording.dataset import agent_colour
 from studio.recording.entities import (
     APPLICATION_ID,
+    EVALUATION_ESTIMATE,
+    EVALUATION_GROUND_TRUTH,
     EVALUATION_SERIES,
     EVALUATION_SUMMARY,
+    EVALUATION_WORLD,
     TIMELINE_NODE,
     TIMELINE_TIME,
 )
 
-__all__ = ["ErrorSeries", "log_evaluation", "save_evaluation_recording"]
+__all__ = ["ErrorSeries", "METRIC_LABELS", "error_colours", "evaluation_blueprint", "log_evaluation",
+           "save_evaluation_recording"]
+
+_GROUND_TRUTH_COLOUR = (150, 150, 150, 255)
+_BLUEPRINT_NAMESPACE = uuid.UUID("9f0c2f52-8d2e-4b0e-a7f3-3c1e6c1d4b90")
 
 
 @dataclass(frozen=True, eq=False)
 class ErrorSeries:
-    """One agent's per-node errors: ``values`` keyed by metric name (``ape_translation_m``...)."""
+    """One agent's per-node errors: ``values`` keyed by metric name (``ape_translation_m``...), and
+    optionally the positions (n, 3) of the scored ground-truth and estimate poses for the 3D view."""
 
     agent: str
     node_indices: np.ndarray
     stamps_ns: np.ndarray
     values: dict[str, np.ndarray]
+    ground_truth_xyz: np.ndarray | None = None
+    estimate_xyz: np.ndarray | None = None
 
 
 #: Label shown in the viewer for each metric the evaluation logs.
 METRIC_LABELS = {"ape_translation_m": "APE translation [m]", "ape_rotation_deg": "APE rotation [deg]"}
 
+#: Error colour scale, from no error to the largest: blue, cyan, green, yellow, red.
+_SCALE = np.array([[49, 54, 149], [0, 170, 200], [40, 170, 60], [240, 200, 0], [215, 30, 30]], dtype=np.float64)
+
+
+def error_colours(errors: np.ndarray, largest: float) -> np.ndarray:
+    """(n, 4) uint8 RGBA colours of ``errors`` on the scale 0 .. ``largest``."""
+    t = np.clip(np.asarray(errors, dtype=np.float64) / (largest if largest > 0 else 1.0), 0.0, 1.0)
+    x = t * (len(_SCALE) - 1)
+    lo = np.minimum(np.floor(x).astype(np.int64), len(_SCALE) - 2)
+    f = (x - lo)[:, None]
+    rgb = np.rint(_SCALE[lo] * (1.0 - f) + _SCALE[lo + 1] * f).astype(np.uint8)
+    return np.column_stack([rgb, np.full(len(rgb), 255, dtype=np.uint8)])
+
+
+def _largest_error(series: Sequence[ErrorSeries]) -> float:
+    values = [float(np.max(s.values["ape_translation_m"])) for s in series
+              if len(s.values.get("ape_translation_m", ())) > 0]
+    return max(values + [0.0])
+
 
 def log_evaluation(rec: Any, summary_markdown: str, series: Sequence[ErrorSeries]) -> None:
-    """Log the statistics table (static) and each agent's per-node error series into ``rec``."""
+    """Log the statistics table (static), each agent's per-node error series and, when the series
+    carry positions, the 3D ground truth and error-coloured estimate into ``rec``."""
     import rerun as rr
 
-    rec.log(EVALUATION_SUMMARY, rr.TextDocument(summary_markdown, media_type="text/markdown"), static=True)
-    for s in series:
+    largest = _largest_error(series)
+    legend = (f"\n\nIn the 3D view each estimate is coloured by its APE translation: blue 0 m, green, "
+              f"yellow, red {largest:.3g} m (the largest). Ground truth: solid grey lines.")
+    rec.log(EVALUATION_SUMMARY, rr.TextDocument(summary_markdown + legend, media_type="text/markdown"),
+            static=True)
+    for k, s in enumerate(series):
         part = rr.escape_entity_path_part(s.agent)
+        colour = agent_colour(k)
         indexes = [
             rr.TimeColumn(TIMELINE_NODE, sequence=s.node_indices),
             rr.TimeColumn(TIMELINE_TIME, timestamp=s.stamps_ns.astype("datetime64[ns]")),
         ]
         for metric, values in s.values.items():
             path = EVALUATION_SERIES.format(agent=part, metric=metric)
-            rec.log(path, rr.SeriesLines(names=f"{s.agent}: {METRIC_LABELS.get(metric, metric)}"), static=True)
+            rec.log(path, rr.SeriesLines(names=s.agent, colors=[colour]), static=True)
             rec.send_columns(path, indexes=indexes, columns=rr.Scalars.columns(scalars=values))
+        if s.ground_truth_xyz is not None and len(s.ground_truth_xyz):
+            rec.log(EVALUATION_GROUND_TRUTH.format(agent=part),
+                    rr.LineStrips3D([s.ground_truth_xyz], colors=[_GROUND_TRUTH_COLOUR], radii=-2.0), static=True)
+        if s.estimate_xyz is not None and len(s.estimate_xyz) > 1:
+            est = s.estimate_xyz
+            err = s.values["ape_translation_m"]
+            segments = np.stack([est[:-1], est[1:]], axis=1)
+            rec.log(EVALUATION_ESTIMATE.format(agent=part),
+                    rr.LineStrips3D(segments, colors=error_colours(0.5 * (err[:-1] + err[1:]), largest),
+                                    radii=-1.0), static=True)
+
+
+def _fixed(part: Any, label: str) -> Any:
+    part.id = uuid.uuid5(_BLUEPRINT_NAMESPACE, f"evaluation/{label}")
+    return part
+
+
+def evaluation_blueprint(series: Sequence[ErrorSeries]) -> Any:
+    """3D estimate-vs-ground-truth view on the left; one plot per metric (every agent) and the
+    statistics table on the right; time panel on ``node``."""
+    import rerun as rr
+    import rerun.blueprint as rrb
+
+    pts = [p for s in series for p in (s.ground_truth_xyz, s.estimate_xyz) if p is not None and len(p)]
+    views = []
+    if pts:
+        allp = np.concatenate(pts)
+        lo, hi = allp.min(axis=0), allp.max(axis=0)
+        c = (lo + hi) / 2.0
+        extent = float(max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1.0))
+        if float(hi[2] - lo[2]) < 1e-9:  # planar: from straight above
+            eye = rrb.EyeControls3D(position=(c[0], c[1], c[2] + 1.1 * extent), look_target=tuple(c),
+                                    eye_up=(0.0, 1.0, 0.0))
+        else:
+            d = 0.9 * extent
+            eye = rrb.EyeControls3D(position=(c[0] - d, c[1] - d, c[2] + d), look_target=tuple(c),
+                                    eye_up=(0.0, 0.0, 1.0))
+        views.append(_fixed(rrb.Spatial3DView(origin=f"/{EVALUATION_WORLD}", name="estimate vs ground truth",
+                                              eye_controls=eye, line_grid=rrb.LineGrid3D(visible=False)), "world"))
+    whole = rr.TimeRange(start=rr.TimeRangeBoundary.infinite(), end=rr.TimeRangeBoundary.infinite())
+    metrics = sorted({m for s in series for m in s.values})
+    plots = [_fixed(rrb.TimeSeriesView(origin="/" + EVALUATION_SERIES.split("{metric}")[0] + m,
+                                       name=METRIC_LABELS.get(m, m), axis_x=rrb.TimeAxis(view_range=whole)),
+                    f"metric/{m}") for m in metrics]
+    summary = _fixed(rrb.TextDocumentView(origin=f"/{EVALUATION_SUMMARY}", name="statistics"), "summary")
+    right = _fixed(rrb.Vertical(*plots, summary), "right")
+    root = _fixed(rrb.Horizontal(*views, right, column_shares=[3, 2] if views else None), "root")
+    return rrb.Blueprint(
+        root,
+        rrb.TimePanel(timeline=TIMELINE_NODE, play_state="paused", expanded=False),
+        rrb.BlueprintPanel(expanded=False),
+        rrb.SelectionPanel(expanded=False),
+        auto_views=False,
+    )
 
 
 def save_evaluation_recording(path: str | os.PathLike, summary_markdown: str, series: Sequence[ErrorSeries],
                               *, recording_id: str | None = None) -> Path:
-    """Write a new ``.rrd`` holding only the evaluation. Pass the dataset recording's id as
-    ``recording_id`` to have the viewer merge both files into one recording."""
+    """Write a new ``.rrd`` holding only the evaluation, with its layout. Pass the dataset
+    recording's id as ``recording_id`` to have the viewer merge both files into one recording."""
     import rerun as rr
 
     path = Path(path)
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
-    rec.save(path)
+    rec.save(path, default_blueprint=evaluation_blueprint(series))
     log_evaluation(rec, summary_markdown, series)
     rec.flush()
     rec.disconnect()

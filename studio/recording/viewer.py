@@ -20,9 +20,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from studio.core.errors import ConfigError, FormatError, OutputError, StudioError
+from studio.core.progress import Progress, report
 from studio.recording.entities import TIMELINE_CELL, TIMELINE_ITERATION, TIMELINE_NODE
 
-__all__ = ["SnapshotResult", "rerun_executable", "vulkan_drivers", "snapshot", "view_command",
+__all__ = ["SnapshotResult", "has_display", "rerun_executable", "vulkan_drivers", "snapshot", "view_command",
            "view_web_command", "web_viewer_address"]
 
 #: Where the Vulkan loader looks for installed drivers (ICD manifests).
@@ -73,9 +74,20 @@ def _env() -> dict[str, str]:
     return env
 
 
+def has_display() -> bool:
+    """False on Linux when neither ``DISPLAY`` nor ``WAYLAND_DISPLAY`` is set (no window can open)."""
+    if not sys.platform.startswith("linux"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
 def view_command(rrd: str | os.PathLike) -> list[str]:
-    """The command that opens ``rrd`` in the native viewer."""
-    return [rerun_executable(), str(_check_rrd(Path(rrd)))]
+    """The command that opens ``rrd`` in the native viewer (refused without a display)."""
+    path = _check_rrd(Path(rrd))
+    if not has_display():
+        raise ConfigError(f"{rrd}: no display (DISPLAY and WAYLAND_DISPLAY are unset): use "
+                          f"`studio view {rrd} --web` for the web viewer, or `studio snapshot {rrd} -o FILE.png`")
+    return [rerun_executable(), str(path)]
 
 
 #: Port of the gRPC server that ``rerun --serve-web`` starts beside the web viewer (Rerun's default).
@@ -114,11 +126,13 @@ def _parse_size(window_size: str) -> str:
 
 
 def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None = None,
-             window_size: str = "1400x900", timeout_s: float = 60.0, settle_s: float = 3.0) -> SnapshotResult:
+             window_size: str = "1400x900", timeout_s: float = 60.0, settle_s: float = 3.0,
+             progress: Progress | None = None) -> SnapshotResult:
     """Render ``rrd`` to ``png`` with the cursor at ``node`` (default: the last node), no display needed.
 
     Raises :class:`StudioError` with an installation hint when no Vulkan driver is installed. The
-    picture is written atomically (a partial file is never left at ``png``).
+    picture is written atomically (a partial file is never left at ``png``). ``progress`` hears of
+    the four stages: viewer started, recording loaded, cursor moved, picture saved.
     """
     from rerun.experimental import ViewerClient
 
@@ -131,6 +145,8 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
     size = _parse_size(window_size)
     if not vulkan_drivers():
         raise StudioError(f"studio snapshot needs a Vulkan driver and found none: {_INSTALL_HINT}")
+    step = "snapshot"
+    report(progress, step, 0, 4, "stages")
     port = _free_port()
     cmd = [rerun_executable(), "--headless", "--hide-welcome-screen", "--port", str(port), "--window-size", size]
     log = tempfile.TemporaryFile(mode="w+", encoding="utf-8", errors="replace")  # never a full pipe
@@ -140,6 +156,7 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
     tmp = png.with_name(f".{png.name}.{os.getpid()}.tmp.png")
     try:
         client = _connect(ViewerClient, proc, log, port, timeout_s)
+        report(progress, step, 1, 4, "stages")
         client.open(str(rrd))
         deadline = time.monotonic() + timeout_s
         while True:
@@ -149,6 +166,7 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
             if time.monotonic() > deadline:
                 raise StudioError(f"{rrd}: the viewer did not finish loading within {timeout_s:.0f} s")
             time.sleep(0.1)
+        report(progress, step, 2, 4, "stages")
         rec = state.recordings[0]
         timelines = {t.name: t for t in rec.timelines}
         # a dataset's `node`, a solve's `iteration`, a sweep's `cell`
@@ -161,7 +179,9 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
             raise ConfigError(f"--node {node}: the recording's {name} timeline spans {tl.start}..{tl.end}")
         client.set_time(name, sequence=int(at), play_state="paused")
         time.sleep(settle_s)  # chunks stream in lazily after the cursor moves
+        report(progress, step, 3, 4, "stages")
         client.save_screenshot(str(tmp.resolve()))
+        report(progress, step, 4, 4, "stages")
         if not tmp.is_file():
             raise StudioError("the viewer did not write a screenshot")
         os.replace(tmp, png)

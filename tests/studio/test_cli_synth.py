@@ -44,7 +44,7 @@ def test_synth_writes_kollagens_layout(tmp_path):
     again = _run(out / "mine.config.json", "-o", tmp_path / "again")
     assert again.exit_code == 0
     a = (out / "mine" / "agent2" / "posegraph.g2o").read_bytes()
-    assert a == (tmp_path / "again" / "mine.config" / "agent2" / "posegraph.g2o").read_bytes()
+    assert a == (tmp_path / "again" / "mine" / "agent2" / "posegraph.g2o").read_bytes()
 
 
 def test_record_kind_options(tmp_path):

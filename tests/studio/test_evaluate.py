@@ -399,12 +399,26 @@ def test_rrd_holds_the_per_node_error_series(small, graph, tmp_path):
     assert res.exit_code == 0, res.output
     ev = evaluate(small.dataset_dir, estimate=tmp_path / "multi")
     chunks = {c.entity_path: c for c in RrdReader(rrd).stream() if not c.is_static}
-    batch = chunks["/evaluation/agent2/ape_translation_m"].to_record_batch()
+    batch = chunks["/evaluation/ape_translation_m/agent2"].to_record_batch()
     values = np.concatenate(batch.column("Scalars:scalars").to_pylist())
     assert np.array_equal(values, ev.ape_translation_series_m[1])
     assert batch.column("node").to_pylist() == list(range(241))
-    assert set(chunks) == {f"/evaluation/agent{k}/{s}" for k in (1, 2, 3)
+    assert set(chunks) == {f"/evaluation/{s}/agent{k}" for k in (1, 2, 3)
                            for s in ("ape_translation_m", "ape_rotation_deg")}
+    # the 3D view: ground truth as one strip, the estimate as segments coloured by their error
+    static = {c.entity_path: c.to_record_batch() for c in RrdReader(rrd).stream() if c.is_static}
+    gt = static["/evaluation/world/agent2/ground_truth"].column("LineStrips3D:strips").to_pylist()[0][0]
+    np.testing.assert_array_equal(np.array(gt, dtype=np.float32), ev.ground_truth_xyz[1].astype(np.float32))
+    est = static["/evaluation/world/agent2/estimate"]
+    assert len(est.column("LineStrips3D:strips").to_pylist()[0]) == 240
+    colours = est.column("LineStrips3D:colors").to_pylist()[0]
+    worst = int(np.argmax(ev.ape_translation_series_m[1][:-1] + ev.ape_translation_series_m[1][1:]))
+    assert len(set(colours)) > 10 and colours[worst] != colours[0]
+    reader = RrdReader(rrd)
+    kinds = sorted(v for c in reader.stream(store=reader.blueprints()[0])
+                   if "ViewBlueprint:class_identifier" in c.to_record_batch().schema.names
+                   for v in np.concatenate(c.to_record_batch().column("ViewBlueprint:class_identifier").to_pylist()))
+    assert kinds == ["3D", "TextDocument", "TimeSeries", "TimeSeries"]  # one plot per metric
     res = CliRunner().invoke(app, ["evaluate", str(small.dataset_dir), "--rrd", str(rrd)])
     assert res.exit_code == 2 and "already exists (use --force to overwrite)" in res.output
 

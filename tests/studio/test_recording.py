@@ -12,7 +12,7 @@ import pytest
 from studio.generator.kollagen import generate
 from studio.core.model import AgentGraph, PoseGraph
 from studio.recording.checks import fingerprint_rrd, read_fingerprint, rrd_compare, rrd_verify, write_fingerprint
-from studio.recording.dataset import STRIP_CHUNK_ROWS, record_graph, recording_id_for
+from studio.recording.dataset import STRIP_CHUNK_ROWS, inter_pair_path, record_graph, recording_id_for
 from studio.recording.entities import APPLICATION_ID, LOOP_CLOSURES_INTER, LOOP_CLOSURES_INTRA, PATH_GROUND_TRUTH, PATH_INITIAL, POSE_GROUND_TRUTH, SERIES_INTER_LOOP_CLOSURES, SERIES_LOOP_CLOSURES, SERIES_POSITION_ERROR, TIMELINE_NODE, TIMELINE_TIME
 from studio.synth import load_synth_config, synthesize
 
@@ -80,8 +80,16 @@ def check_recording_matches(path: Path, graph: PoseGraph) -> None:
                         key=lambda r: r[0][TIMELINE_NODE])
         expected = np.linalg.norm(agent.initial[:, 0:3] - agent.ground_truth[:, 0:3], axis=1)
         np.testing.assert_array_equal(np.array([r[1][0] for r in errors]), expected)
-    inter = data.get(("/" + LOOP_CLOSURES_INTER, "LineStrips3D:strips"), [])
-    assert len(inter) == len(graph.inter)
+    inter_root = "/" + LOOP_CLOSURES_INTER.split("{")[0]
+    inter = [r for key, rows in data.items() if len(key) == 2 and str(key[0]).startswith(inter_root)
+             and key[1] == "LineStrips3D:strips" for r in rows]
+    assert len(inter) == len(graph.inter)  # no outliers here: every one is drawn as an inlier
+    pairs = {(min(a, b), max(a, b)) for a, b in zip(graph.inter.from_agent.tolist(), graph.inter.to_agent.tolist())}
+    for a, b in pairs:  # one entity per agent pair
+        rows = data[("/" + inter_pair_path(graph, a, b), "LineStrips3D:strips")]
+        lo = np.minimum(graph.inter.from_agent, graph.inter.to_agent)
+        hi = np.maximum(graph.inter.from_agent, graph.inter.to_agent)
+        assert len(rows) == int(np.count_nonzero((lo == a) & (hi == b)))
     if len(graph.inter):
         counts = data[("/" + SERIES_INTER_LOOP_CLOSURES, "Scalars:scalars")]
         assert max(v[0] for _, v in counts) == float(len(graph.inter))
@@ -142,7 +150,8 @@ def test_time_indexed_strips_come_in_chunks_of_at_most_a_thousand_rows(small_rrd
     import rerun.chunk as rc
 
     reader = rc.RrdReader(small_rrd)
-    sizes = [c.num_rows for c in reader.stream() if c.entity_path.endswith("loop_closures") and not c.is_static]
+    sizes = [c.num_rows for c in reader.stream()
+             if c.entity_path.startswith("/world/") and "loop_closures" in c.entity_path and not c.is_static]
     assert sizes and max(sizes) <= STRIP_CHUNK_ROWS
     assert sum(sizes) == 313 + 677  # intra + inter loop closures of small3x100
 
@@ -233,8 +242,12 @@ def test_record_of_the_written_folder_equals_the_synth_recording(small_synth, tm
 
     res = record_dataset(small_synth.dataset_dir, tmp_path / "r.rrd")
     fa, fb = fingerprint_rrd(small_synth.rrd_path), fingerprint_rrd(res.path)
-    # kollagen's folder holds 3D records: only the pose kind differs from the in-memory planar graph
-    assert {k for k in fa if fa[k] != fb[k]} == {"recording0 /__properties/dataset pose_kind"}
+    # kollagen's folder holds 3D records of a planar graph: both paths record the same thing, SE2
+    assert {k for k in fa if fa[k] != fb[k]} == set()
+    for path in (small_synth.rrd_path, res.path):
+        facts = {key[1]: v for key, rows in read_back(path).items() if key[0] == "/__properties/dataset"
+                 for _, v in rows}
+        assert facts["pose_kind"] == ["SE2"]
 
 
 def test_synth_without_rrd(tmp_path):

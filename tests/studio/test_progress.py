@@ -1,0 +1,100 @@
+"""Progress lines: drawn on a terminal (a pseudo-terminal here), never in a pipe or with --quiet."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from studio.core.progress import report, terminal_progress
+
+REPO = Path(__file__).resolve().parent.parent.parent
+CONFIG = REPO / "tests" / "data" / "configs" / "tiny_three.json"
+TRAJECTORIES = REPO / "tests" / "data" / "trajectories"
+
+pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
+
+
+def _env() -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "TTY_COMPATIBLE", "NO_COLOR")}
+    env.update(COLUMNS="160", TERM="xterm-256color", RERUN_ANALYTICS="0")
+    return env
+
+
+def _in_pty(args: list[str], cwd: Path) -> tuple[int, str]:
+    """Run ``python -m studio.cli ARGS`` with stdin, stdout and stderr on a pseudo-terminal."""
+    leader, follower = os.openpty()
+    proc = subprocess.Popen([sys.executable, "-m", "studio.cli", *args], stdin=follower, stdout=follower,
+                            stderr=follower, cwd=cwd, env=_env())
+    os.close(follower)
+    chunks = []
+    while True:
+        try:
+            data = os.read(leader, 65536)
+        except OSError:  # EIO: the child closed the terminal
+            break
+        if not data:
+            break
+        chunks.append(data)
+    os.close(leader)
+    text = b"".join(chunks).decode("utf-8", "replace")
+    return proc.wait(timeout=120), re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text)  # colours and cursor moves
+
+
+def _in_pipe(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "studio.cli", *args], cwd=cwd, env=_env(),
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_synth_draws_progress_per_agent_and_pair_on_a_terminal(tmp_path):
+    rc, out = _in_pty(["synth", str(CONFIG), "-o", "out"], tmp_path)
+    assert rc == 0, out
+    assert "synth: walks and intra-agent loop closures" in out
+    assert re.search(r"3/3\s+agents", out)  # tiny_three: three agents
+    assert re.search(r"3/3\s+pairs", out)  # and three agent pairs
+    assert "agents/s" in out and "pairs/s" in out
+    assert "recording" in out
+    assert "tiny_three: 3 agents, 723 poses" in out
+
+
+def test_synth_is_silent_in_a_pipe(tmp_path):
+    proc = _in_pipe(["synth", str(CONFIG), "-o", "out"], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    assert "pairs" not in proc.stdout and "\x1b[" not in proc.stdout
+    assert proc.stdout.startswith("tiny_three: 3 agents, 723 poses")
+
+
+def test_quiet_draws_nothing_even_on_a_terminal(tmp_path):
+    rc, out = _in_pty(["synth", str(CONFIG), "-o", "out", "-q"], tmp_path)
+    assert rc == 0, out
+    assert out == ""
+
+
+def test_convert_and_record_draw_their_steps(tmp_path):
+    inputs = [str(p) for p in sorted(TRAJECTORIES.glob("*.tum"))]
+    rc, out = _in_pty(["convert", "tum", *inputs, "-o", "ds"], tmp_path)
+    assert rc == 0, out
+    for step in ("reading", "keyframes and odometry", "loop-closure search", "writing", "recording"):
+        assert step in out, step
+    assert re.search(rf"{len(inputs)}/{len(inputs)}\s+agents", out)
+    size = sum(Path(p).stat().st_size for p in inputs)
+    assert re.search(rf"{size}/{size}\s+bytes", out)
+    assert "bytes/s" in out
+    rc, out = _in_pty(["record", "ds", "-o", "again.rrd"], tmp_path)
+    assert rc == 0, out
+    assert "recording" in out and "parts/s" in out
+    proc = _in_pipe(["record", "ds", "-o", "third.rrd"], tmp_path)
+    assert proc.returncode == 0 and proc.stderr == ""
+
+
+def test_terminal_progress_is_none_off_a_terminal(capsys):
+    with terminal_progress() as progress:  # pytest captures stderr: not a terminal
+        assert progress is None
+        report(progress, "step", 1, 2)  # a None progress is a no-op
+    with terminal_progress(False) as progress:
+        assert progress is None

@@ -1,0 +1,245 @@
+"""The README's and docs' commands run, and the paths and links they name exist.
+
+Every fenced ``studio ...`` line of README.md and docs/*.md (continuation lines joined, ``$ ``
+prompts and ``# comments`` dropped) runs, in document order, as ``python -m studio.cli ...`` in one
+work folder shared by the documents (README first). That folder holds small stand-ins for the inputs
+the docs name (the kollagen presets are replaced by small3x100, a 3-agent x 100-step config with the
+same parameters; ``alpha.txt`` and friends are the test trajectories; S3E, AirMuseum and bag inputs
+are made by the converter tests' own writers) and the outputs several docs start from
+(``out/multi3500x8`` from ``studio synth multi3500x8 -o out/``, ``out/three_loops`` from
+``recordings/three_loops.command``). Docs repeat ``studio synth ... -o out/``: a command refused
+only because its output already exists is run again with ``--force``. A command that fails
+otherwise, or names an input that is not here, fails the test: when a doc gains a command with a new
+input, add the input to :data:`INPUTS`. Commands that cannot run here are in :data:`SKIP`, each
+with its reason.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Callable
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+DOCS = [REPO / "README.md"] + sorted((REPO / "docs").glob("*.md"))
+DATA = REPO / "tests" / "data"
+
+#: Leading words of documented commands that are not run, and why. Keep it short.
+SKIP: dict[str, str] = {
+    "studio view": "opens a viewer window or serves the web viewer until stopped "
+                   "(tests/studio/test_cli_newcomer.py checks `view` without a display)",
+}
+
+
+
+def _skip_reason(words: list[str]) -> str | None:
+    line = " ".join(words)
+    for prefix, reason in SKIP.items():
+        if line.startswith(prefix):
+            return reason
+    if words[:2] == ["studio", "snapshot"]:
+        from studio.recording.viewer import vulkan_drivers
+
+        if not vulkan_drivers():
+            return "no Vulkan driver on this machine (apt-get install -y mesa-vulkan-drivers)"
+    return None
+
+
+#: Documents whose paths describe where future modules would go, not files that exist.
+PATHS_NOT_CHECKED = {"architecture.md": "names where new sources, solvers and views would go"}
+
+
+# ------------------------------------------------------------------------------------------- inputs
+
+
+def _preset_standin(work: Path, name: str) -> None:
+    # a file named like the preset wins over the preset (load_synth_config), and names the dataset
+    shutil.copyfile(DATA / "configs" / "small3x100.json", work / name)
+
+
+def _tum(work: Path) -> None:
+    for src, dst in (("alpha", "alpha.txt"), ("bob", "bob.txt"), ("carol", "carol.txt")):
+        shutil.copyfile(DATA / "trajectories" / f"{src}.tum", work / dst)
+
+
+def _s3e(work: Path) -> None:
+    from tests.converters.test_layouts import s3e_folder
+
+    s3e_folder(work / "S3E_Square_1")
+
+
+def _airmuseum(work: Path) -> None:
+    from tests.converters.test_layouts import airmuseum_folder
+
+    for name in ("AirMuseum_seq", "AirMuseum_seq_1"):
+        airmuseum_folder(work / name)
+
+
+def _bags(work: Path) -> None:
+    from tests.converters.bags import Msgs, typestore, utm31_to_latlon, write_bag
+    from tests.converters.synthetic import UTM_EAST, UTM_NORTH, loop_trajectory
+
+    m = Msgs(typestore("ros1"))
+    s, p, q = loop_trajectory(400)
+    s2, p2, q2 = loop_trajectory(400, centre=(3.0, 0.0, 0.0), phase=1.0)
+    write_bag(work / "run", "ros1", {
+        "/alpha/odom": [(int(t), m.Odometry(int(t), pp, qq)) for t, pp, qq in zip(s, p, q)],
+        "/tf": [(int(t), m.TFMessage(int(t), pp, qq, parent="odom", child="bob/base_link"))
+                for t, pp, qq in zip(s2, p2, q2)],
+    })
+    m2 = Msgs(typestore("sqlite3"))
+    s, p, q = loop_trajectory(400, centre=(UTM_EAST, UTM_NORTH, 80.0), t0_s=1_700_000_000.0)
+    lat, lon = utm31_to_latlon(p[:, 0], p[:, 1])
+    write_bag(work / "s3e_bag", "sqlite3", {
+        "/alpha/fix": [(int(t), m2.NavSatFix(int(t), la, lo, pp[2])) for t, la, lo, pp in zip(s, lat, lon, p)],
+        "/alpha/heading": [(int(t), m2.QuaternionStamped(int(t), qq)) for t, qq in zip(s, q)],
+    })
+
+
+#: What a command may name as an input, and how the stand-in is made in the work folder.
+INPUTS: dict[str, Callable[[Path], None]] = {
+    "multi3500x8": lambda w: _preset_standin(w, "multi3500x8"),
+    "multi10000x5": lambda w: _preset_standin(w, "multi10000x5"),
+    "my_config.json": lambda w: shutil.copyfile(DATA / "configs" / "tiny_three.json", w / "my_config.json"),
+    "alpha.txt": _tum,
+    "S3E_Square_1": _s3e,
+    "AirMuseum_seq": _airmuseum,
+    "run.bag": _bags,
+}
+
+
+#: Outputs several docs start from, made before any doc runs (the commands are the docs' own).
+SETUP = (
+    "studio synth multi3500x8 -o out/",
+    "studio convert tum alpha.txt bob.txt carol.txt --seed 7 --outlier-fraction 0.05 -o out/three_loops",
+)
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ, RERUN_ANALYTICS="0", PYTHONPATH=str(REPO))
+    env.pop("DISPLAY", None)
+    env.pop("WAYLAND_DISPLAY", None)
+    return env
+
+
+def _run(words: list[str], work: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "studio.cli", *words[1:]], cwd=work, env=_env(),
+                          capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL)
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("docs") / "work"
+    root.mkdir()
+    for make in dict.fromkeys(INPUTS.values()):  # each maker once
+        make(root)
+    (root / "tests").symlink_to(REPO / "tests")
+    shutil.copytree(REPO / "recordings", root / "recordings")
+    (root / "docs" / "img").mkdir(parents=True)
+    for command in SETUP:
+        proc = _run(shlex.split(command), root)
+        assert proc.returncode == 0, f"setup `{command}`: {proc.stderr}"
+    return root
+
+
+# ----------------------------------------------------------------------------------------- commands
+
+
+def documented_commands(doc: Path) -> list[tuple[int, str]]:
+    """``(line, command)`` of each fenced ``studio`` command of ``doc``."""
+    out = []
+    in_fence = False
+    pending: tuple[int, str] | None = None
+    for n, line in enumerate(doc.read_text(encoding="utf-8").splitlines(), start=1):
+        if line.lstrip().startswith("```"):
+            in_fence = not in_fence
+            pending = None
+            continue
+        if not in_fence:
+            continue
+        text = line.strip()
+        if pending is not None:
+            start, head = pending
+            joined = head + " " + text.rstrip("\\").strip()
+            if text.endswith("\\"):
+                pending = (start, joined)
+            else:
+                out.append((start, joined))
+                pending = None
+            continue
+        if text.startswith("$ "):
+            text = text[2:].strip()
+        if not re.match(r"studio(\s|$)", text):
+            continue
+        if text.endswith("\\"):
+            pending = (n, text.rstrip("\\").strip())
+        else:
+            out.append((n, text))
+    return out
+
+
+def _cases() -> list:
+    cases = []
+    for doc in DOCS:
+        cmds = documented_commands(doc)
+        if cmds:
+            cases.append(pytest.param(doc, cmds, id=doc.relative_to(REPO).as_posix()))
+    return cases
+
+
+def test_the_docs_have_commands_to_run():
+    assert sum(len(documented_commands(d)) for d in DOCS) >= 10
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("doc", "commands"), _cases())
+def test_documented_commands_run(doc: Path, commands: list[tuple[int, str]], work: Path):
+    ran = 0
+    for line, command in commands:
+        words = shlex.split(command, comments=True)
+        if _skip_reason(words):
+            continue
+        proc = _run(words, work)
+        if proc.returncode == 2 and "already exists (use --force" in proc.stderr and "--force" not in words:
+            proc = _run(words + ["--force"], work)
+        assert proc.returncode == 0, (
+            f"{doc.name}:{line}: `{command}` exited {proc.returncode}:\n{proc.stderr[-2000:]}{proc.stdout[-500:]}")
+        assert "Traceback" not in proc.stderr, f"{doc.name}:{line}: {proc.stderr[-2000:]}"
+        ran += 1
+    assert ran, f"{doc.name}: every command was skipped"
+
+
+# ------------------------------------------------------------------------------------ paths, links
+
+_PATH = re.compile(r"(?<![\w/.-])((?:tests|benchmarks|docs|studio|recordings|converters|generator)"
+                   r"/[\w./-]*\w)(::\w+)?")
+_LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=lambda d: d.relative_to(REPO).as_posix())
+def test_named_paths_tests_and_links_exist(doc: Path):
+    missing = []
+    text = doc.read_text(encoding="utf-8")
+    if doc.name not in PATHS_NOT_CHECKED:
+        for n, line in enumerate(text.splitlines(), start=1):
+            for m in _PATH.finditer(line):
+                path, test = REPO / m.group(1), m.group(2)
+                if not path.exists():
+                    missing.append(f"{doc.name}:{n}: {m.group(1)}")
+                elif test and path.is_file() and f"def {test[2:]}(" not in path.read_text(encoding="utf-8"):
+                    missing.append(f"{doc.name}:{n}: {m.group(1)}{test}")
+    for m in _LINK.finditer(text):
+        target = m.group(1)
+        if re.match(r"[a-z]+:", target):  # http:, mailto:
+            continue
+        if not (doc.parent / target).exists():
+            line = text[: m.start()].count("\n") + 1
+            missing.append(f"{doc.name}:{line}: link {target}")
+    assert not missing, "named in the docs but missing:\n" + "\n".join(missing)
