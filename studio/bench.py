@@ -36,6 +36,8 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 from studio.core.errors import ConfigError, StudioError
+from studio.core.progress import Progress, report
+from studio.io.atomic import write_replacing
 
 __all__ = ["BenchSpec", "BenchResult", "Cell", "load_bench_spec", "bench", "PAPER_SPEC", "format_paper_table"]
 
@@ -261,9 +263,6 @@ def _in_fresh_process(func: Callable[..., dict[str, Any]], *args: Any) -> dict[s
 # ------------------------------------------------------------------------------------------- the bench
 
 
-Progress = Callable[[int, int, str], None]
-
-
 def bench(spec: BenchSpec, out_dir: str | os.PathLike, *, progress: Progress | None = None,
           isolate: bool = True) -> BenchResult:
     """Run every cell of ``spec`` not finished yet under ``out_dir`` and write the tables and plot.
@@ -289,8 +288,7 @@ def bench(spec: BenchSpec, out_dir: str | os.PathLike, *, progress: Progress | N
     prepared: dict[tuple[str, str], tuple[Path, Path | None]] = {}
     total = len(cells)
     for k, cell in enumerate(cells):
-        if progress:
-            progress(k, total, cell.key)
+        report(progress, "bench cells", k, total, "cells")
         pair = (cell.dataset, cell.case)
         if pair not in prepared:
             prepared[pair] = _prepare_dataset(cell.dataset, cell.case if cell.case != "as-is" else "diagonal",
@@ -317,19 +315,8 @@ def bench(spec: BenchSpec, out_dir: str | os.PathLike, *, progress: Progress | N
         computed += 1
         _write_json(done, row)
         rows.append(row)
-    if progress:
-        progress(total, total, "done")
+    report(progress, "bench cells", total, total, "cells")
     return _write_tables(spec, out, rows, computed)
-
-
-def _replace(path: Path, write: Callable[[Path], Any]) -> None:
-    """Write ``path`` through a temporary file beside it, renamed into place (never half-written)."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def _write_json(path: Path, row: Mapping[str, Any]) -> None:
@@ -379,10 +366,10 @@ def _write_tables(spec: BenchSpec, out: Path, rows: list[dict[str, Any]], comput
         "iterations", "chi2_initial", "chi2_final", "solve_s", "wall_s", "peak_rss_mb", "planar", "estimate", "error"]
     df = df[[c for c in first if c in df.columns] + sorted(c for c in df.columns if c not in first)]
     csv_path = out / "bench.csv"
-    _replace(csv_path, lambda tmp: df.to_csv(tmp, index=False))
+    write_replacing(csv_path, lambda tmp: df.to_csv(tmp, index=False))
     parquet_path: Path | None = out / "bench.parquet"
     try:
-        _replace(parquet_path, lambda tmp: df.to_parquet(tmp, index=False))  # type: ignore[arg-type]
+        write_replacing(parquet_path, lambda tmp: df.to_parquet(tmp, index=False))  # type: ignore[arg-type]
     except ImportError:
         parquet_path = None
     md = [f"# Bench `{spec.name}`", "",
@@ -397,7 +384,7 @@ def _write_tables(spec: BenchSpec, out: Path, rows: list[dict[str, Any]], comput
             continue
         md.append("| " + " | ".join(_fmt(r.get(c)) for c in cols) + " |")
     markdown_path = out / "bench.md"
-    _replace(markdown_path, lambda tmp: tmp.write_text("\n".join(md) + "\n", encoding="utf-8"))
+    write_replacing(markdown_path, lambda tmp: tmp.write_text("\n".join(md) + "\n", encoding="utf-8"))
     plot_path = _plot(spec, out, rows)
     return BenchResult(spec, out, tuple(rows), computed, csv_path, markdown_path, plot_path, parquet_path)
 
@@ -428,6 +415,6 @@ def _plot(spec: BenchSpec, out: Path, rows: list[dict[str, Any]]) -> Path | None
         ax.legend(fontsize=8)
     fig.tight_layout()
     path = out / "bench.png"
-    _replace(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
+    write_replacing(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
     plt.close(fig)
     return path

@@ -491,19 +491,8 @@ def bench(
     from studio.bench import format_paper_table, load_bench_spec
 
     parsed = load_bench_spec(spec)
-    show = not quiet and sys.stderr.isatty()
-    if show:
-        from rich.progress import Progress as RichProgress
-
-        with RichProgress(transient=True) as bar:
-            task = bar.add_task("bench", total=None)
-
-            def progress(done: int, total: int, label: str) -> None:
-                bar.update(task, completed=done, total=total, description=label)
-
-            res = run_bench(parsed, out, progress=progress)
-    else:
-        res = run_bench(parsed, out)
+    with terminal_progress(not quiet) as progress:
+        res = run_bench(parsed, out, progress=progress)
     if not quiet:
         typer.echo(format_paper_table(res.rows, parsed, parsed.alignments[0]), nl=False)
         typer.echo(f"{res.computed} cells run, {len([r for r in res.rows if r['method'] != 'odometry']) - res.computed} "
@@ -529,18 +518,8 @@ def sweep(
     from studio.sweep import sweep as run_sweep
 
     parsed = load_sweep_spec(spec)
-    if not quiet and sys.stderr.isatty():
-        from rich.progress import Progress as RichProgress
-
-        with RichProgress(transient=True) as bar:
-            task = bar.add_task("cells", total=None)
-
-            def progress(done: int, total: int, label: str) -> None:
-                bar.update(task, completed=done, total=total, description=label)
-
-            res = run_sweep(parsed, out, scheduler=scheduler, workers=workers, progress=progress)
-    else:
-        res = run_sweep(parsed, out, scheduler=scheduler, workers=workers)
+    with terminal_progress(not quiet) as progress:
+        res = run_sweep(parsed, out, scheduler=scheduler, workers=workers, progress=progress)
     if not quiet:
         typer.echo(f"{parsed.name}: {len(res.rows)} cells ({res.computed} run now, {res.failed} failed)\n"
                    f"  {res.table_path}\n  {res.markdown_path}" + "".join(f"\n  {p}" for p in res.plot_paths))

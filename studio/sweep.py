@@ -46,6 +46,8 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 from studio.core.errors import ConfigError, StudioError
+from studio.core.progress import Progress, report
+from studio.io.atomic import write_replacing
 
 __all__ = ["SweepSpec", "SweepResult", "CellTask", "load_sweep_spec", "sweep_spec_from_dict", "expand", "sweep",
            "run_cell", "STEPS"]
@@ -357,9 +359,6 @@ def run_cell(task: CellTask) -> dict[str, Any]:
 # ------------------------------------------------------------------------------------------- the sweep
 
 
-Progress = Callable[[int, int, str], None]
-
-
 def _client(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
     try:
         from distributed import Client, LocalCluster
@@ -402,8 +401,7 @@ def sweep(spec: SweepSpec, out: str | os.PathLike, *, scheduler: str | None = No
             rows[t.name] = json.loads(done.read_text(encoding="utf-8"))
         else:
             todo.append(t)
-    if progress:
-        progress(len(rows), len(tasks), "cells")
+    report(progress, "sweep cells", len(rows), len(tasks), "cells")
     if todo:
         client, cluster = _client(scheduler, workers)
         try:
@@ -414,8 +412,7 @@ def sweep(spec: SweepSpec, out: str | os.PathLike, *, scheduler: str | None = No
             for fut in as_completed(futures):
                 row = fut.result()
                 rows[row["cell"]] = row
-                if progress:
-                    progress(len(rows), len(tasks), row["cell"])
+                report(progress, "sweep cells", len(rows), len(tasks), "cells")
         finally:
             client.close()
             if cluster is not None:
@@ -447,8 +444,8 @@ def _write_outputs(spec: SweepSpec, out: Path, rows: list[dict[str, Any]], compu
         if df[col].dtype == object:
             df[col] = df[col].map(lambda v: v if v is None or isinstance(v, str) else json.dumps(v))
     table = out / "sweep.parquet"
-    _replace(table, lambda tmp: df.to_parquet(tmp, index=False))
-    _replace(out / "sweep.csv", lambda tmp: df.to_csv(tmp, index=False))
+    write_replacing(table, lambda tmp: df.to_parquet(tmp, index=False))
+    write_replacing(out / "sweep.csv", lambda tmp: df.to_csv(tmp, index=False))
     failed = int(df["error"].notna().sum()) if "error" in df.columns else 0
     md = [f"# Sweep `{spec.name}`", "", f"Base: `{spec.base}`; steps: {', '.join(spec.steps)}; "
           f"{len(rows)} cells ({computed} run now, {failed} failed).", ""]
@@ -459,7 +456,7 @@ def _write_outputs(spec: SweepSpec, out: Path, rows: list[dict[str, Any]], compu
     md += ["", "Re-run a cell alone (DIR: any folder):", ""]
     md += [f"* `{r['cell']}`: `{r['command']}`" for r in rows]
     markdown = out / "sweep.md"
-    _replace(markdown, lambda tmp: tmp.write_text("\n".join(md) + "\n", encoding="utf-8"))
+    write_replacing(markdown, lambda tmp: tmp.write_text("\n".join(md) + "\n", encoding="utf-8"))
     plots = _plots(spec, out, df)
     rrd = None
     try:
@@ -477,15 +474,6 @@ def _fmt(v: Any) -> str:
     if isinstance(v, float):
         return f"{v:.6g}"
     return str(v)
-
-
-def _replace(path: Path, write: Callable[[Path], Any]) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 #: Columns plotted against each swept parameter, when present.
@@ -517,7 +505,7 @@ def _plots(spec: SweepSpec, out: Path, df: Any) -> list[Path]:
             ax.tick_params(labelsize=7)
         fig.tight_layout()
         path = out / "plots" / f"{p.removeprefix('param:').replace('.', '_')}.png"
-        _replace(path, lambda tmp: fig.savefig(tmp, dpi=90, format="png"))
+        write_replacing(path, lambda tmp: fig.savefig(tmp, dpi=90, format="png"))
         plt.close(fig)
         paths.append(path)
     return paths

@@ -11,11 +11,11 @@ import contextlib
 import os
 import shutil
 from pathlib import Path
-from typing import Iterator
+from typing import Callable, Iterator
 
 from studio.core.errors import OutputError
 
-__all__ = ["staged_outputs", "STAGING_PREFIX"]
+__all__ = ["staged_outputs", "write_replacing", "STAGING_PREFIX"]
 
 STAGING_PREFIX = ".studio-staging-"
 
@@ -76,3 +76,16 @@ def staged_outputs(parent: str | os.PathLike, names: list[str], *, force: bool =
             os.replace(src, dst)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+def write_replacing(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
+    """Write one file through ``write(tmp)`` into a temporary file beside ``path``, then rename it
+    into place: readers see the old file or the new one, never a half-written one."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
