@@ -56,8 +56,11 @@ PAPER_SPEC: dict[str, Any] = {
     "alignments": ["first-pose", "se3", "none"],
 }
 
-#: The kollagen paper's published figures (APE translation mean [m], unaligned evo on the single
-#: files; g2o: spanning tree + Gauss-Newton, 10 iterations) as quoted in issue 15 of this project.
+#: The kollagen paper's published figures (APE translation mean [m]; g2o: spanning tree +
+#: Gauss-Newton, 10 iterations) as quoted in issue 15 of this project. The dead-reckoning figures are
+#: unaligned evo on the single files (first-pose alignment changes nothing there: every agent starts
+#: on its ground truth); the g2o figures are reproduced by first-pose alignment, so they are shown
+#: beside those tables only (:data:`PAPER_ALIGNMENTS`).
 PAPER_FIGURES = {
     ("multi3500x8", "diagonal", "odometry"): 14.883697,
     ("multi10000x5", "diagonal", "odometry"): 17.427713,
@@ -66,6 +69,8 @@ PAPER_FIGURES = {
     ("multi3500x8", "exact", "g2o"): 0.390065,
     ("multi10000x5", "exact", "g2o"): 1.426272,
 }
+#: The alignments under which each method's paper figure is comparable.
+PAPER_ALIGNMENTS = {"odometry": ("none", "first-pose"), "g2o": ("first-pose",)}
 
 
 @dataclass(frozen=True)
@@ -351,7 +356,7 @@ def format_paper_table(rows: Sequence[Mapping[str, Any]], spec: BenchSpec, align
             v = None if r is None else r.get(f"ape_{align}_m")
             text = r["error"].split(":")[0] if r is not None and "error" in r else _fmt(v)
             paper = PAPER_FIGURES.get((Path(d).name.lower(), c, m))
-            if paper is not None:
+            if paper is not None and align in PAPER_ALIGNMENTS.get(m, ()):
                 text += f" (paper {paper:.6f})"
             cells.append(text)
         lines.append("| " + " | ".join(cells) + " |")
