@@ -103,6 +103,40 @@ def _bags(work: Path) -> None:
     })
 
 
+def _euroc(work: Path) -> None:
+    from tests.converters.test_real_layouts import _euroc_sequence
+
+    for k, name in enumerate(("MH_01_easy", "MH_02_easy", "MH_03_medium")):
+        _euroc_sequence(work, name, k)
+
+
+def _kitti(work: Path) -> None:
+    import numpy as np
+
+    (work / "poses").mkdir()
+    n = 600
+    yaw = np.linspace(0, 2.0, n)
+    rows = []
+    for i in range(n):
+        c, s = np.cos(yaw[i]), np.sin(yaw[i])
+        rows.append(" ".join(f"{v:.9e}" for v in (c, 0, s, 5 * np.sin(yaw[i]), 0, 1, 0, 0, -s, 0, c,
+                                                     5 * (1 - np.cos(yaw[i])) + 0.5 * i)))
+    (work / "poses" / "00.txt").write_text("\n".join(rows) + "\n")
+
+
+def _kimera(work: Path) -> None:
+    from tests.converters.synthetic import loop_trajectory
+
+    folder = work / "ground_truth" / "1014"
+    folder.mkdir(parents=True)
+    for k, robot in enumerate(("acl_jackal", "acl_jackal2")):
+        s, p, q = loop_trajectory(400, radius=5.0, phase=k)
+        lines = ["#timestamp_kf,x,y,z,qw,qx,qy,qz"] + [
+            ",".join([str(t), *map(repr, pp), repr(qq[3]), repr(qq[0]), repr(qq[1]), repr(qq[2])])
+            for t, pp, qq in zip(s.tolist(), p.tolist(), q.tolist())]
+        (folder / f"{robot}_gt_odom.csv").write_text("\n".join(lines) + "\n")
+
+
 #: What a command may name as an input, and how the stand-in is made in the work folder.
 INPUTS: dict[str, Callable[[Path], None]] = {
     "multi3500x8": lambda w: _preset_standin(w, "multi3500x8"),
@@ -112,6 +146,9 @@ INPUTS: dict[str, Callable[[Path], None]] = {
     "S3E_Square_1": _s3e,
     "AirMuseum_seq": _airmuseum,
     "run.bag": _bags,
+    "MH_01_easy": _euroc,
+    "poses/00.txt": _kitti,
+    "ground_truth/1014": _kimera,
 }
 
 
