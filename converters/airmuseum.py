@@ -39,9 +39,9 @@ def find_ground_truth_files(root: Path) -> list[tuple[str, Path]]:
     found: list[tuple[str, Path]] = []
     data = root / "data"
     if data.is_dir() and not any(p.is_file() and _GT_WORD.search(p.stem) for p in root.iterdir()):
-        inner = find_ground_truth_files(data)  # the shipped scenario layout: <Scenario>/data/<robot>/
-        if inner:
-            return inner
+        shipped = find_ground_truth_files(data)  # the shipped scenario layout: <Scenario>/data/<robot>/
+        if shipped:
+            return shipped
     for p in sorted(root.iterdir()):
         if p.is_file() and p.suffix.lower() in _EXT and _GT_WORD.search(p.stem):
             stem = _GT_WORD.sub("", p.stem).strip("_- .") or p.stem

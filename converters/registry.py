@@ -97,9 +97,9 @@ def guess_source(inputs: Sequence[str | os.PathLike]) -> str:
     if not inputs:
         raise ConfigError("give a source (" + ", ".join(READERS) + ") and its inputs, or --config")
     kinds = {str(p): _kind_of(Path(p)) for p in inputs}
-    found = set(kinds.values())
-    if None in found or len(found) != 1:
-        unknown = [p for p, k in kinds.items() if k is None]
+    unknown = [p for p, k in kinds.items() if k is None]
+    found = {k for k in kinds.values() if k is not None}
+    if unknown or len(found) != 1:
         why = f"cannot tell the source of {unknown[0]}" if unknown else f"the inputs look like {', '.join(sorted(found))}"
         raise ConfigError(f"{why}: name it (studio convert SOURCE INPUT..., SOURCE one of {', '.join(READERS)})")
-    return found.pop()  # type: ignore[return-value]
+    return found.pop()

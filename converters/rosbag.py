@@ -259,9 +259,8 @@ class _PlainMcap:
         self._store.register(types)
         return self
 
-    def __exit__(self, *exc) -> bool:
+    def __exit__(self, *exc: object) -> None:
         self._reader.close()
-        return False
 
     @property
     def topics(self) -> dict:
@@ -333,10 +332,12 @@ def read_bag(bag: str | os.PathLike | Sequence[str | os.PathLike], specs: Sequen
             if ignore_case:
                 lower = {t.lower(): t for t in topics}
 
-                def actual(t: str | None) -> str | None:
-                    return None if t is None else lower.get(t.lower(), t)
+                def actual(t: str) -> str:
+                    return lower.get(t.lower(), t)
 
-                specs = [replace(sp, topic=actual(sp.topic), heading_topic=actual(sp.heading_topic)) for sp in specs]
+                specs = [replace(sp, topic=actual(sp.topic),
+                                 heading_topic=None if sp.heading_topic is None else actual(sp.heading_topic))
+                         for sp in specs]
             for spec in specs:
                 missing = [t for t in (spec.topic, spec.heading_topic) if t is not None and not known(t)]
                 if missing:

@@ -11,6 +11,7 @@ import functools
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import typer
 
@@ -343,7 +344,7 @@ def convert(
     given = {name for name in ctx.params
              if getattr(ctx.get_parameter_source(name), "name", "") in ("COMMANDLINE", "ENVIRONMENT")}
     option_names = [f.name for f in dataclasses.fields(GraphOptions)]
-    pipeline = {"orientation": orientation, "heading_window_m": heading_window_m, "body_frames": tuple(body_frame),
+    pipeline: dict[str, Any] = {"orientation": orientation, "heading_window_m": heading_window_m, "body_frames": tuple(body_frame),
                 "split": split, "overlap_s": overlap, "folder_names": folder_names}
     flags = {"orientation": "orientation", "heading_window_m": "heading_window_m", "body_frames": "body_frame",
              "split": "split", "overlap_s": "overlap", "folder_names": "folder_names"}

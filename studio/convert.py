@@ -149,7 +149,8 @@ def config_from_mapping(data: Mapping[str, Any], where: str = "config") -> Conve
         options = GraphOptions(**opts)
     except ConfigError as err:
         raise ConfigError(f"{where}: {err}") from None
-    extra = {k: (tuple(data[k]) if k == "body_frames" else data[k]) for k in _PIPELINE_FIELDS if k in data}
+    extra: dict[str, Any] = {k: (tuple(data[k]) if k == "body_frames" else data[k])
+                             for k in _PIPELINE_FIELDS if k in data}
     try:
         return ConvertConfig(str(data["source"]), tuple(data.get("inputs", [])), tuple(data.get("agents", [])),
                              options, **extra)

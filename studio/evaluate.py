@@ -267,6 +267,7 @@ def _rpe(gt: np.ndarray, est: np.ndarray, delta: float, unit) -> tuple[np.ndarra
     from scipy.spatial.transform import Rotation
 
     n = len(gt)
+    poses: range | np.ndarray
     if unit is metrics.Unit.frames:
         poses = range(n)  # filter_pairs_by_index only counts them
     else:
@@ -357,7 +358,9 @@ def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_
     rpe_n = [_rpe(gt, est, rpe_delta_nodes, metrics.Unit.frames) for gt, est, *_ in matched]
 
     def row(name, n, at, ar, rm, rn) -> AgentScore:
-        return AgentScore(name, n, ErrorStats.of(at), ErrorStats.of(ar), ErrorStats.of(rm[0]),
+        ape_t, ape_r = ErrorStats.of(at), ErrorStats.of(ar)
+        assert ape_t is not None and ape_r is not None  # every scored agent has at least one pose
+        return AgentScore(name, n, ape_t, ape_r, ErrorStats.of(rm[0]),
                           ErrorStats.of(rm[1]), ErrorStats.of(rn[0]), ErrorStats.of(rn[1]))
 
     rows = tuple(row(names[k], len(matched[k][0]), ape_t[k], ape_r[k], rpe_m[k], rpe_n[k])
@@ -436,7 +439,7 @@ def _cells(a: AgentScore) -> list[str]:
             out.append(str(a.poses))
             continue
         st = getattr(a, metric)
-        out.append("-" if st is None else f"{getattr(st, stat):.6f}")
+        out.append("-" if st is None else f"{getattr(st, str(stat)):.6f}")
     return out
 
 

@@ -95,7 +95,8 @@ class Edges:
 
     @classmethod
     def empty(cls, kind: PoseKind) -> "Edges":
-        return cls(kind, [], [], np.zeros((0, kind.pose_width)), np.zeros((0, kind.information_width)))
+        z = np.zeros(0, dtype=np.int64)
+        return cls(kind, z, z, np.zeros((0, kind.pose_width)), np.zeros((0, kind.information_width)))
 
     def to_se3(self) -> "Edges":
         if self.kind is PoseKind.SE3:
@@ -211,10 +212,10 @@ class AgentGraph:
             if edges.kind is not self.kind:
                 raise GraphError(f"{self.name}: {label} edges are {edges.kind.value}, poses {self.kind.value}")
             for col in (edges.from_index, edges.to_index):
-                bad = np.flatnonzero((col < 0) | (col >= n))
-                if bad.size:
+                wrong = np.flatnonzero((col < 0) | (col >= n))
+                if wrong.size:
                     raise GraphError(
-                        f"{self.name}: {label} edge {int(bad[0])} refers to vertex {int(col[bad[0]])}, "
+                        f"{self.name}: {label} edge {int(wrong[0])} refers to vertex {int(col[wrong[0]])}, "
                         f"but the agent has {n} poses"
                     )
 

@@ -192,6 +192,7 @@ def read_multi_g2o(folder: str | os.PathLike, *, edges: bool = True) -> PoseGrap
         except GraphError as err:
             raise FormatError(f"{sub}: {err}") from None
     dat = folder / "inter_agent_lc.dat"
+    assert kind is not None  # agent_folders() returns at least one folder
 
     inter = read_inter_lc_dat(dat, kind) if edges and dat.is_file() else InterAgentEdges.empty(kind)
     try:

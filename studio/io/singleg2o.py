@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from studio.core.geometry import planar_poses_to_se3, relative_planar_pose, se2_information_to_se3
+from studio.core.errors import GraphError
 from studio.io.g2o import G2oDocument, g2o_lines
 from studio.io.multig2o import Records
 from studio.io.tum import tum_lines
@@ -33,8 +34,11 @@ def agent_offsets(graph: PoseGraph) -> np.ndarray:
 
 def connector_measurements(graph: PoseGraph) -> np.ndarray:
     """``(n_agents - 1, 3)``: ground-truth pose of agent k's first vertex in agent k-1's last frame."""
-    last = np.array([a.ground_truth[-1] for a in graph.agents[:-1]]).reshape(-1, 3)
-    first = np.array([a.ground_truth[0] for a in graph.agents[1:]]).reshape(-1, 3)
+    truth = [a.ground_truth for a in graph.agents]
+    if any(t is None for t in truth):
+        raise GraphError("kollagen's connector edges need every agent's ground truth")
+    last = np.array([t[-1] for t in truth[:-1]]).reshape(-1, 3)  # type: ignore[index]
+    first = np.array([t[0] for t in truth[1:]]).reshape(-1, 3)  # type: ignore[index]
     dx, dy, dt = relative_planar_pose(last[:, 0], last[:, 1], last[:, 2], first[:, 0], first[:, 1], first[:, 2])
     return np.column_stack([dx, dy, dt])
 

@@ -126,14 +126,14 @@ def _parse(source: str | os.PathLike | IO[str], *, require_increasing: bool) -> 
         raise FormatError(f"{name}: no poses")
     poses = np.array(rows, dtype=np.float64)
     norms = _row_norms(poses[:, 3:7])
-    bad = np.flatnonzero(norms < 1e-9)
-    if bad.size:
-        raise FormatError(f"{name}:{lines[bad[0]]}: quaternion is zero")
+    zero = np.flatnonzero(norms < 1e-9)
+    if zero.size:
+        raise FormatError(f"{name}:{lines[zero[0]]}: quaternion is zero")
     far = np.flatnonzero(np.abs(norms - 1.0) > 1e-12)
     if far.size:
         poses[far, 3:7] /= norms[far, None]
     st = np.array(stamps, dtype=np.int64)
-    dec = np.flatnonzero(np.diff(st) <= 0) if require_increasing else ()
+    dec = np.flatnonzero(np.diff(st) <= 0) if require_increasing else np.zeros(0, dtype=np.int64)
     if len(dec):
         k = int(dec[0]) + 1
         raise FormatError(f"{name}:{lines[k]}: timestamps must increase")
