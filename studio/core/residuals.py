@@ -17,13 +17,17 @@ chi2 is the sum over its edges (g2o's ``activeChi2``).
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import TYPE_CHECKING, Literal, Sequence
 
 import numpy as np
 
+from studio.core.errors import GraphError
 from studio.core.geometry import normalize_angle, quat_canonical, quat_conj, quat_mul, quat_rotate, upper_to_matrix
 
-__all__ = ["Convention", "edge_errors", "chi2_terms", "chi2_parts"]
+__all__ = ["Convention", "edge_errors", "chi2_terms", "chi2_parts", "graph_chi2"]
+
+if TYPE_CHECKING:
+    from studio.core.model import PoseGraph
 
 Convention = Literal["g2o", "rotvec"]
 
@@ -82,3 +86,35 @@ def chi2_parts(errors: np.ndarray, information_upper: np.ndarray) -> tuple[np.nd
     et, er = errors[:, :k], errors[:, k:]
     return (np.einsum("ni,nij,nj->n", et, omega[:, :k, :k], et),
             np.einsum("ni,nij,nj->n", er, omega[:, k:, k:], er))
+
+
+def graph_chi2(graph: "PoseGraph", poses_per_agent: Sequence[np.ndarray] | None = None, *,
+               convention: Convention = "g2o") -> dict[str, float]:
+    """chi2 of a whole graph at the given poses (one ``(n_a, pose_width)`` array per agent, in the
+    graph's pose kind; default: each agent's ground truth), per edge class:
+    ``{"odometry", "intra", "inter", "total"}``. ``total`` is what g2o's ``activeChi2`` reports."""
+    if poses_per_agent is None:
+        poses_per_agent = []
+        for agent in graph.agents:
+            if agent.ground_truth is None:
+                raise GraphError(f"agent {agent.name} has no ground truth; pass poses_per_agent")
+            poses_per_agent.append(agent.ground_truth)
+    if len(poses_per_agent) != len(graph.agents):
+        raise GraphError(f"{len(poses_per_agent)} pose arrays for {len(graph.agents)} agents")
+    poses = [np.asarray(p, dtype=np.float64) for p in poses_per_agent]
+    out = {"odometry": 0.0, "intra": 0.0, "inter": 0.0}
+    for agent, x in zip(graph.agents, poses):
+        for name, edges in (("odometry", agent.odometry), ("intra", agent.loop_closures)):
+            if len(edges):
+                e = edge_errors(x[edges.from_index], x[edges.to_index], edges.measurements, convention=convention)
+                out[name] += float(chi2_terms(e, edges.information_upper).sum())
+    inter = graph.inter
+    if len(inter):
+        offsets = np.concatenate([[0], np.cumsum([len(x) for x in poses])])
+        stacked = np.concatenate(poses)
+        xi = stacked[offsets[inter.from_agent] + inter.from_index]
+        xj = stacked[offsets[inter.to_agent] + inter.to_index]
+        e = edge_errors(xi, xj, inter.measurements, convention=convention)
+        out["inter"] = float(chi2_terms(e, inter.information_upper).sum())
+    out["total"] = out["odometry"] + out["intra"] + out["inter"]
+    return out

@@ -108,3 +108,52 @@ def test_cli_check_json_and_errors(converted, tmp_path):
         f"error: {tmp_path / 'nogt'}: agent alpha has no ground truth (alpha_GT.tum); "
         "a dataset is checked at its ground truth"]
     assert np.isfinite([c["total"]["factor"] for c in data["classes"]]).all()
+
+
+def rotate_into_g2o_error_frame(info_upper: np.ndarray, theta_z: np.ndarray) -> np.ndarray:
+    """Omega' = D^T Omega D, D = blkdiag(R(theta_z), 1): planar information given in the frame of the
+    edge's start pose (kollagen's derivation) moved into the frame of g2o's EDGE_SE2 error (the measured
+    end pose). Upper triangles ``I11 I12 I13 I22 I23 I33``."""
+    i11, i12, i13, i22, i23, i33 = info_upper.T
+    c, s = np.cos(theta_z), np.sin(theta_z)
+    return np.column_stack([c * c * i11 + 2 * c * s * i12 + s * s * i22,
+                            -c * s * i11 + (c * c - s * s) * i12 + c * s * i22,
+                            c * i13 + s * i23,
+                            s * s * i11 - 2 * c * s * i12 + c * c * i22,
+                            -s * i13 + c * i23,
+                            i33])
+
+
+def test_kollagen_exact_information_rotated_into_g2os_error_frame_is_consistent(tmp_path):
+    """The finding behind the flag: rotating each Exact odometry information by its measured heading
+    change makes the same edges consistent; the opposite rotation does not."""
+    from studio.io.g2o import read_g2o, write_g2o
+
+    cfg = load_synth_config(DATA / "configs" / "small3x100.json")
+    # 1000 steps: the rotated Exact model is nearly singular (lateral position and heading almost fully
+    # correlated), its per-edge chi2 is heavy-tailed, so a few hundred edges give a noisy factor
+    exact = dataclasses.replace(cfg, exact_information_matrix=True, name="exact", number_of_steps=1000)
+    res = synthesize(exact, tmp_path, rrd=False, jobs=1)
+    doc = read_g2o(res.single_dir / "exact.g2o")
+    odo = np.abs(doc.edge_to - doc.edge_from) == 1
+    theta_z = doc.edge_measurements[odo, 2]
+    assert np.count_nonzero(np.abs(theta_z) > 1.0) >= 10  # there are turning edges to fix
+
+    def checked(sign: float) -> "object":
+        info = doc.edge_information_upper.copy()
+        info[odo] = rotate_into_g2o_error_frame(info[odo], sign * theta_z)
+        folder = tmp_path / f"rotated{sign:+.0f}"
+        folder.mkdir()
+        write_g2o(folder / "exact.g2o", dataclasses.replace(doc, edge_information_upper=info))
+        (folder / "exact_GT.tum").write_bytes((res.single_dir / "exact_GT.tum").read_bytes())
+        return check(folder / "exact.g2o").summary("odometry")
+
+    fixed = checked(+1.0)
+    assert fixed.verdicts["total"] == "consistent", fixed.verdicts
+    assert 0.9 < fixed.total.factor < 1.1
+    assert fixed.excluded < 0.01 * fixed.edges
+    as_written = check(res.single_dir / "exact.g2o").summary("odometry")
+    assert as_written.total.factor > 20 * fixed.total.factor
+    # the opposite rotation leaves the quarter turns wrong: hundreds of them become outlier candidates
+    wrong = checked(-1.0)
+    assert wrong.excluded > 0.05 * wrong.edges or wrong.verdicts["total"].startswith("over-confident")
