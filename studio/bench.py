@@ -30,7 +30,6 @@ import multiprocessing
 import os
 import resource
 import time
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -38,6 +37,7 @@ from typing import Any, Callable, Mapping, Sequence
 from studio.core.errors import ConfigError, StudioError
 from studio.core.progress import Progress, report
 from studio.io.atomic import write_replacing
+from studio.io.spec_file import read_spec_file
 
 __all__ = ["BenchSpec", "BenchResult", "Cell", "load_bench_spec", "bench", "PAPER_SPEC", "format_paper_table"]
 
@@ -186,19 +186,7 @@ def load_bench_spec(source: str | os.PathLike) -> BenchSpec:
     path = Path(text)
     if not path.is_file():
         raise ConfigError(f"{text}: no such spec file, and not a built-in spec (built-in: paper)")
-    try:
-        raw = path.read_bytes()
-        if path.suffix == ".json":
-            data = json.loads(raw.decode("utf-8"))
-        else:
-            data = tomllib.loads(raw.decode("utf-8"))
-    except UnicodeDecodeError as err:
-        raise ConfigError(f"{path}: not UTF-8 text (byte {err.start})") from None
-    except json.JSONDecodeError as err:
-        raise ConfigError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError(f"{path}: not valid TOML ({err})") from None
-    return bench_spec_from_dict(data, str(path))
+    return bench_spec_from_dict(read_spec_file(path, what="bench spec"), str(path))
 
 
 # ------------------------------------------------------------------------------------------- datasets

@@ -40,7 +40,6 @@ import math
 import os
 import shutil
 import time
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -48,6 +47,7 @@ from typing import Any, Callable, Mapping, Sequence
 from studio.core.errors import ConfigError, StudioError
 from studio.core.progress import Progress, report
 from studio.io.atomic import write_replacing
+from studio.io.spec_file import read_spec_file
 
 __all__ = ["SweepSpec", "SweepResult", "CellTask", "load_sweep_spec", "sweep_spec_from_dict", "expand", "sweep",
            "run_cell", "STEPS"]
@@ -147,18 +147,7 @@ def sweep_spec_from_dict(data: Any, source: str) -> SweepSpec:
 
 def load_sweep_spec(path: str | os.PathLike) -> SweepSpec:
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"{path}: no such sweep spec")
-    try:
-        text = path.read_bytes().decode("utf-8")
-        data = json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
-    except UnicodeDecodeError as err:
-        raise ConfigError(f"{path}: not UTF-8 text (byte {err.start})") from None
-    except json.JSONDecodeError as err:
-        raise ConfigError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError(f"{path}: not valid TOML ({err})") from None
-    spec = sweep_spec_from_dict(data, str(path))
+    spec = sweep_spec_from_dict(read_spec_file(path, what="sweep spec"), str(path))
     base = spec.base
     if not Path(base).is_absolute() and (path.parent / base).is_file():
         spec = SweepSpec(spec.name, str(path.parent / base), spec.grid, spec.cells, spec.steps, spec.options,

@@ -8,7 +8,6 @@ pipelines (modules directly in ``studio/``) may also use each other; ``studio.cl
 from __future__ import annotations
 
 import ast
-import tomllib
 from pathlib import Path
 
 import pytest
@@ -126,7 +125,9 @@ def test_only_cli_imports_typer():
 
 
 def test_the_wheel_installs_one_top_level_package():
-    cfg = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]
+    from studio.io.spec_file import read_spec_file
+
+    cfg = read_spec_file(REPO / "pyproject.toml")["tool"]["setuptools"]
     packages = cfg["packages"]
     assert {p.split(".")[0] for p in packages} == {"studio"}
     # every package folder of the source tree is listed, so none is silently left out of the wheel

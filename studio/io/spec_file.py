@@ -1,0 +1,41 @@
+"""Spec files of ``studio bench`` and ``studio sweep``: TOML (or JSON for ``.json``), read into a
+plain mapping with one-line errors naming the file (and line, where the parser gives one)."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+from studio.core.errors import ConfigError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # Python 3.10: the same parser, as a package
+    import tomli as tomllib
+
+__all__ = ["read_spec_file"]
+
+#: Larger spec files are refused before reading (a spec is a few kB).
+MAX_SPEC_BYTES = 4 * 1024 * 1024
+
+
+def read_spec_file(path: str | os.PathLike, *, what: str = "spec") -> Any:
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such {what} file")
+    try:
+        if path.stat().st_size > MAX_SPEC_BYTES:
+            raise ConfigError(f"{path}: larger than {MAX_SPEC_BYTES >> 20} MiB; not a {what}")
+        text = path.read_bytes().decode("utf-8")
+        return json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{path}: not UTF-8 text (byte {err.start})") from None
+    except json.JSONDecodeError as err:
+        raise ConfigError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(f"{path}: not valid TOML ({err})") from None
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read ({err.strerror})") from None
