@@ -226,6 +226,13 @@ def test_kimera_multi_folder_with_w_x_y_z_quaternions(tmp_path):
     ("kitti", "00.txt", "1 0 0 0 0 1 0 0 0 0 1 x\n", "00.txt:1: 'x' is not a number"),
     ("kitti", "00.txt", "2 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1 1\n", "pose 0 is not a rotation"),
     ("kimera-multi", "r_gt_odom.csv", "#timestamp_kf,x,y,z,qw,qx,qy,qz\n1,0,0,0,1,0,0\n", "r_gt_odom.csv:2: expected 8 columns"),
+    # a file whose header names the quaternion x y z w (a TUM-ordered export under the dataset's name)
+    # is refused: read by position, its rotations would be scrambled
+    ("kimera-multi", "r_gt_odom.csv", "#timestamp_kf,x,y,z,qx,qy,qz,qw\n1,0,0,0,0,0,0,1\n2,1,0,0,0,0,0,1\n",
+     "r_gt_odom.csv:1: the header orders the quaternion x y z w"),
+    ("euroc", "MH_01_easy/mav0/state_groundtruth_estimate0/data.csv",
+     "#timestamp,p_x,p_y,p_z,q_x,q_y,q_z,q_w" + ",v" * 9 + "\n1" + ",0" * 6 + ",1" + ",0" * 9 + "\n",
+     "data.csv:1: the header orders the quaternion x y z w"),
 ])
 def test_bad_files_are_one_line(tmp_path, source, name, text, message):
     path = tmp_path / name
@@ -381,3 +388,19 @@ def test_kollagens_reader_takes_ten_split_agents_in_string_order(tmp_path):
     # the split windows follow each other in time: in kollagen's order the 2nd agent is the last window
     t0 = [a["t0"] for a in seen["agents"]]
     assert t0[1] == max(t0) and sorted(t0) == [t0[i] for i in natural]
+
+
+def test_the_shipped_headers_are_read(tmp_path):
+    """The exact header lines of EuRoC and Kimera-Multi pass the quaternion-order check."""
+    from studio.converters.text import read_table
+    euroc = tmp_path / "data.csv"
+    euroc.write_text("#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], "
+                     "q_RS_z [], v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], "
+                     "b_w_RS_S_y [rad s^-1], b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], "
+                     "b_a_RS_S_z [m s^-2]\r\n1403636580838555648," + ",".join(["0.5"] * 16) + "\r\n")
+    table, stamps = read_table(euroc, 17, what="EuRoC", int_first=True, quaternion="wxyz")
+    assert stamps.tolist() == [1403636580838555648] and table.shape == (1, 17)
+    kimera = tmp_path / "acl_jackal_gt_odom.csv"
+    kimera.write_text("#timestamp_kf,x,y,z,qw,qx,qy,qz\n1665777000123456789,1,2,3,1,0,0,0\n")
+    table, stamps = read_table(kimera, 8, what="Kimera", int_first=True, quaternion="wxyz")
+    assert stamps.tolist() == [1665777000123456789] and table[0, 4] == 1.0
