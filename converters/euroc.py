@@ -52,7 +52,7 @@ def read_euroc(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (
         if found is None:
             raise FormatError(f"{raw}: no EuRoC ground truth ({GT_RELATIVE})")
         name, csv = found
-        table, stamps = read_table(csv, 17, what=_WHAT, int_first=True)
+        table, stamps = read_table(csv, 17, what=_WHAT, int_first=True, quaternion="wxyz")
         assert stamps is not None
         quat_xyzw = table[:, [5, 6, 7, 4]]  # w x y z in the file
         out.append(clean_trajectory(name, stamps, table[:, 1:4], quat_xyzw, str(csv), warn))

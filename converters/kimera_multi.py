@@ -44,7 +44,7 @@ def read_kimera_multi(inputs: Sequence[str | os.PathLike], *, agents: Sequence[s
         raise ConfigError("studio convert kimera-multi needs a ground-truth folder or <robot>_gt_odom.csv files")
     out = []
     for f in files:
-        table, stamps = read_table(f, 8, what=_WHAT, int_first=True)
+        table, stamps = read_table(f, 8, what=_WHAT, int_first=True, quaternion="wxyz")
         assert stamps is not None
         name = safe_agent_name(f.name[: -len(SUFFIX)] if f.name.endswith(SUFFIX) else f.stem)
         out.append(clean_trajectory(name, stamps, table[:, 1:4], table[:, [5, 6, 7, 4]], str(f), warn))

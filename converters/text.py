@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -18,13 +19,29 @@ __all__ = ["read_table"]
 MAX_TABLE_BYTES = 1 << 30
 
 
+_QUAT_NAME = re.compile(r"^q(?:_?[a-z]*_)?([wxyz])$")
+
+
+def _quaternion_order(header: str) -> str:
+    """The quaternion components a header line names, in its order (``"wxyz"`` for
+    ``#timestamp_kf,x,y,z,qw,qx,qy,qz`` or EuRoC's ``q_RS_w [], ...``); ``""`` when it names none."""
+    names = [re.sub(r"\[.*?\]", "", f).strip().lower() for f in header.lstrip("#").split(",")]
+    if len(names) == 1:
+        names = header.lstrip("#").lower().split()
+    return "".join(m.group(1) for m in map(_QUAT_NAME.match, names) if m)
+
+
 def read_table(path: str | os.PathLike, columns: int | tuple[int, ...], *, what: str,
-               int_first: bool = False, header: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+               int_first: bool = False, header: bool = True,
+               quaternion: str | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """Rows of ``columns`` numbers (or any of several counts), as ``(values, first_column_int)``.
 
     ``int_first`` keeps the first column exactly as an int64 (nanosecond stamps) besides the float
     table. A first non-numeric line is a header; ``#`` lines are comments; commas or whitespace
-    separate. ``what`` names the expected layout in messages.
+    separate. ``what`` names the expected layout in messages. With ``quaternion`` (e.g. ``"wxyz"``),
+    a header line (``#`` or not) before the data that names the quaternion's components in another
+    order is refused, naming its line: the columns are read by position, so such a file would
+    otherwise be read with its rotations scrambled.
     """
     path = Path(path)
     counts = (columns,) if isinstance(columns, int) else columns
@@ -42,6 +59,11 @@ def read_table(path: str | os.PathLike, columns: int | tuple[int, ...], *, what:
     seen = False
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
+        if line and quaternion and not rows:
+            order = _quaternion_order(line)
+            if len(order) == 4 and sorted(order) == sorted(quaternion) and order != quaternion:
+                raise FormatError(f"{path}:{lineno}: the header orders the quaternion {' '.join(order)}; "
+                                  f"{what} has {' '.join(quaternion)}")
         if not line or line.startswith("#"):
             continue
         parts = [p for p in line.replace(",", " ").split()]

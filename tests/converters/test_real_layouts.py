@@ -226,6 +226,13 @@ def test_kimera_multi_folder_with_w_x_y_z_quaternions(tmp_path):
     ("kitti", "00.txt", "1 0 0 0 0 1 0 0 0 0 1 x\n", "00.txt:1: 'x' is not a number"),
     ("kitti", "00.txt", "2 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1 1\n", "pose 0 is not a rotation"),
     ("kimera-multi", "r_gt_odom.csv", "#timestamp_kf,x,y,z,qw,qx,qy,qz\n1,0,0,0,1,0,0\n", "r_gt_odom.csv:2: expected 8 columns"),
+    # a file whose header names the quaternion x y z w (a TUM-ordered export under the dataset's name)
+    # is refused: read by position, its rotations would be scrambled
+    ("kimera-multi", "r_gt_odom.csv", "#timestamp_kf,x,y,z,qx,qy,qz,qw\n1,0,0,0,0,0,0,1\n2,1,0,0,0,0,0,1\n",
+     "r_gt_odom.csv:1: the header orders the quaternion x y z w"),
+    ("euroc", "MH_01_easy/mav0/state_groundtruth_estimate0/data.csv",
+     "#timestamp,p_x,p_y,p_z,q_x,q_y,q_z,q_w" + ",v" * 9 + "\n1" + ",0" * 6 + ",1" + ",0" * 9 + "\n",
+     "data.csv:1: the header orders the quaternion x y z w"),
 ])
 def test_bad_files_are_one_line(tmp_path, source, name, text, message):
     path = tmp_path / name
@@ -249,47 +256,69 @@ def test_an_ambiguous_path_asks_for_the_source(tmp_path):
 # ------------------------------------------------------------------------------------------- kollagen's reader
 
 
-def kollagen_open(folder: Path) -> dict:
-    """What ``kollagen::multig2o::open(folder, true)`` (its MultiG2oParse.h) reads, re-told in Python:
+def kollagen_open(folder: Path, three_d: bool = True) -> dict:
+    """What ``kollagen::multig2o::open(folder, _3D)`` (its MultiG2oParse.h) reads, re-told in Python:
     agent folders are those whose name starts with "agent" and that hold posegraph.g2o and
-    <folder>_GT.tum, sorted as strings; in each g2o file the vertices come first, then edges: odometry
-    until the first edge with to - from != 1, every edge after it a loop closure; the GT file is read
-    as whitespace-separated numbers (8 per pose) until the first non-number; inter_agent_lc.dat as
-    rows of 4 integers and 28 numbers."""
+    <folder>_GT.tum, sorted as strings (agent10 before agent2); in each g2o file the first token must be
+    the vertex tag, the vertices come first, then at least one edge (vertices only is an error):
+    odometry until the first edge with to - from != 1, every edge after it a loop closure; the GT file
+    is read as whitespace-separated numbers (8 per pose) until the first non-number;
+    inter_agent_lc.dat as rows of 4 integers and 28 numbers (3D) or 4 integers and 9 numbers (2D),
+    until the first row that does not read. (kollagen's ``helper::parse`` at commit 3571aac then
+    returns ``{}`` instead of what it parsed; the files are still read whole, and every error
+    thrown, which is what this checks.)"""
+    vtag, etag = ("VERTEX_SE3:QUAT", "EDGE_SE3:QUAT") if three_d else ("VERTEX_SE2", "EDGE_SE2")
+    vlen, elen = (1 + 7, 2 + 7 + 21) if three_d else (1 + 3, 2 + 3 + 6)
     if not (folder / "inter_agent_lc.dat").exists():
         raise ValueError("multig2o is missing an inter_agent_lc.dat")
-    dirs = sorted(p for p in folder.iterdir() if p.name.startswith("agent") and (p / "posegraph.g2o").exists()
-                  and (p / f"{p.name}_GT.tum").exists())
+    dirs = sorted((p for p in folder.iterdir() if p.name.startswith("agent") and (p / "posegraph.g2o").exists()
+                   and (p / f"{p.name}_GT.tum").exists()), key=lambda p: str(p))
     if not dirs:
         raise ValueError("Unable to find agent folders in provided multig2o")
     agents = []
     for d in dirs:
         tokens = (d / "posegraph.g2o").read_text().split()
-        if tokens[0] != "VERTEX_SE3:QUAT":
-            raise ValueError("First line of g2o should read VERTEX_SE3:QUAT")
+        if not tokens or tokens[0] != vtag:
+            raise ValueError(f"First line of g2o should read {vtag}")
         k, vertices, odometry, loops, seen_lc = 0, 0, 0, 0, False
-        while k < len(tokens) and tokens[k] == "VERTEX_SE3:QUAT":
+        while k < len(tokens) and tokens[k] != etag:
+            if tokens[k] != vtag:  # kollagen would read this tag's numbers as a vertex; we refuse it
+                raise ValueError(f"unexpected {tokens[k]} among the vertices of {d.name}")
+            int(tokens[k + 1]), [float(t) for t in tokens[k + 2:k + 1 + vlen]]
             vertices += 1
-            k += 9
+            k += 1 + vlen
+        if k >= len(tokens):
+            raise ValueError(f"First line after {vtag} in g2o should read {etag}")
         while k < len(tokens):
-            if tokens[k] != "EDGE_SE3:QUAT":
+            if tokens[k] != etag:
                 raise ValueError(f"unexpected {tokens[k]}")
             fr, to = int(tokens[k + 1]), int(tokens[k + 2])
+            [float(t) for t in tokens[k + 3:k + 1 + elen]]
             if seen_lc or to - fr != 1:
                 seen_lc = True
                 loops += 1
             else:
                 odometry += 1
-            k += 3 + 7 + 21
+            k += 1 + elen
         gt = []
         for tok in (d / f"{d.name}_GT.tum").read_text().split():
             try:
                 gt.append(float(tok))
             except ValueError:
                 break
-        agents.append({"vertices": vertices, "odometry": odometry, "loop_closures": loops, "gt": len(gt) // 8})
+        agents.append({"folder": d.name, "vertices": vertices, "odometry": odometry, "loop_closures": loops,
+                       "gt": len(gt) // 8, "t0": gt[0] if gt else None})
+    row = 4 + (28 if three_d else 9)
     dat = (folder / "inter_agent_lc.dat").read_text().split()
-    return {"agents": agents, "inter": len(dat) // 32}
+    rows = 0
+    for r in range(len(dat) // row):
+        cells = dat[r * row:(r + 1) * row]
+        try:
+            [int(c) for c in cells[:4]], [float(c) for c in cells[4:]]
+        except ValueError:
+            break
+        rows += 1
+    return {"agents": agents, "inter": rows}
 
 
 def test_a_converted_dataset_is_read_whole_by_kollagens_reader(tmp_path):
@@ -312,3 +341,66 @@ def test_a_converted_dataset_is_read_whole_by_kollagens_reader(tmp_path):
     assert [a.name for a in read_multi_g2o(tmp_path / "robots").agents] == ["robot0", "robot1", "robot2"]
     assert np.allclose(se3_poses_to_planar(g.agents[0].ground_truth)[:, 0:2],
                        se3_poses_to_planar(read_multi_g2o(tmp_path / "ds").agents[0].ground_truth)[:, 0:2])
+
+
+def _assert_kollagen_reads_all(seen: dict, g) -> None:
+    assert [a["vertices"] for a in seen["agents"]] == [a.num_poses for a in g.agents]
+    assert [a["gt"] for a in seen["agents"]] == [a.num_poses for a in g.agents]
+    assert [a["odometry"] for a in seen["agents"]] == [len(a.odometry) for a in g.agents]
+    assert [a["loop_closures"] for a in seen["agents"]] == [len(a.loop_closures) for a in g.agents]
+    assert seen["inter"] == len(g.inter) > 0
+
+
+def test_a_planar_s3e_conversion_is_read_whole_by_kollagens_2d_reader(tmp_path):
+    """Planar output (2D records) as kollagen reads it with ``open(dir, false)``; 3D reading refuses it."""
+    gt = tmp_path / "GT"
+    gt.mkdir()
+    for k, name in enumerate(("Alpha", "Bob")):
+        s, p, _ = curved_path(600, seed=k)
+        p[:, 0] -= 30 * k  # both robots in the same streets
+        lines = [f"{t / 1e9:.5f} {x:.9f} {y:.8f} {z:.4f} 0 0 0 1" for t, (x, y, z) in zip(s, p)]
+        (gt / f"{name}_gt.txt").write_text("\n".join(lines) + "\n")
+    res = convert(ConvertConfig("s3e", (str(gt),), options=GraphOptions(planar=True)), tmp_path / "ds", rrd=False)
+    g = res.build.graph
+    assert (tmp_path / "ds" / "agent1" / "posegraph.g2o").read_text().startswith("VERTEX_SE2 ")
+    _assert_kollagen_reads_all(kollagen_open(tmp_path / "ds", three_d=False), g)
+    with pytest.raises(ValueError, match="should read VERTEX_SE3:QUAT"):
+        kollagen_open(tmp_path / "ds", three_d=True)
+
+
+def test_kollagens_reader_takes_ten_split_agents_in_string_order(tmp_path):
+    """--split 10: every agent is read whole, but kollagen lists agent10 second (string order), so its
+    agent index k is not inter_agent_lc.dat's k for 10 or more agents (docs/formats.md says so)."""
+    s, p, q = loop_trajectory(2000, radius=15.0, laps=6.0, centre=(UTM_EAST, UTM_NORTH, 20.0))
+    f = write_tum_file(tmp_path / "run.txt", s, p, q)
+    res = convert(ConvertConfig("tum", (str(f),), split=10, overlap_s=5.0), tmp_path / "ds", rrd=False)
+    g = res.build.graph
+    seen = kollagen_open(tmp_path / "ds")
+    folders = [a["folder"] for a in seen["agents"]]
+    assert folders == sorted(f"agent{k}" for k in range(1, 11)) and folders[1] == "agent10"
+    natural = sorted(range(10), key=lambda i: int(folders[i][len('agent'):]))
+    reordered = {key: [seen["agents"][i][key] for i in natural] for key in ("vertices", "odometry", "loop_closures", "gt")}
+    assert reordered["vertices"] == [a.num_poses for a in g.agents]
+    assert reordered["gt"] == [a.num_poses for a in g.agents]
+    assert reordered["odometry"] == [len(a.odometry) for a in g.agents]
+    assert reordered["loop_closures"] == [len(a.loop_closures) for a in g.agents]
+    assert seen["inter"] == len(g.inter) > 0
+    # the split windows follow each other in time: in kollagen's order the 2nd agent is the last window
+    t0 = [a["t0"] for a in seen["agents"]]
+    assert t0[1] == max(t0) and sorted(t0) == [t0[i] for i in natural]
+
+
+def test_the_shipped_headers_are_read(tmp_path):
+    """The exact header lines of EuRoC and Kimera-Multi pass the quaternion-order check."""
+    from studio.converters.text import read_table
+    euroc = tmp_path / "data.csv"
+    euroc.write_text("#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], "
+                     "q_RS_z [], v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], "
+                     "b_w_RS_S_y [rad s^-1], b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], "
+                     "b_a_RS_S_z [m s^-2]\r\n1403636580838555648," + ",".join(["0.5"] * 16) + "\r\n")
+    table, stamps = read_table(euroc, 17, what="EuRoC", int_first=True, quaternion="wxyz")
+    assert stamps.tolist() == [1403636580838555648] and table.shape == (1, 17)
+    kimera = tmp_path / "acl_jackal_gt_odom.csv"
+    kimera.write_text("#timestamp_kf,x,y,z,qw,qx,qy,qz\n1665777000123456789,1,2,3,1,0,0,0\n")
+    table, stamps = read_table(kimera, 8, what="Kimera", int_first=True, quaternion="wxyz")
+    assert stamps.tolist() == [1665777000123456789] and table[0, 4] == 1.0
