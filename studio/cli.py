@@ -21,6 +21,7 @@ from studio.core.progress import terminal_progress
 
 app = typer.Typer(
     name="studio",
+    rich_markup_mode=None,  # help text is plain: units such as [m] and [rad] stay as written
     help="cslam-studio: collaborative-SLAM pose-graph datasets (kollagen-exact synthesis and more).",
     no_args_is_help=True,
     add_completion=False,
@@ -53,6 +54,16 @@ def _root(
     """cslam-studio: collaborative-SLAM pose-graph datasets."""
 
 
+def _as_flags(err: StudioError) -> str:
+    """The error's text, with the library option it names (``lc_radius: ...``) written as the flag
+    the user typed (``--lc-radius: ...``)."""
+    text = str(err)
+    option = getattr(err, "option", None)
+    if option and text.startswith(f"{option}:"):
+        return "--" + option.replace("_", "-") + text[len(option):]
+    return text
+
+
 def cli_errors(func):
     """Turn a StudioError into one line on stderr and exit code 2 (no traceback)."""
 
@@ -61,7 +72,7 @@ def cli_errors(func):
         try:
             return func(*args, **kwargs)
         except StudioError as err:
-            typer.echo(f"error: {err}", err=True)
+            typer.echo(f"error: {_as_flags(err)}", err=True)
             raise typer.Exit(2) from None
 
     return wrapper
@@ -239,31 +250,6 @@ def snapshot(
 
 # --- studio convert -----------------------------------------------------------------------------
 # Every GraphOptions field is a kebab-case flag; defaults and help come from converters.build.
-_CONVERT_HELP = {
-    "seed": "Seed of every random draw: same inputs, options and seed give byte-identical output.",
-    "keyframe_distance": "A keyframe every this many metres of path (0: off).",
-    "keyframe_angle": "A keyframe every this many degrees of rotation (0: off).",
-    "keyframe_time": "A keyframe every this many seconds (0: off).",
-    "max_gap": "Stamps further apart than this many seconds are a gap: bridged and reported.",
-    "gap_sigma_m_per_s": "Extra translation std dev of a gap-bridging edge [m per second of gap].",
-    "gap_sigma_rad_per_s": "Extra rotation std dev of a gap-bridging edge [rad per second of gap].",
-    "odo_sigma_m_per_m": "Odometry translation std dev per metre travelled [m/m].",
-    "odo_sigma_rad_per_rad": "Odometry rotation std dev per radian turned [rad/rad].",
-    "odo_sigma_rad_per_m": "Odometry rotation std dev per metre travelled [rad/m].",
-    "odo_sigma_min_m": "Odometry translation std dev floor [m].",
-    "odo_sigma_min_rad": "Odometry rotation std dev floor [rad].",
-    "lc_radius": "Loop-closure radius R [m].",
-    "lc_prob_intra": "Intra-agent loop-closure probability p (accepted with p*exp(-5(d/R)^2)).",
-    "lc_prob_inter": "Inter-agent loop-closure probability p.",
-    "lc_min_time": "Intra-agent pairs at least this many seconds apart.",
-    "lc_min_index": "Intra-agent pairs at least this many keyframes apart.",
-    "lc_max_heading": "Heading compatibility: x axes within this many degrees (0: off).",
-    "rendezvous": "Inter-agent pairs only within this many seconds of each other (0: any time).",
-    "lc_sigma_m": "Loop-closure translation noise std dev [m].",
-    "lc_sigma_rad": "Loop-closure rotation noise std dev [rad].",
-    "outlier_fraction": "Fraction of loop closures made outliers (listed in outliers.txt).",
-    "planar": "Project to SE(2) and write 2D records.",
-}
 
 
 @app.command()
@@ -299,29 +285,7 @@ def convert(
     folder_names: str = typer.Option("agents", "--folder-names",
                                      help="agents: folders agent1..agentN with agents.json (kollagen's reader); "
                                           "robots: folders named after the robots."),
-    seed: int = typer.Option(0, help=_CONVERT_HELP["seed"]),
-    keyframe_distance: float = typer.Option(1.0, help=_CONVERT_HELP["keyframe_distance"]),
-    keyframe_angle: float = typer.Option(15.0, help=_CONVERT_HELP["keyframe_angle"]),
-    keyframe_time: float = typer.Option(0.0, help=_CONVERT_HELP["keyframe_time"]),
-    max_gap: float = typer.Option(1.0, help=_CONVERT_HELP["max_gap"]),
-    gap_sigma_m_per_s: float = typer.Option(0.05, help=_CONVERT_HELP["gap_sigma_m_per_s"]),
-    gap_sigma_rad_per_s: float = typer.Option(0.005, help=_CONVERT_HELP["gap_sigma_rad_per_s"]),
-    odo_sigma_m_per_m: float = typer.Option(0.02, help=_CONVERT_HELP["odo_sigma_m_per_m"]),
-    odo_sigma_rad_per_rad: float = typer.Option(0.02, help=_CONVERT_HELP["odo_sigma_rad_per_rad"]),
-    odo_sigma_rad_per_m: float = typer.Option(0.001, help=_CONVERT_HELP["odo_sigma_rad_per_m"]),
-    odo_sigma_min_m: float = typer.Option(0.002, help=_CONVERT_HELP["odo_sigma_min_m"]),
-    odo_sigma_min_rad: float = typer.Option(0.0005, help=_CONVERT_HELP["odo_sigma_min_rad"]),
-    lc_radius: float = typer.Option(2.0, help=_CONVERT_HELP["lc_radius"]),
-    lc_prob_intra: float = typer.Option(0.5, help=_CONVERT_HELP["lc_prob_intra"]),
-    lc_prob_inter: float = typer.Option(0.5, help=_CONVERT_HELP["lc_prob_inter"]),
-    lc_min_time: float = typer.Option(30.0, help=_CONVERT_HELP["lc_min_time"]),
-    lc_min_index: int = typer.Option(10, help=_CONVERT_HELP["lc_min_index"]),
-    lc_max_heading: float = typer.Option(0.0, help=_CONVERT_HELP["lc_max_heading"]),
-    rendezvous: float = typer.Option(0.0, help=_CONVERT_HELP["rendezvous"]),
-    lc_sigma_m: float = typer.Option(0.05, help=_CONVERT_HELP["lc_sigma_m"]),
-    lc_sigma_rad: float = typer.Option(0.01, help=_CONVERT_HELP["lc_sigma_rad"]),
-    outlier_fraction: float = typer.Option(0.0, help=_CONVERT_HELP["outlier_fraction"]),
-    planar: bool = typer.Option(False, "--planar", help=_CONVERT_HELP["planar"]),
+    **graph_options: Any,
 ) -> None:
     """Turn real trajectories into a multi-g2o dataset with synthetic odometry and loop closures.
 
@@ -353,7 +317,7 @@ def convert(
         source = guess_source(inputs)
     if config is not None:
         base = read_convert_config(config)
-        overrides = {k: ctx.params[k] for k in option_names if k in given}
+        overrides = {k: graph_options[k] for k in option_names if k in given}
         cfg = ConvertConfig(source or base.source, tuple(str(p) for p in inputs) if inputs else base.inputs,
                             tuple(agent) if agent else base.agents,
                             dataclasses.replace(base.options, **overrides),
@@ -363,7 +327,7 @@ def convert(
             raise ConfigError(f"give a FORMAT ({', '.join(source_names())}), inputs whose format can be guessed, "
                               "or --config")
         cfg = ConvertConfig(source, tuple(str(p) for p in inputs or ()), tuple(agent),
-                            GraphOptions(**{k: ctx.params[k] for k in option_names}), **pipeline)
+                            GraphOptions(**{k: graph_options[k] for k in option_names}), **pipeline)
     t0 = time.perf_counter()
     with terminal_progress(not quiet) as progress:
         res = run_convert(cfg, out, force=force, warn=_warn, progress=progress, rrd=rrd,
@@ -382,6 +346,31 @@ def convert(
                        f"{', '.join(sorted(res.orientation))}")
         for gap in res.build.gaps:
             typer.echo(f"  gap: {gap.agent} vertex {gap.vertex}: {gap.seconds:.3f} s, {gap.metres:.2f} m bridged")
+
+
+def _with_graph_options(command: Any) -> Any:
+    """Give ``command`` one typer option per :class:`GraphOptions` field, its default, help text and
+    unit taken from the field (declared once, in ``converters/build.py``)."""
+    import dataclasses
+    import inspect
+
+    from studio.converters.build import GraphOptions, option_help
+
+    sig = inspect.signature(command)
+    params = [p for p in sig.parameters.values() if p.kind is not inspect.Parameter.VAR_KEYWORD]
+    hints = dict(getattr(command, "__annotations__", {}))
+    for f in dataclasses.fields(GraphOptions):
+        flag = "--" + f.name.replace("_", "-")
+        annotation = {"int": int, "float": float, "bool": bool}[f.type if isinstance(f.type, str) else f.type.__name__]
+        option = typer.Option(f.default, flag, help=option_help(f.name))
+        params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=annotation))
+        hints[f.name] = annotation
+    command.__signature__ = sig.replace(parameters=params)
+    command.__annotations__ = hints
+    return command
+
+
+_with_graph_options(convert)
 
 
 class MethodChoice(str, enum.Enum):

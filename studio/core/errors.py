@@ -22,7 +22,14 @@ class StudioError(Exception):
 
 
 class ConfigError(StudioError):
-    """A configuration (JSON file, preset name, option value) is invalid."""
+    """A configuration (JSON file, preset name, option value) is invalid.
+
+    ``option`` names the library option at fault (``lc_radius``), so the command line can name its
+    flag (``--lc-radius``) while a config file's reader names the key."""
+
+    def __init__(self, message: str, *, option: str | None = None) -> None:
+        super().__init__(message)
+        self.option = option
 
 
 class FormatError(StudioError):

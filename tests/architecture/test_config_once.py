@@ -1,0 +1,51 @@
+"""Options are declared once: the convert flags, their defaults, help and units come from
+GraphOptions; errors name the option in the library and the flag on the command line."""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from studio.cli import app
+from studio.convert import config_from_mapping
+from studio.converters.build import GraphOptions, option_help
+from studio.core.errors import ConfigError
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _help() -> str:
+    res = CliRunner().invoke(app, ["convert", "--help"], env={"COLUMNS": "300"})
+    assert res.exit_code == 0
+    return re.sub(r"\s+", " ", res.output)
+
+
+def test_convert_help_keeps_units_and_comes_from_graph_options():
+    text = _help()
+    for unit in ("[m]", "[rad]", "[s]", "[deg]", "[m/m]"):
+        assert unit in text
+    for f in dataclasses.fields(GraphOptions):
+        assert "--" + f.name.replace("_", "-") in text
+        assert re.sub(r"\s+", "", option_help(f.name)) in re.sub(r"\s+", "", text)  # help wraps lines
+        assert f"[default: {f.default}]" in text or isinstance(f.default, bool)
+
+
+def test_the_cli_repeats_no_graph_option():
+    source = (REPO / "studio" / "cli.py").read_text(encoding="utf-8")
+    for f in dataclasses.fields(GraphOptions):
+        assert f'"--{f.name.replace("_", "-")}"' not in source, f.name
+    assert "AlignChoice" not in source  # evaluate's Alignment is used directly
+
+
+def test_errors_name_the_option_in_a_config_file_and_the_flag_on_the_command_line(tmp_path):
+    with pytest.raises(ConfigError, match=r"^convert\.json: lc_radius: must be > 0$"):
+        config_from_mapping({"source": "tum", "inputs": [], "lc_radius": 0}, "convert.json")
+    f = tmp_path / "a.tum"
+    f.write_text("1 0 0 0 0 0 0 1\n2 1 0 0 0 0 0 1\n")
+    res = CliRunner().invoke(app, ["convert", "tum", str(f), "-o", str(tmp_path / "o"), "--lc-radius", "0"])
+    assert res.exit_code == 2
+    assert res.output.strip() == "error: --lc-radius: must be > 0"
