@@ -30,8 +30,9 @@ from studio.generator.rng import MT19937Stream, canonical_doubles, polar_normal
 from studio.core.geometry import libm_cos_sin, normalize_angle, relative_planar_pose
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.units import NS_PER_S
+from studio.generator.seam import GeneratedDataset
 
-__all__ = ["SynthOutput", "generate", "effective_seeds", "discrete_circle", "agent_pairs"]
+__all__ = ["KOLLAGEN", "KollagenGenerator", "SingleG2oView", "SynthOutput", "generate", "effective_seeds", "discrete_circle", "agent_pairs"]
 
 
 
@@ -592,3 +593,31 @@ def _align(walks: list[_Walk]) -> list[_Walk]:
                   w.drx + sx, w.dry + sy, w.drtheta)
         )
     return out
+
+
+@dataclass(frozen=True, eq=False)
+class SingleG2oView:
+    """kollagen's extra: the single g2o file and its two TUM files, in ``OUT/<name>_singleg2o``."""
+
+    connector_information: np.ndarray
+    """``(6,)`` information of the edges that chain agents together."""
+    exact_odometry_information: tuple[np.ndarray, ...] | None
+    """Per agent ``(n-1, 6)`` derived odometry information, or None."""
+    suffix: str = "_singleg2o"
+
+
+class KollagenGenerator:
+    """kollagen behind the :class:`~studio.generator.seam.Generator` seam."""
+
+    name = "kollagen"
+
+    def extra_suffixes(self, config: SynthConfig) -> tuple[str, ...]:
+        return ("_singleg2o",)
+
+    def generate(self, config: SynthConfig, *, jobs: int | None = None) -> GeneratedDataset:
+        out = generate(config, jobs=jobs)
+        view = SingleG2oView(out.connector_information, out.exact_odometry_information)
+        return GeneratedDataset(out.graph, (view,))
+
+
+KOLLAGEN = KollagenGenerator()
