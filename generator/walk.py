@@ -120,7 +120,7 @@ def _random_walk(stream: MT19937Stream, cfg: SynthConfig, agent: AgentConfig) ->
         t = int(math.fmod(t + d, 4))
         theta_int_steps[s] = t
     theta_int = np.repeat(theta_int_steps, frag)
-    lut = np.arange(-3, 4)
+    lut = range(-3, 4)
     th_tab = np.array([_QUARTER[k][0] for k in lut])
     dx_tab = np.array([_round_to_int(_QUARTER[k][1]) for k in lut], dtype=np.int64)
     dy_tab = np.array([_round_to_int(_QUARTER[k][2]) for k in lut], dtype=np.int64)
