@@ -197,3 +197,12 @@ def test_loop_closure_search_over_the_memory_limit_is_refused_before_it_starts(t
     assert len(r.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "a").exists()
     assert run("tum", *tum_files, "-o", tmp_path / "b", "--lc-radius", "1000").exit_code == 0
+
+
+def test_convert_help_shows_units():
+    """Units in brackets survive the help formatter (Rich markup would eat them)."""
+    res = CliRunner().invoke(app, ["convert", "--help"], env={"COLUMNS": "200"})
+    assert res.exit_code == 0
+    lines = {ln.split()[0]: ln for ln in res.output.splitlines() if ln.strip().startswith("--")}
+    assert "[m]" in lines["--lc-radius"]
+    assert "[rad]" in lines["--lc-sigma-rad"]
