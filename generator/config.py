@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from studio.core.errors import ConfigError
+
 __all__ = ["AgentConfig", "InterLoopClosureConfig", "SynthConfig", "estimate_resources"]
 
 
@@ -81,7 +83,7 @@ class SynthConfig:
 
     def __post_init__(self) -> None:
         if len(self.agents) != self.number_of_agents:
-            raise ValueError("agents must hold number_of_agents entries")
+            raise ConfigError("agents must hold number_of_agents entries")
 
     @property
     def poses_per_agent(self) -> int:

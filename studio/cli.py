@@ -123,7 +123,7 @@ def synth(
             f"{sum(counts.values())} constraints ({counts['odometry']} odometry, "
             f"{counts['intra_loop_closures']} intra-agent and {counts['inter_loop_closures']} inter-agent "
             f"loop closures) in {time.perf_counter() - t0:.2f} s\n"
-            f"  {res.dataset_dir}\n  {res.single_dir}" + (f"\n  {res.rrd_path}" if res.rrd_path else "")
+            f"  {res.dataset_dir}" + "".join(f"\n  {p}" for p in (res.single_dir, res.rrd_path) if p)
         )
 
 

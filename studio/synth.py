@@ -8,8 +8,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from studio.core.model import PoseGraph
+
 from studio.generator.config import SynthConfig, estimate_resources
-from studio.generator.kollagen import SynthOutput, generate
+from studio.generator.kollagen import KOLLAGEN, SingleG2oView
+from studio.generator.seam import Extra, GeneratedDataset, Generator
 from studio.core.parallel import parallel_map
 from studio.generator.presets import PRESETS, preset, preset_names
 from studio.core.errors import ConfigError
@@ -21,17 +24,17 @@ from studio.io.singleg2o import write_single_g2o, write_single_tum
 from studio.io.textfmt import shared_formatting
 from studio.io.synth_config import read_synth_config, synth_config_to_json
 
-__all__ = ["SynthResult", "load_synth_config", "synthesize", "write_kollagen_outputs"]
+__all__ = ["EXTRA_WRITERS", "SynthResult", "load_synth_config", "synthesize", "write_outputs"]
 
 
 @dataclass(frozen=True, eq=False)
 class SynthResult:
     config: SynthConfig
-    output: SynthOutput
+    output: GeneratedDataset
     dataset_dir: Path
     """``OUT/<name>``: the multi-g2o folder."""
-    single_dir: Path
-    """``OUT/<name>_singleg2o``: the single g2o file and the two TUM files."""
+    single_dir: Path | None
+    """``OUT/<name>_singleg2o``: the single g2o file and the two TUM files (kollagen's extra), or None."""
     config_path: Path
     """``OUT/<name>.config.json``: the effective config (kollagen JSON)."""
     rrd_path: Path | None = None
@@ -49,38 +52,49 @@ def load_synth_config(source: str | os.PathLike, *, warn: Callable[[str], None] 
     return read_synth_config(path, warn=warn)
 
 
-def write_kollagen_outputs(out: SynthOutput, parent: Path, name: str, *, multi_records: Records = "3d",
-                           single_records: Records = "2d", jobs: int | None = None,
-                           progress: Progress | None = None) -> None:
-    """Write kollagen's files for ``out`` under ``parent`` (no staging; see :func:`synthesize`).
+def _write_single_g2o_view(graph: PoseGraph, view: Extra, folder: Path, name: str, records: Records) -> None:
+    assert isinstance(view, SingleG2oView)
+    folder.mkdir()
+    write_single_g2o(graph, folder / f"{name}.g2o", records=records,
+                     connector_information=view.connector_information,
+                     odometry_information=view.exact_odometry_information)
+    write_single_tum(graph, folder / f"{name}_GT.tum", ground_truth=True)
+    write_single_tum(graph, folder / f"{name}.tum", ground_truth=False)
 
-    The multi-g2o folder and the single-g2o files are written by two processes when ``jobs`` allows.
+
+ExtraWriter = Callable[[PoseGraph, Extra, Path, str, Records], None]
+"""``(graph, extra, OUT/<name><suffix>, name, records)``: writes one extra a generator offers."""
+
+#: The writer of each kind of extra (see :mod:`studio.generator.seam`).
+EXTRA_WRITERS: dict[type, ExtraWriter] = {SingleG2oView: _write_single_g2o_view}
+
+
+def write_outputs(out: GeneratedDataset, parent: Path, name: str, *, multi_records: Records = "3d",
+                  single_records: Records = "2d", jobs: int | None = None,
+                  progress: Progress | None = None) -> None:
+    """Write the multi-g2o folder of ``out`` and each extra it offers under ``parent`` (no staging;
+    see :func:`synthesize`). ``single_records`` are the g2o records of the extras' files.
+
+    The multi-g2o folder and each extra are written by separate processes when ``jobs`` allows.
     """
     multi = parent / name
-    single = parent / f"{name}_singleg2o"
     out.graph.to_se3()  # lift once, before the work is shared out
 
     def write_multi() -> None:
         multi.mkdir()
         write_multi_g2o(out.graph, multi, records=multi_records)
 
-    def write_single() -> None:
-        single.mkdir()
-        write_single_g2o(out.graph, single / f"{name}.g2o", records=single_records,
-                         connector_information=out.connector_information,
-                         odometry_information=out.exact_odometry_information)
-        write_single_tum(out.graph, single / f"{name}_GT.tum", ground_truth=True)
-        write_single_tum(out.graph, single / f"{name}.tum", ground_truth=False)
+    def extra_task(extra: Extra) -> Callable[[], None]:
+        writer = EXTRA_WRITERS[type(extra)]
+        return lambda: writer(out.graph, extra, parent / f"{name}{extra.suffix}", name, single_records)
 
-    tasks = (write_multi, write_single)
+    tasks = (write_multi, *(extra_task(e) for e in out.extras))
 
     def run(k: int) -> None:
         with shared_formatting():
             tasks[k]()
 
     parallel_map(run, len(tasks), jobs, on_done=lambda d, n: report(progress, "synth: writing files", d, n, "parts"))
-
-
 
 
 def check_resources(config: SynthConfig, *, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
@@ -104,7 +118,7 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
                multi_records: Records = "3d", single_records: Records = "2d",
                jobs: int | None = None, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
                max_output_gb: float = DEFAULT_MAX_OUTPUT_GB, rrd: bool = True,
-               progress: Progress | None = None) -> SynthResult:
+               generator: Generator[SynthConfig] = KOLLAGEN, progress: Progress | None = None) -> SynthResult:
     """Generate ``config`` and write it as kollagen's ``generate CONFIG OUT`` does.
 
     Writes ``OUT/<name>/`` (multi-g2o), ``OUT/<name>_singleg2o/`` and ``OUT/<name>.config.json``,
@@ -117,20 +131,21 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
     check_resources(config, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
     out_dir = Path(out_dir)
     name = config.name
-    names = [name, f"{name}_singleg2o", f"{name}.config.json"]
-    if rrd:
-        names.append(f"{name}.rrd")
+    extras = [f"{name}{suffix}" for suffix in generator.extra_suffixes(config)]
+    config_name, rrd_name = f"{name}.config.json", f"{name}.rrd"
+    names = [name, *extras, config_name] + ([rrd_name] if rrd else [])
     with staged_outputs(out_dir, names, force=force) as staging:
-        output = generate(config, jobs=jobs, progress=progress)
-        write_kollagen_outputs(output, staging, name, multi_records=multi_records,
-                               single_records=single_records, jobs=jobs, progress=progress)
-        with open(staging / names[2], "w", encoding="utf-8") as f:
+        output = generator.generate(config, jobs=jobs, progress=progress)
+        write_outputs(output, staging, name, multi_records=multi_records,
+                      single_records=single_records, jobs=jobs, progress=progress)
+        with open(staging / config_name, "w", encoding="utf-8") as f:
             json.dump(synth_config_to_json(config), f, indent=4)
             f.write("\n")
         if rrd:
             from studio.recording.dataset import record_graph
 
-            record_graph(output.graph, staging / names[3], name=name,
+            record_graph(output.graph, staging / rrd_name, name=name,
                          config_json=json.dumps(synth_config_to_json(config), sort_keys=True), progress=progress)
-    return SynthResult(config, output, out_dir / name, out_dir / names[1], out_dir / names[2],
-                       out_dir / names[3] if rrd else None)
+    single = f"{name}_singleg2o"
+    return SynthResult(config, output, out_dir / name, out_dir / single if single in extras else None,
+                       out_dir / config_name, out_dir / rrd_name if rrd else None)

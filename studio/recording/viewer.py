@@ -19,7 +19,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from studio.core.errors import ConfigError, FormatError, OutputError, StudioError
+from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.progress import Progress, report
 from studio.recording.entities import TIMELINE_CELL, TIMELINE_ITERATION, TIMELINE_NODE
 
@@ -46,7 +46,7 @@ def rerun_executable() -> str:
         return str(beside)
     found = shutil.which("rerun")
     if found is None:
-        raise StudioError("the `rerun` executable was not found: install the rerun-sdk package")
+        raise ConfigError("the `rerun` executable was not found: install the rerun-sdk package")
     return found
 
 
@@ -130,7 +130,7 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
              progress: Progress | None = None) -> SnapshotResult:
     """Render ``rrd`` to ``png`` with the cursor at ``node`` (default: the last node), no display needed.
 
-    Raises :class:`StudioError` with an installation hint when no Vulkan driver is installed. The
+    Raises :class:`ConfigError` with an installation hint when no Vulkan driver is installed. The
     picture is written atomically (a partial file is never left at ``png``). ``progress`` hears of
     the four stages: viewer started, recording loaded, cursor moved, picture saved.
     """
@@ -144,7 +144,7 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
         raise OutputError(f"{png.parent}: no such folder")
     size = _parse_size(window_size)
     if not vulkan_drivers():
-        raise StudioError(f"studio snapshot needs a Vulkan driver and found none: {_INSTALL_HINT}")
+        raise ConfigError(f"studio snapshot needs a Vulkan driver and found none: {_INSTALL_HINT}")
     step = "snapshot"
     report(progress, step, 0, 4, "stages")
     port = _free_port()
@@ -164,7 +164,7 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
             if state.recordings and not state.loading:
                 break
             if time.monotonic() > deadline:
-                raise StudioError(f"{rrd}: the viewer did not finish loading within {timeout_s:.0f} s")
+                raise OutputError(f"{rrd}: the viewer did not finish loading within {timeout_s:.0f} s")
             time.sleep(0.1)
         report(progress, step, 2, 4, "stages")
         rec = state.recordings[0]
@@ -183,7 +183,7 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
         client.save_screenshot(str(tmp.resolve()))
         report(progress, step, 4, 4, "stages")
         if not tmp.is_file():
-            raise StudioError("the viewer did not write a screenshot")
+            raise OutputError("the viewer did not write a screenshot")
         os.replace(tmp, png)
         return SnapshotResult(png, name, int(at))
     finally:
@@ -223,8 +223,8 @@ def _connect(client_cls, proc: subprocess.Popen, log, port: int, timeout_s: floa
             err = log.read().strip().splitlines()
             tail = next((ln for ln in reversed(err) if ln.strip()), "no output")
             if "adapter" in tail.lower() or "vulkan" in tail.lower():
-                raise StudioError(f"the headless viewer found no graphics adapter: {_INSTALL_HINT}")
-            raise StudioError(f"the headless viewer exited with code {proc.returncode}: {tail[-300:]}")
+                raise ConfigError(f"the headless viewer found no graphics adapter: {_INSTALL_HINT}")
+            raise OutputError(f"the headless viewer exited with code {proc.returncode}: {tail[-300:]}")
         try:
             client = client_cls.connect(url)
             client.get_state()
@@ -232,4 +232,4 @@ def _connect(client_cls, proc: subprocess.Popen, log, port: int, timeout_s: floa
         except Exception as err:  # the server is not up yet
             last = err
             time.sleep(0.2)
-    raise StudioError(f"the headless viewer did not answer on port {port} within {timeout_s:.0f} s ({last})")
+    raise OutputError(f"the headless viewer did not answer on port {port} within {timeout_s:.0f} s ({last})")

@@ -1,0 +1,281 @@
+"""kollagen's loop-closure search: candidates in its visiting order, sampled in bulk.
+
+Candidates ("hits": an occupied grid cell inside the discrete circle around a pose) are enumerated
+with a sorted-cell search (O(N + hits) instead of kollagen's O(N * R^2) map look-ups) and put in the
+exact order kollagen visits them. Each hit consumes one uniform; between two accepted loop closures
+the uniforms sit at fixed stream positions, so acceptance is decided in bulk with numpy and only the
+accepted ones (and their three normals) go through Python.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from studio.core.geometry import relative_planar_pose
+from studio.core.model import Edges, InterAgentEdges, PoseKind
+from studio.core.parallel import parallel_map
+from studio.core.progress import Progress, report
+from studio.generator.config import SynthConfig
+from studio.generator.rng import MT19937Stream, polar_normal
+from studio.generator.walk import _round_half_away, _round_to_int, _Walk
+
+__all__ = ["discrete_circle", "agent_pairs", "intra_loop_closures", "inter_loop_closures"]
+
+
+def discrete_circle(radius: int) -> np.ndarray:
+    """kollagen's ``DiscreteCircle``: ``(k, 2)`` integer offsets in its iteration order.
+
+    x runs from -radius to radius; for each x, y takes 0, 1, -1, 2, -2, ... while y^2 <= r^2 - x^2.
+    """
+    xs = np.arange(-radius, radius + 1, dtype=np.int64)
+    ylim = np.array([math.isqrt(radius * radius - x * x) for x in xs.tolist()], dtype=np.int64)
+    counts = 2 * ylim + 1
+    x = np.repeat(xs, counts)
+    k = np.arange(int(counts.sum()), dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)
+    y = (k + 1) // 2 * np.where(k % 2 == 1, 1, -1)
+    return np.column_stack([x, y])
+
+
+def agent_pairs(n: int) -> list[tuple[int, int]]:
+    """The pairs kollagen's ``get_all_pairs`` yields (lexicographic), for n >= 2."""
+    return [(a, b) for a in range(n) for b in range(a + 1, n)]
+
+# --------------------------------------------------------------------------------------------------
+# Loop-closure candidates and their sampling
+
+
+def _grid_cells(x: np.ndarray, y: np.ndarray, cfg: SynthConfig) -> tuple[np.ndarray, np.ndarray]:
+    frag, stepsize = float(cfg.step_fragment), cfg.stepsize
+    return _round_half_away(x * frag / stepsize), _round_half_away(y * frag / stepsize)
+
+
+class _CircleTable:
+    """kollagen's discrete circle: the rank of each offset in its visiting order.
+
+    Rank -1 is the same-cell check that comes before the circle; ranks 0.. follow ``DiscreteCircle``
+    (the centre offset itself is skipped there).
+    """
+
+    def __init__(self, radius: int) -> None:
+        self.radius = radius
+        circle = discrete_circle(radius)
+        size = 2 * radius + 1
+        self.rank = np.full((size, size), -2, dtype=np.int64)
+        self.rank[circle[:, 0] + radius, circle[:, 1] + radius] = np.arange(len(circle))
+        self.rank[radius, radius] = -1
+        self.size = len(circle)
+        #: squared offset length and "diagonal or centre" per rank + 1
+        d2 = np.zeros(self.size + 1, dtype=np.int64)
+        d2[1:] = circle[:, 0] ** 2 + circle[:, 1] ** 2
+        self.d2_by_rank = d2
+        diag = np.ones(self.size + 1, dtype=bool)
+        diag[1:] = (circle[:, 0] != 0) & (circle[:, 1] != 0)
+        self.diagonal_by_rank = diag
+        self.ylim = np.array(
+            [math.isqrt(radius * radius - dx * dx) for dx in range(-radius, radius + 1)], dtype=np.int64
+        )
+
+    def probabilities(self, same_cell: float, scale: float, radius_m: float) -> np.ndarray:
+        """Probability per rank + 1: ``same_cell`` for the same-cell check, else kollagen's
+        ``scale * exp(-5 (dx^2 + dy^2) / r^2)`` (offsets in cells, radius in metres)."""
+        p = np.array([scale * math.exp(-5.0 * v / (radius_m * radius_m)) for v in self.d2_by_rank.tolist()])
+        p[0] = same_cell
+        return p
+
+
+def _visits(cx: np.ndarray, cy: np.ndarray, which: str) -> np.ndarray:
+    """For each distinct grid cell, the index of its ``"first"`` or ``"last"`` visit (kollagen's
+    intra-agent map keeps the first visit, its inter-agent map the last)."""
+    key = (cx - cx.min()) * (int(cy.max() - cy.min()) + 1) + (cy - cy.min())
+    if which == "first":
+        return np.unique(key, return_index=True)[1]
+    return len(key) - 1 - np.unique(key[::-1], return_index=True)[1]
+
+
+def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
+    """Every (query k, table m) pair whose cells are at most the circle's radius apart.
+
+    Returns ``(k, m, rank)`` sorted in kollagen's visiting order: by query, then the same-cell check,
+    then the circle's order. Table cells must be distinct.
+    """
+    R = circle.radius
+    if len(tx) == 0 or len(qx) == 0:
+        z = np.zeros(0, dtype=np.int64)
+        return z, z, z
+    xmin = min(int(qx.min()), int(tx.min())) - R
+    ymin = min(int(qy.min()), int(ty.min())) - R
+    stride = max(int(qy.max()), int(ty.max())) - ymin + R + 1
+    tkey = (tx - xmin) * stride + (ty - ymin)
+    order = np.argsort(tkey)
+    skey = tkey[order]
+    qkey = (qx - xmin) * stride + (qy - ymin)
+    dxs = np.arange(-R, R + 1, dtype=np.int64)
+    centre = qkey[:, None] + dxs[None, :] * stride
+    start = np.searchsorted(skey, (centre - circle.ylim[None, :]).ravel(), side="left")
+    stop = np.searchsorted(skey, (centre + circle.ylim[None, :]).ravel(), side="right")
+    counts = stop - start
+    total = int(counts.sum())
+    shift = start - (np.cumsum(counts) - counts)
+    pos = np.arange(total, dtype=np.int64) + np.repeat(shift, counts)
+    k = np.repeat(np.arange(len(qx), dtype=np.int64), counts.reshape(len(qx), -1).sum(axis=1))
+    # offset (dx, dy) as dx * stride + dy, mapped to its rank in the circle
+    delta = skey[pos] - qkey[k]
+    lut = np.full((2 * R + 1) * stride, -2, dtype=np.int64)
+    span = np.arange(-R, R + 1, dtype=np.int64)
+    lut[((span[:, None] + R) * stride + (span[None, :] + R)).ravel()] = circle.rank.ravel()
+    rank = lut[delta + R * stride + R]
+    key = k * (circle.size + 1) + (rank + 1)
+    perm = np.argsort(key, kind="stable")
+    return k[perm], order[pos[perm]], rank[perm]
+
+
+def _sample(stream: MT19937Stream, probs: np.ndarray, cached: float | None):
+    """Decide every hit with one uniform each; accepted hits draw three normals.
+
+    Between two accepted hits the uniforms sit at fixed stream positions, so a whole chunk of hits is
+    compared with its uniforms at once and only accepted hits (and their normals) run in Python.
+    Returns (accepted hit indices, (n, 3) normals, cache state after the last draw) and advances the
+    stream past everything consumed.
+    """
+    n_hits = len(probs)
+    accepted: list[int] = []
+    normals: list[float] = []
+    # expected uniforms: one per hit plus about 2.5 per accepted hit for its three normals
+    budget = n_hits + int(3 * float(np.minimum(probs, 1.0).sum())) + 1024  # a probability over 1 accepts once
+    u = stream.uniforms(budget)
+    h = 0  # next hit
+    q = 0  # next uniform
+    chunk = 256
+    while h < n_hits:
+        k = min(chunk, n_hits - h)
+        if q + k + 64 > len(u):
+            u = stream.uniforms(max(2 * len(u), q + k + 4096))
+        hit = probs[h : h + k] > u[q : q + k]
+        t = int(hit.argmax())
+        if not hit[t]:
+            h += k
+            q += k
+            chunk = min(chunk * 2, 1 << 16)
+            continue
+        h += t
+        q += t + 1
+        chunk = max(64, 2 * (t + 1))
+        for _ in range(3):
+            if cached is not None:
+                normals.append(cached)
+                cached = None
+                continue
+            while True:
+                window = u[q : q + 16].tolist()
+                try:
+                    ret, keep, used = polar_normal(window, 0)
+                    break
+                except IndexError:  # 8 rejections in a row, or the end of the buffer
+                    if q + 64 > len(u):
+                        u = stream.uniforms(2 * len(u))
+                    window = u[q : q + 4096].tolist()
+                    ret, keep, used = polar_normal(window, 0)
+                    break
+            q += used
+            normals.append(ret)
+            cached = keep
+        accepted.append(h)
+        h += 1
+    stream.advance(2 * q)
+    return np.array(accepted, dtype=np.int64), np.array(normals).reshape(-1, 3), cached
+
+
+def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, agent):
+    cx, cy = _grid_cells(walk.x, walk.y, cfg)
+    n = len(cx)
+    radius = _round_to_int(agent.intra_loop_closure_radius * cfg.step_fragment / cfg.stepsize)
+    circle = _CircleTable(radius)
+    first = np.sort(_visits(cx, cy, "first"))  # cells in order of their first visit
+    # kollagen's map only holds cells first visited before the current pose. Poses are taken in
+    # blocks; a block looks only at cells first visited before its end, so few hits are discarded.
+    parts = []
+    bounds = np.linspace(0, n, num=min(n, 16) + 1).astype(np.int64)
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        known = first[: np.searchsorted(first, hi)]
+        k, m, rank = _enumerate_hits(cx[lo:hi], cy[lo:hi], cx[known], cy[known], circle)
+        k = k + lo
+        j = known[m]
+        # intra-agent: only cells seen before, and (kollagen's quirk) only diagonal circle offsets
+        keep = (j < k) & circle.diagonal_by_rank[rank + 1]
+        parts.append((k[keep], j[keep], rank[keep]))
+    k, j, rank = (np.concatenate(c) for c in zip(*parts))
+    probs = circle.probabilities(
+        agent.same_position_intra_loop_closure_probability,
+        agent.intra_loop_closure_probability_scaling,
+        agent.intra_loop_closure_radius,
+    )[rank + 1]
+    acc, noise, _ = _sample(stream, probs, None)
+    i_to, j_from = k[acc], j[acc]
+    dX, dY, dT = relative_planar_pose(walk.x[j_from], walk.y[j_from], walk.theta[j_from],
+                           walk.x[i_to], walk.y[i_to], walk.theta[i_to])
+    sp, sa = agent.std_dev_intra_loop_closure_position, agent.std_dev_intra_loop_closure_angle
+    meas = np.column_stack([dX + noise[:, 0] * sp, dY + noise[:, 1] * sp, dT + noise[:, 2] * sa])
+    info = _diag_information(
+        len(acc), agent.estimated_information_intra_position, agent.estimated_information_intra_angle
+    )
+    return Edges(PoseKind.SE2, j_from, i_to, meas.reshape(-1, 3), info)
+
+
+def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None, progress: Progress | None = None):
+    p = cfg.inter
+    radius = _round_to_int(p.loop_closure_radius * cfg.step_fragment / cfg.stepsize)
+    circle = _CircleTable(radius)
+    prob_by_rank = circle.probabilities(
+        p.same_position_loop_closure_probability, p.loop_closure_probability_scaling, p.loop_closure_radius
+    )
+    pairs = agent_pairs(len(walks))
+
+    def one_pair(index: int):
+        a, b = pairs[index]
+        wa, wb = walks[a], walks[b]
+        (ax, ay), (bx, by) = cells[a], cells[b]
+        # kollagen's map keeps the last visit of each cell of agent a
+        last = _visits(ax, ay, "last")
+        k, m, rank = _enumerate_hits(bx, by, ax[last], ay[last], circle)
+        j = last[m]
+        probs = prob_by_rank[rank + 1]
+        stream = MT19937Stream(p.random_number_generator_seed)
+        acc, noise, _ = _sample(stream, probs, None)
+        i_from, j_to = k[acc], j[acc]
+        dX, dY, dT = relative_planar_pose(wb.x[i_from], wb.y[i_from], wb.theta[i_from],
+                               wa.x[j_to], wa.y[j_to], wa.theta[j_to])
+        meas = np.column_stack([
+            dX + noise[:, 0] * p.std_dev_loop_closure_position,
+            dY + noise[:, 1] * p.std_dev_loop_closure_position,
+            dT + noise[:, 2] * p.std_dev_loop_closure_angle,
+        ])
+        return np.full(len(acc), b), i_from, np.full(len(acc), a), j_to, meas.reshape(-1, 3)
+
+    done = parallel_map(one_pair, len(pairs), jobs,
+                        on_done=lambda d, n: report(progress, "synth: inter-agent loop closures", d, n, "pairs"))
+    cols = {c: [d[k] for d in done] for k, c in enumerate(("fa", "fi", "ta", "ti", "m"))}
+    meas = np.concatenate(cols["m"])
+    info = _diag_information(len(meas), p.estimated_information_position, p.estimated_information_angle)
+    return InterAgentEdges(
+        PoseKind.SE2,
+        np.concatenate(cols["fa"]),
+        np.concatenate(cols["fi"]),
+        np.concatenate(cols["ta"]),
+        np.concatenate(cols["ti"]),
+        meas,
+        info,
+    )
+
+
+def _diag_information(n: int, position: float, angle: float) -> np.ndarray:
+    info = np.zeros((n, 6))
+    info[:, 0] = position
+    info[:, 3] = position
+    info[:, 5] = angle
+    return info
+
+
+intra_loop_closures = _intra_loop_closures
+inter_loop_closures = _inter_loop_closures
