@@ -22,3 +22,8 @@ def boom(cell_dir: Path, dataset: Path, row: dict) -> dict:
     if row["param:number_of_steps"] == 30:
         raise ValueError("a bug in a user's step\nsecond line")
     return {"boom_ok": 1}
+
+
+def die_always(cell_dir: Path, dataset: Path, row: dict) -> dict:
+    """Kill the worker process on every attempt."""
+    os._exit(17)

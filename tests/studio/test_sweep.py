@@ -191,3 +191,13 @@ def test_a_bug_in_a_step_is_the_cells_one_line_error_and_dask_prints_nothing(tmp
     assert df.loc[30, "error"] == "ValueError: a bug in a user's step"
     assert df.loc[20, "boom_ok"] == 1 and pd.isna(df.loc[20, "error"])
     assert sorted(p.name for p in (tmp_path / "o" / "cells").iterdir()) == [df.loc[20, "cell"]]
+
+
+def test_a_cell_whose_worker_dies_on_every_attempt_is_an_error_row_and_leaves_nothing(tmp_path):
+    spec = sweep_spec_from_dict({"name": "dead", "base": str(DATA / "configs" / "tiny_three.json"),
+                                 "steps": ["tests.studio.sweep_steps:die_always"],
+                                 "grid": {"number_of_steps": [20]}}, "dead.toml")
+    res = sweep(spec, tmp_path / "out", workers=1, retries=0)
+    assert res.failed == 1
+    assert res.rows[0]["error"].startswith("no attempt finished (1 tried): KilledWorker")
+    assert not any((tmp_path / "out" / "cells").iterdir())
