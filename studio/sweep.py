@@ -40,6 +40,7 @@ import math
 import os
 import shutil
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -52,7 +53,6 @@ from studio.io.spec_file import read_spec_file
 __all__ = ["SweepSpec", "SweepResult", "CellTask", "load_sweep_spec", "sweep_spec_from_dict", "expand", "sweep",
            "run_cell", "STEPS"]
 
-STEPS = ("evaluate", "solve", "check", "record")
 _KEYS = {"name", "base", "grid", "cells", "steps", "options"}
 _SEED_STRIDE = 1_000_003
 _INT32 = 2**31 - 1
@@ -273,29 +273,61 @@ def _evaluate(dataset: Path, row: dict[str, Any], prefix: str, estimate: Path | 
         row[f"{prefix}_{align}_m"] = ev.overall.ape_translation_m.mean
 
 
+StepFn = Callable[[CellTask, Path, Path, dict[str, Any], dict[str, Any]], None]
+"""A step: ``(task, cell_dir, dataset, row, options)``; it adds columns to ``row`` in place."""
+
+
+def _step_evaluate(task: CellTask, cell_dir: Path, dataset: Path, row: dict[str, Any], opts: dict[str, Any]) -> None:
+    _evaluate(dataset, row, "ape_initial")
+
+
+def _step_solve(task: CellTask, cell_dir: Path, dataset: Path, row: dict[str, Any], opts: dict[str, Any]) -> None:
+    from studio.solve import solve
+
+    res = solve(dataset, cell_dir / "solved", **opts)
+    row.update(solve_method=res.method, solve_iterations=res.iterations, chi2_final=res.chi2_final,
+               solve_s=res.seconds)
+    _evaluate(dataset, row, "ape_solved", res.estimate_path)
+
+
+def _step_check(task: CellTask, cell_dir: Path, dataset: Path, row: dict[str, Any], opts: dict[str, Any]) -> None:
+    from studio.check import check
+
+    report = check(dataset, **opts)
+    for c in report.classes:
+        if c.agent == "all":
+            row[f"check_{c.name.replace(' ', '_')}_factor"] = c.total.factor
+
+
+def _step_record(task: CellTask, cell_dir: Path, dataset: Path, row: dict[str, Any], opts: dict[str, Any]) -> None:
+    """The ``.rrd`` is written with the dataset (``rrd=True`` when this step is asked for)."""
+
+
+#: The step registry: a new per-dataset step is one entry here (its name is then valid in a spec).
+STEPS: dict[str, StepFn] = {
+    "evaluate": _step_evaluate,
+    "solve": _step_solve,
+    "check": _step_check,
+    "record": _step_record,
+}
+
+
 def _step(step: str, task: CellTask, cell_dir: Path, dataset: Path, row: dict[str, Any]) -> None:
     opts = task.options.get(step, {})
-    if step == "evaluate":
-        _evaluate(dataset, row, "ape_initial")
-    elif step == "solve":
-        from studio.solve import solve
+    if step in STEPS:
+        STEPS[step](task, cell_dir, dataset, row, opts)
+        return
+    module, _, func = step.partition(":")  # a user's step: (cell_dir, dataset, row) -> dict of columns
+    row.update(getattr(importlib.import_module(module), func)(cell_dir, dataset, dict(row)) or {})
 
-        res = solve(dataset, cell_dir / "solved", **opts)
-        row.update(solve_method=res.method, solve_iterations=res.iterations, chi2_final=res.chi2_final,
-                   solve_s=res.seconds)
-        _evaluate(dataset, row, "ape_solved", res.estimate_path)
-    elif step == "check":
-        from studio.check import check
 
-        report = check(dataset, **opts)
-        for c in report.classes:
-            if c.agent == "all":
-                row[f"check_{c.name.replace(' ', '_')}_factor"] = c.total.factor
-    elif step == "record":
-        pass  # written with the dataset
-    else:
-        module, _, func = step.partition(":")
-        row.update(getattr(importlib.import_module(module), func)(cell_dir, dataset, dict(row)) or {})
+def one_line_error(err: BaseException) -> str:
+    """A StudioError's own first line; any other exception's type and first line."""
+    lines = str(err).strip().splitlines()
+    first = lines[0] if lines else ""
+    if isinstance(err, StudioError):
+        return first
+    return f"{type(err).__name__}: {first}" if first else type(err).__name__
 
 
 def run_cell(task: CellTask) -> dict[str, Any]:
@@ -334,9 +366,9 @@ def run_cell(task: CellTask) -> dict[str, Any]:
         row.update(agents=len(g.agents), poses=g.num_poses, **g.edge_counts())
         for step in task.steps:
             _step(step, task, cell_dir, dataset, row)
-    except StudioError as err:
+    except Exception as err:  # any failure is the cell's one-line error; the sweep goes on
         shutil.rmtree(cell_dir, ignore_errors=True)
-        row["error"] = str(err).splitlines()[0]
+        row["error"] = one_line_error(err)
         return row
     row["cell_s"] = time.perf_counter() - t0
     tmp = done.with_name(RESULT + ".tmp")
@@ -353,20 +385,26 @@ def _client(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
         from distributed import Client, LocalCluster
     except ImportError:
         raise ConfigError("studio sweep needs Dask: pip install 'cslam-studio[sweep]'") from None
+    # Dask's own logs and warnings never reach the user's terminal: the sweep reports what matters
     for name in ("distributed", "distributed.worker", "distributed.scheduler", "distributed.nanny",
-                 "distributed.core", "distributed.comm", "tornado"):
-        logging.getLogger(name).setLevel(logging.ERROR)
-    if scheduler:
-        try:
-            return Client(scheduler, timeout="20s"), None
-        except (OSError, TimeoutError) as err:
-            raise ConfigError(f"scheduler: cannot connect to {scheduler} ({err})") from None
-    from studio.core.parallel import default_jobs
+                 "distributed.core", "distributed.comm", "distributed.client", "tornado"):
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        if scheduler:
+            try:
+                return Client(scheduler, timeout="20s"), None
+            except (OSError, TimeoutError, ValueError) as err:
+                raise ConfigError(f"scheduler: cannot connect to {scheduler} ({err})") from None
+        from studio.core.parallel import default_jobs
 
-    n = workers or default_jobs()
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=None, silence_logs=logging.ERROR)
-    return Client(cluster), cluster
+        n = workers or default_jobs()
+        # no dashboard; the scheduler's small HTTP server (health, metrics) on a free loopback port, not
+        # on 8787 (whose 'already in use' warning would otherwise print when another cluster runs)
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                               dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                               silence_logs=logging.CRITICAL + 1)
+        return Client(cluster), cluster
 
 
 def sweep(spec: SweepSpec, out: str | os.PathLike, *, scheduler: str | None = None, workers: int | None = None,
@@ -396,10 +434,17 @@ def sweep(spec: SweepSpec, out: str | os.PathLike, *, scheduler: str | None = No
         try:
             from distributed import as_completed
 
-            futures = client.map(run_cell, todo, key=[f"studio-cell-{t.name}" for t in todo], retries=retries,
-                                 pure=False)
+            keys = [f"studio-cell-{t.name}" for t in todo]
+            by_key = dict(zip(keys, todo))
+            futures = client.map(run_cell, todo, key=keys, retries=retries, pure=False)
             for fut in as_completed(futures):
-                row = fut.result()
+                try:
+                    row = fut.result()
+                except Exception as err:  # the cell's worker died on every attempt (KilledWorker), ...
+                    task = by_key[fut.key]
+                    shutil.rmtree(out / "cells" / task.name, ignore_errors=True)
+                    row = {"cell": task.name, **{f"param:{k}": v for k, v in task.params.items()},
+                           "error": f"no attempt finished ({retries + 1} tried): {one_line_error(err)}"}
                 rows[row["cell"]] = row
                 report(progress, "sweep cells", len(rows), len(tasks), "cells")
         finally:

@@ -149,6 +149,10 @@ INPUTS: dict[str, Callable[[Path], None]] = {
     "MH_01_easy": _euroc,
     "poses/00.txt": _kitti,
     "ground_truth/1014": _kimera,
+    # docs/sweep.md's spec, smaller: 2 cells of the multi3500x8 stand-in
+    "radius.toml": lambda w: (w / "radius.toml").write_text(
+        'name = "radius"\nbase = "multi3500x8"\nsteps = ["evaluate"]\n[grid]\n'
+        '"inter_agent_loop_closure_parameters.loop_closure_radius" = [1.0, 2.0]\n'),
 }
 
 

@@ -15,3 +15,15 @@ def die_once(cell_dir: Path, dataset: Path, row: dict) -> dict:
         marker.write_text(str(os.getpid()))
         os._exit(17)
     return {"survived_kill": True}
+
+
+def boom(cell_dir: Path, dataset: Path, row: dict) -> dict:
+    """A step with a bug (not a StudioError): the cell records it and the sweep goes on."""
+    if row["param:number_of_steps"] == 30:
+        raise ValueError("a bug in a user's step\nsecond line")
+    return {"boom_ok": 1}
+
+
+def die_always(cell_dir: Path, dataset: Path, row: dict) -> dict:
+    """Kill the worker process on every attempt."""
+    os._exit(17)

@@ -162,3 +162,42 @@ def test_cli_bad_spec_is_one_line(tmp_path):
     assert res.output.strip() == (f"error: {spec}: step: unknown key (did you mean 'steps'?); "
                                   "known: base, cells, grid, name, options, steps")
     assert json.dumps(1)
+
+
+def test_a_bug_in_a_step_is_the_cells_one_line_error_and_dask_prints_nothing(tmp_path):
+    """Through the CLI in its own process: a cell whose step raises a plain exception records it, the
+    other cell completes, exit 0, and nothing of Dask's (logs, the 'port 8787 in use' warning) reaches
+    stderr, even with 8787 taken."""
+    holder = socket.socket()
+    try:
+        holder.bind(("127.0.0.1", 8787))
+        holder.listen()
+    except OSError:
+        pass  # already taken by something else: the case we want anyway
+    try:
+        spec_path = tmp_path / "s.json"
+        spec_path.write_text(json.dumps({"name": "bug", "base": str(DATA / "configs" / "tiny_three.json"),
+                                         "steps": ["tests.studio.sweep_steps:boom"],
+                                         "grid": {"number_of_steps": [20, 30]}}))
+        done = subprocess.run([sys.executable, "-m", "studio.cli", "sweep", str(spec_path), "-o", str(tmp_path / "o"),
+                               "--workers", "1"], capture_output=True, text=True, cwd=REPO,
+                              env=dict(os.environ, CI="true", PYTHONPATH=str(REPO)))
+    finally:
+        holder.close()
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == ""
+    assert "bug: 2 cells (2 run now, 1 failed)" in done.stdout
+    df = pd.read_parquet(tmp_path / "o" / "sweep.parquet").set_index("param:number_of_steps")
+    assert df.loc[30, "error"] == "ValueError: a bug in a user's step"
+    assert df.loc[20, "boom_ok"] == 1 and pd.isna(df.loc[20, "error"])
+    assert sorted(p.name for p in (tmp_path / "o" / "cells").iterdir()) == [df.loc[20, "cell"]]
+
+
+def test_a_cell_whose_worker_dies_on_every_attempt_is_an_error_row_and_leaves_nothing(tmp_path):
+    spec = sweep_spec_from_dict({"name": "dead", "base": str(DATA / "configs" / "tiny_three.json"),
+                                 "steps": ["tests.studio.sweep_steps:die_always"],
+                                 "grid": {"number_of_steps": [20]}}, "dead.toml")
+    res = sweep(spec, tmp_path / "out", workers=1, retries=0)
+    assert res.failed == 1
+    assert res.rows[0]["error"].startswith("no attempt finished (1 tried): KilledWorker")
+    assert not any((tmp_path / "out" / "cells").iterdir())
