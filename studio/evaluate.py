@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from studio.core.alignment import Alignment
-from studio.core.errors import EvaluationError
+from studio.core.errors import EvaluationError, OutputError
 from studio.core.model import PoseGraph
 from studio.core.progress import Progress, report
 from studio.core.units import NS_PER_S
@@ -501,7 +501,10 @@ def write_evaluation_recording(ev: Evaluation, path: str | os.PathLike, *, force
         for k, a in enumerate(ev.agents)
     ]
     report(progress, "evaluation recording", 0, 1, "files")
-    with staged_outputs(path.parent, [path.name], force=force) as staging:
+    if path.suffix != ".rrd":
+        raise OutputError(f"{path}: a recording must end in .rrd")
+    inputs = [ev.dataset] + ([ev.estimate] if ev.estimate_layout != "initial" else [])
+    with staged_outputs(path.parent, [path.name], force=force, inputs=inputs) as staging:
         save_evaluation_recording(staging / path.name, format_markdown(ev), series, recording_id=recording_id)
     report(progress, "evaluation recording", 1, 1, "files")
     return path

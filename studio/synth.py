@@ -120,7 +120,7 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
     names = [name, f"{name}_singleg2o", f"{name}.config.json"]
     if rrd:
         names.append(f"{name}.rrd")
-    with staged_outputs(out_dir, names, force=force) as staging:
+    with staged_outputs(out_dir, names, force=force, inputs=()) as staging:
         output = generate(config, jobs=jobs, progress=progress)
         write_kollagen_outputs(output, staging, name, multi_records=multi_records,
                                single_records=single_records, jobs=jobs, progress=progress)

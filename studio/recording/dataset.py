@@ -33,7 +33,7 @@ from studio.core.errors import FormatError, OutputError
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
 from studio.core.progress import Progress, report
 from studio.core.units import NS_PER_S
-from studio.io.atomic import staged_outputs
+from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.recording.entities import (
     APPLICATION_ID,
     LOOP_CLOSURES_INTER,
@@ -621,13 +621,14 @@ def record_dataset(dataset: str | os.PathLike, out: str | os.PathLike, *, force:
     dataset, out = Path(dataset), Path(out)
     if out.suffix != ".rrd":
         raise OutputError(f"{out}: a recording must end in .rrd")
+    check_not_overlapping([out], [dataset])
     report(progress, "reading", 0, 1, "datasets")
     graph = read_multi_g2o(dataset)
     report(progress, "reading", 1, 1, "datasets")
     config_json = _sibling_config(dataset)
     outliers = read_outliers(dataset / "outliers.txt", graph) if (dataset / "outliers.txt").is_file() else None
     name = dataset.resolve().name
-    with staged_outputs(out.parent, [out.name], force=force) as staging:
+    with staged_outputs(out.parent, [out.name], force=force, inputs=[dataset]) as staging:
         res = record_graph(graph, staging / out.name, name=name, config_json=config_json, outliers=outliers,
                            progress=progress)
     return RecordResult(out, res.recording_id, res.num_poses, res.edge_counts, res.real_time)
