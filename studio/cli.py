@@ -224,6 +224,7 @@ def snapshot(
     out: Path = typer.Option(..., "-o", "--out", help="The picture to write (PNG)."),
     node: int = typer.Option(None, "--node", help="Put the time cursor on this node (default: the last)."),
     size: str = typer.Option("1400x900", "--size", help="Window size WIDTHxHEIGHT."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing picture."),
 ) -> None:
     """Render a recording to a PNG without a display (needs a Vulkan driver, e.g. mesa-vulkan-drivers).
 
@@ -232,7 +233,7 @@ def snapshot(
     from studio.recording.viewer import snapshot as render
 
     with terminal_progress() as progress:
-        res = render(rrd, out, node=node, window_size=size, progress=progress)
+        res = render(rrd, out, node=node, window_size=size, progress=progress, force=force)
     typer.echo(f"{res.path}: node {res.time}")
 
 
