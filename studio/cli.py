@@ -85,7 +85,7 @@ def synth(
     single_records: RecordKind = typer.Option(
         RecordKind.d2, "--single-records", help="g2o records of the single g2o file (kollagen: 2d)."
     ),
-    jobs: int = typer.Option(0, "--jobs", "-j", help="Processes to use (0: every core available).", min=0),
+    jobs: int = typer.Option(0, "--jobs", "-j", help="Processes to use (0: every core available)."),
     max_memory_gb: float = typer.Option(8.0, "--max-memory-gb", help="Refuse configs estimated to need more memory."),
     max_output_gb: float = typer.Option(20.0, "--max-output-gb", help="Refuse configs estimated to write more."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),

@@ -42,6 +42,7 @@ from studio.converters.transforms import (
 from studio.converters.registry import get_reader
 from studio.core.trajectory import Trajectory
 from studio.core.errors import ConfigError, FormatError, OutputError
+from studio.core.checks import check_option
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
 from studio.core.model import PoseGraph
@@ -266,6 +267,7 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
         raise OutputError(f"{out}: -o must name the dataset folder itself")
     if (out.exists() or out.is_symlink()) and not force:
         raise OutputError(f"{out} already exists (use --force to overwrite)")
+    check_option("--max-memory-gb", max_memory_gb, allow_zero=False)
     cfg = _resolve_inputs(cfg)
     check_not_overlapping([out], cfg.inputs)
     warnings: list[str] = []

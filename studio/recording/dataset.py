@@ -115,7 +115,9 @@ def inter_style(count: int) -> tuple[tuple[int, int, int, int], float]:
 
 
 def _path(template: str, agent: AgentGraph) -> str:
-    return template.format(agent=agent.name)
+    import rerun as rr
+
+    return template.format(agent=rr.escape_entity_path_part(agent.name))  # spaces, "/", non-ASCII: one part
 
 
 @dataclass(frozen=True, eq=False)
