@@ -32,6 +32,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from studio.core.progress import Progress  # the callback type of build_graph (re-exported)
+from studio.core.checks import check_option
 from studio.core.errors import ConfigError
 from studio.core.geometry import (
     normalize_angle,
@@ -114,8 +115,7 @@ class GraphOptions:
                 if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                     raise ConfigError(f"{key}: expected a non-negative integer, got {v!r}", option=key)
                 continue
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ConfigError(f"{key}: expected a finite number >= 0, got {v!r}", option=key)
+            check_option(key, v)
             object.__setattr__(self, f.name, float(v))  # 3 and 3.0 give the same convert.json
         if self.lc_radius <= 0:
             raise ConfigError("lc_radius: must be > 0", option="lc_radius")
@@ -353,7 +353,9 @@ def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
     names = [t.name for t in trajectories]
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
-        raise ConfigError(f"two agents are named {dup!r}; rename one of the inputs")
+        files = [str(t.source) for t in trajectories if t.name == dup][:2]
+        raise ConfigError(f"two agents are named {dup!r} ({' and '.join(files)}); rename one of the inputs "
+                          "or name them with --agent")
     planar = opts.planar
     origin = trajectories[0].positions_xyz[0].copy()
     if planar:

@@ -288,7 +288,7 @@ def _open_errors() -> tuple[type[BaseException], ...]:
     from rosbags.typesys import TypesysError
 
     return (AnyReaderError, ReaderError1, ReaderError2, SerdeError, TypesysError, sqlite3.Error, struct.error,
-            EOFError, OSError)
+            EOFError, OSError, UnicodeDecodeError)  # e.g. one inverted byte in metadata.yaml
 
 
 def read_bag(bag: str | os.PathLike | Sequence[str | os.PathLike], specs: Sequence[AgentSpec] | Mapping[str, str], *,

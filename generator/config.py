@@ -94,6 +94,9 @@ class SynthConfig:
 #: poses with 60 MB of interpreter; 1.0-1.3 kB of files per pose), with a safety margin.
 MEMORY_BYTES_PER_POSE = 3_000
 MEMORY_BYTES_BASE = 80_000_000
+#: Per pair of agents (the inter-agent search's bookkeeping): measured 500 agents x 1 step, 125k
+#: pairs, +320 MB peak RSS (docs/reliability.md); so 10,000 agents are refused, not grown into.
+MEMORY_BYTES_PER_PAIR = 2_500
 OUTPUT_BYTES_PER_POSE = 1_500
 
 
@@ -124,5 +127,6 @@ def estimate_resources(cfg: SynthConfig) -> tuple[int, int]:
     searches = [_search_bytes(_radius_cells(a.intra_loop_closure_radius, cfg), n, n) for a in cfg.agents]
     if cfg.number_of_agents > 1:
         searches.append(_search_bytes(_radius_cells(cfg.inter.loop_closure_radius, cfg), n, n))
-    memory = MEMORY_BYTES_BASE + poses * MEMORY_BYTES_PER_POSE + 2 * max(searches)
+    pairs = cfg.number_of_agents * (cfg.number_of_agents - 1) // 2
+    memory = MEMORY_BYTES_BASE + poses * MEMORY_BYTES_PER_POSE + pairs * MEMORY_BYTES_PER_PAIR + 2 * max(searches)
     return int(memory), poses * OUTPUT_BYTES_PER_POSE

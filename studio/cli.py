@@ -97,7 +97,7 @@ def synth(
     single_records: RecordKind = typer.Option(
         RecordKind.d2, "--single-records", help="g2o records of the single g2o file (kollagen: 2d)."
     ),
-    jobs: int = typer.Option(0, "--jobs", "-j", help="Processes to use (0: every core available).", min=0),
+    jobs: int = typer.Option(0, "--jobs", "-j", help="Processes to use (0: every core available)."),
     max_memory_gb: float = typer.Option(8.0, "--max-memory-gb", help="Refuse configs estimated to need more memory."),
     max_output_gb: float = typer.Option(20.0, "--max-output-gb", help="Refuse configs estimated to write more."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
@@ -236,6 +236,7 @@ def snapshot(
     out: Path = typer.Option(..., "-o", "--out", help="The picture to write (PNG)."),
     node: int = typer.Option(None, "--node", help="Put the time cursor on this node (default: the last)."),
     size: str = typer.Option("1400x900", "--size", help="Window size WIDTHxHEIGHT."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing picture."),
 ) -> None:
     """Render a recording to a PNG without a display (needs a Vulkan driver, e.g. mesa-vulkan-drivers).
 
@@ -244,7 +245,7 @@ def snapshot(
     from studio.recording.viewer import snapshot as render
 
     with terminal_progress() as progress:
-        res = render(rrd, out, node=node, window_size=size, progress=progress)
+        res = render(rrd, out, node=node, window_size=size, progress=progress, force=force)
     typer.echo(f"{res.path}: node {res.time}")
 
 

@@ -42,7 +42,8 @@ from studio.converters.transforms import (
 from studio.converters.registry import get_reader
 from studio.core.trajectory import Trajectory
 from studio.core.errors import ConfigError, FormatError, OutputError
-from studio.io.atomic import staged_outputs
+from studio.core.checks import check_option
+from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
 from studio.core.model import PoseGraph
 from studio.core.units import DEFAULT_MAX_MEMORY_GB
@@ -267,7 +268,9 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
         raise OutputError(f"{out}: -o must name the dataset folder itself")
     if (out.exists() or out.is_symlink()) and not force:
         raise OutputError(f"{out} already exists (use --force to overwrite)")
+    check_option("--max-memory-gb", max_memory_gb, allow_zero=False)
     cfg = _resolve_inputs(cfg)
+    check_not_overlapping([out], cfg.inputs)
     warnings: list[str] = []
 
     def _warn(msg: str) -> None:
@@ -278,7 +281,7 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
     reader = get_reader(cfg.source)
     trajs, orientation = prepare_trajectories(cfg, reader(cfg.inputs, agents=cfg.agents, warn=_warn, progress=progress))
     build = build_graph(trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb)
-    with staged_outputs(out.parent, [out.name], force=force) as staging:
+    with staged_outputs(out.parent, [out.name], force=force, inputs=cfg.inputs) as staging:
         ds = staging / out.name
         ds.mkdir()
         if progress:

@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from studio.core.alignment import Alignment
-from studio.core.errors import EvaluationError
+from studio.core.errors import EvaluationError, OutputError
 from studio.core.model import PoseGraph
 from studio.core.progress import Progress, report
 from studio.core.units import NS_PER_S
@@ -296,6 +296,20 @@ def _ape_rotation_deg(gt: np.ndarray, est: np.ndarray) -> np.ndarray:
     return np.rad2deg((Rotation.from_quat(est[:, 3:7]).inv() * Rotation.from_quat(gt[:, 3:7])).magnitude())
 
 
+def _quiet_numpy(func):
+    """Run ``func`` with numpy's floating-point warnings off: overflow shows up as a non-finite
+    error, which :func:`score` refuses in one line naming the agent and pose."""
+    import functools
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        with np.errstate(all="ignore"):
+            return func(*args, **kwargs)
+
+    return wrapper
+
+
+@_quiet_numpy
 def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_time: bool = False,
           align: Alignment | str = Alignment.none,
           align_per_agent: bool = False, rpe_delta_m: float = 1.0, rpe_delta_nodes: int = 1,
@@ -356,6 +370,13 @@ def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_
     ape_r = [_ape_rotation_deg(gt, est) for gt, est, *_ in matched]
     rpe_m = [_rpe(gt, est, rpe_delta_m, metrics.Unit.meters) for gt, est, *_ in matched]
     rpe_n = [_rpe(gt, est, rpe_delta_nodes, metrics.Unit.frames) for gt, est, *_ in matched]
+
+    for k, series in enumerate([*ape_t, *ape_r, *(r[0] for r in rpe_m), *(r[0] for r in rpe_n)]):
+        bad = np.flatnonzero(~np.isfinite(np.asarray(series, dtype=float)))
+        if len(bad):  # an estimate far beyond any map (e.g. a vertex at 1e200) overflows the errors
+            k %= len(names)
+            raise EvaluationError(f"{estimate_label or 'estimate'}: agent {names[k]}: the error at pose {int(bad[0])} "
+                                  "is not finite (a pose beyond the finite range?)")
 
     def row(name, n, at, ar, rm, rn) -> AgentScore:
         ape_t, ape_r = ErrorStats.of(at), ErrorStats.of(ar)
@@ -504,7 +525,10 @@ def write_evaluation_recording(ev: Evaluation, path: str | os.PathLike, *, force
         for k, a in enumerate(ev.agents)
     ]
     report(progress, "evaluation recording", 0, 1, "files")
-    with staged_outputs(path.parent, [path.name], force=force) as staging:
+    if path.suffix != ".rrd":
+        raise OutputError(f"{path}: a recording must end in .rrd")
+    inputs = [ev.dataset] + ([ev.estimate] if ev.estimate_layout != "initial" else [])
+    with staged_outputs(path.parent, [path.name], force=force, inputs=inputs) as staging:
         save_evaluation_recording(staging / path.name, format_markdown(ev), series, recording_id=recording_id)
     report(progress, "evaluation recording", 1, 1, "files")
     return path

@@ -18,6 +18,7 @@ from studio.generator.presets import PRESETS, preset, preset_names
 from studio.core.errors import ConfigError
 from studio.core.progress import Progress, report
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
+from studio.core.checks import check_option
 from studio.io.atomic import staged_outputs
 from studio.io.multig2o import Records, write_multi_g2o
 from studio.io.singleg2o import write_single_g2o, write_single_tum
@@ -128,13 +129,17 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
     Configs estimated to need more memory or disk than the limits are refused before any work.
     ``progress`` hears of each agent, agent pair, written part and recorded agent.
     """
+    check_option("--max-memory-gb", max_memory_gb, allow_zero=False)
+    check_option("--max-output-gb", max_output_gb, allow_zero=False)
+    if jobs is not None and (isinstance(jobs, bool) or not 0 <= jobs <= 4096):
+        raise ConfigError(f"--jobs: expected 0 (every core) .. 4096, got {jobs!r}")
     check_resources(config, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
     out_dir = Path(out_dir)
     name = config.name
     extras = [f"{name}{suffix}" for suffix in generator.extra_suffixes(config)]
     config_name, rrd_name = f"{name}.config.json", f"{name}.rrd"
     names = [name, *extras, config_name] + ([rrd_name] if rrd else [])
-    with staged_outputs(out_dir, names, force=force) as staging:
+    with staged_outputs(out_dir, names, force=force, inputs=()) as staging:
         output = generator.generate(config, jobs=jobs, progress=progress)
         write_outputs(output, staging, name, multi_records=multi_records,
                       single_records=single_records, jobs=jobs, progress=progress)

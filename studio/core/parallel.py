@@ -64,10 +64,16 @@ def parallel_map(func: Callable[[int], T], n_items: int, jobs: int | None = None
         ctx = multiprocessing.get_context("fork")
         with ctx.Pool(jobs, initializer=_worker_init) as pool:
             results = []
-            for r in pool.imap(_run, range(n_items), chunksize=1):
-                results.append(r)
-                if on_done is not None:
-                    on_done(len(results), n_items)
+            try:
+                for r in pool.imap(_run, range(n_items), chunksize=1):
+                    results.append(r)
+                    if on_done is not None:
+                        on_done(len(results), n_items)
+            except Exception as err:
+                # the worker's error, as if raised here: no RemoteTraceback chained to it, so the
+                # caller's one-line handling (e.g. OSError -> OutputError) sees a clean exception
+                err.__cause__ = None
+                raise err.with_traceback(None) from None
             return results
     finally:
         _TASK.clear()

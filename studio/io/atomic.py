@@ -1,23 +1,54 @@
-"""Atomic outputs: build everything in a staging folder beside the targets, then rename into place.
+"""Atomic outputs: the one place a command's outputs are written.
 
-A run that is interrupted leaves no half-written target. Its staging folder is named
-``.studio-staging-<pid>-<name>`` and is removed by the next run in the same parent folder once the
-process that made it is gone.
+Everything is built in a staging folder beside the targets, then renamed into place. The rules
+(docs/reliability.md):
+
+- **Outputs never overlap inputs**: paths are resolved (symlinks too) and an output that is,
+  contains or sits inside one of the command's ``inputs``, or is the current folder or one of its
+  parents, is refused before anything is done.
+- **``--force`` replaces only what a command wrote**: a folder output carries a marker file
+  (the extended attribute ``user.cslam_studio_output``, or a ``.studio-output`` file where the
+  file system has none); an existing folder without it is never replaced, nor is a folder where a
+  file is expected.
+- **One writer per target**: an exclusive ``fcntl.flock`` on a lock file beside the first target is
+  held from the existence check to the last rename; a second run is refused in one line.
+- **Durable, verified writes**: staged files are fsynced, recordings (``*.rrd``) have their footer
+  checked before the rename, and any ``OSError`` (full disk, read-only, permission) becomes one
+  :class:`OutputError` naming the path and the cause, with nothing staged left behind.
+- **A ``--force`` replacement keeps the old output** (in ``<staging>/.replaced``) until every new
+  output is in place; interrupted (an exception, Ctrl-C) it is restored at once, killed it is
+  restored by the next run in that folder once the killed process is gone (its journal says how far
+  it got). Stale staging folders are removed only when their owner process is gone.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import json
 import os
 import shutil
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Callable, Iterable, Iterator
 
 from studio.core.errors import OutputError
 
-__all__ = ["staged_outputs", "write_replacing", "STAGING_PREFIX"]
+__all__ = ["staged_outputs", "write_replacing", "check_not_overlapping", "verify_rrd", "os_error_message",
+           "STAGING_PREFIX", "MARKER_NAME", "LOCK_PREFIX"]
 
 STAGING_PREFIX = ".studio-staging-"
+MARKER_NAME = ".studio-output"
+MARKER_XATTR = "user.cslam_studio_output"
+LOCK_PREFIX = STAGING_PREFIX + "lock-"  # a killed run leaves it; reused and removed by the next
+_JOURNAL = ".journal.json"
+_REPLACED = ".replaced"
+
+
+def os_error_message(err: OSError, path: str | os.PathLike | None = None) -> str:
+    """``'<path>: <cause>'`` for an OSError, e.g. ``out/x.rrd: No space left on device``."""
+    where = err.filename if err.filename is not None else path
+    cause = err.strerror or (errno.errorcode.get(err.errno, "") if err.errno else "") or str(err) or type(err).__name__
+    return f"{where}: {cause}" if where is not None else str(cause)
 
 
 def _pid_alive(pid: int) -> bool:
@@ -30,52 +61,295 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
+def _resolve(p: str | os.PathLike) -> Path:
+    return Path(os.path.realpath(os.path.abspath(p)))
+
+
+def _inside(a: Path, b: Path) -> bool:
+    """``a`` is ``b`` or sits inside it (both resolved)."""
+    return a == b or b in a.parents
+
+
+def check_not_overlapping(outputs: Iterable[str | os.PathLike], inputs: Iterable[str | os.PathLike]) -> None:
+    """Refuse an output that is, contains or sits inside an input, or is the current folder or one
+    of its parents. Paths are resolved, symlinks included."""
+    cwd = _resolve(os.getcwd())
+    ins = [(Path(i), _resolve(i)) for i in inputs]
+    for out in outputs:
+        r = _resolve(out)
+        if _inside(cwd, r):
+            raise OutputError(f"{out}: an output cannot be the current folder or one of its parents")
+        for given, ri in ins:
+            if _inside(r, ri) or _inside(ri, r):
+                what = "is" if r == ri else ("contains" if _inside(ri, r) else "sits inside")
+                raise OutputError(f"{out}: the output {what} the input {given}; choose another output path")
+
+
+def verify_rrd(path: str | os.PathLike) -> None:
+    """Raise :class:`OutputError` unless ``path`` is a complete Rerun recording: the ``RRF2`` header,
+    the ``RRF2FOOT`` footer and a manifest Rerun can read (~3 ms for a few MB)."""
+    import warnings
+
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4)
+            size = f.seek(0, os.SEEK_END)
+            f.seek(max(0, size - 12))
+            tail = f.read(12)
+    except OSError as err:
+        raise OutputError(os_error_message(err, path)) from None
+    if head != b"RRF2" or tail[:8] != b"RRF2FOOT":
+        raise OutputError(f"{path}: the recording is incomplete (no Rerun {'header' if head != b'RRF2' else 'footer'}; "
+                          f"{size} bytes)")
+    try:
+        import rerun.chunk as rc
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rc.RrdReader(str(path)).store()
+    except Exception as err:  # noqa: BLE001 - any failure to read the manifest means a damaged file
+        raise OutputError(f"{path}: the recording cannot be read back ({str(err).splitlines()[0][:120]})") from None
+
+
+def _fsync_tree(root: Path) -> None:
+    """fsync every file under ``root`` and the folders holding them; verify recordings."""
+    paths = [root] if root.is_file() else [root, *sorted(root.rglob("*"))]
+    for p in paths:
+        if p.is_symlink():
+            continue
+        if p.is_file():
+            if p.suffix == ".rrd":
+                verify_rrd(p)
+            fd = os.open(p, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+    for d in [p for p in paths if p.is_dir() and not p.is_symlink()]:
+        _fsync_dir(d)
+
+
+def _fsync_dir(d: Path) -> None:
+    try:
+        fd = os.open(d, os.O_RDONLY | os.O_DIRECTORY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _rollback(staging: Path, parent: Path) -> None:
+    """Undo an unfinished rename phase recorded in ``staging``'s journal: new outputs out, old back."""
+    journal = staging / _JOURNAL
+    if not journal.is_file():
+        return
+    try:
+        state = json.loads(journal.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return
+    if state.get("done"):
+        return
+    trash = staging / _REPLACED
+    for name in state.get("names", []):
+        dst, old, new = parent / name, trash / name, staging / name
+        placed = not new.exists() and not new.is_symlink()
+        if name in state.get("had_old", []):
+            if old.exists() or old.is_symlink():
+                if dst.exists() or dst.is_symlink():
+                    _remove(dst)
+                os.replace(old, dst)
+        elif placed and name in state.get("placed", []) and (dst.exists() or dst.is_symlink()):
+            _remove(dst)
+
+
+def _remove(p: Path) -> None:
+    if p.is_dir() and not p.is_symlink():
+        shutil.rmtree(p, ignore_errors=True)
+    else:
+        p.unlink(missing_ok=True)
+
+
 def _clean_stale(parent: Path) -> None:
+    """Remove staging folders whose owner process is gone, restoring what an interrupted
+    ``--force`` replacement had moved aside."""
+    import fcntl
+
+    for lock in parent.glob(LOCK_PREFIX + "*"):
+        # a lock file nobody holds was left by a killed run: remove it
+        try:
+            fd = os.open(lock, os.O_RDWR)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            os.unlink(lock)
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
     for p in parent.glob(STAGING_PREFIX + "*"):
+        if p.name.startswith(LOCK_PREFIX):
+            continue
         pid_text = p.name[len(STAGING_PREFIX):].split("-", 1)[0]
         if pid_text.isdigit() and int(pid_text) != os.getpid() and not _pid_alive(int(pid_text)):
+            with contextlib.suppress(OSError):
+                _rollback(p, parent)
             shutil.rmtree(p, ignore_errors=True)
 
 
 @contextlib.contextmanager
-def staged_outputs(parent: str | os.PathLike, names: list[str], *, force: bool = False) -> Iterator[Path]:
+def _target_lock(parent: Path, name: str) -> Iterator[None]:
+    """Hold an exclusive lock for writing ``parent/name``; refuse at once when another run holds it.
+
+    The lock file is removed on release; a waiter that locked the removed file notices (its inode is
+    no longer the one at the path) and is refused too.
+    """
+    import fcntl
+
+    lock = parent / f"{LOCK_PREFIX}{name}"
+    try:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as err:
+        raise OutputError(os_error_message(err, lock)) from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
+        except (BlockingIOError, FileNotFoundError):
+            same = False
+        if not same:
+            raise OutputError(f"{parent / name}: another studio run is writing this output now; "
+                              "wait for it to finish")
+        try:
+            yield
+        finally:
+            with contextlib.suppress(OSError):
+                os.unlink(lock)
+    finally:
+        os.close(fd)
+
+
+def _mark(folder: Path) -> None:
+    """Mark ``folder`` as written by studio: an extended attribute (invisible, so the dataset layout
+    stays kollagen's), or a ``.studio-output`` file where the file system has no user attributes."""
+    try:
+        os.setxattr(folder, MARKER_XATTR, b"output")
+    except (OSError, AttributeError):
+        (folder / MARKER_NAME).write_text("written by cslam-studio; `--force` may replace this folder\n",
+                                          encoding="utf-8")
+
+
+def _is_marked(folder: Path) -> bool:
+    try:
+        if os.getxattr(folder, MARKER_XATTR) == b"output":
+            return True
+    except (OSError, AttributeError):
+        pass
+    return (folder / MARKER_NAME).is_file()
+
+
+def _check_replaceable(dst: Path, staged: Path | None) -> None:
+    """With ``--force``: ``dst`` may be replaced only by something of the same kind that a studio
+    command wrote (a folder with the marker, or a regular file)."""
+    if dst.is_symlink():
+        raise OutputError(f"{dst} is a symbolic link; --force replaces only outputs studio wrote, remove it yourself")
+    if dst.is_dir():
+        if not _is_marked(dst):
+            raise OutputError(f"{dst} is a folder studio did not write (no {MARKER_NAME} inside); "
+                              "--force will not replace it, remove it yourself or choose another output")
+        if staged is not None and not staged.is_dir():
+            raise OutputError(f"{dst} is a folder, the output is a file; remove it yourself")
+    elif not dst.is_file():
+        raise OutputError(f"{dst} is not a regular file; --force will not replace it")
+    elif staged is not None and staged.is_dir():
+        raise OutputError(f"{dst} is a file, the output is a folder; remove it yourself")
+
+
+@contextlib.contextmanager
+def staged_outputs(parent: str | os.PathLike, names: list[str], *, force: bool = False,
+                   inputs: Iterable[str | os.PathLike] = ()) -> Iterator[Path]:
     """Yield a staging folder; on success move ``staging/<name>`` to ``parent/<name>`` for each name.
 
     Raises :class:`OutputError` before anything is written when a target exists and ``force`` is
-    false. Entries of ``names`` that the body did not create are skipped.
+    false, when a target overlaps one of ``inputs`` (or the current folder's parent chain), when an
+    existing target is not something a studio command wrote, or when another run writes the same
+    target. Folders among the outputs get a ``.studio-output`` marker. Entries of ``names`` that
+    the body did not create are skipped. An ``OSError`` in the body or the renames becomes an
+    :class:`OutputError` naming the target path.
     """
     parent = Path(parent)
     for name in names:
         if Path(name).name != name or name in ("", ".", ".."):
             raise OutputError(f"{name!r} is not a plain file or folder name")
-    existing = [parent / n for n in names if (parent / n).exists() or (parent / n).is_symlink()]
-    if existing and not force:
-        raise OutputError(f"{existing[0]} already exists (use --force to overwrite)")
+        if name.endswith(".rrd") is False and name.lower().endswith(".rrd"):
+            raise OutputError(f"{parent / name}: a recording must end in .rrd (lower case)")
+    check_not_overlapping([parent / n for n in names], inputs)
     if parent.exists() and not parent.is_dir():
         raise OutputError(f"{parent} exists and is not a folder")
     try:
         parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise OutputError(f"{parent}: cannot create folder ({err.strerror})") from None
-    _clean_stale(parent)
-    staging = parent / f"{STAGING_PREFIX}{os.getpid()}-{names[0]}"
-    if staging.exists():
-        shutil.rmtree(staging)
-    staging.mkdir()
-    try:
-        yield staging
-        trash = staging / ".replaced"
-        for name in names:
-            src = staging / name
-            if not src.exists():
-                continue
-            dst = parent / name
-            if dst.exists() or dst.is_symlink():
-                trash.mkdir(exist_ok=True)
-                os.replace(dst, trash / name)
-            os.replace(src, dst)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
+    with _target_lock(parent, names[0]):
+        existing = [parent / n for n in names if (parent / n).exists() or (parent / n).is_symlink()]
+        if existing and not force:
+            raise OutputError(f"{existing[0]} already exists (use --force to overwrite)")
+        for dst in existing:
+            _check_replaceable(dst, None)
+        _clean_stale(parent)
+        staging = parent / f"{STAGING_PREFIX}{os.getpid()}-{names[0]}"
+        try:
+            if staging.exists():
+                shutil.rmtree(staging)
+            staging.mkdir()
+        except OSError as err:
+            raise OutputError(os_error_message(err, staging)) from None
+        finished = False
+        try:
+            try:
+                yield staging
+                made = [n for n in names if (staging / n).exists()]
+                for name in made:
+                    if (staging / name).is_dir():
+                        _mark(staging / name)
+                    _fsync_tree(staging / name)
+                for name in made:
+                    if (parent / name).exists() or (parent / name).is_symlink():
+                        _check_replaceable(parent / name, staging / name)
+                _replace_all(staging, parent, made)
+                finished = True
+            except OSError as err:
+                msg = os_error_message(err)
+                raise OutputError(msg.replace(str(staging) + os.sep, str(parent) + os.sep)
+                                  .replace(str(staging), str(parent))) from None
+        finally:
+            if not finished:
+                with contextlib.suppress(OSError):
+                    _rollback(staging, parent)
+            shutil.rmtree(staging, ignore_errors=True)
+
+
+def _replace_all(staging: Path, parent: Path, made: list[str]) -> None:
+    """Move old outputs aside, new ones in, journaled so that an interruption can be undone."""
+    trash = staging / _REPLACED
+    had_old = [n for n in made if (parent / n).exists() or (parent / n).is_symlink()]
+    state: dict[str, object] = {"names": made, "had_old": had_old, "placed": made, "done": False}
+    journal = staging / _JOURNAL
+    journal.write_text(json.dumps(state), encoding="utf-8")
+    if had_old:
+        trash.mkdir()
+    for name in had_old:
+        os.replace(parent / name, trash / name)
+    for name in made:
+        os.replace(staging / name, parent / name)
+    _fsync_dir(parent)
+    state["done"] = True
+    journal.write_text(json.dumps(state), encoding="utf-8")
 
 
 def write_replacing(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
@@ -85,7 +359,15 @@ def write_replacing(path: str | os.PathLike, write: Callable[[Path], object]) ->
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
         write(tmp)
+        if tmp.exists():
+            fd = os.open(tmp, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
         os.replace(tmp, path)
+    except OSError as err:
+        raise OutputError(os_error_message(err, path)) from None
     finally:
         tmp.unlink(missing_ok=True)
     return path

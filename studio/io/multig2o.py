@@ -124,6 +124,34 @@ def _read_agents_file(folder: Path) -> list[tuple[str, str]] | None:
     return out
 
 
+def check_dataset_links(folder: str | os.PathLike) -> None:
+    """Refuse, naming it, a symbolic link or special file inside a dataset folder (one level of agent
+    folders deep) that is dangling, loops, points outside the folder or to anything but a regular
+    file or folder (``/dev/zero``, a FIFO): read silently, it would drop or renumber an agent."""
+    import stat
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        return
+    root = Path(os.path.realpath(folder))
+    entries = list(folder.iterdir())
+    entries += [q for p in entries if p.is_dir() and not p.is_symlink() for q in p.iterdir()]
+    for p in entries:
+        if p.is_symlink():
+            try:
+                target = Path(os.path.realpath(p, strict=True))
+            except (OSError, RuntimeError):
+                raise FormatError(f"{p}: a dangling or looping symbolic link") from None
+            if target != root and root not in target.parents:
+                raise FormatError(f"{p}: a symbolic link to {target}, outside the dataset folder")
+        try:
+            mode = os.stat(p).st_mode
+        except OSError as err:
+            raise FormatError(f"{p}: {err.strerror}") from None
+        if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+            raise FormatError(f"{p}: not a regular file (a device, FIFO or socket)")
+
+
 def agent_folders(folder: str | os.PathLike) -> list[tuple[str, Path]]:
     """``[(agent name, folder), ...]`` of a multi-g2o folder, in agent order (see the module doc)."""
     folder = Path(folder)
@@ -154,6 +182,7 @@ def read_multi_g2o(folder: str | os.PathLike, *, edges: bool = True) -> PoseGrap
     folder = Path(folder)
     agents = []
     kind = None
+    check_dataset_links(folder)
     for name, sub in agent_folders(folder):
         g2o_path = sub / "posegraph.g2o"
         doc = read_g2o(g2o_path, edges=edges)

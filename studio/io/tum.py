@@ -105,8 +105,8 @@ def _parse(source: str | os.PathLike | IO[str], *, require_increasing: bool) -> 
         try:
             stamp = _stamp_ns(parts[0])
         except (ValueError, OverflowError):
-            if not seen_data and not stamps:
-                seen_data = True
+            if not seen_data and not stamps and not _looks_numeric(parts[0]):
+                seen_data = True  # a header, not a number such as `nan` or `inf`
                 continue
             raise FormatError(f"{name}:{lineno}: timestamp {parts[0][:40]!r} is not a number") from None
         try:

@@ -33,7 +33,7 @@ from studio.core.errors import FormatError, OutputError
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
 from studio.core.progress import Progress, report
 from studio.core.units import NS_PER_S
-from studio.io.atomic import staged_outputs
+from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.recording.entities import (
     APPLICATION_ID,
     LOOP_CLOSURES_INTER,
@@ -115,7 +115,9 @@ def inter_style(count: int) -> tuple[tuple[int, int, int, int], float]:
 
 
 def _path(template: str, agent: AgentGraph) -> str:
-    return template.format(agent=agent.name)
+    import rerun as rr
+
+    return template.format(agent=rr.escape_entity_path_part(agent.name))  # spaces, "/", non-ASCII: one part
 
 
 @dataclass(frozen=True, eq=False)
@@ -609,6 +611,23 @@ def read_outliers(path: str | os.PathLike, graph: PoseGraph) -> np.ndarray:
     return np.array(rows, dtype=np.int64).reshape(-1, 4)
 
 
+#: Coordinates beyond this [m] are refused: squares of them overflow float64 in the viewer's maths.
+MAX_COORDINATE_M = 1e12
+
+
+def check_extent(graph: PoseGraph, dataset: Path) -> None:
+    """Refuse, naming the file and vertex, a pose whose position leaves ±MAX_COORDINATE_M."""
+    for a in graph.agents:
+        for what, poses, rel in (("vertex", a.initial, "posegraph.g2o"), ("ground-truth pose", a.ground_truth, "GT.tum")):
+            if poses is None or not len(poses):
+                continue
+            xyz = np.asarray(poses)[:, : (2 if poses.shape[1] == 3 else 3)]
+            bad = np.flatnonzero(~(np.abs(xyz) <= MAX_COORDINATE_M).all(axis=1))
+            if len(bad):
+                raise FormatError(f"{dataset}: agent {a.name}: {what} {int(bad[0])} ({rel}) lies beyond "
+                                  f"{MAX_COORDINATE_M:g} m")
+
+
 def record_dataset(dataset: str | os.PathLike, out: str | os.PathLike, *, force: bool = False,
                    progress: Progress | None = None) -> RecordResult:
     """Read a multi-g2o folder (ours or kollagen's) and write its recording to ``out`` atomically.
@@ -621,13 +640,15 @@ def record_dataset(dataset: str | os.PathLike, out: str | os.PathLike, *, force:
     dataset, out = Path(dataset), Path(out)
     if out.suffix != ".rrd":
         raise OutputError(f"{out}: a recording must end in .rrd")
+    check_not_overlapping([out], [dataset])
     report(progress, "reading", 0, 1, "datasets")
     graph = read_multi_g2o(dataset)
     report(progress, "reading", 1, 1, "datasets")
+    check_extent(graph, dataset)
     config_json = _sibling_config(dataset)
     outliers = read_outliers(dataset / "outliers.txt", graph) if (dataset / "outliers.txt").is_file() else None
     name = dataset.resolve().name
-    with staged_outputs(out.parent, [out.name], force=force) as staging:
+    with staged_outputs(out.parent, [out.name], force=force, inputs=[dataset]) as staging:
         res = record_graph(graph, staging / out.name, name=name, config_json=config_json, outliers=outliers,
                            progress=progress)
     return RecordResult(out, res.recording_id, res.num_poses, res.edge_counts, res.real_time)

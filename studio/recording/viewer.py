@@ -60,10 +60,20 @@ def vulkan_drivers() -> list[str]:
 
 
 def _check_rrd(rrd: Path) -> Path:
+    """The recording's resolved path, once its header, footer and manifest read back (milliseconds,
+    so a damaged file is refused before a viewer starts)."""
+    from studio.io.atomic import verify_rrd
+
+    if rrd.is_dir():
+        raise FormatError(f"{rrd}: is a folder, not a recording")
     if not rrd.is_file():
         raise FormatError(f"{rrd}: no such recording")
     if rrd.suffix != ".rrd":
         raise FormatError(f"{rrd}: not a .rrd file")
+    try:
+        verify_rrd(rrd)
+    except OutputError as err:
+        raise FormatError(str(err).replace("the recording is incomplete", "not a complete Rerun recording")) from None
     return rrd.resolve()
 
 
@@ -87,7 +97,7 @@ def view_command(rrd: str | os.PathLike) -> list[str]:
     if not has_display():
         raise ConfigError(f"{rrd}: no display (DISPLAY and WAYLAND_DISPLAY are unset): use "
                           f"`studio view {rrd} --web` for the web viewer, or `studio snapshot {rrd} -o FILE.png`")
-    return [rerun_executable(), str(path)]
+    return [rerun_executable(), "--bind", "127.0.0.1", str(path)]
 
 
 #: Port of the gRPC server that ``rerun --serve-web`` starts beside the web viewer (Rerun's default).
@@ -127,7 +137,7 @@ def _parse_size(window_size: str) -> str:
 
 def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None = None,
              window_size: str = "1400x900", timeout_s: float = 60.0, settle_s: float = 3.0,
-             progress: Progress | None = None) -> SnapshotResult:
+             progress: Progress | None = None, force: bool = False) -> SnapshotResult:
     """Render ``rrd`` to ``png`` with the cursor at ``node`` (default: the last node), no display needed.
 
     Raises :class:`ConfigError` with an installation hint when no Vulkan driver is installed. The
@@ -142,18 +152,33 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
         raise OutputError(f"{png}: a snapshot must end in .png")
     if not png.parent.is_dir():
         raise OutputError(f"{png.parent}: no such folder")
+    if png.is_dir():
+        raise OutputError(f"{png}: is a folder")
+    if (png.exists() or png.is_symlink()) and not force:
+        raise OutputError(f"{png} already exists (use --force to overwrite)")
     size = _parse_size(window_size)
     if not vulkan_drivers():
         raise ConfigError(f"studio snapshot needs a Vulkan driver and found none: {_INSTALL_HINT}")
+    from studio.io.atomic import staged_outputs
+
+    with staged_outputs(png.parent, [png.name], force=force, inputs=[rrd]) as staging:
+        return _snapshot_into(rrd, png, staging / png.name, node=node, size=size,
+                              timeout_s=timeout_s, settle_s=settle_s, progress=progress)
+
+
+def _snapshot_into(rrd: Path, png: Path, tmp: Path, *, node: int | None, size: str, timeout_s: float,
+                   settle_s: float, progress: Progress | None) -> SnapshotResult:
+    from rerun.experimental import ViewerClient
+
     step = "snapshot"
     report(progress, step, 0, 4, "stages")
     port = _free_port()
-    cmd = [rerun_executable(), "--headless", "--hide-welcome-screen", "--port", str(port), "--window-size", size]
+    cmd = [rerun_executable(), "--headless", "--hide-welcome-screen", "--bind", "127.0.0.1", "--port", str(port),
+           "--window-size", size]
     log = tempfile.TemporaryFile(mode="w+", encoding="utf-8", errors="replace")  # never a full pipe
     # its own process group: the viewer starts helper processes that must end with it
     proc = subprocess.Popen(cmd, env=_env(), stdin=subprocess.DEVNULL, stdout=log, stderr=log,
                             start_new_session=True)
-    tmp = png.with_name(f".{png.name}.{os.getpid()}.tmp.png")
     try:
         client = _connect(ViewerClient, proc, log, port, timeout_s)
         report(progress, step, 1, 4, "stages")
@@ -184,12 +209,10 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
         report(progress, step, 4, 4, "stages")
         if not tmp.is_file():
             raise OutputError("the viewer did not write a screenshot")
-        os.replace(tmp, png)
         return SnapshotResult(png, name, int(at))
     finally:
         _stop_group(proc)
         log.close()
-        tmp.unlink(missing_ok=True)
 
 
 def _stop_group(proc: subprocess.Popen) -> None:

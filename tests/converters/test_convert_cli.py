@@ -181,10 +181,10 @@ def test_recorder_hook_writes_inside_the_staged_dataset(tmp_path, tum_files):
     def recorder(graph, folder):
         seen["stamps"] = graph.agents[0].stamps_ns
         assert folder.parent.name.startswith(".studio-staging-")
-        (folder / "dataset.rrd").write_bytes(b"rrd")
+        (folder / "hook.bin").write_bytes(b"rrd")  # (a .rrd would be checked for its Rerun footer)
 
     res = convert(ConvertConfig("tum", tum_files), tmp_path / "ds", recorder=recorder)
-    assert (tmp_path / "ds" / "dataset.rrd").read_bytes() == b"rrd"
+    assert (tmp_path / "ds" / "hook.bin").read_bytes() == b"rrd"
     assert seen["stamps"][0] == res.trajectories[0].stamps_ns[0]
 
     def broken(graph, folder):

@@ -125,11 +125,24 @@ def test_synth_writes_rrd_by_default_and_not_with_no_rrd(tmp_path):
 # view and snapshot
 
 
+def _empty_recording(rrd: Path) -> None:
+    """A real (empty) recording: damaged ones are refused before a viewer starts."""
+    import rerun as rr
+
+    rec = rr.RecordingStream("t")
+    rec.save(str(rrd))
+    rec.disconnect()
+
+
 def test_view_web_serves_on_localhost_only(tmp_path):
     from studio.recording.viewer import view_web_command, web_viewer_address
 
+    import rerun as rr
+
     rrd = tmp_path / "x.rrd"
-    rrd.write_bytes(b"")
+    rec = rr.RecordingStream("t")
+    rec.save(str(rrd))  # a real (empty) recording: damaged ones are refused before a viewer starts
+    rec.disconnect()
     cmd = view_web_command(rrd, port=9123)
     assert cmd[1:6] == ["--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", "9123"]
     assert cmd[-1] == str(rrd.resolve())
@@ -144,7 +157,7 @@ def test_snapshot_without_vulkan_says_what_to_install(tmp_path, monkeypatch):
     import studio.recording.viewer as viewer
 
     rrd = tmp_path / "x.rrd"
-    rrd.write_bytes(b"")
+    _empty_recording(rrd)
     monkeypatch.setattr(viewer, "vulkan_drivers", lambda: [])
     res = runner.invoke(app, ["snapshot", str(rrd), "-o", str(tmp_path / "x.png")])
     assert res.exit_code == 2
@@ -154,7 +167,7 @@ def test_snapshot_without_vulkan_says_what_to_install(tmp_path, monkeypatch):
 
 def test_snapshot_bad_size(tmp_path):
     rrd = tmp_path / "x.rrd"
-    rrd.write_bytes(b"")
+    _empty_recording(rrd)
     res = runner.invoke(app, ["snapshot", str(rrd), "-o", str(tmp_path / "x.png"), "--size", "big"])
     assert res.exit_code == 2 and "WIDTHxHEIGHT" in res.stderr
 

@@ -1,0 +1,160 @@
+"""The mechanisms of studio.io.atomic (issue 10): one writer per target, a --force replacement that
+survives interruption, full disks and worker errors reported in one line, recordings verified."""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import multiprocessing
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from studio.cli import app
+from studio.core.errors import OutputError
+from studio.core.parallel import parallel_map
+from studio.io import atomic
+from studio.io.atomic import LOCK_PREFIX, STAGING_PREFIX, staged_outputs, verify_rrd
+from tests.reliability.test_generated_corpus import _dataset
+
+runner = CliRunner()
+
+
+def test_a_second_writer_is_refused_while_the_first_holds_the_target(tmp_path):
+    ds = _dataset(tmp_path)
+    with staged_outputs(tmp_path, ["o.rrd"]) as staging:
+        res = runner.invoke(app, ["record", str(ds), "-o", str(tmp_path / "o.rrd")])
+        assert res.exit_code == 2 and res.stderr.count("\n") == 1, res.stderr
+        assert "another studio run is writing" in res.stderr
+        (staging / "o.rrd").write_bytes(b"")  # (not a recording: the first run then fails its check)
+        (staging / "o.rrd").unlink()
+    assert not (tmp_path / "o.rrd").exists()
+    assert not list(tmp_path.glob(LOCK_PREFIX + "*")) and not list(tmp_path.glob(STAGING_PREFIX + "*"))
+
+
+def test_two_concurrent_cli_runs_to_one_target_one_wins(tmp_path):
+    ds = _dataset(tmp_path)
+    env = dict(os.environ, CI="true", RERUN_ANALYTICS="0")
+    cmd = [sys.executable, "-c", "from studio.cli import main; main()", "record", str(ds), "-o", str(tmp_path / "o.rrd")]
+    procs = [subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    results = [(p.wait(timeout=120), p.stderr.read()) for p in procs]
+    codes = sorted(c for c, _ in results)
+    assert codes == [0, 2], results
+    loser = next(e for c, e in results if c == 2)
+    assert len(loser.strip().splitlines()) == 1 and ("already exists" in loser or "another studio run" in loser)
+    verify_rrd(tmp_path / "o.rrd")
+
+
+def _old_and_new(tmp_path: Path) -> None:
+    with staged_outputs(tmp_path, ["out", "b.txt"]) as s:
+        (s / "out").mkdir()
+        (s / "out" / "f").write_text("old")
+        (s / "b.txt").write_text("old")
+
+
+def test_interrupted_force_replacement_restores_the_old_output(tmp_path, monkeypatch):
+    _old_and_new(tmp_path)
+    real = os.replace
+    calls = []
+
+    def flaky(src, dst):
+        calls.append((src, dst))
+        if len(calls) == 3:  # both old outputs moved aside, the first new one placed: Ctrl-C
+            raise KeyboardInterrupt
+        return real(src, dst)
+
+    monkeypatch.setattr(atomic.os, "replace", flaky)
+    with pytest.raises(KeyboardInterrupt):
+        with staged_outputs(tmp_path, ["out", "b.txt"], force=True) as s:
+            (s / "out").mkdir()
+            (s / "out" / "f").write_text("new")
+            (s / "b.txt").write_text("new")
+    monkeypatch.setattr(atomic.os, "replace", real)
+    assert (tmp_path / "out" / "f").read_text() == "old" and (tmp_path / "b.txt").read_text() == "old"
+    assert not list(tmp_path.glob(STAGING_PREFIX + "*"))
+
+
+def _killed_child(tmp_path: Path) -> None:
+    real = os.replace
+    calls = []
+
+    def dying(src, dst):
+        calls.append(1)
+        if len(calls) == 3:
+            os._exit(9)  # SIGKILL-like: no cleanup at all
+        return real(src, dst)
+
+    atomic.os.replace = dying  # type: ignore[assignment]
+    with staged_outputs(tmp_path, ["out", "b.txt"], force=True) as s:
+        (s / "out").mkdir()
+        (s / "out" / "f").write_text("new")
+        (s / "b.txt").write_text("new")
+
+
+def test_killed_force_replacement_is_restored_by_the_next_run(tmp_path):
+    _old_and_new(tmp_path)
+    p = multiprocessing.get_context("fork").Process(target=_killed_child, args=(tmp_path,))
+    p.start()
+    p.join()
+    assert p.exitcode == 9
+    assert list(tmp_path.glob(STAGING_PREFIX + "*"))  # the journal and the old outputs are kept
+    with staged_outputs(tmp_path, ["other.txt"]) as s:  # any later run in that folder restores them
+        (s / "other.txt").write_text("x")
+    assert (tmp_path / "out" / "f").read_text() == "old" and (tmp_path / "b.txt").read_text() == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.txt", "other.txt", "out"]
+
+
+def _enospc(i: int) -> None:
+    raise OSError(errno.ENOSPC, "No space left on device", f"/full/part{i}")
+
+
+def test_a_worker_oserror_comes_back_clean_and_becomes_one_line(tmp_path):
+    with pytest.raises(OSError) as info:
+        parallel_map(_enospc, 4, jobs=2)
+    assert info.value.__cause__ is None and info.value.errno == errno.ENOSPC
+    with pytest.raises(OutputError, match=r"^/full/part\d: No space left on device$"):
+        with staged_outputs(tmp_path, ["x"]):
+            parallel_map(_enospc, 4, jobs=2)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_truncated_recording_is_never_renamed_into_place(tmp_path):
+    ds = _dataset(tmp_path)
+    assert runner.invoke(app, ["record", str(ds), "-o", str(tmp_path / "good.rrd")]).exit_code == 0
+    data = (tmp_path / "good.rrd").read_bytes()
+    verify_rrd(tmp_path / "good.rrd")
+    for cut in (0, 3, 100, len(data) // 2, len(data) - 1):
+        with pytest.raises(OutputError, match="trunc.rrd"):
+            with staged_outputs(tmp_path, ["trunc.rrd"]) as s:
+                (s / "trunc.rrd").write_bytes(data[:cut])
+        assert not (tmp_path / "trunc.rrd").exists()
+
+
+@pytest.fixture()
+def small_disk(tmp_path):
+    mnt = tmp_path / "disk"
+    mnt.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=5m", "tmpfs", str(mnt)], capture_output=True)
+    if r.returncode != 0:
+        pytest.skip("cannot mount a tmpfs here")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", str(mnt)], check=False)
+
+
+def test_full_disk_is_one_line_and_leaves_nothing(small_disk, tmp_path):
+    from tests.conftest import DATA
+
+    (small_disk / "filler").write_bytes(b"\0" * (4 * 1024 * 1024 + 700 * 1024))
+    for args in (["synth", str(DATA / "configs" / "small3x100.json"), "-o", str(small_disk / "o")],):
+        res = runner.invoke(app, args)
+        assert res.exit_code == 2, (res.stderr, res.exception)
+        assert len(res.stderr.splitlines()) == 1 and "No space left on device" in res.stderr, res.stderr
+        assert sorted(p.name for p in small_disk.iterdir()) in (["filler"], ["filler", "o"])
+        if (small_disk / "o").exists():
+            assert list((small_disk / "o").iterdir()) == []
