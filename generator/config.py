@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from studio.generator.extensions import StudioExtensions
+
 __all__ = ["AgentConfig", "InterLoopClosureConfig", "SynthConfig", "estimate_resources"]
 
 
@@ -78,6 +80,8 @@ class SynthConfig:
     inter: InterLoopClosureConfig
     name: str = field(default="dataset")
     """Dataset name: the stem of the JSON file, or the preset's name."""
+    studio: "StudioExtensions | None" = None
+    """The JSON's ``"studio"`` block (3D walk, noise models, outliers), or None: kollagen exactly."""
 
     def __post_init__(self) -> None:
         if len(self.agents) != self.number_of_agents:

@@ -9,7 +9,9 @@ from pathlib import Path
 from typing import Callable
 
 from studio.generator.config import SynthConfig, estimate_resources
-from studio.generator.kollagen import SynthOutput, generate
+from studio.generator.extended import generate_studio
+from studio.generator.kollagen import SynthOutput
+from studio.core.model import PoseKind
 from studio.core.parallel import parallel_map
 from studio.generator.presets import PRESETS, preset, preset_names
 from studio.core.errors import ConfigError
@@ -20,6 +22,8 @@ from studio.io.multig2o import Records, write_multi_g2o
 from studio.io.singleg2o import write_single_g2o, write_single_tum
 from studio.io.textfmt import shared_formatting
 from studio.io.synth_config import read_synth_config, synth_config_to_json
+from studio.io.outliers_txt import write_outliers_txt
+from studio.generator.outliers import PlantedOutliers
 
 __all__ = ["SynthResult", "load_synth_config", "synthesize", "write_kollagen_outputs"]
 
@@ -36,6 +40,8 @@ class SynthResult:
     """``OUT/<name>.config.json``: the effective config (kollagen JSON)."""
     rrd_path: Path | None = None
     """``OUT/<name>.rrd``: the Rerun recording, or None with ``rrd=False``."""
+    outliers: PlantedOutliers | None = None
+    """The planted outliers (``OUT/<name>/outliers.txt``), when the config's studio block asks for them."""
 
 
 def load_synth_config(source: str | os.PathLike, *, warn: Callable[[str], None] | None = None) -> SynthConfig:
@@ -72,7 +78,7 @@ def write_kollagen_outputs(out: SynthOutput, parent: Path, name: str, *, multi_r
         write_single_tum(out.graph, single / f"{name}_GT.tum", ground_truth=True)
         write_single_tum(out.graph, single / f"{name}.tum", ground_truth=False)
 
-    tasks = (write_multi, write_single)
+    tasks = (write_multi, write_single) if out.graph.kind is PoseKind.SE2 else (write_multi,)
 
     def run(k: int) -> None:
         with shared_formatting():
@@ -117,13 +123,19 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
     check_resources(config, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
     out_dir = Path(out_dir)
     name = config.name
-    names = [name, f"{name}_singleg2o", f"{name}.config.json"]
-    if rrd:
-        names.append(f"{name}.rrd")
-    with staged_outputs(out_dir, names, force=force) as staging:
-        output = generate(config, jobs=jobs, progress=progress)
+    three_d = config.studio is not None and config.studio.walk == "grid3d"
+    if three_d and multi_records == "2d":
+        raise ConfigError(f"{name}: walk grid3d is 3D; --multi-records 2d cannot hold it")
+    names = [name, f"{name}_singleg2o", f"{name}.config.json", f"{name}.rrd"]
+    wanted = [n for k, n in enumerate(names) if not (k == 1 and three_d) and not (k == 3 and not rrd)]
+    with staged_outputs(out_dir, wanted, force=force) as staging:
+        studio_out = generate_studio(config, jobs=jobs, progress=progress)
+        output = studio_out.output
         write_kollagen_outputs(output, staging, name, multi_records=multi_records,
                                single_records=single_records, jobs=jobs, progress=progress)
+        outliers = studio_out.outliers
+        if outliers is not None:
+            write_outliers_txt(staging / name / "outliers.txt", outliers.rows, outliers.kinds)
         with open(staging / names[2], "w", encoding="utf-8") as f:
             json.dump(synth_config_to_json(config), f, indent=4)
             f.write("\n")
@@ -131,6 +143,7 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
             from studio.recording.dataset import record_graph
 
             record_graph(output.graph, staging / names[3], name=name,
-                         config_json=json.dumps(synth_config_to_json(config), sort_keys=True), progress=progress)
+                         config_json=json.dumps(synth_config_to_json(config), sort_keys=True),
+                         outliers=None if outliers is None else outliers.rows, progress=progress)
     return SynthResult(config, output, out_dir / name, out_dir / names[1], out_dir / names[2],
-                       out_dir / names[3] if rrd else None)
+                       out_dir / names[3] if rrd else None, outliers=studio_out.outliers)
