@@ -11,9 +11,10 @@ information but get a wrong ``to`` vertex (of the same agent as the true one):
   ``w = aliasing_window`` steps of ``F = step_fragment`` cells) are exactly those around the true one.
 
 ``round(fraction * n)`` loop closures of each class are made outliers, split between the kinds by
-their weights (largest remainder); a chosen loop closure whose kind finds no wrong pose tries the
-other kind, else stays an inlier and the next one is tried, so fewer outliers than asked are planted
-only when no candidate is left (the result says how many).
+their weights (largest remainder). Loop closures are taken in one random order, aliasing first (it
+needs a look-alike place, which many loop closures lack); a kind that cannot place its share hands
+the shortfall to the other, so the total is exact whenever candidates exist and the kinds follow the
+weights as closely as the walk allows (``PlantedOutliers.kinds`` says what was planted).
 """
 
 from __future__ import annotations
@@ -105,17 +106,23 @@ def plant_outliers(graph: PoseGraph, positions: list[np.ndarray], cells: list[np
         quota = _split(k, weights) if k else {}
         new_to: dict[int, int] = {}
         kind_of: dict[int, str] = {}
-        for e in rng.permutation(len(ends)).tolist():
-            if sum(quota.values()) == 0:
-                break
-            for kind in sorted(quota, key=lambda n: (-quota[n], OUTLIER_KINDS.index(n))):
-                if quota[kind] == 0:
+        order = rng.permutation(len(ends)).tolist()
+        # the rarer kind (aliasing needs a look-alike place) first; a kind's shortfall goes to the next
+        passes = [n for n in ("aliasing", "random") if n in quota]
+        passes += passes[:1]
+        deficit = 0
+        for kind in passes:
+            want = quota.pop(kind, 0) + deficit
+            for e in order:
+                if want == 0:
+                    break
+                if e in new_to:
                     continue
                 t = target(kind, *ends[e].tolist())
                 if t is not None:
                     new_to[e], kind_of[e] = t, kind
-                    quota[kind] -= 1
-                    break
+                    want -= 1
+            deficit = want
         return new_to, kind_of, k
 
     agents = list(graph.agents)
