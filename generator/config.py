@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass, field
 
 from studio.core.errors import ConfigError
+from studio.generator.extensions import StudioExtensions
 
 __all__ = ["AgentConfig", "InterLoopClosureConfig", "SynthConfig", "estimate_resources"]
 
@@ -80,6 +81,8 @@ class SynthConfig:
     inter: InterLoopClosureConfig
     name: str = field(default="dataset")
     """Dataset name: the stem of the JSON file, or the preset's name."""
+    studio: "StudioExtensions | None" = None
+    """The JSON's ``"studio"`` block (3D walk, noise models, outliers), or None: kollagen exactly."""
 
     def __post_init__(self) -> None:
         if len(self.agents) != self.number_of_agents:

@@ -1,4 +1,5 @@
-"""Built-in configs: the two datasets of the kollagen paper (Multi3500x8 and Multi10000x5).
+"""Built-in configs: the two datasets of the kollagen paper (Multi3500x8 and Multi10000x5), a 3D set
+(``cube3d``) and an outlier variant of Multi3500x8 (``multi3500x8_outliers``).
 
 The numbers are the paper's parameters (kollagen's ``data/*.json``), written out here so that the
 presets work without any file.
@@ -6,7 +7,10 @@ presets work without any file.
 
 from __future__ import annotations
 
+import dataclasses
+
 from studio.generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
+from studio.generator.extensions import Grid3dConfig, OutlierConfig, StudioExtensions
 
 __all__ = ["PRESETS", "preset", "preset_names"]
 
@@ -64,7 +68,28 @@ def _multi10000x5() -> SynthConfig:
                        name="multi10000x5")
 
 
-PRESETS = {"multi3500x8": _multi3500x8, "multi10000x5": _multi10000x5}
+def _cube3d() -> SynthConfig:
+    """kollagen's ``cube`` wish (paper, Section V) with several agents: four agents walking a 3D grid
+    that climb or descend one metre on 15 % of their steps, slightly tilted (0.02 rad pitch and roll),
+    with Multi3500x8's noise and a 3 m loop-closure sphere."""
+    base = _multi3500x8()
+    agents = tuple(dataclasses.replace(a, intra_loop_closure_radius=3.0) for a in base.agents[:4])
+    inter = dataclasses.replace(base.inter, loop_closure_radius=3.0)
+    studio = StudioExtensions(walk="grid3d", grid3d=Grid3dConfig(vertical_probability=0.15, vertical_step=1.0,
+                                                                 tilt_std_dev=0.02))
+    return dataclasses.replace(base, number_of_steps=500, number_of_agents=4, agents=agents, inter=inter,
+                               name="cube3d", studio=studio)
+
+
+def _multi3500x8_outliers() -> SynthConfig:
+    """Multi3500x8 (kollagen's walk and closures, byte-exact inliers) with 5 % of the intra- and
+    inter-agent loop closures made labelled outliers, half random, half perceptual aliasing."""
+    studio = StudioExtensions(outliers=OutlierConfig(intra_fraction=0.05, inter_fraction=0.05, seed=1))
+    return dataclasses.replace(_multi3500x8(), name="multi3500x8_outliers", studio=studio)
+
+
+PRESETS = {"multi3500x8": _multi3500x8, "multi10000x5": _multi10000x5, "cube3d": _cube3d,
+           "multi3500x8_outliers": _multi3500x8_outliers}
 
 
 def preset_names() -> list[str]:
@@ -77,6 +102,4 @@ def preset(name: str) -> SynthConfig:
     The dataset is named ``name`` as given, as kollagen names a dataset after the argument it was
     given (the JSON file's stem): ``studio synth multi3500x8`` writes ``OUT/multi3500x8/``.
     """
-    import dataclasses
-
     return dataclasses.replace(PRESETS[name.lower()](), name=name)

@@ -13,7 +13,7 @@ and, for a new kind of extra, one writer in ``studio/synth.py``'s ``EXTRA_WRITER
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol, TypeVar
+from typing import Any, Protocol, TypeVar
 
 from studio.core.model import PoseGraph
 from studio.core.progress import Progress
@@ -36,6 +36,8 @@ class GeneratedDataset:
 
     graph: PoseGraph
     extras: tuple[Extra, ...] = ()
+    outliers: Any = None
+    """The planted outlier loop closures (``studio.generator.outliers.PlantedOutliers``), or None."""
 
 
 class Generator(Protocol[ConfigT_contra]):

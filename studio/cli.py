@@ -87,7 +87,7 @@ def _warn(msg: str) -> None:
 def synth(
     config: str = typer.Argument(
         ..., metavar="CONFIG.json|PRESET",
-        help="A kollagen JSON config, or a built-in preset: multi3500x8, multi10000x5.",
+        help="A kollagen JSON config, or a built-in preset: multi3500x8, multi10000x5, cube3d, multi3500x8_outliers.",
     ),
     out: Path = typer.Option(..., "-o", "--out", help="Parent folder of the outputs (kollagen's DEST)."),
     force: bool = typer.Option(False, "--force", help="Replace existing outputs."),
@@ -122,7 +122,9 @@ def synth(
             f"{cfg.name}: {cfg.number_of_agents} agents, {res.output.graph.num_poses} poses, "
             f"{sum(counts.values())} constraints ({counts['odometry']} odometry, "
             f"{counts['intra_loop_closures']} intra-agent and {counts['inter_loop_closures']} inter-agent "
-            f"loop closures) in {time.perf_counter() - t0:.2f} s\n"
+            f"loop closures"
+            + (f", {len(res.outliers.rows)} of them outliers" if res.outliers is not None else "")
+            + f") in {time.perf_counter() - t0:.2f} s\n"
             f"  {res.dataset_dir}" + "".join(f"\n  {p}" for p in (res.single_dir, res.rrd_path) if p)
         )
 

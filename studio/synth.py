@@ -11,7 +11,8 @@ from typing import Callable
 from studio.core.model import PoseGraph
 
 from studio.generator.config import SynthConfig, estimate_resources
-from studio.generator.kollagen import KOLLAGEN, SingleG2oView
+from studio.generator.extended import STUDIO
+from studio.generator.kollagen import SingleG2oView
 from studio.generator.seam import Extra, GeneratedDataset, Generator
 from studio.core.parallel import parallel_map
 from studio.generator.presets import PRESETS, preset, preset_names
@@ -24,6 +25,8 @@ from studio.io.multig2o import Records, write_multi_g2o
 from studio.io.singleg2o import write_single_g2o, write_single_tum
 from studio.io.textfmt import shared_formatting
 from studio.io.synth_config import read_synth_config, synth_config_to_json
+from studio.io.outliers_txt import write_outliers_txt
+from studio.generator.outliers import PlantedOutliers
 
 __all__ = ["EXTRA_WRITERS", "SynthResult", "load_synth_config", "synthesize", "write_outputs"]
 
@@ -40,6 +43,8 @@ class SynthResult:
     """``OUT/<name>.config.json``: the effective config (kollagen JSON)."""
     rrd_path: Path | None = None
     """``OUT/<name>.rrd``: the Rerun recording, or None with ``rrd=False``."""
+    outliers: PlantedOutliers | None = None
+    """The planted outliers (``OUT/<name>/outliers.txt``), when the config's studio block asks for them."""
 
 
 def load_synth_config(source: str | os.PathLike, *, warn: Callable[[str], None] | None = None) -> SynthConfig:
@@ -119,7 +124,7 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
                multi_records: Records = "3d", single_records: Records = "2d",
                jobs: int | None = None, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
                max_output_gb: float = DEFAULT_MAX_OUTPUT_GB, rrd: bool = True,
-               generator: Generator[SynthConfig] = KOLLAGEN, progress: Progress | None = None) -> SynthResult:
+               generator: Generator[SynthConfig] = STUDIO, progress: Progress | None = None) -> SynthResult:
     """Generate ``config`` and write it as kollagen's ``generate CONFIG OUT`` does.
 
     Writes ``OUT/<name>/`` (multi-g2o), ``OUT/<name>_singleg2o/`` and ``OUT/<name>.config.json``,
@@ -136,6 +141,9 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
     check_resources(config, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
     out_dir = Path(out_dir)
     name = config.name
+    three_d = config.studio is not None and config.studio.walk == "grid3d"
+    if three_d and multi_records == "2d":
+        raise ConfigError(f"{name}: walk grid3d is 3D; --multi-records 2d cannot hold it")
     extras = [f"{name}{suffix}" for suffix in generator.extra_suffixes(config)]
     config_name, rrd_name = f"{name}.config.json", f"{name}.rrd"
     names = [name, *extras, config_name] + ([rrd_name] if rrd else [])
@@ -143,6 +151,9 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
         output = generator.generate(config, jobs=jobs, progress=progress)
         write_outputs(output, staging, name, multi_records=multi_records,
                       single_records=single_records, jobs=jobs, progress=progress)
+        outliers = output.outliers
+        if outliers is not None:
+            write_outliers_txt(staging / name / "outliers.txt", outliers.rows, outliers.kinds)
         with open(staging / config_name, "w", encoding="utf-8") as f:
             json.dump(synth_config_to_json(config), f, indent=4)
             f.write("\n")
@@ -150,7 +161,8 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
             from studio.recording.dataset import record_graph
 
             record_graph(output.graph, staging / rrd_name, name=name,
-                         config_json=json.dumps(synth_config_to_json(config), sort_keys=True), progress=progress)
+                         config_json=json.dumps(synth_config_to_json(config), sort_keys=True),
+                         outliers=None if outliers is None else outliers.rows, progress=progress)
     single = f"{name}_singleg2o"
     return SynthResult(config, output, out_dir / name, out_dir / single if single in extras else None,
-                       out_dir / config_name, out_dir / rrd_name if rrd else None)
+                       out_dir / config_name, out_dir / rrd_name if rrd else None, outliers=outliers)

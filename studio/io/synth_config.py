@@ -21,6 +21,7 @@ from typing import Any, Callable
 
 from studio.generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
 from studio.core.errors import ConfigError
+from studio.io.studio_block import studio_block_to_json
 
 __all__ = ["read_synth_config", "parse_synth_config", "synth_config_to_json", "MAX_CONFIG_BYTES", "MAX_MAGNITUDE",
            "MIN_LENGTH", "MAX_AGENTS"]
@@ -37,7 +38,7 @@ MIN_LENGTH = 1e-9
 MAX_AGENTS = 10_000
 
 _TOP = ("number_of_steps", "align", "number_of_agents", "exact_information_matrix", "agent_parameters",
-        "inter_agent_loop_closure_parameters")
+        "inter_agent_loop_closure_parameters", "studio")
 _AGENT_PARAMS = ("stepsize", "step_fragment", "allow_retrocession", "agent_specific")
 _AGENT = tuple(f.name for f in AgentConfig.__dataclass_fields__.values())
 _INTER = tuple(f.name for f in InterLoopClosureConfig.__dataclass_fields__.values())
@@ -201,10 +202,15 @@ def parse_synth_config(data: Any, *, source: str = "<config>", name: str = "data
                     )
     ip = "inter_agent_loop_closure_parameters"
     inter = InterLoopClosureConfig(**_section(r, r.obj(r.get(top, ip, ""), ip, _INTER), ip, _INTER))
+    studio = None
+    if "studio" in top:
+        from studio.io.studio_block import parse_studio_block
+
+        studio = parse_studio_block(top["studio"], fail=r.fail, exact=exact)
     return SynthConfig(
         number_of_steps=n_steps, align=align, number_of_agents=n_agents, exact_information_matrix=exact,
         stepsize=stepsize, step_fragment=frag, allow_retrocession=retro, agents=tuple(agents), inter=inter,
-        name=name,
+        name=name, studio=studio,
     )
 
 
@@ -270,4 +276,5 @@ def synth_config_to_json(cfg: SynthConfig) -> dict:
             "agent_specific": [fields(a) for a in cfg.agents],
         },
         "inter_agent_loop_closure_parameters": fields(cfg.inter),
+        **({} if cfg.studio is None else {"studio": studio_block_to_json(cfg.studio)}),
     }

@@ -32,7 +32,7 @@ def test_presets_equal_the_papers_json(kollagen_reference, name, file):
 
 
 def test_preset_lookup():
-    assert preset_names() == ["multi10000x5", "multi3500x8"]
+    assert preset_names() == ["cube3d", "multi10000x5", "multi3500x8", "multi3500x8_outliers"]
     assert preset("Multi3500x8").name == "Multi3500x8"
     assert preset("multi3500x8").name == "multi3500x8"
     with pytest.raises(KeyError):

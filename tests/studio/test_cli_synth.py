@@ -87,7 +87,7 @@ def test_interrupted_run_leaves_nothing(tmp_path, monkeypatch):
 def test_preset_name_and_unknown_preset(tmp_path):
     res = _run("multi1x1", "-o", tmp_path)
     assert res.exit_code == 2
-    assert res.stderr.strip() == "error: multi1x1: no such file, and not a preset (presets: multi10000x5, multi3500x8)"
+    assert res.stderr.strip() == "error: multi1x1: no such file, and not a preset (presets: cube3d, multi10000x5, multi3500x8, multi3500x8_outliers)"
 
 
 def _mutate(path: str, value):
