@@ -60,10 +60,6 @@ def find_ground_truth_files(root: Path) -> list[tuple[str, Path]]:
 def read_airmuseum(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
                    warn: Warn | None = None, progress=None) -> list[Trajectory]:
     """``studio convert airmuseum DIR``: every robot with a ground-truth file."""
-    if agents:
-        raise ConfigError("--agent is only for `studio convert bag`; AirMuseum agents come from the files")
-    if len(inputs) != 1:
-        raise ConfigError(f"studio convert airmuseum takes one sequence folder, got {len(inputs)} inputs")
     root = Path(inputs[0])
     if not root.is_dir():
         raise FormatError(f"{root}: not a folder (expected an AirMuseum sequence folder)")

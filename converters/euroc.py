@@ -42,10 +42,6 @@ def euroc_ground_truth(path: Path) -> tuple[str, Path] | None:
 def read_euroc(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None,
                progress: object = None) -> list[Trajectory]:
     """``studio convert euroc SEQ...``: one agent per sequence, in the order given."""
-    if agents:
-        raise ConfigError("--agent is only for `studio convert bag`; EuRoC agents are named after their sequences")
-    if not inputs:
-        raise ConfigError("studio convert euroc needs at least one sequence folder (e.g. MH_01_easy)")
     out = []
     for raw in inputs:
         found = euroc_ground_truth(Path(raw))

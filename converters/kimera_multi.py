@@ -31,8 +31,6 @@ def kimera_files(folder: Path) -> list[Path]:
 def read_kimera_multi(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None,
                       progress: object = None) -> list[Trajectory]:
     """``studio convert kimera-multi GT_FOLDER`` (or the csv files themselves)."""
-    if agents:
-        raise ConfigError("--agent is only for `studio convert bag`; Kimera-Multi agents come from the files")
     files: list[Path] = []
     for raw in inputs:
         p = Path(raw)

@@ -43,10 +43,6 @@ def read_kitti(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (
     """``studio convert kitti POSES.txt...``: one agent per pose file."""
     from scipy.spatial.transform import Rotation
 
-    if agents:
-        raise ConfigError("--agent is only for `studio convert bag`; KITTI agents are named after their files")
-    if not inputs:
-        raise ConfigError("studio convert kitti needs at least one poses file (e.g. poses/00.txt)")
     out = []
     for raw in inputs:
         path = Path(raw)

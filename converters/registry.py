@@ -1,15 +1,19 @@
-"""The source formats ``studio convert`` knows: an explicit dict from name to reader.
+"""The source formats ``studio convert`` knows: an explicit dict from name to :class:`Source`.
 
-Every reader has one signature: ``reader(inputs, *, agents=(), warn=None, progress=None) -> list[Trajectory]``
-where ``inputs`` are the paths given on the command line and ``agents`` the ``NAME=SPEC`` strings of
-``--agent`` (bags only). Readers that need heavy libraries import them when called.
+Every reader follows the :class:`SourceReader` seam: ``reader(inputs, *, agents=(), warn=None,
+progress=None) -> list[Trajectory]``, where ``inputs`` are the paths given on the command line and
+``agents`` the ``NAME=SPEC`` strings of ``--agent``. A source's facts (does it take ``--agent``, how
+many inputs, what its agents are named after) are declared once beside its reader, and
+:func:`check_inputs` checks them before any reader runs. Readers that need heavy libraries import
+them when called. A new source is one module with its reader and one entry here.
 """
 
 from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Callable, Sequence
+from dataclasses import dataclass
+from typing import Protocol, Sequence
 
 from studio.converters.airmuseum import read_airmuseum
 from studio.converters.euroc import euroc_ground_truth, read_euroc
@@ -19,39 +23,77 @@ from studio.converters.s3e import read_s3e
 from studio.core.trajectory import Trajectory, Warn
 from studio.converters.tum import read_tum_sources
 from studio.core.errors import ConfigError
+from studio.core.progress import Progress
 
-__all__ = ["READERS", "get_reader", "source_names", "guess_source"]
+__all__ = ["SourceReader", "Source", "SOURCES", "READERS", "get_reader", "get_source", "source_names",
+           "check_inputs", "guess_source"]
 
-Reader = Callable[..., list[Trajectory]]
+
+class SourceReader(Protocol):
+    """Read one source's inputs into one :class:`Trajectory` per agent."""
+
+    def __call__(self, inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
+                 warn: Warn | None = None, progress: Progress | None = None) -> list[Trajectory]:
+        ...
+
+
+@dataclass(frozen=True)
+class Source:
+    read: SourceReader
+    inputs: str
+    """What the inputs are, for messages (``one sequence folder``)."""
+    agents_from: str
+    """What the agents are named after, for messages."""
+    one_input: bool = False
+    """Exactly one input (a sequence folder), else one or more."""
+    takes_agents: bool = False
+    """Takes ``--agent NAME=SPEC`` (bags)."""
 
 
 def _read_bag(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
-              warn: Warn | None = None, progress=None) -> list[Trajectory]:
+              warn: Warn | None = None, progress: Progress | None = None) -> list[Trajectory]:
     from studio.converters.rosbag import read_bag_sources
 
     return read_bag_sources(inputs, agents=agents, warn=warn, progress=progress)
 
 
-READERS: dict[str, Reader] = {
-    "tum": read_tum_sources,
-    "s3e": read_s3e,
-    "airmuseum": read_airmuseum,
-    "bag": _read_bag,
-    "euroc": read_euroc,
-    "kitti": read_kitti,
-    "kimera-multi": read_kimera_multi,
+SOURCES: dict[str, Source] = {
+    "tum": Source(read_tum_sources, "trajectory files", "their files"),
+    "s3e": Source(read_s3e, "one sequence folder", "alpha, bob and carol", one_input=True),
+    "airmuseum": Source(read_airmuseum, "one sequence folder", "the robot folders", one_input=True),
+    "bag": Source(_read_bag, "bags", "the --agent names", takes_agents=True),
+    "euroc": Source(read_euroc, "sequence folders (e.g. MH_01_easy)", "their sequences"),
+    "kitti": Source(read_kitti, "poses files (e.g. poses/00.txt)", "their files"),
+    "kimera-multi": Source(read_kimera_multi, "a ground-truth folder", "the robots' files"),
 }
+#: Each source's reader.
+READERS: dict[str, SourceReader] = {name: src.read for name, src in SOURCES.items()}
 
 
 def source_names() -> list[str]:
     return list(READERS)
 
 
-def get_reader(name: str) -> Reader:
+def get_source(name: str) -> Source:
     try:
-        return READERS[name]
+        return SOURCES[name]
     except KeyError:
-        raise ConfigError(f"unknown source format {name!r} (known: {', '.join(READERS)})") from None
+        raise ConfigError(f"unknown source format {name!r} (known: {', '.join(SOURCES)})") from None
+
+
+def get_reader(name: str) -> SourceReader:
+    return get_source(name).read
+
+
+def check_inputs(name: str, inputs: Sequence[str | os.PathLike], agents: Sequence[str]) -> None:
+    """The source's facts, checked once before its reader runs."""
+    src = get_source(name)
+    if agents and not src.takes_agents:
+        raise ConfigError(f"--agent is only for `studio convert bag`; {name} agents are named after {src.agents_from}")
+    if src.one_input and len(inputs) != 1:
+        raise ConfigError(f"studio convert {name} takes {src.inputs}, got {len(inputs)} inputs")
+    if not inputs:
+        raise ConfigError(f"studio convert {name} needs {src.inputs}")
 
 
 def _kind_of(path: Path) -> str | None:

@@ -45,10 +45,6 @@ def _candidates(root: Path) -> list[Path]:
 def read_s3e(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
              warn: Warn | None = None, progress=None) -> list[Trajectory]:
     """``studio convert s3e DIR``: alpha, bob and carol (those present), in that order."""
-    if agents:
-        raise ConfigError("--agent is only for `studio convert bag`; S3E agents are alpha, bob and carol")
-    if len(inputs) != 1:
-        raise ConfigError(f"studio convert s3e takes one sequence folder, got {len(inputs)} inputs")
     root = Path(inputs[0])
     if not root.is_dir():
         raise FormatError(f"{root}: not a folder (expected an S3E sequence folder)")

@@ -17,6 +17,7 @@ import typer
 
 from studio.core.alignment import Alignment
 from studio.core.errors import StudioError
+from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.core.progress import terminal_progress
 
 app = typer.Typer(
@@ -98,8 +99,10 @@ def synth(
         RecordKind.d2, "--single-records", help="g2o records of the single g2o file (kollagen: 2d)."
     ),
     jobs: int = typer.Option(0, "--jobs", "-j", help="Processes to use (0: every core available)."),
-    max_memory_gb: float = typer.Option(8.0, "--max-memory-gb", help="Refuse configs estimated to need more memory."),
-    max_output_gb: float = typer.Option(20.0, "--max-output-gb", help="Refuse configs estimated to write more."),
+    max_memory_gb: float = typer.Option(DEFAULT_MAX_MEMORY_GB, "--max-memory-gb",
+                                        help="Refuse configs estimated to need more memory. [GB]"),
+    max_output_gb: float = typer.Option(DEFAULT_MAX_OUTPUT_GB, "--max-output-gb",
+                                        help="Refuse configs estimated to write more. [GB]"),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
     rrd: bool = typer.Option(True, "--rrd/--no-rrd", help="Also write the Rerun recording OUT/<name>.rrd."),
 ) -> None:
@@ -273,7 +276,7 @@ def convert(
                                 help="A convert.json: reproduce its dataset (options given here win)."),
     force: bool = typer.Option(False, "--force", help="Replace an existing dataset folder."),
     rrd: bool = typer.Option(True, "--rrd/--no-rrd", help="Also write the Rerun recording OUT/<name>.rrd."),
-    max_memory_gb: float = typer.Option(8.0, "--max-memory-gb",
+    max_memory_gb: float = typer.Option(DEFAULT_MAX_MEMORY_GB, "--max-memory-gb",
                                         help="Refuse a loop-closure search estimated to need more memory."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
     orientation: str = typer.Option("auto", "--orientation",

@@ -39,7 +39,7 @@ from studio.converters.transforms import (
     orientation_is_uninformative,
     split_trajectory,
 )
-from studio.converters.registry import get_reader
+from studio.converters.registry import check_inputs, get_reader
 from studio.core.trajectory import Trajectory
 from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.checks import check_option
@@ -278,6 +278,7 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
         if warn is not None:
             warn(msg)
 
+    check_inputs(cfg.source, cfg.inputs, cfg.agents)
     reader = get_reader(cfg.source)
     trajs, orientation = prepare_trajectories(cfg, reader(cfg.inputs, agents=cfg.agents, warn=_warn, progress=progress))
     build = build_graph(trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb)

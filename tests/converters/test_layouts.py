@@ -54,8 +54,10 @@ def test_s3e_bad_layouts(tmp_path):
         read_s3e([tmp_path / "empty"])
     with pytest.raises(FormatError, match="not a folder"):
         read_s3e([tmp_path / "nothing"])
-    with pytest.raises(ConfigError, match="one sequence folder"):
-        read_s3e([tmp_path, tmp_path])
+    from studio.converters.registry import check_inputs
+
+    with pytest.raises(ConfigError, match="takes one sequence folder, got 2 inputs"):  # checked by the registry
+        check_inputs("s3e", [tmp_path, tmp_path], [])
 
 
 def airmuseum_folder(root):

@@ -67,10 +67,14 @@ def test_agent_names_from_file_names_are_safe_folder_names(tmp_path):
 
 
 def test_tum_rejects_agent_specs_and_needs_a_file(tmp_path):
-    with pytest.raises(ConfigError, match="--agent is only for"):
-        read_tum_sources([tmp_path / "x.txt"], agents=["a=/odom"])
-    with pytest.raises(ConfigError, match="at least one trajectory file"):
-        read_tum_sources([])
+    """The source's facts are checked once, by the registry, before its reader runs."""
+    from studio.converters.registry import check_inputs
+
+    with pytest.raises(ConfigError, match="--agent is only for `studio convert bag`; tum agents are named after"):
+        check_inputs("tum", [tmp_path / "x.txt"], ["a=/odom"])
+    with pytest.raises(ConfigError, match="studio convert tum needs trajectory files"):
+        check_inputs("tum", [], [])
+    check_inputs("bag", ["run.bag"], ["a=/odom"])  # bags take --agent
 
 
 def test_large_files_take_the_bulk_parser_with_identical_results(tmp_path, monkeypatch):
