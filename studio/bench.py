@@ -37,7 +37,7 @@ from typing import Any, Callable, Mapping, Sequence
 from studio.core.errors import ConfigError, StudioError
 from studio.core.progress import Progress, report
 from studio.io.atomic import write_replacing
-from studio.io.spec_file import read_spec_file
+from studio.io.spec_file import check_spec_keys, read_spec_file
 
 __all__ = ["BenchSpec", "BenchResult", "Cell", "load_bench_spec", "bench", "PAPER_SPEC", "format_paper_table"]
 
@@ -127,18 +127,10 @@ def _as_list(value: Any, where: str) -> tuple[str, ...]:
 
 def bench_spec_from_dict(data: Mapping[str, Any], source: str) -> BenchSpec:
     """Validate a spec read from TOML/JSON; errors name ``source: key``."""
-    import difflib
-
     from studio.evaluate import Alignment
     from studio.solvers import method_names
 
-    if not isinstance(data, Mapping):
-        raise ConfigError(f"{source}: a bench spec is a table of keys ({', '.join(sorted(_KEYS))})")
-    for key in data:
-        if key not in _KEYS:
-            hint = difflib.get_close_matches(str(key), sorted(_KEYS), n=1)
-            raise ConfigError(f"{source}: {key}: unknown key" + (f" (did you mean {hint[0]!r}?)" if hint else "")
-                              + f"; known: {', '.join(sorted(_KEYS))}")
+    check_spec_keys(data, _KEYS, source, "bench spec")
     if "datasets" not in data:
         raise ConfigError(f"{source}: datasets: missing key")
     datasets = _as_list(data["datasets"], f"{source}: datasets")

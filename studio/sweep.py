@@ -48,7 +48,7 @@ from typing import Any, Callable, Mapping, Sequence
 from studio.core.errors import ConfigError, StudioError
 from studio.core.progress import Progress, report
 from studio.io.atomic import write_replacing
-from studio.io.spec_file import read_spec_file
+from studio.io.spec_file import check_spec_keys, read_spec_file
 
 __all__ = ["SweepSpec", "SweepResult", "CellTask", "load_sweep_spec", "sweep_spec_from_dict", "expand", "sweep",
            "run_cell", "STEPS"]
@@ -101,15 +101,7 @@ class SweepResult:
 
 
 def sweep_spec_from_dict(data: Any, source: str) -> SweepSpec:
-    import difflib
-
-    if not isinstance(data, Mapping):
-        raise ConfigError(f"{source}: a sweep spec is a table of keys ({', '.join(sorted(_KEYS))})")
-    for key in data:
-        if key not in _KEYS:
-            hint = difflib.get_close_matches(str(key), sorted(_KEYS), n=1)
-            raise ConfigError(f"{source}: {key}: unknown key" + (f" (did you mean {hint[0]!r}?)" if hint else "")
-                              + f"; known: {', '.join(sorted(_KEYS))}")
+    check_spec_keys(data, _KEYS, source, "sweep spec")
     if "base" not in data:
         raise ConfigError(f"{source}: base: missing key (a preset, a kollagen JSON or a convert.json)")
     base = data["base"]

@@ -16,7 +16,7 @@ if sys.version_info >= (3, 11):
 else:  # Python 3.10: the same parser, as a package
     import tomli as tomllib
 
-__all__ = ["read_spec_file"]
+__all__ = ["read_spec_file", "check_spec_keys"]
 
 #: Larger spec files are refused before reading (a spec is a few kB).
 MAX_SPEC_BYTES = 4 * 1024 * 1024
@@ -39,3 +39,18 @@ def read_spec_file(path: str | os.PathLike, *, what: str = "spec") -> Any:
         raise ConfigError(f"{path}: not valid TOML ({err})") from None
     except OSError as err:
         raise ConfigError(f"{path}: cannot read ({err.strerror})") from None
+
+
+def check_spec_keys(data: Any, known: set[str], source: str, what: str) -> None:
+    """``data`` must be a table whose keys are all ``known``: else one line naming ``source``, the
+    key and the closest known key."""
+    import difflib
+    from collections.abc import Mapping
+
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{source}: a {what} is a table of keys ({', '.join(sorted(known))})")
+    for key in data:
+        if key not in known:
+            hint = difflib.get_close_matches(str(key), sorted(known), n=1)
+            raise ConfigError(f"{source}: {key}: unknown key" + (f" (did you mean {hint[0]!r}?)" if hint else "")
+                              + f"; known: {', '.join(sorted(known))}")
