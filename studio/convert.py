@@ -29,6 +29,8 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import numpy as np
 from typing import Any, Callable, Mapping, Sequence
 
 from studio.converters.build import BuildResult, GraphOptions, Progress, build_graph
@@ -280,8 +282,17 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
 
     check_inputs(cfg.source, cfg.inputs, cfg.agents)
     reader = get_reader(cfg.source)
-    trajs, orientation = prepare_trajectories(cfg, reader(cfg.inputs, agents=cfg.agents, warn=_warn, progress=progress))
-    build = build_graph(trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb)
+    # numbers that leave the finite range (a quaternion component of 1e200 in a bag) are an error
+    # naming the input, never a numpy warning on the terminal; underflow (far loop-closure candidates'
+    # acceptance probability) is harmless
+    try:
+        with np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
+            trajs, orientation = prepare_trajectories(
+                cfg, reader(cfg.inputs, agents=cfg.agents, warn=_warn, progress=progress))
+            build = build_graph(trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb)
+    except FloatingPointError as err:
+        raise FormatError(f"{', '.join(Path(p).name for p in cfg.inputs)}: numbers out of the finite range "
+                          f"while reading or building ({err}): a value in the input is absurd") from None
     with staged_outputs(out.parent, [out.name], force=force, inputs=cfg.inputs) as staging:
         ds = staging / out.name
         ds.mkdir()

@@ -157,6 +157,7 @@ def load_problem(dataset: str | os.PathLike, *, dimension: Dimension = "auto") -
         raise FormatError(f"{path}: no such dataset (a multi-g2o folder or a .g2o file)")
     if problem.num_edges == 0:
         raise FormatError(f"{path}: the graph has no edges to optimize")
+    _check_magnitudes(problem, path)
     source_kind = problem.kind
     if source_kind is PoseKind.SE2 and dimension == "3d":
         raise ConfigError(f"dimension: {path} is planar (2D records); it cannot be solved in 3D")
@@ -167,6 +168,19 @@ def load_problem(dataset: str | os.PathLike, *, dimension: Dimension = "auto") -
         if planar:
             problem = _planar_problem(problem)
     return Loaded(problem, source_kind, graph, offsets, doc)
+
+
+#: Largest coordinate [m] a pose or a measurement may have: beyond it the optimizers' products overflow.
+MAX_COORDINATE_M = 1e9
+
+
+def _check_magnitudes(problem: Problem, path: Path) -> None:
+    for what, rows in (("vertex", problem.initial), ("edge", problem.measurements)):
+        far = np.flatnonzero(np.abs(rows[:, 0:3 if problem.kind is PoseKind.SE3 else 2]).max(axis=1)
+                             > MAX_COORDINATE_M)
+        if far.size:
+            raise FormatError(f"{path}: {what} {int(far[0])} (global id order) lies beyond {MAX_COORDINATE_M:g} m: "
+                              "not a pose graph an optimizer can take")
 
 
 def _agent_rows(offsets: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -242,7 +256,11 @@ def solve(dataset: str | os.PathLike, out: str | os.PathLike, *, method: str = D
     if rrd_path is not None:
         def on_iteration(k: int, poses: np.ndarray) -> None:
             iterates.append((k, poses.copy()))
-    solution = solver(problem, options, on_iteration)
+    try:
+        solution = solver(problem, options, on_iteration)
+    except RuntimeError as err:  # GTSAM's and g2o's own failures (e.g. an indeterminate system)
+        first = next((ln.strip() for ln in str(err).splitlines() if ln.strip()), type(err).__name__)
+        raise FormatError(f"{dataset}: method {method} failed: {first} (is the graph connected?)") from None
     seconds = time.perf_counter() - t0
     rejected = None
     if solution.rejected is not None:

@@ -152,3 +152,28 @@ def test_default_method_never_ends_above_its_start_on_kollagen_exact_information
     assert out.chi2_final < 0.5 * out.chi2_initial
     # GTSAM minimises its own (logarithm) error: the g2o chi2 may wiggle by a few 1e-5 at the end
     assert history[-1] <= 1.0001 * min(history)
+
+
+def test_absurd_or_unsolvable_graphs_are_one_line(small, tmp_path):
+    import shutil
+
+    bad = tmp_path / "bad"
+    shutil.copytree(small.dataset_dir, bad)
+    g2o = bad / "agent1" / "posegraph.g2o"
+    lines = g2o.read_text().splitlines()
+    parts = lines[3].split()
+    parts[2] = "1e300"
+    lines[3] = " ".join(parts)
+    g2o.write_text("\n".join(lines) + "\n")
+    res = runner.invoke(app, ["solve", str(bad), "-o", str(tmp_path / "x")])
+    assert res.exit_code == 2
+    assert res.output.strip() == f"error: {bad}: vertex 3 (global id order) lies beyond 1e+09 m: " \
+                                 "not a pose graph an optimizer can take"
+    # an agent joined to no other (its inter-agent closures removed): the optimizer's own failure
+    lone = tmp_path / "lone"
+    shutil.copytree(small.dataset_dir, lone)
+    (lone / "inter_agent_lc.dat").write_text("")
+    res = runner.invoke(app, ["solve", str(lone), "-o", str(tmp_path / "y")])
+    assert res.exit_code == 2, res.output
+    assert len(res.output.strip().splitlines()) == 1 and "method gtsam failed" in res.output
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
