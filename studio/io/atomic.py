@@ -100,8 +100,14 @@ def verify_rrd(path: str | os.PathLike) -> None:
     except OSError as err:
         raise OutputError(os_error_message(err, path)) from None
     if head != b"RRF2" or tail[:8] != b"RRF2FOOT":
+        # Rerun's writer does not report a failed write: a full disk shows up here
+        try:
+            st = os.statvfs(path.parent)
+            full = st.f_bavail * st.f_frsize < (1 << 20)
+        except OSError:
+            full = False
         raise OutputError(f"{path}: the recording is incomplete (no Rerun {'header' if head != b'RRF2' else 'footer'}; "
-                          f"{size} bytes)")
+                          f"{size} bytes)" + ("; No space left on device" if full else ""))
     try:
         import rerun.chunk as rc
 

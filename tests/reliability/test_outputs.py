@@ -158,3 +158,44 @@ def test_full_disk_is_one_line_and_leaves_nothing(small_disk, tmp_path):
         assert sorted(p.name for p in small_disk.iterdir()) in (["filler"], ["filler", "o"])
         if (small_disk / "o").exists():
             assert list((small_disk / "o").iterdir()) == []
+
+
+def test_record_and_convert_on_a_full_disk_are_one_line_and_leave_nothing(small_disk, tmp_path):
+    """The issue's case: `record` onto a nearly full disk must not rename a damaged .rrd into place
+    and report success; `convert` must not print a traceback."""
+    import os
+
+    from studio.synth import load_synth_config, synthesize
+    from tests.conftest import DATA
+
+    ds = synthesize(load_synth_config(DATA / "configs" / "small3x100.json"), tmp_path / "src", rrd=False,
+                    jobs=1).dataset_dir
+    st = os.statvfs(small_disk)
+    free = st.f_bavail * st.f_frsize
+    (small_disk / "filler").write_bytes(b"\0" * max(0, free - 64 * 1024))  # 64 kB left
+    trajs = [str(DATA / "trajectories" / f"{n}.tum") for n in ("alpha", "bob", "carol")]
+    for args, target in ((["record", str(ds), "-o", str(small_disk / "x.rrd")], "x.rrd"),
+                         (["convert", "tum", *trajs, "-o", str(small_disk / "conv")], "conv")):
+        res = runner.invoke(app, args)
+        assert res.exit_code == 2, (res.stderr, res.exception)
+        assert len(res.stderr.splitlines()) == 1 and "No space left on device" in res.stderr, res.stderr
+        assert not (small_disk / target).exists()
+        assert sorted(p.name for p in small_disk.iterdir() if not p.name.startswith(".studio-lock")) == ["filler"]
+
+
+def test_a_read_only_file_system_is_one_line(tmp_path):
+    from tests.conftest import DATA
+
+    mnt = tmp_path / "ro"
+    mnt.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m,ro", "tmpfs", str(mnt)], capture_output=True)
+    if r.returncode != 0:
+        pytest.skip("cannot mount a tmpfs here")
+    try:
+        res = runner.invoke(app, ["synth", str(DATA / "configs" / "tiny_single.json"), "-o", str(mnt / "o")])
+        assert res.exit_code == 2, (res.stderr, res.exception)
+        lines = res.stderr.splitlines()
+        assert len(lines) == 1 and "Read-only file system" in lines[0], res.stderr
+        assert list(mnt.iterdir()) == []
+    finally:
+        subprocess.run(["umount", str(mnt)], check=False)
