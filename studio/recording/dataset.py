@@ -32,6 +32,7 @@ import numpy as np
 from studio.core.errors import FormatError, OutputError
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
 from studio.core.progress import Progress, report
+from studio.core.interrupts import interrupts_deferred
 from studio.core.units import NS_PER_S
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.recording.entities import (
@@ -552,27 +553,28 @@ def record_graph(graph: PoseGraph, path: str | os.PathLike, *, name: str,
     real_time = has_real_stamps(g)
     scene = _scene(g, real_time)
     rid = recording_id_for(g)  # the id is computed on the SE3 form anyway: lift once
-    rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)
-    try:
-        rec.save(path, default_blueprint=default_blueprint(scene))
-        log_properties(rec, graph, name, config_json)
-        log_world(rec)
-        axis_length = 0.04 * scene.extent_m
-        intra_out, inter_out = _outlier_masks(g, outliers)
-        steps = len(g.agents) + 1
-        report(progress, "recording", 0, steps, "parts")
-        for k, agent in enumerate(g.agents):
-            log_paths(rec, agent, k)
-            log_current_pose(rec, agent, k, real_time, axis_length)
-            log_intra_loop_closures(rec, agent, k, real_time, intra_out[k])
-            log_position_error(rec, agent, k, real_time)
-            report(progress, "recording", k + 1, steps, "parts")
-        log_inter_loop_closures(rec, g, real_time, inter_out)
-        log_outlier_loop_closures(rec, g, real_time, intra_out, inter_out)
-        log_loop_closure_counts(rec, g, real_time)
-        report(progress, "recording", steps, steps, "parts")
-    finally:
-        rec.disconnect()
+    with interrupts_deferred():  # Ctrl-C waits for Rerun's writer (a few tenths of a second)
+        rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)
+        try:
+            rec.save(path, default_blueprint=default_blueprint(scene))
+            log_properties(rec, graph, name, config_json)
+            log_world(rec)
+            axis_length = 0.04 * scene.extent_m
+            intra_out, inter_out = _outlier_masks(g, outliers)
+            steps = len(g.agents) + 1
+            report(progress, "recording", 0, steps, "parts")
+            for k, agent in enumerate(g.agents):
+                log_paths(rec, agent, k)
+                log_current_pose(rec, agent, k, real_time, axis_length)
+                log_intra_loop_closures(rec, agent, k, real_time, intra_out[k])
+                log_position_error(rec, agent, k, real_time)
+                report(progress, "recording", k + 1, steps, "parts")
+            log_inter_loop_closures(rec, g, real_time, inter_out)
+            log_outlier_loop_closures(rec, g, real_time, intra_out, inter_out)
+            log_loop_closure_counts(rec, g, real_time)
+            report(progress, "recording", steps, steps, "parts")
+        finally:
+            rec.disconnect()
     return RecordResult(path, rid, graph.num_poses, graph.edge_counts(), real_time)
 
 

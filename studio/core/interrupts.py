@@ -1,0 +1,32 @@
+"""Ctrl-C held back while native code writes: a KeyboardInterrupt raised inside a Rerun call can
+leave its writer thread waiting forever, so the interrupt is delivered when the section ends."""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+from typing import Any, Iterator
+
+__all__ = ["interrupts_deferred"]
+
+
+@contextlib.contextmanager
+def interrupts_deferred() -> Iterator[None]:
+    """Hold SIGINT during the block and raise KeyboardInterrupt after it if one came (main thread
+    only; elsewhere the block runs as it is)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+
+    def hold(signum: int, frame: Any) -> None:
+        received.append(signum)
+
+    previous = signal.signal(signal.SIGINT, hold)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if received:
+        raise KeyboardInterrupt
