@@ -14,7 +14,6 @@ import argparse
 import os
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -22,15 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-
-def run_timed(cmd: list[str]) -> tuple[float, float]:
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
-    if os.waitstatus_to_exitcode(status):
-        raise SystemExit(f"{' '.join(cmd)} failed: {proc.stderr.read().decode()[-400:] if proc.stderr else ''}")
-    return wall, usage.ru_maxrss / 1024.0
+from timing import run_timed  # noqa: E402  (benchmarks/timing.py, beside this script)
 
 
 def write_euroc(root: Path, rows: int) -> list[Path]:

@@ -20,7 +20,6 @@ import json
 import os
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -31,16 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from studio.generator.presets import preset  # noqa: E402
 from studio.io.synth_config import synth_config_to_json  # noqa: E402
 
-
-def run_timed(cmd: list[str]) -> tuple[float, float]:
-    """Wall seconds and peak RSS (MiB) of one process run (largest of the process and its workers)."""
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
-    if os.waitstatus_to_exitcode(status):
-        raise SystemExit(f"{' '.join(cmd)} failed with exit code {os.waitstatus_to_exitcode(status)}")
-    return wall, usage.ru_maxrss / 1024.0
+from timing import run_timed  # noqa: E402  (benchmarks/timing.py, beside this script)
 
 
 def config(agents: int, steps: int, radius: float) -> dict:

@@ -21,19 +21,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from timing import run_timed  # noqa: E402  (benchmarks/timing.py, beside this script)
+
 PRESETS = ["multi3500x8", "multi10000x5"]
 METHODS = ["gtsam", "g2o"]
-
-
-def run_timed(cmd: list[str]) -> tuple[float, float]:
-    """Wall seconds and peak RSS (MiB) of one process."""
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
-    if os.waitstatus_to_exitcode(status):
-        raise SystemExit(f"{' '.join(cmd)} failed: {proc.stderr.read().decode()[-500:] if proc.stderr else ''}")
-    return wall, usage.ru_maxrss / 1024.0
 
 
 def main() -> None:

@@ -16,7 +16,6 @@ import json
 import os
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -27,19 +26,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from studio.generator.presets import preset  # noqa: E402
 from studio.io.synth_config import synth_config_to_json  # noqa: E402
 
+from timing import run_timed  # noqa: E402  (benchmarks/timing.py, beside this script)
+
 PRESETS = ["multi3500x8", "multi10000x5"]
-
-
-def run_timed(cmd: list[str]) -> tuple[float, float]:
-    """Wall seconds and peak RSS (MiB) of one run: the largest of the process and its workers."""
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    if proc.returncode:
-        raise SystemExit(f"{' '.join(cmd)} failed with exit code {proc.returncode}")
-    return wall, usage.ru_maxrss / 1024.0
 
 
 def same_files(a: Path, b: Path) -> bool:
