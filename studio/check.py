@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from studio.core.errors import FormatError
+from studio.core.geometry import is_planar_se3, se3_information_to_se2
 from studio.core.model import PoseKind
 from studio.core.residuals import Convention, chi2_parts, chi2_terms, edge_errors
 
@@ -54,7 +55,6 @@ SIGNIFICANCE = 1e-3
 OUTLIER_TAIL = 1e-6
 #: A class's candidates are left out of its sums when they are at most this fraction of its edges.
 MAX_EXCLUDED_FRACTION = 0.10
-_SE2_FROM_SE3 = [0, 1, 5, 6, 10, 20]
 
 
 @dataclass(frozen=True)
@@ -144,10 +144,6 @@ class CheckReport:
         return json.dumps(self.to_dict(), indent=2)
 
 
-def _is_planar(rows: np.ndarray) -> bool:
-    return bool(np.all(np.abs(rows[:, [2, 3, 4]]) <= 1e-9))
-
-
 def _read_listed_outliers(folder: Path) -> np.ndarray | None:
     path = folder / "outliers.txt"
     if not path.is_file():
@@ -229,8 +225,8 @@ def check(dataset: str | os.PathLike, *, convention: Convention = "g2o") -> Chec
         loaded = _multi_g2o(read_multi_g2o(folder), folder)
     kind, truth, edge_sets, names = loaded
     notes = []
-    planar = kind is PoseKind.SE3 and all(_is_planar(t) for t in truth) and \
-        all(_is_planar(e[5]) for e in edge_sets if len(e[5]))
+    planar = kind is PoseKind.SE3 and all(is_planar_se3(t) for t in truth) and \
+        all(is_planar_se3(e[5]) for e in edge_sets if len(e[5]))
     if planar:
         notes.append("3D records of planar data: checked in SE(2) (x, y, yaw); z, roll and pitch are not scored")
 
@@ -251,7 +247,7 @@ def check(dataset: str | os.PathLike, *, convention: Convention = "g2o") -> Chec
             continue
         e = edge_errors(stacked[offsets[a_from] + v_from], stacked[offsets[a_to] + v_to], rows(meas),
                         convention=convention)
-        up = upper[:, _SE2_FROM_SE3] if planar else upper
+        up = se3_information_to_se2(upper) if planar else upper
         t, r = chi2_parts(e, up)
         cls.append(np.full(len(e), name))
         agent_of.append(np.asarray(a_from))

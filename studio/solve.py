@@ -32,7 +32,7 @@ from typing import Any, Literal
 import numpy as np
 
 from studio.core.errors import ConfigError, FormatError
-from studio.core.geometry import planar_poses_to_se3, se2_information_to_se3, se3_poses_to_planar
+from studio.core.geometry import is_planar_se3, planar_poses_to_se3, se3_information_to_se2, se3_poses_to_planar
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.trajectory import Trajectory
 from studio.solvers import DEFAULT_METHOD, get_method
@@ -42,8 +42,6 @@ __all__ = ["SolveResult", "solve", "load_problem", "Dimension", "SOLVE_JSON"]
 
 Dimension = Literal["auto", "2d", "3d"]
 SOLVE_JSON = "solve.json"
-_PLANAR_TOLERANCE = 1e-9
-_SE2_FROM_SE3 = [0, 1, 5, 6, 10, 20]  # x, y, yaw entries of a 6x6 upper triangle
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,13 +96,10 @@ class SolveResult:
         }
 
 
-def _is_planar(poses: np.ndarray) -> bool:
-    return bool(np.all(np.abs(poses[:, [2, 3, 4]]) <= _PLANAR_TOLERANCE))
-
-
 def _planar_problem(p: Problem) -> Problem:
     return Problem(PoseKind.SE2, se3_poses_to_planar(p.initial), p.edge_from, p.edge_to,
-                   se3_poses_to_planar(p.measurements), p.information_upper[:, _SE2_FROM_SE3], p.robust, p.anchor)
+                   se3_poses_to_planar(p.measurements), se3_information_to_se2(p.information_upper), p.robust,
+                   p.anchor)
 
 
 def _flatten(graph: PoseGraph) -> tuple[Problem, np.ndarray]:
@@ -162,7 +157,7 @@ def load_problem(dataset: str | os.PathLike, *, dimension: Dimension = "auto") -
     if source_kind is PoseKind.SE2 and dimension == "3d":
         raise ConfigError(f"dimension: {path} is planar (2D records); it cannot be solved in 3D")
     if source_kind is PoseKind.SE3 and dimension != "3d":
-        planar = _is_planar(problem.initial) and _is_planar(problem.measurements)
+        planar = is_planar_se3(problem.initial) and is_planar_se3(problem.measurements)
         if dimension == "2d" and not planar:
             raise ConfigError(f"dimension: {path} is not planar (z, roll or pitch non-zero); use --dimension 3d")
         if planar:

@@ -19,6 +19,8 @@ __all__ = [
     "SE3_Z_INFORMATION",
     "planar_poses_to_se3",
     "se3_poses_to_planar",
+    "se3_information_to_se2",
+    "is_planar_se3",
     "yaw_from_quat_xyzw",
     "libm_cos_sin",
     "relative_planar_pose",
@@ -111,6 +113,22 @@ def se3_poses_to_planar(poses: np.ndarray) -> np.ndarray:
     :func:`planar_poses_to_se3` on planar poses."""
     poses = np.asarray(poses, dtype=np.float64)
     return np.column_stack([poses[:, 0], poses[:, 1], yaw_from_quat_xyzw(poses[:, 3:7])])
+
+
+#: The (x, y, yaw) entries of a 6x6 information upper triangle over (x, y, z, rx, ry, rz).
+_SE2_FROM_SE3_INFORMATION = [0, 1, 5, 6, 10, 20]
+
+
+def se3_information_to_se2(upper: np.ndarray) -> np.ndarray:
+    """``(n, 21)`` information over (x, y, z, rx, ry, rz) to ``(n, 6)`` over (x, y, yaw): the x, y,
+    yaw block (z, roll and pitch dropped), the inverse of :func:`se2_information_to_se3` on it."""
+    return np.asarray(upper, dtype=np.float64)[:, _SE2_FROM_SE3_INFORMATION]
+
+
+def is_planar_se3(poses: np.ndarray, tolerance: float = 1e-9) -> bool:
+    """True when every ``(n, 7)`` pose has z, qx and qy within ``tolerance`` of 0 (planar data
+    written as 3D records, as kollagen writes its walk)."""
+    return bool(np.all(np.abs(np.asarray(poses)[:, [2, 3, 4]]) <= tolerance))
 
 
 def libm_cos_sin(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
