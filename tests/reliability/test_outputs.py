@@ -3,12 +3,14 @@ survives interruption, full disks and worker errors reported in one line, record
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import multiprocessing
 import os
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -134,17 +136,24 @@ def test_a_truncated_recording_is_never_renamed_into_place(tmp_path):
         assert not (tmp_path / "trunc.rrd").exists()
 
 
-@pytest.fixture()
-def small_disk(tmp_path):
-    mnt = tmp_path / "disk"
+@contextlib.contextmanager
+def _tmpfs(mnt: Path, options: str) -> Iterator[Path]:
+    """A tmpfs mounted at ``mnt`` with ``options`` for the block; the test is skipped where mounting
+    is not allowed."""
     mnt.mkdir()
-    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=5m", "tmpfs", str(mnt)], capture_output=True)
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(mnt)], capture_output=True)
     if r.returncode != 0:
         pytest.skip("cannot mount a tmpfs here")
     try:
         yield mnt
     finally:
         subprocess.run(["umount", str(mnt)], check=False)
+
+
+@pytest.fixture()
+def small_disk(tmp_path):
+    with _tmpfs(tmp_path / "disk", "size=5m") as mnt:
+        yield mnt
 
 
 def test_full_disk_is_one_line_and_leaves_nothing(small_disk, tmp_path):
@@ -186,16 +195,9 @@ def test_record_and_convert_on_a_full_disk_are_one_line_and_leave_nothing(small_
 def test_a_read_only_file_system_is_one_line(tmp_path):
     from tests.conftest import DATA
 
-    mnt = tmp_path / "ro"
-    mnt.mkdir()
-    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m,ro", "tmpfs", str(mnt)], capture_output=True)
-    if r.returncode != 0:
-        pytest.skip("cannot mount a tmpfs here")
-    try:
+    with _tmpfs(tmp_path / "ro", "size=1m,ro") as mnt:
         res = runner.invoke(app, ["synth", str(DATA / "configs" / "tiny_single.json"), "-o", str(mnt / "o")])
         assert res.exit_code == 2, (res.stderr, res.exception)
         lines = res.stderr.splitlines()
         assert len(lines) == 1 and "Read-only file system" in lines[0], res.stderr
         assert list(mnt.iterdir()) == []
-    finally:
-        subprocess.run(["umount", str(mnt)], check=False)
