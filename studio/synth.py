@@ -23,7 +23,6 @@ from studio.core.checks import check_option
 from studio.io.atomic import staged_outputs
 from studio.io.multig2o import Records, write_multi_g2o
 from studio.io.singleg2o import write_single_g2o, write_single_tum
-from studio.io.textfmt import shared_formatting
 from studio.io.synth_config import read_synth_config, synth_config_to_json
 from studio.io.outliers_txt import write_outliers_txt
 from studio.generator.outliers import PlantedOutliers
@@ -97,8 +96,7 @@ def write_outputs(out: GeneratedDataset, parent: Path, name: str, *, multi_recor
     tasks = (write_multi, *(extra_task(e) for e in out.extras))
 
     def run(k: int) -> None:
-        with shared_formatting():
-            tasks[k]()
+        tasks[k]()
 
     parallel_map(run, len(tasks), jobs, on_done=lambda d, n: report(progress, "synth: writing files", d, n, "parts"))
 

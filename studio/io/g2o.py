@@ -22,10 +22,10 @@ from typing import IO
 import numpy as np
 
 from studio.core.errors import FormatError
-from studio.io.textfmt import format_columns, format_int_column, format_rows, write_lines
+from studio.io.textfmt import TextColumn, float_columns, float_rows, int_column, join_columns, literal, write_text
 from studio.core.model import PoseKind
 
-__all__ = ["G2oDocument", "write_g2o", "read_g2o", "g2o_lines", "SE3_INFO_ZERO_LITERAL", "SE3_POSE_ZERO_LITERAL",
+__all__ = ["G2oDocument", "write_g2o", "read_g2o", "g2o_text", "SE3_INFO_ZERO_LITERAL", "SE3_POSE_ZERO_LITERAL",
            "MAX_TEXT_BYTES"]
 
 _TAGS = {
@@ -54,34 +54,30 @@ class G2oDocument:
     edge_information_upper: np.ndarray
 
 
-def _pose_texts(poses: np.ndarray, kind: PoseKind) -> list[str]:
+def _pose_texts(poses: np.ndarray, kind: PoseKind) -> list[TextColumn]:
     if kind is PoseKind.SE2:
-        return format_columns(poses, ["%.17g"] * 3, [None] * 3)
-    return format_columns(poses, ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
+        return float_columns(poses, ["%.17g"] * 3)
+    return float_columns(poses, ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
 
 
-def _info_texts(info: np.ndarray, kind: PoseKind) -> list[str]:
+def _info_texts(info: np.ndarray, kind: PoseKind) -> list[TextColumn]:
     if kind is PoseKind.SE2:
-        return format_rows(info, ["%.17g"] * 6, [None] * 6)
-    return format_rows(info, ["%.17g"] * 21, SE3_INFO_ZERO_LITERAL)
+        return float_rows(info, ["%.17g"] * 6)
+    return float_rows(info, ["%.17g"] * 21, SE3_INFO_ZERO_LITERAL)
 
 
-def g2o_lines(doc: G2oDocument) -> list[str]:
-    """The lines (with newlines) of a g2o file."""
+def g2o_text(doc: G2oDocument) -> bytes:
+    """The bytes of a g2o file."""
     vtag, etag = _TAGS[doc.kind]
-    ids = format_int_column(doc.vertex_ids)
-    poses = _pose_texts(doc.vertex_poses, doc.kind)
-    lines = [f"{vtag} {i} {p}\n" for i, p in zip(ids, poses)]
-    fr = format_int_column(doc.edge_from)
-    to = format_int_column(doc.edge_to)
-    meas = _pose_texts(doc.edge_measurements, doc.kind)
-    info = _info_texts(doc.edge_information_upper, doc.kind)
-    lines += [f"{etag} {a} {b} {m} {i}\n" for a, b, m, i in zip(fr, to, meas, info)]
-    return lines
+    vertices = join_columns([literal(vtag), int_column(doc.vertex_ids), *_pose_texts(doc.vertex_poses, doc.kind)])
+    edges = join_columns([literal(etag), int_column(doc.edge_from), int_column(doc.edge_to),
+                          *_pose_texts(doc.edge_measurements, doc.kind),
+                          *_info_texts(doc.edge_information_upper, doc.kind)])
+    return vertices + edges
 
 
 def write_g2o(target: str | os.PathLike | IO[str], doc: G2oDocument) -> None:
-    write_lines(target, g2o_lines(doc))
+    write_text(target, g2o_text(doc))
 
 
 #: Text inputs larger than this are refused before reading: reading holds the file about four times

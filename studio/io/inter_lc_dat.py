@@ -18,32 +18,31 @@ import numpy as np
 
 from studio.core.errors import FormatError
 from studio.io.g2o import SE3_INFO_ZERO_LITERAL, SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
-from studio.io.textfmt import format_columns, format_int_column, format_rows, write_lines
+from studio.io.textfmt import float_columns, float_rows, int_column, join_columns, write_text
 from studio.core.model import InterAgentEdges, PoseKind
 
-__all__ = ["write_inter_lc_dat", "read_inter_lc_dat", "inter_lc_lines", "Precision"]
+__all__ = ["write_inter_lc_dat", "read_inter_lc_dat", "inter_lc_text", "Precision"]
 
 Precision = Literal["kollagen", "full"]
 
 
-def inter_lc_lines(inter: InterAgentEdges, precision: Precision = "kollagen") -> list[str]:
+def inter_lc_text(inter: InterAgentEdges, precision: Precision = "kollagen") -> bytes:
+    """The bytes of the file."""
     fmt = "%f" if precision == "kollagen" else "%.17g"
     if inter.kind is PoseKind.SE3:
-        meas = format_columns(inter.measurements, [fmt] * 7, SE3_POSE_ZERO_LITERAL)
-        info = format_rows(inter.information_upper, [fmt] * 21, SE3_INFO_ZERO_LITERAL)
+        meas = float_columns(inter.measurements, [fmt] * 7, SE3_POSE_ZERO_LITERAL)
+        info = float_rows(inter.information_upper, [fmt] * 21, SE3_INFO_ZERO_LITERAL)
     else:
-        meas = format_columns(inter.measurements, [fmt] * 3, [None] * 3)
-        info = format_rows(inter.information_upper, [fmt] * 6, [None, "0.0", "0.0", None, "0.0", None])
-    a1 = format_int_column(inter.from_agent + 1)
-    v1 = format_int_column(inter.from_index)
-    a2 = format_int_column(inter.to_agent + 1)
-    v2 = format_int_column(inter.to_index)
-    return [f"{a} {b} {c} {d} {m} {i}\n" for a, b, c, d, m, i in zip(a1, v1, a2, v2, meas, info)]
+        meas = float_columns(inter.measurements, [fmt] * 3)
+        info = float_rows(inter.information_upper, [fmt] * 6, [None, "0.0", "0.0", None, "0.0", None])
+    ids = [int_column(inter.from_agent + 1), int_column(inter.from_index),
+           int_column(inter.to_agent + 1), int_column(inter.to_index)]
+    return join_columns([*ids, *meas, *info])
 
 
 def write_inter_lc_dat(target: str | os.PathLike | IO[str], inter: InterAgentEdges,
                        precision: Precision = "kollagen") -> None:
-    write_lines(target, inter_lc_lines(inter, precision))
+    write_text(target, inter_lc_text(inter, precision))
 
 
 def read_inter_lc_dat(source: str | os.PathLike | IO[str], kind: PoseKind | None = None) -> InterAgentEdges:

@@ -16,9 +16,9 @@ import numpy as np
 
 from studio.core.geometry import planar_poses_to_se3, relative_planar_pose, se2_information_to_se3
 from studio.core.errors import GraphError
-from studio.io.g2o import G2oDocument, g2o_lines
+from studio.io.g2o import G2oDocument, g2o_text
 from studio.io.multig2o import Records
-from studio.io.tum import tum_lines
+from studio.io.tum import tum_text
 from studio.core.trajectory import Trajectory
 from studio.core.model import PoseGraph, PoseKind
 from studio.core.units import NS_PER_S
@@ -86,8 +86,8 @@ def write_single_g2o(graph: PoseGraph, path: str | os.PathLike, *, records: Reco
         doc = G2oDocument(PoseKind.SE3, doc.vertex_ids, planar_poses_to_se3(doc.vertex_poses), doc.edge_from,
                           doc.edge_to, planar_poses_to_se3(doc.edge_measurements),
                           se2_information_to_se3(doc.edge_information_upper))
-    with open(path, "w", encoding="ascii", newline="\n") as f:
-        f.write("".join(g2o_lines(doc)))
+    with open(path, "wb") as f:
+        f.write(g2o_text(doc))
 
 
 def write_single_tum(graph: PoseGraph, path: str | os.PathLike, *, ground_truth: bool) -> None:
@@ -95,5 +95,5 @@ def write_single_tum(graph: PoseGraph, path: str | os.PathLike, *, ground_truth:
     g = graph.to_se3()
     poses = np.concatenate([a.ground_truth if ground_truth else a.initial for a in g.agents])
     stamps = np.arange(len(poses), dtype=np.int64) * NS_PER_S
-    with open(Path(path), "w", encoding="ascii", newline="\n") as f:
-        f.write("".join(tum_lines(Trajectory.from_poses(Path(path).stem, stamps, poses))))
+    with open(Path(path), "wb") as f:
+        f.write(tum_text(Trajectory.from_poses(Path(path).stem, stamps, poses)))

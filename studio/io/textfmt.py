@@ -1,102 +1,381 @@
-"""Fast, exact number formatting for the text formats.
+"""Fast, exact number formatting for the text formats, in numpy.
 
-kollagen writes every double with C's ``%.17g`` (``%f`` in ``inter_agent_lc.dat``). Python's ``%``
-operator gives the same correctly rounded digits, but formatting is most of the cost of writing a
-dataset, so:
+kollagen writes every double with C's ``%.17g`` (``%f`` in ``inter_agent_lc.dat``). Formatting is
+most of the cost of writing a dataset, and Python's ``%`` operator costs about 500 ns a number, so
+numbers are formatted here in bulk, as columns of bytes, with the same correctly rounded digits:
 
-* a column is formatted in one ``%`` operation over a repeated format string (no per-value call);
-* a column with few distinct values (ground-truth grid positions, constant information entries) is
-  formatted once per distinct bit pattern (``-0.0`` stays apart from ``0.0``);
-* inside :func:`shared_formatting`, a column that was already formatted with the same format is
-  reused, so the same poses written to several files are formatted once.
+* A finite double is ``m * 2**k`` (``m`` a 53-bit integer). Its 17 significant digits are
+  ``round(m * 5**p * 2**(k + p))`` with ``p = 16 - X`` (``X`` its decimal exponent): a 53 x 63-bit
+  product held in two 64-bit words, shifted right with round-half-to-even, as C's ``printf`` rounds
+  the exact binary value. ``X`` comes from ``log10`` and is corrected until the truncated digits
+  have exactly 17 places. ``%f`` is the same with ``p = 6``.
+* The digits are laid out as ``%g`` does (fixed or exponent notation, trailing zeros removed) by
+  gathering from a per-number row of candidate characters.
+* Numbers outside the exact fast range (``|v| >= 1e17`` or ``< 1e-11`` for ``%.17g``; non-finite
+  values) are formatted by Python's ``%``, which gives C's digits too.
 
-Columns that kollagen writes as a literal ``0.0`` (z, qx, qy and off-diagonal information entries of
-planar data) pass ``zero="0.0"``: a positive zero is then written that way.
+A :class:`TextColumn` is left-aligned bytes with a length per row; :func:`join_columns` lays out
+whole lines (fields separated by single spaces) and returns the file's bytes in one piece. Columns
+that kollagen writes as a literal ``0.0`` (z, qx, qy and off-diagonal information entries of planar
+data) pass ``zero="0.0"``: a positive zero is then written that way.
 """
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
 import os
-from typing import IO, Iterator
+from dataclasses import dataclass
+from typing import IO, Sequence
 
 import numpy as np
 
-__all__ = ["write_lines", "format_column", "format_int_column", "format_rows", "format_columns", "shared_formatting"]
+__all__ = ["TextColumn", "literal", "int_column", "digit_matrix", "float_columns", "float_rows", "concat",
+           "join_columns", "write_text", "format_float"]
 
-_CACHE: contextvars.ContextVar[dict | None] = contextvars.ContextVar("studio_format_cache", default=None)
-
-
-@contextlib.contextmanager
-def shared_formatting() -> Iterator[None]:
-    """Reuse formatted columns within the block (memory: the strings of every column formatted)."""
-    token = _CACHE.set({})
-    try:
-        yield
-    finally:
-        _CACHE.reset(token)
+_WIDTH = 24  # the longest %.17g text: "-1.2345678901234567e-308"
+_FIX_DECIMALS = 6  # %f
+_P10 = np.array([10**j for j in range(19)], dtype=np.uint64)
+_P5 = np.array([5**j for j in range(28)], dtype=np.uint64)  # 5**27 < 2**63
+_MASK32 = np.uint64(0xFFFFFFFF)
+_ONE = np.uint64(1)
 
 
-def format_column(values: np.ndarray, fmt: str = "%.17g", zero: str | None = None) -> list[str]:
-    """Format every value with ``fmt``; ``zero`` (if given) replaces the text of a positive zero."""
-    values = np.ascontiguousarray(values, dtype=np.float64)
-    cache = _CACHE.get()
-    if cache is not None and len(values) > 256:
-        key = (fmt, zero, values.tobytes())
-        hit = cache.get(key)
-        if hit is None:
-            hit = cache[key] = _format_column(values, fmt, zero)
-        return hit
-    return _format_column(values, fmt, zero)
+@dataclass(frozen=True, eq=False)
+class TextColumn:
+    """One text field per row: ``chars`` ``(n, width)`` uint8, left-aligned, ``lengths`` ``(n,)``.
+
+    A column of one row stands for the same text on every row.
+    """
+
+    chars: np.ndarray
+    lengths: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.lengths)
+
+    def take(self, index: np.ndarray) -> "TextColumn":
+        """The texts of rows ``index`` (a column of one row stays one row: it repeats anyway)."""
+        if len(self) == 1:
+            return self
+        return TextColumn(self.chars[index], self.lengths[index])
+
+    def tolist(self) -> list[str]:
+        """The texts as Python strings (for tests and small outputs)."""
+        return [bytes(row[:n]).decode("ascii") for row, n in zip(self.chars, self.lengths.tolist())]
 
 
-def _format_column(values: np.ndarray, fmt: str, zero: str | None) -> list[str]:
-    n = len(values)
-    if n == 0:
-        return []
-    bits = values.view(np.int64)
-    if (bits == bits[0]).all():
-        return _format(values[:1], fmt, zero) * n
-    if n >= 64 and len(np.unique(bits[:256])) < 128:  # a column with many repeats
-        uniq, inv = np.unique(bits, return_inverse=True)
-        texts = np.array(_format(uniq.view(np.float64), fmt, zero), dtype=object)
-        return texts[inv].tolist()
-    return _format(values, fmt, zero)
+def literal(text: str) -> TextColumn:
+    """The same text on every row."""
+    raw = np.frombuffer(text.encode("ascii"), dtype=np.uint8)
+    return TextColumn(raw.reshape(1, -1).copy(), np.array([len(raw)], dtype=np.int64))
 
 
-def _format(values: np.ndarray, fmt: str, zero: str | None) -> list[str]:
-    vals = values.tolist()
-    out = ((fmt + "\n") * len(vals) % tuple(vals)).split("\n")
-    out.pop()
-    if zero is not None:
-        pos_zero = np.flatnonzero((values == 0.0) & ~np.signbit(values))
-        for k in pos_zero.tolist():
-            out[k] = zero
+def _from_strings(texts: Sequence[str]) -> TextColumn:
+    if not texts:
+        return TextColumn(np.zeros((0, 1), dtype=np.uint8), np.zeros(0, dtype=np.int64))
+    arr = np.array([t.encode("ascii") for t in texts])  # dtype S<longest>, padded with NUL
+    width = max(arr.dtype.itemsize, 1)
+    chars = arr.view(np.uint8).reshape(len(texts), width)
+    return TextColumn(chars, np.fromiter(map(len, texts), dtype=np.int64, count=len(texts)))
+
+
+def digit_matrix(values: np.ndarray, places: int) -> np.ndarray:
+    """``(n, places)`` ASCII digits of non-negative integers below ``10**places``, most significant first."""
+    return np.ascontiguousarray(digit_rows(values, places).T)
+
+
+def digit_rows(values: np.ndarray, places: int) -> np.ndarray:
+    """``(places, n)``: row ``j`` holds digit ``j`` (ASCII, most significant first) of each value."""
+    out = np.empty((places, len(values)), dtype=np.uint8)
+    v = values.astype(np.uint64, copy=True)
+    ten = np.uint64(10)
+    for j in range(places - 1, -1, -1):
+        q = v // ten
+        out[j] = v - q * ten
+        v = q
+    out += 48
     return out
 
 
-def format_int_column(values: np.ndarray) -> list[str]:
-    return list(map(str, np.asarray(values, dtype=np.int64).tolist()))
+def int_column(values: np.ndarray) -> TextColumn:
+    """Integers as ``str(int)`` does."""
+    values = np.asarray(values, dtype=np.int64).ravel()
+    n = len(values)
+    if n == 0:
+        return TextColumn(np.zeros((0, 1), dtype=np.uint8), np.zeros(0, dtype=np.int64))
+    neg = values < 0
+    mag = np.abs(values).astype(np.uint64)
+    if values.min() == np.iinfo(np.int64).min:  # no positive counterpart: let Python do it
+        return _from_strings([str(v) for v in values.tolist()])
+    places = max(1, len(str(int(mag.max()))))
+    digits = digit_matrix(mag, places)
+    ndig = np.searchsorted(_P10[1:places], mag, side="right") + 1  # 0..9 -> 1, 10..99 -> 2, ...
+    width = places + 1
+    pos = np.arange(width, dtype=np.int64)[None, :]
+    sign = neg.astype(np.int64)[:, None]
+    # text position j holds digit column j - sign + (places - ndig)
+    src = pos - sign + (places - ndig)[:, None]
+    chars = np.take_along_axis(digits, np.clip(src, 0, places - 1), axis=1)
+    chars[neg, 0] = ord("-")
+    return TextColumn(chars, ndig + neg)
 
 
-def format_columns(values: np.ndarray, fmts: list[str], zeros: list[str | None]) -> list[str]:
-    """Each column formatted on its own, the columns of a row joined by single spaces."""
+def _mul_128(m: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``m * f`` as (high, low) 64-bit words, for ``m < 2**53`` and ``f < 2**63``."""
+    m0, m1 = m & _MASK32, m >> np.uint64(32)
+    f0, f1 = f & _MASK32, f >> np.uint64(32)
+    p00 = m0 * f0
+    mid = m0 * f1 + m1 * f0  # < 2**63 + 2**53: no overflow
+    lo = p00 + (mid << np.uint64(32))
+    carry = (lo < p00).astype(np.uint64)
+    hi = m1 * f1 + (mid >> np.uint64(32)) + carry
+    return hi, lo
+
+
+def _scaled_digits(m: np.ndarray, k: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``floor`` and round-half-to-even of ``m * 2**k * 10**p`` for ``0 <= p <= 27``, where the
+    result is below ``2**63`` and the shift ``t = -(k + p)`` lies in ``-10 .. 63``."""
+    hi, lo = _mul_128(m, _P5[p])
+    t = -(k + p)
+    left = t <= 0
+    tt = np.where(left, 1, t).astype(np.uint64)  # shift for the right-shift branch
+    q = np.where(tt == 64, hi, (hi << (np.uint64(64) - tt)) | (lo >> tt))
+    rem = np.where(tt == 64, lo, lo & ((_ONE << tt) - _ONE))
+    half = _ONE << (tt - _ONE)
+    up = (rem > half) | ((rem == half) & ((q & _ONE) == _ONE))
+    rounded = q + up.astype(np.uint64)
+    shifted = lo << np.where(left, -t, 0).astype(np.uint64)
+    return np.where(left, shifted, q), np.where(left, shifted, rounded)
+
+
+def _split(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``a = m * 2**k`` with ``m`` an integer below ``2**53`` (positive finite ``a``)."""
+    frac, ex = np.frexp(a)
+    m = np.ldexp(frac, 53).astype(np.uint64)
+    return m, ex.astype(np.int64) - 53
+
+
+def _g17_digits(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For positive finite ``a``: 17 significant digits ``D`` (an integer in ``[1e16, 1e17)``), the
+    decimal exponent ``X`` of ``%e``, and where the fast path applies (elsewhere D and X are unset)."""
+    m, k = _split(a)
+    with np.errstate(divide="ignore"):
+        x = np.floor(np.log10(a)).astype(np.int64)
+    ok = (x >= -11) & (x <= 16)
+    digits = np.zeros(len(a), dtype=np.uint64)
+    todo = np.flatnonzero(ok)
+    for _ in range(4):  # log10 is off by at most one; each pass fixes the exponent of the rest
+        if not len(todo):
+            break
+        xs = x[todo]
+        p = 16 - xs
+        t = -(k[todo] + p)
+        inside = (p >= 0) & (p <= 27) & (t >= -10) & (t <= 64)
+        if not inside.all():
+            ok[todo[~inside]] = False
+            todo, xs, p = todo[inside], xs[inside], p[inside]
+        floor_, rounded = _scaled_digits(m[todo], k[todo], p)
+        low = floor_ < _P10[16]
+        high = floor_ >= _P10[17]
+        good = ~(low | high)
+        carry = good & (rounded == _P10[17])  # 9.99..95 rounds up to the next power of ten
+        digits[todo[good]] = np.where(carry[good], _P10[16], rounded[good])
+        x[todo[carry]] += 1
+        x[todo[low]] -= 1
+        x[todo[high]] += 1
+        todo = todo[~good]
+    ok[todo] = False
+    return digits, x, ok
+
+
+def _g17_layout(x: int, nd: int, negative: bool) -> tuple[bytes, list[int]]:
+    """How ``%.17g`` lays out a number with decimal exponent ``x`` and ``nd`` significant digits
+    (trailing zeros removed; fixed notation lays out all 17, the length cuts them): a template
+    text and the positions of its digits, in order."""
+    if 0 <= x < 17:  # fixed: ddd.ddd
+        text = "d" * (x + 1) + ("." + "d" * (16 - x) if x < 16 else "")
+    elif -4 <= x < 0:  # fixed: 0.000ddd
+        text = "0." + "0" * (-x - 1) + "d" * 17
+    else:  # d[.ddd]e-XX
+        text = "d" + ("." + "d" * (nd - 1) if nd > 1 else "") + f"e{'-' if x < 0 else '+'}{abs(x):02d}"
+    text = ("-" if negative else "") + text
+    return text.encode("ascii"), [i for i, c in enumerate(text) if c == "d"]
+
+
+def _g17_text(digits: np.ndarray, x: np.ndarray, neg: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``%.17g`` text of the numbers where ``ok``, from their 17 digits, decimal exponent and sign;
+    other rows are left empty."""
+    n = len(digits)
+    rows_ = digit_rows(digits, 17)
+    # significant digits kept: one past the last digit that is not 0
+    place = np.arange(1, 17, dtype=np.uint8)[:, None]
+    nd = 1 + ((rows_[1:] != ord("0")) * place).max(axis=0).astype(np.int64)
+    columns = np.ascontiguousarray(rows_.T)
+    fixed = (x >= -4) & (x < 17)
+    lengths = np.where(x >= 0, x + 1 + np.where(nd > x + 1, nd - x, 0),  # ddd[.ddd]
+                       np.where(fixed, 1 - x + nd,  # 0.000ddd
+                                nd + (nd > 1) + 4))  # d[.ddd]e-XX
+    lengths = np.where(ok, lengths + neg, 0)
+    # one layout per (exponent, sign) and, for exponent notation, digits kept: fill each group at once
+    key = np.where(ok, ((x + 20) * 32 + np.where(fixed, 0, nd)) * 2 + neg, -1).astype(np.int16)
+    order = np.argsort(key, kind="stable")
+    skey = key[order]
+    bounds = np.flatnonzero(np.diff(skey)) + 1
+    chars = np.zeros((n, _WIDTH + 1), dtype=np.uint8)
+    starts = np.concatenate([[0], bounds]).tolist()
+    stops = np.concatenate([bounds, [n]]).tolist()
+    for lo, hi in zip(starts, stops):
+        k = int(skey[lo])
+        if k < 0:
+            continue
+        text, positions = _g17_layout(k // 64 - 20, (k // 2) % 32, bool(k % 2))
+        rows = order[lo:hi]
+        block = np.empty((hi - lo, len(text)), dtype=np.uint8)
+        block[:] = np.frombuffer(text, dtype=np.uint8)
+        block[:, positions] = columns[rows, : len(positions)]
+        chars[rows, : len(text)] = block
+    return chars, lengths
+
+
+def _f6_text(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``%f`` text of non-negative numbers (without sign), and where the fast path applies."""
+    n = len(a)
+    ok = (a < 2.0**42) & ((a >= 2.0**-16) | (a < 2.0**-30))
+    tiny = a < 2.0**-30  # a * 1e6 < 0.001: rounds to zero
+    value = np.zeros(n, dtype=np.uint64)
+    fast = np.flatnonzero(ok & ~tiny)
+    if len(fast):
+        m, k = _split(a[fast])
+        _, rounded = _scaled_digits(m, k, np.full(len(fast), _FIX_DECIMALS, dtype=np.int64))
+        value[fast] = rounded
+    places = max(len(str(int(value.max()))) if n else 1, _FIX_DECIMALS + 1)
+    digits = digit_matrix(value, places)
+    int_places = places - _FIX_DECIMALS
+    ndig_int = np.maximum(np.searchsorted(_P10[_FIX_DECIMALS + 1 : places], value, side="right") + 1, 1)
+    lengths = ndig_int + 1 + _FIX_DECIMALS
+    j = np.arange(places + 1, dtype=np.int64)[None, :]
+    skip = (int_places - ndig_int)[:, None]  # leading zero columns of the integer part
+    dot = ndig_int[:, None]
+    idx = np.where(j < dot, j + skip, np.where(j == dot, places, j - 1 + skip))
+    src = np.concatenate([digits, np.full((n, 1), ord("."), dtype=np.uint8)], axis=1)
+    return np.take_along_axis(src, np.clip(idx, 0, places), axis=1), lengths, ok
+
+
+def format_float(value: float, fmt: str = "%.17g") -> str:
+    """One number, as :func:`float_columns` writes it (``fmt`` ``%.17g`` or ``%f``)."""
+    return float_columns(np.array([[value]]), [fmt])[0].tolist()[0]
+
+
+def float_columns(values: np.ndarray, fmts: Sequence[str], zeros: Sequence[str | None] | None = None) -> list[TextColumn]:
+    """Each column of ``values`` (``(n, k)``) as text: ``fmts[c]`` is ``"%.17g"`` or ``"%f"``;
+    ``zeros[c]``, if given, replaces the text of a positive zero.
+
+    A constant column gives a column of one row (it repeats on every line); a column with many
+    repeated values (ground-truth grid positions) is formatted once per distinct value.
+    """
     values = np.asarray(values, dtype=np.float64)
-    cols = [format_column(values[:, c], fmts[c], zeros[c]) for c in range(values.shape[1])]
-    return list(map(" ".join, zip(*cols)))
+    n, k = values.shape
+    zeros = list(zeros) if zeros is not None else [None] * k
+    # per column, the values to format and how to spread their texts over the rows (None: 1 to 1)
+    plan: list[tuple[np.ndarray, np.ndarray | None]] = []
+    for c in range(k):
+        col = np.ascontiguousarray(values[:, c])
+        bits = col.view(np.int64)
+        if n > 1 and (bits == bits[0]).all():
+            plan.append((col[:1], None))
+        elif n >= 64 and len(np.unique(bits[:256])) < 128:
+            uniq, inv = np.unique(bits, return_inverse=True)
+            plan.append((uniq.view(np.float64), inv.ravel()))
+        else:
+            plan.append((col, None))
+    out: list[TextColumn | None] = [None] * k
+    for fmt in sorted(set(fmts)):
+        cols = [c for c in range(k) if fmts[c] == fmt]
+        chars, lengths = _format_block(np.concatenate([plan[c][0] for c in cols]), fmt)
+        start = 0
+        for c in cols:
+            vals, spread = plan[c]
+            stop = start + len(vals)
+            col_text = _with_zero(TextColumn(chars[start:stop], lengths[start:stop]), vals, zeros[c])
+            out[c] = col_text if spread is None else col_text.take(spread)
+            start = stop
+    return [c for c in out if c is not None]
 
 
-def format_rows(rows: np.ndarray, fmts: list[str], zeros: list[str | None]) -> list[str]:
-    """Like :func:`format_columns`, for rows that repeat (information matrices): each distinct row
-    is formatted once."""
+def _with_zero(col: TextColumn, values: np.ndarray, zero: str | None) -> TextColumn:
+    if zero is None:
+        return col
+    where = (values == 0.0) & ~np.signbit(values)
+    if not where.any():
+        return col
+    raw = np.frombuffer(zero.encode("ascii"), dtype=np.uint8)
+    width = max(col.chars.shape[1], len(raw))
+    chars = np.zeros((len(col), width), dtype=np.uint8)
+    chars[:, : col.chars.shape[1]] = col.chars
+    chars[where, : len(raw)] = raw
+    lengths = np.where(where, len(raw), col.lengths)
+    return TextColumn(chars, lengths)
+
+
+def _format_block(v: np.ndarray, fmt: str) -> tuple[np.ndarray, np.ndarray]:
+    """Text of every value of a flat array: ``(chars (n, w), lengths (n,))``."""
+    if fmt not in ("%.17g", "%f"):
+        raise ValueError(f"unsupported number format {fmt!r}")
+    n = len(v)
+    if n == 0:
+        return np.zeros((0, 1), dtype=np.uint8), np.zeros(0, dtype=np.int64)
+    neg = np.signbit(v)
+    a = np.abs(v)
+    finite = np.isfinite(a)
+    if fmt == "%.17g":
+        nonzero = finite & (a != 0.0)
+        digits, x, ok = _g17_digits(np.where(nonzero, a, 1.0))
+        ok &= nonzero
+        chars, lengths = _g17_text(digits, x, neg, ok)
+        zero_text = b"0"
+    else:
+        body, lengths, ok = _f6_text(np.where(finite, a, 0.0))
+        ok &= finite
+        chars = np.zeros((n, body.shape[1] + 1), dtype=np.uint8)
+        chars[~neg, :-1] = body[~neg]
+        chars[neg, 1:] = body[neg]
+        chars[neg, 0] = ord("-")
+        lengths = lengths + neg
+        zero_text = b"0.000000"
+    is_zero = (a == 0.0)
+    if is_zero.any():
+        raw = np.frombuffer(zero_text, dtype=np.uint8)
+        zneg = is_zero & neg
+        zpos = is_zero & ~neg
+        chars[zpos, : len(raw)] = raw
+        chars[zneg, 0] = ord("-")
+        chars[zneg, 1 : 1 + len(raw)] = raw
+        lengths = np.where(is_zero, len(raw) + neg, lengths)
+        ok |= is_zero
+    width = chars.shape[1]
+    slow = np.flatnonzero(~ok)
+    if len(slow):  # outside the exact fast range (and non-finite): Python's % gives C's digits
+        texts = [fmt % val for val in v[slow].tolist()]
+        extra = _from_strings(texts)
+        if extra.chars.shape[1] > width:
+            grown = np.zeros((n, extra.chars.shape[1]), dtype=np.uint8)
+            grown[:, :width] = chars
+            chars, width = grown, extra.chars.shape[1]
+        chars[slow] = 0
+        chars[slow, : extra.chars.shape[1]] = extra.chars
+        lengths[slow] = extra.lengths
+    return chars, lengths
+
+
+def float_rows(rows: np.ndarray, fmts: Sequence[str], zeros: Sequence[str | None] | None = None) -> list[TextColumn]:
+    """Like :func:`float_columns`, for rows that repeat (information matrices): each distinct row is
+    formatted once (rows all equal give columns of one row, which repeat on every line)."""
     rows = np.ascontiguousarray(rows, dtype=np.float64)
     n = len(rows)
     if n == 0:
-        return []
+        return float_columns(rows, fmts, zeros)
     bits = rows.view(np.uint64).reshape(n, -1)
     if (bits == bits[0]).all():
-        return format_columns(rows[:1], fmts, zeros) * n
+        return float_columns(rows[:1], fmts, zeros)
     # group equal rows through a 64-bit hash of their bits, then check the grouping exactly
     weights = (np.arange(1, bits.shape[1] + 1, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15)) | np.uint64(1)
     with np.errstate(over="ignore"):
@@ -105,16 +384,66 @@ def format_rows(rows: np.ndarray, fmts: list[str], zeros: list[str | None]) -> l
     _, first, inv = np.unique(h, return_index=True, return_inverse=True)
     inv = inv.ravel()
     if len(first) * 2 > n or not np.array_equal(bits[first][inv], bits):
-        return format_columns(rows, fmts, zeros)  # mostly distinct rows (or a hash collision)
-    texts = np.array(format_columns(rows[first], fmts, zeros), dtype=object)
-    return texts[inv].tolist()
+        return float_columns(rows, fmts, zeros)  # mostly distinct rows (or a hash collision)
+    return [c.take(inv) for c in float_columns(rows[first], fmts, zeros)]
 
 
-def write_lines(target: str | os.PathLike | IO[str], lines: list[str]) -> None:
-    """Write text lines (with their newlines) to an open text stream or to a new ASCII file."""
-    text = "".join(lines)
+def _layout(columns: Sequence[TextColumn], n: int, sep: bytes, end: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """Every field in its padded slot, a separator after each but the last, ``end`` at the end; and
+    the mask of the characters that are text (not padding)."""
+    widths = [int(c.lengths.max()) if len(c) else 0 for c in columns]
+    total = sum(widths) + len(sep) * (len(columns) - 1) + len(end)
+    chars = np.empty((n, total), dtype=np.uint8)
+    # per output column: its field (the last one, of length 65535, is the separators and the end) and
+    # its place in the field; a character is text where its place is below the row's field length
+    field = np.full(total, len(columns), dtype=np.int64)
+    place = np.zeros(total, dtype=np.uint16)
+    lengths = np.full((n, len(columns) + 1), 65535, dtype=np.uint16)
+    sep_raw = np.frombuffer(sep, dtype=np.uint8)
+    pos = 0
+    for i, (col, w) in enumerate(zip(columns, widths)):
+        chars[:, pos : pos + w] = col.chars[:, :w]
+        lengths[:, i] = col.lengths
+        field[pos : pos + w] = i
+        place[pos : pos + w] = np.arange(w)
+        pos += w
+        if i < len(columns) - 1 and len(sep):
+            chars[:, pos : pos + len(sep)] = sep_raw
+            pos += len(sep)
+    if end:
+        chars[:, pos:] = np.frombuffer(end, dtype=np.uint8)
+    mask = lengths[:, field] > place
+    return chars, mask
+
+
+def concat(columns: Sequence[TextColumn]) -> TextColumn:
+    """One field per row: the columns' texts one after the other, without separators."""
+    n = max(len(c) for c in columns)
+    width = sum(c.chars.shape[1] for c in columns)
+    chars = np.zeros((n, width), dtype=np.uint8)
+    offset = np.zeros(n, dtype=np.int64)
+    rows = np.arange(n)
+    for col in columns:
+        for j in range(col.chars.shape[1]):  # padding written here is overwritten by the next column
+            chars[rows, offset + j] = col.chars[:, j]
+        offset = offset + col.lengths
+    return TextColumn(chars, offset)
+
+
+def join_columns(columns: Sequence[TextColumn], *, sep: str = " ", end: str = "\n") -> bytes:
+    """The text of whole lines: per row, the columns' texts separated by ``sep``, then ``end``.
+    Columns of one row repeat on every row."""
+    n = max(len(c) for c in columns)
+    if n == 0 or any(len(c) == 0 for c in columns):
+        return b""
+    chars, mask = _layout(columns, n, sep.encode("ascii"), end.encode("ascii"))
+    return chars[mask].tobytes()
+
+
+def write_text(target: str | os.PathLike | IO[str], data: bytes) -> None:
+    """Write ASCII text (``join_columns`` output) to an open text stream or to a new file."""
     if hasattr(target, "write"):
-        target.write(text)
+        target.write(data.decode("ascii"))
     else:
-        with open(target, "w", encoding="ascii", newline="\n") as f:
-            f.write(text)
+        with open(target, "wb") as f:
+            f.write(data)

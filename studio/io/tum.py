@@ -23,31 +23,35 @@ import numpy as np
 from studio.core.errors import FormatError
 from studio.core.trajectory import Trajectory
 from studio.io.g2o import SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
-from studio.io.textfmt import format_column, format_columns, write_lines
+from studio.io.textfmt import (TextColumn, concat, digit_matrix, float_columns, int_column, join_columns, literal,
+                               write_text)
 from studio.core.units import NS_PER_S
 
-__all__ = ["write_tum", "read_tum", "read_tum_rows", "tum_lines", "format_stamps"]
+__all__ = ["write_tum", "read_tum", "read_tum_rows", "tum_text", "format_stamps"]
 
 _DECIMAL = re.compile(r"^([+-]?)(\d*)(?:\.(\d*))?$")
 
 
-def format_stamps(stamps_ns: np.ndarray) -> list[str]:
+def format_stamps(stamps_ns: np.ndarray) -> TextColumn:
+    """Timestamps in seconds: whole seconds as ``%.17g`` writes them, others with nine decimals."""
     stamps_ns = np.asarray(stamps_ns, dtype=np.int64)
     if np.all(stamps_ns % NS_PER_S == 0):
-        return format_column((stamps_ns // NS_PER_S).astype(np.float64))
-    sign = np.where(stamps_ns < 0, "-", "")
+        return float_columns((stamps_ns // NS_PER_S).astype(np.float64).reshape(-1, 1), ["%.17g"])[0]
+    negative = stamps_ns < 0
     sec, frac = np.divmod(np.abs(stamps_ns), NS_PER_S)
-    return [f"{g}{s}.{f:09d}" for g, s, f in zip(sign.tolist(), sec.tolist(), frac.tolist())]
+    sign = TextColumn(np.where(negative, ord("-"), 0).astype(np.uint8).reshape(-1, 1), negative.astype(np.int64))
+    decimals = TextColumn(digit_matrix(frac, 9), np.full(len(frac), 9, dtype=np.int64))
+    return concat([sign, int_column(sec), literal("."), decimals])
 
 
-def tum_lines(traj: Trajectory) -> list[str]:
-    stamps = format_stamps(traj.stamps_ns)
-    body = format_columns(traj.poses_xyz_quat_xyzw, ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
-    return [f"{t} {b}\n" for t, b in zip(stamps, body)]
+def tum_text(traj: Trajectory) -> bytes:
+    """The bytes of a TUM file."""
+    body = float_columns(traj.poses_xyz_quat_xyzw, ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
+    return join_columns([format_stamps(traj.stamps_ns), *body])
 
 
 def write_tum(target: str | os.PathLike | IO[str], traj: Trajectory) -> None:
-    write_lines(target, tum_lines(traj))
+    write_text(target, tum_text(traj))
 
 
 def _stamp_ns(token: str) -> int:

@@ -1,0 +1,101 @@
+"""The numpy number formatter writes exactly what C's printf (and Python's ``%``) writes."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from studio.io.textfmt import (
+    TextColumn,
+    concat,
+    float_columns,
+    float_rows,
+    format_float,
+    int_column,
+    join_columns,
+    literal,
+)
+
+
+def _texts(values: np.ndarray, fmt: str) -> list[str]:
+    col = float_columns(np.asarray(values, dtype=np.float64).reshape(-1, 1), [fmt])[0]
+    texts = col.tolist()
+    return texts * len(values) if len(texts) == 1 else texts
+
+
+def _edge_values() -> np.ndarray:
+    """Powers of ten and their neighbours, ties, zeros, extremes, non-finite values."""
+    p = 10.0 ** np.arange(-13, 19)
+    near = np.concatenate([np.nextafter(p, 0), p, np.nextafter(p, np.inf), np.nextafter(np.nextafter(p, 0), 0)])
+    special = np.array([0.0, -0.0, 1.0, 0.5, 0.25, 1e-5, 1e-4, 9.999999999999999e16, 123456789012345678.0,
+                        5e-324, 2.2250738585072014e-308, 1.7976931348623157e308, np.inf, -np.inf, np.nan,
+                        1890.359168241966, 1000000.0, 5e-7, 2.5e-7, 1.5e-6, 0.0000004999999999999999])
+    ties = np.arange(1, 2000) * 2.0**-21  # exact binary ties for %f's sixth decimal
+    values = np.concatenate([near, special, ties, ties * 1e3])
+    return np.concatenate([values, -values])
+
+
+def test_edge_values_match_printf():
+    values = _edge_values()
+    for fmt in ("%.17g", "%f"):
+        assert _texts(values, fmt) == [fmt % v for v in values.tolist()]
+
+
+def test_random_magnitudes_match_printf():
+    rng = np.random.default_rng(7)
+    values = np.concatenate([
+        rng.normal(size=20000) * 10.0 ** rng.integers(-20, 25, size=20000),
+        rng.integers(-(2**53), 2**53, 20000).astype(np.float64) * 2.0 ** rng.integers(-90, 20, 20000),
+        rng.integers(-4000, 4000, 20000) * 0.25,  # grid positions: the repeated-values path
+    ])
+    for fmt in ("%.17g", "%f"):
+        assert _texts(values, fmt) == [fmt % v for v in values.tolist()]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True, allow_subnormal=True), min_size=1, max_size=80))
+def test_any_double_matches_printf(values):
+    arr = np.array(values, dtype=np.float64)
+    for fmt in ("%.17g", "%f"):
+        assert _texts(arr, fmt) == [fmt % v for v in arr.tolist()]
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(-(2**63) + 1, 2**63 - 1), min_size=1, max_size=50))
+def test_integers_match_str(values):
+    assert int_column(np.array(values, dtype=np.int64)).tolist() == [str(v) for v in values]
+
+
+def test_zero_literal_only_for_positive_zero():
+    values = np.array([[0.0, -0.0, 1.5], [0.0, 2.0, -0.0]])
+    cols = float_columns(values, ["%.17g"] * 3, ["0.0", "0.0", None])
+    assert cols[0].tolist() == ["0.0"]  # constant column: one row, repeated by join_columns
+    assert cols[1].tolist() == ["-0", "2"]
+    assert cols[2].tolist() == ["1.5", "-0"]
+
+
+def test_join_columns_lays_out_lines_and_repeats_one_row_columns():
+    ids = int_column(np.array([3, -12, 100]))
+    vals = float_columns(np.array([[0.1, 7.0], [2.5, 7.0], [-1e-7, 7.0]]), ["%.17g", "%.17g"])
+    text = join_columns([literal("TAG"), ids, *vals])
+    assert text == b"TAG 3 0.10000000000000001 7\nTAG -12 2.5 7\nTAG 100 -9.9999999999999995e-08 7\n"
+    assert join_columns([literal("x"), int_column(np.zeros(0, dtype=np.int64))]) == b""
+
+
+def test_float_rows_groups_repeated_rows():
+    rows = np.array([[1.0, 0.0], [2.0, 0.0], [1.0, 0.0], [1.0, 0.0]] * 50)
+    cols = float_rows(rows, ["%.17g", "%.17g"], [None, "0.0"])
+    assert join_columns(cols) == b"".join(b"%s 0.0\n" % (b"1" if r[0] == 1 else b"2") for r in rows)
+
+
+def test_concat_joins_without_separator():
+    sign = TextColumn(np.array([[45], [0]], dtype=np.uint8), np.array([1, 0]))
+    assert concat([sign, int_column(np.array([0, 12])), literal("."), int_column(np.array([5, 7]))]).tolist() == [
+        "-0.5", "12.7"]
+
+
+def test_format_float_single_values():
+    assert format_float(0.1) == "0.10000000000000001"
+    assert format_float(-2.0, "%f") == "-2.000000"
+    assert format_float(1e300) == "1.0000000000000001e+300"
