@@ -234,6 +234,11 @@ def view(
     raise typer.Exit(run_viewer(cmd))
 
 
+class ThemeChoice(str, enum.Enum):
+    dark = "dark"
+    light = "light"
+
+
 @app.command()
 @cli_errors
 def snapshot(
@@ -241,6 +246,9 @@ def snapshot(
     out: Path = typer.Option(..., "-o", "--out", help="The picture to write (PNG)."),
     node: int = typer.Option(None, "--node", help="Put the time cursor on this node (default: the last)."),
     size: str = typer.Option("1400x900", "--size", help="Window size WIDTHxHEIGHT."),
+    theme: ThemeChoice = typer.Option(ThemeChoice.dark, "--theme",
+                                      help="dark, or light: the views on the light theme's white background "
+                                           "(the viewer's panels stay dark)."),
     force: bool = typer.Option(False, "--force", help="Replace an existing picture."),
 ) -> None:
     """Render a recording to a PNG without a display (needs a Vulkan driver, e.g. mesa-vulkan-drivers).
@@ -250,7 +258,7 @@ def snapshot(
     from studio.recording.viewer import snapshot as render
 
     with terminal_progress() as progress:
-        res = render(rrd, out, node=node, window_size=size, progress=progress, force=force)
+        res = render(rrd, out, node=node, window_size=size, progress=progress, force=force, theme=theme.value)
     typer.echo(f"{res.path}: node {res.time}")
 
 

@@ -35,6 +35,15 @@ from studio.core.progress import Progress, report
 from studio.core.interrupts import interrupts_deferred
 from studio.core.units import NS_PER_S
 from studio.io.atomic import check_not_overlapping, staged_outputs
+from studio.recording.colours import (
+    AGENT_PALETTE_RGB,
+    INITIAL_ALPHA,
+    INTER_ALPHA,
+    INTER_FAINT_ALPHA,
+    INTER_FAINT_RGB,
+    INTER_RGB,
+    OUTLIER_COLOUR,
+)
 from studio.recording.entities import (
     APPLICATION_ID,
     LOOP_CLOSURES_INTER,
@@ -76,17 +85,6 @@ __all__ = [
 #: Rows per chunk for time-indexed line strips (``rerun rrd verify`` is quadratic in it).
 STRIP_CHUNK_ROWS = 1000
 
-_PALETTE = np.array(
-    [  # Tableau 10, its grey (kept for inter-agent loop closures) replaced by a gold
-        [31, 119, 180], [255, 127, 14], [44, 160, 44], [214, 39, 40], [148, 103, 189],
-        [140, 86, 75], [227, 119, 194], [230, 185, 0], [188, 189, 34], [23, 190, 207],
-    ],
-    dtype=np.uint8,
-)
-#: Mid grey: visible on the viewer's dark and light themes alike, and no agent's colour.
-_INTER_RGB = (128, 128, 128)
-#: Outlier loop closures: magenta, no agent's colour, visible on both themes.
-_OUTLIER_COLOUR = (255, 0, 200, 255)
 #: Above this many inter-agent loop closures they are drawn thinner and more translucent.
 MANY_INTER_LOOP_CLOSURES = 3000
 _PATH_RADIUS = -1.5  # negative: screen-space points
@@ -98,21 +96,21 @@ _RECORDING_ID_NAMESPACE = uuid.UUID("6c1b3f0e-2f4c-4a8e-9a59-5f0d8a1c7e21")
 
 def agent_colour(k: int) -> tuple[int, int, int, int]:
     """The colour of the k-th agent (RGBA, 0-255)."""
-    r, g, b = (int(v) for v in _PALETTE[k % len(_PALETTE)])
+    r, g, b = AGENT_PALETTE_RGB[k % len(AGENT_PALETTE_RGB)]
     return (r, g, b, 255)
 
 
 def _initial_colour(k: int) -> tuple[int, int, int, int]:
     """The estimate's colour: the agent's hue, translucent (the ground truth is opaque)."""
     r, g, b, _ = agent_colour(k)
-    return (r, g, b, 120)
+    return (r, g, b, INITIAL_ALPHA)
 
 
 def inter_style(count: int) -> tuple[tuple[int, int, int, int], float]:
     """Colour and radius of inter-agent loop closures: fainter and thinner when there are many."""
     if count > MANY_INTER_LOOP_CLOSURES:
-        return (*_INTER_RGB, 60), -0.5
-    return (*_INTER_RGB, 200), -1.0
+        return (*INTER_FAINT_RGB, INTER_FAINT_ALPHA), -0.5
+    return (*INTER_RGB, INTER_ALPHA), -1.0
 
 
 def _path(template: str, agent: AgentGraph) -> str:
@@ -408,7 +406,7 @@ def log_outlier_loop_closures(rec: rr.RecordingStream, graph: PoseGraph, real_ti
     order = np.argsort(c, kind="stable")
     segments = np.stack([ref_all[f[order]], ref_all[t[order]]], axis=1)
     stamps = np.maximum(stamps_all[f], stamps_all[t])[order] if real_time else None
-    rec.log(LOOP_CLOSURES_OUTLIERS, rr.LineStrips3D.from_fields(colors=[_OUTLIER_COLOUR], radii=_OUTLIER_RADIUS),
+    rec.log(LOOP_CLOSURES_OUTLIERS, rr.LineStrips3D.from_fields(colors=[OUTLIER_COLOUR], radii=_OUTLIER_RADIUS),
             static=True)
     _send_segments(rec, LOOP_CLOSURES_OUTLIERS, segments, c[order], stamps)
 
@@ -445,7 +443,7 @@ def log_loop_closure_counts(rec: rr.RecordingStream, graph: PoseGraph, real_time
         n = max(a.num_poses for a in graph.agents)
         counts = _count_so_far(np.maximum(graph.inter.from_index, graph.inter.to_index), n)
         rec.log(SERIES_INTER_LOOP_CLOSURES,
-                rr.SeriesLines(colors=[(*_INTER_RGB, 255)], names=["inter-agent, all agents"]), static=True)
+                rr.SeriesLines(colors=[(*INTER_RGB, 255)], names=["inter-agent, all agents"]), static=True)
         # The node timeline only: nodes of different agents have different stamps.
         rec.send_columns(SERIES_INTER_LOOP_CLOSURES, [rr.TimeColumn(TIMELINE_NODE, sequence=np.arange(n))],
                          rr.Scalars.columns(scalars=counts))

@@ -4,7 +4,7 @@ The recording holds, under :data:`~studio.recording.entities.EVALUATION`:
 
 * a 3D view (``evaluation/world``): each agent's ground truth as a solid grey line (grey shows on
   the dark and light themes and is not on the error scale) and its estimate (after any alignment) as segments coloured by APE translation on one scale for
-  all agents (blue: no error, through green and yellow, to red: the largest error);
+  all agents (blue: no error, through green and amber, to red: the largest error);
 * one plot per metric (``evaluation/<metric>/<agent>``) with every agent in its colour, on the
   dataset recording's timelines (``node``: vertex index within its agent; ``time``: the
   ground-truth timestamp), so the errors line up with the poses when this recording is opened
@@ -14,10 +14,18 @@ The recording holds, under :data:`~studio.recording.entities.EVALUATION`:
 and a blueprint that lays these out (:func:`evaluation_blueprint`). Series are sent with
 ``send_columns``. This module takes columns, not the evaluation pipeline's result type, so it sits
 below the pipelines.
+
+The content depends only on the inputs: the recording id is derived from everything the recording
+shows (:func:`evaluation_recording_id`: the statistics table, which names the dataset, the estimate,
+the alignment and the RPE options, and every logged column), blueprint parts have ids derived from
+their role, and no clock value is logged. Two runs on the same inputs give the same fingerprint
+(:func:`studio.recording.checks.fingerprint_rrd`); the bytes differ only by Rerun's time-based
+chunk and row ids (see docs/recordings.md).
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import uuid
 from dataclasses import dataclass
@@ -26,6 +34,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from studio.recording.colours import ERROR_SCALE_RGB, GROUND_TRUTH_GREY
 from studio.recording.dataset import agent_colour
 from studio.recording.entities import (
     APPLICATION_ID,
@@ -38,10 +47,9 @@ from studio.recording.entities import (
     TIMELINE_TIME,
 )
 
-__all__ = ["ErrorSeries", "METRIC_LABELS", "error_colours", "evaluation_blueprint", "log_evaluation",
-           "save_evaluation_recording"]
+__all__ = ["ErrorSeries", "METRIC_LABELS", "error_colours", "evaluation_blueprint", "evaluation_recording_id",
+           "log_evaluation", "save_evaluation_recording"]
 
-_GROUND_TRUTH_COLOUR = (150, 150, 150, 255)
 _BLUEPRINT_NAMESPACE = uuid.UUID("9f0c2f52-8d2e-4b0e-a7f3-3c1e6c1d4b90")
 
 
@@ -61,8 +69,7 @@ class ErrorSeries:
 #: Label shown in the viewer for each metric the evaluation logs.
 METRIC_LABELS = {"ape_translation_m": "APE translation [m]", "ape_rotation_deg": "APE rotation [deg]"}
 
-#: Error colour scale, from no error to the largest: blue, cyan, green, yellow, red.
-_SCALE = np.array([[49, 54, 149], [0, 170, 200], [40, 170, 60], [240, 200, 0], [215, 30, 30]], dtype=np.float64)
+_SCALE = np.asarray(ERROR_SCALE_RGB, dtype=np.float64)
 
 
 def error_colours(errors: np.ndarray, largest: float) -> np.ndarray:
@@ -73,6 +80,35 @@ def error_colours(errors: np.ndarray, largest: float) -> np.ndarray:
     f = (x - lo)[:, None]
     rgb = np.rint(_SCALE[lo] * (1.0 - f) + _SCALE[lo + 1] * f).astype(np.uint8)
     return np.column_stack([rgb, np.full(len(rgb), 255, dtype=np.uint8)])
+
+
+def evaluation_recording_id(summary_markdown: str, series: Sequence[ErrorSeries]) -> str:
+    """A UUID derived from everything the recording shows: the statistics table (which names the
+    dataset, the estimate, the alignment and the RPE options) and, per agent, its name and every
+    column (nodes, stamps, each metric's values, the positions). The same inputs and options give
+    the same id; it never equals a dataset recording's id (:func:`~studio.recording.dataset.recording_id_for`).
+    """
+    h = hashlib.sha256(b"cslam-studio evaluation\0")
+    h.update(summary_markdown.encode() + b"\0")
+
+    def add(arr: np.ndarray | None) -> None:
+        if arr is None:
+            h.update(b"none")
+            return
+        a = np.ascontiguousarray(arr)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+
+    for s in series:
+        h.update(s.agent.encode() + b"\0")
+        add(s.node_indices)
+        add(s.stamps_ns)
+        for metric in sorted(s.values):
+            h.update(metric.encode() + b"\0")
+            add(s.values[metric])
+        add(s.ground_truth_xyz)
+        add(s.estimate_xyz)
+    return str(uuid.uuid5(_BLUEPRINT_NAMESPACE, h.hexdigest()))
 
 
 def _largest_error(series: Sequence[ErrorSeries]) -> float:
@@ -88,7 +124,7 @@ def log_evaluation(rec: Any, summary_markdown: str, series: Sequence[ErrorSeries
 
     largest = _largest_error(series)
     legend = (f"\n\nIn the 3D view each estimate is coloured by its APE translation: blue 0 m, green, "
-              f"yellow, red {largest:.3g} m (the largest). Ground truth: solid grey lines.")
+              f"amber, red {largest:.3g} m (the largest). Ground truth: solid grey lines.")
     rec.log(EVALUATION_SUMMARY, rr.TextDocument(summary_markdown + legend, media_type="text/markdown"),
             static=True)
     for k, s in enumerate(series):
@@ -104,7 +140,7 @@ def log_evaluation(rec: Any, summary_markdown: str, series: Sequence[ErrorSeries
             rec.send_columns(path, indexes=indexes, columns=rr.Scalars.columns(scalars=values))
         if s.ground_truth_xyz is not None and len(s.ground_truth_xyz):
             rec.log(EVALUATION_GROUND_TRUTH.format(agent=part),
-                    rr.LineStrips3D([s.ground_truth_xyz], colors=[_GROUND_TRUTH_COLOUR], radii=-2.0), static=True)
+                    rr.LineStrips3D([s.ground_truth_xyz], colors=[GROUND_TRUTH_GREY], radii=-2.0), static=True)
         if s.estimate_xyz is not None and len(s.estimate_xyz) > 1:
             est = s.estimate_xyz
             err = s.values["ape_translation_m"]
@@ -160,11 +196,14 @@ def evaluation_blueprint(series: Sequence[ErrorSeries]) -> Any:
 
 def save_evaluation_recording(path: str | os.PathLike, summary_markdown: str, series: Sequence[ErrorSeries],
                               *, recording_id: str | None = None) -> Path:
-    """Write a new ``.rrd`` holding only the evaluation, with its layout. Pass the dataset
-    recording's id as ``recording_id`` to have the viewer merge both files into one recording."""
+    """Write a new ``.rrd`` holding only the evaluation, with its layout. The recording id is
+    :func:`evaluation_recording_id` unless ``recording_id`` is given: pass the dataset recording's
+    id to have the viewer merge both files into one recording."""
     import rerun as rr
 
     path = Path(path)
+    if recording_id is None:
+        recording_id = evaluation_recording_id(summary_markdown, series)
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
     rec.save(path, default_blueprint=evaluation_blueprint(series))
     log_evaluation(rec, summary_markdown, series)

@@ -2,12 +2,16 @@
 beside the ground truth, the cost per iteration, and per-node error colouring.
 
 Recorded with the dataset recording's application id and, for a multi-g2o dataset, its recording id,
-so that opening both files shows the run on top of the dataset.
+so that opening both files shows the run on top of the dataset; for a single g2o file the id is
+derived from the run's columns. Blueprint parts have ids derived from their role and no clock value
+is logged (``log_time`` is off), so the same run gives the same fingerprint.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
+import uuid
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -15,6 +19,7 @@ import numpy as np
 
 from studio.core.geometry import planar_poses_to_se3
 from studio.core.model import PoseGraph, PoseKind
+from studio.recording.colours import GROUND_TRUTH_GREY, SOLVE_ERROR_HIGH_RGB, SOLVE_ERROR_LOW_RGB, SOLVE_ESTIMATE_LINE
 from studio.recording.entities import (
     APPLICATION_ID,
     SOLVE,
@@ -25,28 +30,46 @@ from studio.recording.entities import (
     TIMELINE_ITERATION,
 )
 
-__all__ = ["log_solve", "write_solve_recording", "solve_blueprint"]
+__all__ = ["log_solve", "write_solve_recording", "solve_blueprint", "solve_recording_id"]
+
+_NAMESPACE = uuid.UUID("0b6f5d4e-3c1a-4f7e-9d2b-8a5c6e7f1d30")
 
 
 def _error_colours(err: np.ndarray, scale: float) -> np.ndarray:
     """Green (0) to red (``scale`` or more), RGBA bytes."""
     t = np.clip(err / max(scale, 1e-12), 0.0, 1.0)[:, None]
-    green, red = np.array([40, 180, 60, 255.0]), np.array([220, 40, 40, 255.0])
+    green, red = np.array([*SOLVE_ERROR_LOW_RGB, 255.0]), np.array([*SOLVE_ERROR_HIGH_RGB, 255.0])
     return (green + t * (red - green)).astype(np.uint8)
+
+
+def solve_recording_id(offsets: np.ndarray, kind: PoseKind, iterates: Sequence[tuple[int, np.ndarray]],
+                       chi2_history: Sequence[float]) -> str:
+    """A UUID derived from the run's columns (for a graph without a dataset recording to join)."""
+    h = hashlib.sha256(f"cslam-studio solve {kind.value}".encode())
+    for arr in [np.asarray(offsets, dtype=np.int64), np.asarray(chi2_history, dtype=np.float64)] + [
+            np.ascontiguousarray(p) for _, p in iterates]:
+        h.update(f"{arr.dtype.str}{arr.shape}".encode())
+        h.update(arr.tobytes())
+    h.update(repr([k for k, _ in iterates]).encode())
+    return str(uuid.uuid5(_NAMESPACE, h.hexdigest()))
 
 
 def solve_blueprint(names: Sequence[str]) -> Any:
     import rerun.blueprint as rrb
 
+    def fixed(part: Any, label: str) -> Any:  # blueprint parts get random ids by default
+        part.id = uuid.uuid5(_NAMESPACE, f"blueprint/{label}")
+        return part
+
     return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Spatial3DView(name="estimate vs ground truth", origin=SOLVE),
-            rrb.Vertical(
-                rrb.TimeSeriesView(name="chi2 (g2o convention)", origin=SOLVE_CHI2),
-                rrb.TimeSeriesView(name="mean position error [m]", origin=SOLVE_ERROR),
-            ),
+        fixed(rrb.Horizontal(
+            fixed(rrb.Spatial3DView(name="estimate vs ground truth", origin=SOLVE), "space"),
+            fixed(rrb.Vertical(
+                fixed(rrb.TimeSeriesView(name="chi2 (g2o convention)", origin=SOLVE_CHI2), "chi2"),
+                fixed(rrb.TimeSeriesView(name="mean position error [m]", origin=SOLVE_ERROR), "error"),
+            ), "plots"),
             column_shares=[3, 1],
-        ),
+        ), "root"),
         rrb.TimePanel(timeline=TIMELINE_ITERATION),
         collapse_panels=True,
     )
@@ -65,7 +88,7 @@ def log_solve(rec: Any, graph: PoseGraph | None, offsets: np.ndarray, kind: Pose
         truth = np.concatenate([a.ground_truth for a in g3.agents])  # type: ignore[misc]
         for j, a in enumerate(g3.agents):
             rec.log(SOLVE_GROUND_TRUTH.format(agent=rr.escape_entity_path_part(a.name)),
-                    rr.LineStrips3D([a.ground_truth[:, 0:3]], colors=[(200, 200, 200, 160)], radii=-1.0),  # type: ignore[index]
+                    rr.LineStrips3D([a.ground_truth[:, 0:3]], colors=[GROUND_TRUTH_GREY], radii=-1.0),  # type: ignore[index]
                     static=True)
     scale = 1.0
     if truth is not None and lifted:
@@ -81,7 +104,7 @@ def log_solve(rec: Any, graph: PoseGraph | None, offsets: np.ndarray, kind: Pose
             colours = None if err is None else _error_colours(err[lo:hi], scale)
             path = SOLVE_ESTIMATE.format(agent=rr.escape_entity_path_part(name))
             rec.log(path, rr.Points3D(pts, colors=colours, radii=-2.0),
-                    rr.LineStrips3D([pts], colors=[(90, 140, 230, 200)], radii=-0.75))
+                    rr.LineStrips3D([pts], colors=[SOLVE_ESTIMATE_LINE], radii=-0.75))
         if k < len(chi2_history):
             rec.log(SOLVE_CHI2, rr.Scalars(chi2_history[k]))
         if err is not None:
@@ -98,10 +121,11 @@ def write_solve_recording(path: str | os.PathLike, graph: PoseGraph | None, offs
     from studio.recording.dataset import recording_id_for
 
     path = Path(path)
-    rid = recording_id_for(graph) if graph is not None else None
+    rid = recording_id_for(graph) if graph is not None else solve_recording_id(offsets, kind, iterates, chi2_history)
     names = [a.name for a in graph.agents] if graph is not None else ["graph"]
     with staged_outputs(path.parent, [path.name], force=force) as staging:
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)
+        rec.set_log_time_enabled(False)  # no wall clock in the data: the same run, the same content
         try:
             rec.save(staging / path.name, default_blueprint=solve_blueprint(names))
             rec.send_recording_name(name)

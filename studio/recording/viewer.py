@@ -21,14 +21,19 @@ from pathlib import Path
 
 from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.progress import Progress, report
+from studio.recording.colours import LIGHT_BACKGROUND_RGB
 from studio.recording.entities import TIMELINE_CELL, TIMELINE_ITERATION, TIMELINE_NODE
 
-__all__ = ["SnapshotResult", "has_display", "rerun_executable", "vulkan_drivers", "snapshot", "view_command",
+__all__ = ["SnapshotResult", "THEMES", "has_display", "rerun_executable", "vulkan_drivers", "snapshot", "view_command",
            "view_web_command", "web_viewer_address"]
 
 #: Where the Vulkan loader looks for installed drivers (ICD manifests).
 _ICD_GLOBS = ("/usr/share/vulkan/icd.d/*.json", "/etc/vulkan/icd.d/*.json", "/usr/local/share/vulkan/icd.d/*.json")
 _INSTALL_HINT = "install a Vulkan driver (Debian/Ubuntu: apt-get install -y mesa-vulkan-drivers)"
+
+
+#: Themes :func:`snapshot` can render: the viewer's dark theme, or its views on the light theme's background.
+THEMES = ("dark", "light")
 
 
 @dataclass(frozen=True)
@@ -137,8 +142,13 @@ def _parse_size(window_size: str) -> str:
 
 def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None = None,
              window_size: str = "1400x900", timeout_s: float = 60.0, settle_s: float = 3.0,
-             progress: Progress | None = None, force: bool = False) -> SnapshotResult:
+             progress: Progress | None = None, force: bool = False, theme: str = "dark") -> SnapshotResult:
     """Render ``rrd`` to ``png`` with the cursor at ``node`` (default: the last node), no display needed.
+
+    ``theme="light"`` gives every view the light theme's background (Rerun's ``viewport_background``
+    token of the light theme, white), through the viewer's blueprint API; the viewer's own panels
+    stay dark, because the headless viewer of Rerun 0.41 always runs the dark theme (it has no theme
+    flag, setting or environment variable). The file is not changed.
 
     Raises :class:`ConfigError` with an installation hint when no Vulkan driver is installed. The
     picture is written atomically (a partial file is never left at ``png``). ``progress`` hears of
@@ -157,17 +167,32 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
     if (png.exists() or png.is_symlink()) and not force:
         raise OutputError(f"{png} already exists (use --force to overwrite)")
     size = _parse_size(window_size)
+    if theme not in THEMES:
+        raise ConfigError(f"--theme {theme!r}: expected one of {', '.join(THEMES)}")
     if not vulkan_drivers():
         raise ConfigError(f"studio snapshot needs a Vulkan driver and found none: {_INSTALL_HINT}")
     from studio.io.atomic import staged_outputs
 
     with staged_outputs(png.parent, [png.name], force=force, inputs=[rrd]) as staging:
         return _snapshot_into(rrd, png, staging / png.name, node=node, size=size,
-                              timeout_s=timeout_s, settle_s=settle_s, progress=progress)
+                              timeout_s=timeout_s, settle_s=settle_s, progress=progress, theme=theme)
+
+
+def _light_backgrounds(client) -> None:
+    """Put the light theme's background behind every spatial view and plot of the blueprint on screen."""
+    colour = "#{:02x}{:02x}{:02x}".format(*LIGHT_BACKGROUND_RGB)
+    blueprint = client.get_blueprint().blueprint
+    for path, parts in list(blueprint.items()):
+        kind = parts.get("ViewBlueprint", {}).get("class_identifier")
+        if kind in ("3D", "2D"):
+            blueprint[f"{path}/Background"] = {"Background": {"kind": "SolidColor", "color": colour}}
+        elif kind == "TimeSeries":
+            blueprint[f"{path}/PlotBackground"] = {"PlotBackground": {"color": colour}}
+    client.set_blueprint(blueprint, of="recording")
 
 
 def _snapshot_into(rrd: Path, png: Path, tmp: Path, *, node: int | None, size: str, timeout_s: float,
-                   settle_s: float, progress: Progress | None) -> SnapshotResult:
+                   settle_s: float, progress: Progress | None, theme: str = "dark") -> SnapshotResult:
     from rerun.experimental import ViewerClient
 
     step = "snapshot"
@@ -202,6 +227,8 @@ def _snapshot_into(rrd: Path, png: Path, tmp: Path, *, node: int | None, size: s
         at = tl.end if node is None else node
         if at is not None and tl.start is not None and not tl.start <= at <= tl.end:
             raise ConfigError(f"--node {node}: the recording's {name} timeline spans {tl.start}..{tl.end}")
+        if theme == "light":
+            _light_backgrounds(client)
         client.set_time(name, sequence=int(at), play_state="paused")
         time.sleep(settle_s)  # chunks stream in lazily after the cursor moves
         report(progress, step, 3, 4, "stages")

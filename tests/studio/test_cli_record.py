@@ -186,3 +186,32 @@ def test_snapshot_renders_a_png(tmp_path):
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000
     width, height = int.from_bytes(png[16:20], "big"), int.from_bytes(png[20:24], "big")
     assert (width, height) in {(800, 500), (1600, 1000)}  # logical points, at scale 1 or 2
+
+
+@pytest.mark.slow
+def test_snapshot_light_theme_puts_the_views_on_white(tmp_path):
+    """`--theme light`: the 3D view's background is the light theme's white, the dark one (13, 13, 13)."""
+    from PIL import Image
+
+    from studio.recording.colours import DARK_BACKGROUND_RGB, LIGHT_BACKGROUND_RGB
+    from studio.recording.viewer import vulkan_drivers
+
+    if not vulkan_drivers():
+        pytest.skip("no Vulkan driver (apt-get install -y mesa-vulkan-drivers)")
+    rrd = Path(__file__).resolve().parent.parent.parent / "recordings" / "three_loops.rrd"
+    corners = {}
+    for theme in ("dark", "light"):
+        png = tmp_path / f"{theme}.png"
+        res = runner.invoke(app, ["snapshot", str(rrd), "-o", str(png), "--size", "800x500", "--theme", theme])
+        assert res.exit_code == 0, res.output
+        image = Image.open(png).convert("RGB")
+        w, h = image.size
+        corners[theme] = image.getpixel((int(0.03 * w), int(0.25 * h)))  # in the 3D view, left of the data
+    assert corners["dark"] == DARK_BACKGROUND_RGB and corners["light"] == LIGHT_BACKGROUND_RGB
+
+
+def test_snapshot_unknown_theme(tmp_path):
+    rrd = tmp_path / "x.rrd"
+    _empty_recording(rrd)
+    res = runner.invoke(app, ["snapshot", str(rrd), "-o", str(tmp_path / "x.png"), "--theme", "pink"])
+    assert res.exit_code == 2 and not (tmp_path / "x.png").exists()

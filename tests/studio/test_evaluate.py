@@ -423,6 +423,29 @@ def test_rrd_holds_the_per_node_error_series(small, graph, tmp_path):
     assert res.exit_code == 2 and "already exists (use --force to overwrite)" in res.output
 
 
+def test_evaluation_recording_is_the_same_for_the_same_inputs(small, graph, tmp_path):
+    """Two runs of `studio evaluate --rrd` on the same inputs: the same recording id and the same
+    fingerprint. The bytes still differ: Rerun's chunk and row ids are time-based (docs/recordings.md)."""
+    from rerun.chunk import RrdReader
+
+    from studio.recording.checks import fingerprint_rrd
+    from studio.recording.dataset import recording_id_for
+
+    _write_multi(tmp_path / "multi", graph, _perturbed(graph))
+    args = ["evaluate", str(small.dataset_dir), "-e", str(tmp_path / "multi"), "--align", "se3"]
+    for name in ("a.rrd", "b.rrd"):
+        res = CliRunner().invoke(app, args + ["--rrd", str(tmp_path / name)])
+        assert res.exit_code == 0, res.output
+    ids = [[s.recording_id for s in RrdReader(tmp_path / n).recordings()] for n in ("a.rrd", "b.rrd")]
+    assert ids[0] == ids[1] and len(ids[0]) == 1
+    assert ids[0][0] != recording_id_for(graph)  # its own id, not the dataset recording's
+    assert fingerprint_rrd(tmp_path / "a.rrd") == fingerprint_rrd(tmp_path / "b.rrd")
+    # another option, another recording: the id follows the inputs
+    res = CliRunner().invoke(app, args[:-1] + ["sim3", "--rrd", str(tmp_path / "c.rrd")])
+    assert res.exit_code == 0, res.output
+    assert [s.recording_id for s in RrdReader(tmp_path / "c.rrd").recordings()] != ids[0]
+
+
 def test_dataset_with_2d_records_scores_like_3d(small, tmp_path):
     two_d = synthesize(small.config, tmp_path, multi_records="2d")
     assert "VERTEX_SE2" in (two_d.dataset_dir / "agent1" / "posegraph.g2o").read_text()[:20]

@@ -90,6 +90,25 @@ def test_solve_recording_has_every_iteration(small, tmp_path):
     assert {"/solve/agent1/estimate", "/solve/agent1/ground_truth", "/solve/metrics/chi2"} <= entities
 
 
+@pytest.mark.parametrize("source", ["folder", "single"])
+def test_solve_recording_is_the_same_for_the_same_run(small, tmp_path, source):
+    """Same run, same recording id and fingerprint (fixed blueprint ids, no `log_time`); a single
+    g2o file, which has no dataset recording to join, gets an id derived from the run."""
+    import rerun.chunk as rc
+
+    from studio.recording.checks import fingerprint_rrd
+
+    dataset = small.dataset_dir if source == "folder" else small.single_dir / f"{small.config.name}.g2o"
+    for name in ("a", "b"):
+        solve(dataset, tmp_path / name, rrd=tmp_path / f"{name}.rrd")
+    ids = [[s.recording_id for s in rc.RrdReader(tmp_path / f"{n}.rrd").recordings()] for n in "ab"]
+    assert ids[0] == ids[1]
+    assert fingerprint_rrd(tmp_path / "a.rrd") == fingerprint_rrd(tmp_path / "b.rrd")
+    names = {str(c.entity_path) for c in rc.RrdReader(tmp_path / "a.rrd").stream()
+             for n in c.to_record_batch().schema.names if n == "log_time"}
+    assert not names  # no wall clock in the data
+
+
 def test_cli_solve_then_evaluate(small, tmp_path):
     out = tmp_path / "est"
     res = runner.invoke(app, ["solve", str(small.dataset_dir), "-o", str(out)])
