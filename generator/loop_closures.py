@@ -3,13 +3,14 @@
 Candidates ("hits": an occupied grid cell inside the discrete circle around a pose) are enumerated
 with a sorted-cell search (O(N + hits) instead of kollagen's O(N * R^2) map look-ups) and put in the
 exact order kollagen visits them. Each hit consumes one uniform; between two accepted loop closures
-the uniforms sit at fixed stream positions, so acceptance is decided in bulk with numpy and only the
-accepted ones (and their three normals) go through Python.
+the uniforms sit at fixed stream positions, so the unlikely hits are decided in bulk with numpy and
+only the likely ones and the accepted ones (with their three normals) go through Python.
 """
 
 from __future__ import annotations
 
 import math
+from bisect import bisect_left
 
 import numpy as np
 
@@ -18,7 +19,7 @@ from studio.core.model import Edges, InterAgentEdges, PoseKind
 from studio.core.parallel import parallel_map
 from studio.core.progress import Progress, report
 from studio.generator.config import SynthConfig
-from studio.generator.rng import MT19937Stream, polar_normal
+from studio.generator.rng import MT19937Stream, UniformTape, polar_normal
 from studio.generator.walk import _round_half_away, _round_to_int, _Walk
 
 __all__ = ["discrete_circle", "agent_pairs", "intra_loop_closures", "inter_loop_closures"]
@@ -131,60 +132,81 @@ def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
     return k[perm], order[pos[perm]], rank[perm]
 
 
-def _sample(stream: MT19937Stream, probs: np.ndarray, cached: float | None):
-    """Decide every hit with one uniform each; accepted hits draw three normals.
+_VISIT_PROBABILITY = 0.1
+"""Hits at least this likely are decided one by one in :func:`_sample`. Deciding one costs about a
+tenth of the numpy scan that each acceptance among the others costs: the speed depends on it, never
+the result."""
 
-    Between two accepted hits the uniforms sit at fixed stream positions, so a whole chunk of hits is
-    compared with its uniforms at once and only accepted hits (and their normals) run in Python.
-    Returns (accepted hit indices, (n, 3) normals, cache state after the last draw) and advances the
-    stream past everything consumed.
+_SCAN_HITS = 1 << 14
+"""The longest stretch of hits :func:`_sample` compares with its uniforms at once."""
+
+_SPARE_UNIFORMS = 1024
+"""Uniforms :func:`_sample` decodes beyond its estimate before it has to grow its buffer."""
+
+
+def _sample(tape: UniformTape, probs: np.ndarray, cached: float | None):
+    """Decide every hit with one uniform each, in order; an accepted hit draws three normals.
+
+    kollagen accepts hit h when its probability exceeds the next uniform; each accepted hit then draws
+    three normals (libstdc++'s polar method, one value cached between calls), which use a variable
+    number of uniforms. Between two accepted hits, hit h therefore reads uniform ``h + d`` for one
+    offset ``d``. The likely hits (same-cell checks) are few and accepted about every other time: they
+    are decided one by one; the many unlikely hits up to the next likely acceptance are compared with
+    their uniforms by one numpy scan. So each accepted hit costs one scan and a few Python steps.
+
+    Returns (accepted hit indices, (n, 3) normals, cache state after the last draw, uniforms used).
     """
     n_hits = len(probs)
+    likely = probs >= _VISIT_PROBABILITY
+    visit = np.flatnonzero(likely).tolist()
+    unlikely = np.where(likely, 0.0, probs)
+    pv = np.ascontiguousarray(probs, dtype=np.float64).data  # indexing a memoryview gives floats fast
     accepted: list[int] = []
     normals: list[float] = []
-    # expected uniforms: one per hit plus about 2.5 per accepted hit for its three normals
-    budget = n_hits + int(3 * float(np.minimum(probs, 1.0).sum())) + 1024  # a probability over 1 accepts once
-    u = stream.uniforms(budget)
-    h = 0  # next hit
-    q = 0  # next uniform
-    chunk = 256
-    while h < n_hits:
-        k = min(chunk, n_hits - h)
-        if q + k + 64 > len(u):
-            u = stream.uniforms(max(2 * len(u), q + k + 4096))
-        hit = probs[h : h + k] > u[q : q + k]
-        t = int(hit.argmax())
-        if not hit[t]:
-            h += k
-            q += k
-            chunk = min(chunk * 2, 1 << 16)
-            continue
-        h += t
-        q += t + 1
-        chunk = max(64, 2 * (t + 1))
-        for _ in range(3):
-            if cached is not None:
-                normals.append(cached)
-                cached = None
-                continue
-            while True:
-                window = u[q : q + 16].tolist()
-                try:
-                    ret, keep, used = polar_normal(window, 0)
-                    break
-                except IndexError:  # 8 rejections in a row, or the end of the buffer
-                    if q + 64 > len(u):
-                        u = stream.uniforms(2 * len(u))
-                    window = u[q : q + 4096].tolist()
-                    ret, keep, used = polar_normal(window, 0)
-                    break
-            q += used
-            normals.append(ret)
-            cached = keep
-        accepted.append(h)
-        h += 1
-    stream.advance(2 * q)
-    return np.array(accepted, dtype=np.int64), np.array(normals).reshape(-1, 3), cached
+    h, d = 0, 0  # next hit, and the offset of its uniform
+    iv = 0  # next hit to visit
+    # one uniform per hit plus about 3.8 per accepted hit for its normals (a probability over 1 accepts once)
+    want = n_hits + 4 * int(np.minimum(probs, 1.0).sum()) + _SPARE_UNIFORMS
+    while True:
+        u = tape.head(want)[:want]
+        uv = u.data
+        try:
+            while h < n_hits:
+                end = min(n_hits, h + _SCAN_HITS)
+                if end + d > want:
+                    raise IndexError  # these hits need uniforms beyond the buffer
+                found = False
+                while iv < len(visit) and visit[iv] < end:
+                    v = visit[iv]
+                    if pv[v] > uv[v + d]:
+                        end, found = v, True
+                        break
+                    iv += 1
+                if end > h:
+                    scan = unlikely[h:end] > u[h + d : end + d]
+                    first = int(scan.argmax())
+                    if scan[first]:
+                        end, found = h + first, True
+                if not found:
+                    h = end
+                    continue
+                q = end + d + 1  # the normals start after the accepted hit's uniform
+                if cached is None:
+                    n1, n2, q = polar_normal(uv, q)
+                    n3, keep, q = polar_normal(uv, q)
+                else:
+                    n1 = cached
+                    n2, n3, q = polar_normal(uv, q)
+                    keep = None
+                accepted.append(end)
+                normals += (n1, n2, n3)
+                cached = keep
+                h, d = end + 1, q - end - 1
+                iv = bisect_left(visit, h)  # visits past a scanned acceptance are decided again
+            break
+        except IndexError:  # the buffer ended: grow it and go on from the last accepted hit
+            want *= 2
+    return np.array(accepted, dtype=np.int64), np.array(normals).reshape(-1, 3), cached, n_hits + d
 
 
 def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, agent):
@@ -206,12 +228,13 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
         keep = (j < k) & circle.diagonal_by_rank[rank + 1]
         parts.append((k[keep], j[keep], rank[keep]))
     k, j, rank = (np.concatenate(c) for c in zip(*parts))
-    probs = circle.probabilities(
+    table = circle.probabilities(
         agent.same_position_intra_loop_closure_probability,
         agent.intra_loop_closure_probability_scaling,
         agent.intra_loop_closure_radius,
-    )[rank + 1]
-    acc, noise, _ = _sample(stream, probs, None)
+    )
+    acc, noise, _, used = _sample(UniformTape(stream), table[rank + 1], None)
+    stream.advance(2 * used)
     i_to, j_from = k[acc], j[acc]
     dX, dY, dT = relative_planar_pose(walk.x[j_from], walk.y[j_from], walk.theta[j_from],
                            walk.x[i_to], walk.y[i_to], walk.theta[i_to])
@@ -231,6 +254,8 @@ def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None, progr
         p.same_position_loop_closure_probability, p.loop_closure_probability_scaling, p.loop_closure_radius
     )
     pairs = agent_pairs(len(walks))
+    # kollagen seeds a new generator for every pair with the same seed: all pairs read one tape
+    tape = UniformTape(MT19937Stream(p.random_number_generator_seed))
 
     def one_pair(index: int):
         a, b = pairs[index]
@@ -241,8 +266,7 @@ def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None, progr
         k, m, rank = _enumerate_hits(bx, by, ax[last], ay[last], circle)
         j = last[m]
         probs = prob_by_rank[rank + 1]
-        stream = MT19937Stream(p.random_number_generator_seed)
-        acc, noise, _ = _sample(stream, probs, None)
+        acc, noise, _, _ = _sample(tape, probs, None)
         i_from, j_to = k[acc], j[acc]
         dX, dY, dT = relative_planar_pose(wb.x[i_from], wb.y[i_from], wb.theta[i_from],
                                wa.x[j_to], wa.y[j_to], wa.theta[j_to])
