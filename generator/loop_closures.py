@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left
+from typing import Callable
 
 import numpy as np
 
@@ -95,41 +96,76 @@ def _visits(cx: np.ndarray, cy: np.ndarray, which: str) -> np.ndarray:
     return len(key) - 1 - np.unique(key[::-1], return_index=True)[1]
 
 
+_DENSE_COUNT_FACTOR = 32
+""":func:`_enumerate_hits` counts keys with a table over the whole key space when that space is at most
+this many times the number of its look-ups (then a table entry is far cheaper than a binary search)."""
+
+
+def _count_below(sorted_keys: np.ndarray, space: int, lookups: int) -> Callable[[np.ndarray], np.ndarray]:
+    """``v -> the number of sorted_keys below v`` for integer arrays v in ``[0, space]``."""
+    if space <= _DENSE_COUNT_FACTOR * lookups:
+        below = np.zeros(space + 1, dtype=np.int64)
+        np.cumsum(np.bincount(sorted_keys, minlength=space), out=below[1:])
+        return lambda v: below[v]
+    return lambda v: np.searchsorted(sorted_keys, v, side="left")
+
+
 def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
     """Every (query k, table m) pair whose cells are at most the circle's radius apart.
 
     Returns ``(k, m, rank)`` sorted in kollagen's visiting order: by query, then the same-cell check,
     then the circle's order. Table cells must be distinct.
+
+    Cells become keys ``x * stride + y``, so each (query, circle column dx) pair is one range of the
+    sorted table keys; the ranges laid end to end give the hits by query, column and dy. The circle
+    visits a column's dy as 0, 1, -1, 2, -2, ...: a hit's place in its column is found by counting the
+    keys between it and its mirror image (``dy -> -dy``), and the same-cell hit moves to the front of
+    its query; so the hits are scattered straight to their places, without a sort.
     """
     R = circle.radius
-    if len(tx) == 0 or len(qx) == 0:
+    nq = len(qx)
+    if len(tx) == 0 or nq == 0:
         z = np.zeros(0, dtype=np.int64)
         return z, z, z
     xmin = min(int(qx.min()), int(tx.min())) - R
     ymin = min(int(qy.min()), int(ty.min())) - R
     stride = max(int(qy.max()), int(ty.max())) - ymin + R + 1
+    width = max(int(qx.max()), int(tx.max())) + R - xmin + 1
     tkey = (tx - xmin) * stride + (ty - ymin)
     order = np.argsort(tkey)
     skey = tkey[order]
-    qkey = (qx - xmin) * stride + (qy - ymin)
-    dxs = np.arange(-R, R + 1, dtype=np.int64)
-    centre = qkey[:, None] + dxs[None, :] * stride
-    start = np.searchsorted(skey, (centre - circle.ylim[None, :]).ravel(), side="left")
-    stop = np.searchsorted(skey, (centre + circle.ylim[None, :]).ravel(), side="right")
-    counts = stop - start
-    total = int(counts.sum())
-    shift = start - (np.cumsum(counts) - counts)
-    pos = np.arange(total, dtype=np.int64) + np.repeat(shift, counts)
-    k = np.repeat(np.arange(len(qx), dtype=np.int64), counts.reshape(len(qx), -1).sum(axis=1))
-    # offset (dx, dy) as dx * stride + dy, mapped to its rank in the circle
-    delta = skey[pos] - qkey[k]
-    lut = np.full((2 * R + 1) * stride, -2, dtype=np.int64)
-    span = np.arange(-R, R + 1, dtype=np.int64)
-    lut[((span[:, None] + R) * stride + (span[None, :] + R)).ravel()] = circle.rank.ravel()
-    rank = lut[delta + R * stride + R]
-    key = k * (circle.size + 1) + (rank + 1)
-    perm = np.argsort(key, kind="stable")
-    return k[perm], order[pos[perm]], rank[perm]
+    below = _count_below(skey, width * stride, nq * (2 * R + 1))
+    # one segment per (query, column): the keys of its column's cells within the circle
+    centre = ((qx - xmin) * stride + (qy - ymin))[:, None] + np.arange(-R, R + 1, dtype=np.int64) * stride
+    centre = centre.ravel()
+    ylim = np.tile(circle.ylim, nq)
+    start = below(centre - ylim)
+    counts = below(centre + ylim + 1) - start
+    first = np.cumsum(counts) - counts  # the segment's first hit
+    total = int(first[-1] + counts[-1])
+    pos = np.arange(total, dtype=np.int64) + np.repeat(start - first, counts)  # index in skey
+    key = skey[pos]
+    # place in the column: with w the keys below the mirror bound c - dy + 1, a hit with dy > 0 has
+    # pos - w keys before it in the column's order, one with dy <= 0 (so w > pos) has w - 1 - pos
+    t = pos - below(np.repeat(2 * centre + 1, counts) - key)
+    local = t ^ (t >> 63)  # t if t >= 0, else -t - 1
+    # the same-cell hit (column dx = 0, dy = 0) goes first in its query, before the columns dx < 0
+    seg_first = first.reshape(nq, 2 * R + 1)
+    query_first = seg_first[:, 0].copy()
+    at = below(centre[R :: 2 * R + 1])
+    same = below(centre[R :: 2 * R + 1] + 1) > at
+    same_hit = (seg_first[:, R] + at - start[R :: 2 * R + 1])[same]
+    seg_first[:, :R] += same[:, None]
+    dest = np.repeat(first, counts) + local
+    dest[same_hit] = query_first[same]
+    k = np.repeat(np.arange(nq, dtype=np.int64), counts.reshape(nq, -1).sum(axis=1))
+    # rank of (dx, dy) from the circle's table, flat index (dx + R) (2R + 1) + dy + R, dy = key - centre
+    column = np.tile(np.arange(2 * R + 1, dtype=np.int64) * (2 * R + 1) + R, nq)
+    m = np.empty(total, dtype=np.int64)
+    m[dest] = order[pos]
+    rank = np.empty(total, dtype=np.int64)
+    rank[dest] = circle.rank.ravel()[np.repeat(column - centre, counts) + key]
+    return k, m, rank
 
 
 _VISIT_PROBABILITY = 0.1
