@@ -251,27 +251,36 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     radius = _round_to_int(agent.intra_loop_closure_radius * cfg.step_fragment / cfg.stepsize)
     circle = _CircleTable(radius)
     first = np.sort(_visits(cx, cy, "first"))  # cells in order of their first visit
-    # kollagen's map only holds cells first visited before the current pose. Poses are taken in
-    # blocks; a block looks only at cells first visited before its end, so few hits are discarded.
-    parts = []
-    bounds = np.linspace(0, n, num=min(n, 16) + 1).astype(np.int64)
-    for lo, hi in zip(bounds[:-1], bounds[1:]):
-        known = first[: np.searchsorted(first, hi)]
-        k, m, rank = _enumerate_hits(cx[lo:hi], cy[lo:hi], cx[known], cy[known], circle)
-        k = k + lo
-        j = known[m]
-        # intra-agent: only cells seen before, and (kollagen's quirk) only diagonal circle offsets
-        keep = (j < k) & circle.diagonal_by_rank[rank + 1]
-        parts.append((k[keep], j[keep], rank[keep]))
-    k, j, rank = (np.concatenate(c) for c in zip(*parts))
     table = circle.probabilities(
         agent.same_position_intra_loop_closure_probability,
         agent.intra_loop_closure_probability_scaling,
         agent.intra_loop_closure_radius,
     )
-    acc, noise, _, used = _sample(UniformTape(stream), table[rank + 1], None)
+    # kollagen's quirk: intra-agent loop closures only look at the diagonal circle offsets (and the
+    # same cell); NaN marks the others, so one look-up gives a hit's probability or its exclusion
+    allowed = np.where(circle.diagonal_by_rank, table, np.nan)
+    # kollagen's map only holds cells first visited before the current pose. Poses are taken in
+    # blocks; a block looks only at cells first visited before its end, so few hits are discarded.
+    blocks, probs = [], []
+    bounds = np.linspace(0, n, num=min(n, 16) + 1).astype(np.int64)
+    for lo, hi in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
+        known = first[: np.searchsorted(first, hi)]
+        k, m, rank = _enumerate_hits(cx[lo:hi], cy[lo:hi], cx[known], cy[known], circle)
+        p = allowed[rank + 1]
+        kept = np.flatnonzero((known[m] < k + lo) & ~np.isnan(p))  # cells seen before, allowed offsets
+        probs.append(p[kept])
+        blocks.append((lo, known, k, m, kept))
+    acc, noise, _, used = _sample(UniformTape(stream), np.concatenate(probs), None)
     stream.advance(2 * used)
-    i_to, j_from = k[acc], j[acc]
+    # the accepted hits' poses, read in the blocks they came from
+    ends = np.cumsum([len(kept) for *_, kept in blocks])
+    block_of = np.searchsorted(ends, acc, side="right")
+    i_to, j_from = np.empty(len(acc), dtype=np.int64), np.empty(len(acc), dtype=np.int64)
+    for b, (lo, known, k, m, kept) in enumerate(blocks):
+        sel = block_of == b
+        hit = kept[acc[sel] - (ends[b] - len(kept))]
+        i_to[sel] = k[hit] + lo
+        j_from[sel] = known[m[hit]]
     dX, dY, dT = relative_planar_pose(walk.x[j_from], walk.y[j_from], walk.theta[j_from],
                            walk.x[i_to], walk.y[i_to], walk.theta[i_to])
     sp, sa = agent.std_dev_intra_loop_closure_position, agent.std_dev_intra_loop_closure_angle
