@@ -193,33 +193,34 @@ def _sample(tape: UniformTape, probs: np.ndarray, cached: float | None):
     Returns (accepted hit indices, (n, 3) normals, cache state after the last draw, uniforms used).
     """
     n_hits = len(probs)
-    likely = probs >= _VISIT_PROBABILITY
-    visit = np.flatnonzero(likely).tolist()
-    unlikely = np.where(likely, 0.0, probs)
+    visit = np.flatnonzero(probs >= _VISIT_PROBABILITY).tolist() + [n_hits]  # ends with a sentinel
     pv = np.ascontiguousarray(probs, dtype=np.float64).data  # indexing a memoryview gives floats fast
+    scan_hits = _SCAN_HITS
     accepted: list[int] = []
     normals: list[float] = []
     h, d = 0, 0  # next hit, and the offset of its uniform
     iv = 0  # next hit to visit
-    # one uniform per hit plus about 3.8 per accepted hit for its normals (a probability over 1 accepts once)
-    want = n_hits + 4 * int(np.minimum(probs, 1.0).sum()) + _SPARE_UNIFORMS
+    # one uniform per hit plus about 3.8 per accepted hit for its normals
+    want = n_hits + 4 * int(probs.sum()) + _SPARE_UNIFORMS
     while True:
         u = tape.head(want)[:want]
         uv = u.data
         try:
             while h < n_hits:
-                end = min(n_hits, h + _SCAN_HITS)
+                end = min(n_hits, h + scan_hits)
                 if end + d > want:
                     raise IndexError  # these hits need uniforms beyond the buffer
                 found = False
-                while iv < len(visit) and visit[iv] < end:
+                while visit[iv] < end:
                     v = visit[iv]
                     if pv[v] > uv[v + d]:
                         end, found = v, True
                         break
                     iv += 1
                 if end > h:
-                    scan = unlikely[h:end] > u[h + d : end + d]
+                    # the likely hits before end were just rejected with this offset: a scan of all
+                    # hits finds the first unlikely one accepted
+                    scan = probs[h:end] > u[h + d : end + d]
                     first = int(scan.argmax())
                     if scan[first]:
                         end, found = h + first, True
