@@ -3,13 +3,15 @@
 Candidates ("hits": an occupied grid cell inside the discrete circle around a pose) are enumerated
 with a sorted-cell search (O(N + hits) instead of kollagen's O(N * R^2) map look-ups) and put in the
 exact order kollagen visits them. Each hit consumes one uniform; between two accepted loop closures
-the uniforms sit at fixed stream positions, so acceptance is decided in bulk with numpy and only the
-accepted ones (and their three normals) go through Python.
+the uniforms sit at fixed stream positions, so the unlikely hits are decided in bulk with numpy and
+only the likely ones and the accepted ones (with their three normals) go through Python.
 """
 
 from __future__ import annotations
 
 import math
+from bisect import bisect_left
+from typing import Callable
 
 import numpy as np
 
@@ -18,7 +20,7 @@ from studio.core.model import Edges, InterAgentEdges, PoseKind
 from studio.core.parallel import parallel_map
 from studio.core.progress import Progress, report
 from studio.generator.config import SynthConfig
-from studio.generator.rng import MT19937Stream, polar_normal
+from studio.generator.rng import MT19937Stream, UniformTape, polar_normal
 from studio.generator.walk import _round_half_away, _round_to_int, _Walk
 
 __all__ = ["discrete_circle", "agent_pairs", "intra_loop_closures", "inter_loop_closures"]
@@ -94,97 +96,154 @@ def _visits(cx: np.ndarray, cy: np.ndarray, which: str) -> np.ndarray:
     return len(key) - 1 - np.unique(key[::-1], return_index=True)[1]
 
 
+_DENSE_COUNT_FACTOR = 32
+""":func:`_enumerate_hits` counts keys with a table over the whole key space when that space is at most
+this many times the number of its look-ups (then a table entry is far cheaper than a binary search)."""
+
+
+def _count_below(sorted_keys: np.ndarray, space: int, lookups: int) -> Callable[[np.ndarray], np.ndarray]:
+    """``v -> the number of sorted_keys below v`` for integer arrays v in ``[0, space]``."""
+    if space <= _DENSE_COUNT_FACTOR * lookups:
+        below = np.zeros(space + 1, dtype=np.int64)
+        np.cumsum(np.bincount(sorted_keys, minlength=space), out=below[1:])
+        return lambda v: below[v]
+    return lambda v: np.searchsorted(sorted_keys, v, side="left")
+
+
 def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
     """Every (query k, table m) pair whose cells are at most the circle's radius apart.
 
     Returns ``(k, m, rank)`` sorted in kollagen's visiting order: by query, then the same-cell check,
     then the circle's order. Table cells must be distinct.
+
+    Cells become keys ``x * stride + y``, so each (query, circle column dx) pair is one range of the
+    sorted table keys; the ranges laid end to end give the hits by query, column and dy. The circle
+    visits a column's dy as 0, 1, -1, 2, -2, ...: a hit's place in its column is found by counting the
+    keys between it and its mirror image (``dy -> -dy``), and the same-cell hit moves to the front of
+    its query; so the hits are scattered straight to their places, without a sort.
     """
     R = circle.radius
-    if len(tx) == 0 or len(qx) == 0:
+    nq = len(qx)
+    if len(tx) == 0 or nq == 0:
         z = np.zeros(0, dtype=np.int64)
         return z, z, z
     xmin = min(int(qx.min()), int(tx.min())) - R
     ymin = min(int(qy.min()), int(ty.min())) - R
     stride = max(int(qy.max()), int(ty.max())) - ymin + R + 1
+    width = max(int(qx.max()), int(tx.max())) + R - xmin + 1
     tkey = (tx - xmin) * stride + (ty - ymin)
     order = np.argsort(tkey)
     skey = tkey[order]
-    qkey = (qx - xmin) * stride + (qy - ymin)
-    dxs = np.arange(-R, R + 1, dtype=np.int64)
-    centre = qkey[:, None] + dxs[None, :] * stride
-    start = np.searchsorted(skey, (centre - circle.ylim[None, :]).ravel(), side="left")
-    stop = np.searchsorted(skey, (centre + circle.ylim[None, :]).ravel(), side="right")
-    counts = stop - start
-    total = int(counts.sum())
-    shift = start - (np.cumsum(counts) - counts)
-    pos = np.arange(total, dtype=np.int64) + np.repeat(shift, counts)
-    k = np.repeat(np.arange(len(qx), dtype=np.int64), counts.reshape(len(qx), -1).sum(axis=1))
-    # offset (dx, dy) as dx * stride + dy, mapped to its rank in the circle
-    delta = skey[pos] - qkey[k]
-    lut = np.full((2 * R + 1) * stride, -2, dtype=np.int64)
-    span = np.arange(-R, R + 1, dtype=np.int64)
-    lut[((span[:, None] + R) * stride + (span[None, :] + R)).ravel()] = circle.rank.ravel()
-    rank = lut[delta + R * stride + R]
-    key = k * (circle.size + 1) + (rank + 1)
-    perm = np.argsort(key, kind="stable")
-    return k[perm], order[pos[perm]], rank[perm]
+    below = _count_below(skey, width * stride, nq * (2 * R + 1))
+    # one segment per (query, column): the keys of its column's cells within the circle
+    centre = ((qx - xmin) * stride + (qy - ymin))[:, None] + np.arange(-R, R + 1, dtype=np.int64) * stride
+    centre = centre.ravel()
+    ylim = np.tile(circle.ylim, nq)
+    start = below(centre - ylim)
+    counts = below(centre + ylim + 1) - start
+    first = np.cumsum(counts) - counts  # the segment's first hit
+    total = int(first[-1] + counts[-1])
+    pos = np.arange(total, dtype=np.int64) + np.repeat(start - first, counts)  # index in skey
+    key = skey[pos]
+    # place in the column: with w the keys below the mirror bound c - dy + 1, a hit with dy > 0 has
+    # pos - w keys before it in the column's order, one with dy <= 0 (so w > pos) has w - 1 - pos
+    t = pos - below(np.repeat(2 * centre + 1, counts) - key)
+    local = t ^ (t >> 63)  # t if t >= 0, else -t - 1
+    # the same-cell hit (column dx = 0, dy = 0) goes first in its query, before the columns dx < 0
+    seg_first = first.reshape(nq, 2 * R + 1)
+    query_first = seg_first[:, 0].copy()
+    at = below(centre[R :: 2 * R + 1])
+    same = below(centre[R :: 2 * R + 1] + 1) > at
+    same_hit = (seg_first[:, R] + at - start[R :: 2 * R + 1])[same]
+    seg_first[:, :R] += same[:, None]
+    dest = np.repeat(first, counts) + local
+    dest[same_hit] = query_first[same]
+    k = np.repeat(np.arange(nq, dtype=np.int64), counts.reshape(nq, -1).sum(axis=1))
+    # rank of (dx, dy) from the circle's table, flat index (dx + R) (2R + 1) + dy + R, dy = key - centre
+    column = np.tile(np.arange(2 * R + 1, dtype=np.int64) * (2 * R + 1) + R, nq)
+    m = np.empty(total, dtype=np.int64)
+    m[dest] = order[pos]
+    rank = np.empty(total, dtype=np.int64)
+    rank[dest] = circle.rank.ravel()[np.repeat(column - centre, counts) + key]
+    return k, m, rank
 
 
-def _sample(stream: MT19937Stream, probs: np.ndarray, cached: float | None):
-    """Decide every hit with one uniform each; accepted hits draw three normals.
+_VISIT_PROBABILITY = 0.1
+"""Hits at least this likely are decided one by one in :func:`_sample`. Deciding one costs about a
+tenth of the numpy scan that each acceptance among the others costs: the speed depends on it, never
+the result."""
 
-    Between two accepted hits the uniforms sit at fixed stream positions, so a whole chunk of hits is
-    compared with its uniforms at once and only accepted hits (and their normals) run in Python.
-    Returns (accepted hit indices, (n, 3) normals, cache state after the last draw) and advances the
-    stream past everything consumed.
+_SCAN_HITS = 1 << 14
+"""The longest stretch of hits :func:`_sample` compares with its uniforms at once."""
+
+_SPARE_UNIFORMS = 1024
+"""Uniforms :func:`_sample` decodes beyond its estimate before it has to grow its buffer."""
+
+
+def _sample(tape: UniformTape, probs: np.ndarray, cached: float | None):
+    """Decide every hit with one uniform each, in order; an accepted hit draws three normals.
+
+    kollagen accepts hit h when its probability exceeds the next uniform; each accepted hit then draws
+    three normals (libstdc++'s polar method, one value cached between calls), which use a variable
+    number of uniforms. Between two accepted hits, hit h therefore reads uniform ``h + d`` for one
+    offset ``d``. The likely hits (same-cell checks) are few and accepted about every other time: they
+    are decided one by one; the many unlikely hits up to the next likely acceptance are compared with
+    their uniforms by one numpy scan. So each accepted hit costs one scan and a few Python steps.
+
+    Returns (accepted hit indices, (n, 3) normals, cache state after the last draw, uniforms used).
     """
     n_hits = len(probs)
+    visit = np.flatnonzero(probs >= _VISIT_PROBABILITY).tolist() + [n_hits]  # ends with a sentinel
+    pv = np.ascontiguousarray(probs, dtype=np.float64).data  # indexing a memoryview gives floats fast
+    scan_hits = _SCAN_HITS
     accepted: list[int] = []
     normals: list[float] = []
-    # expected uniforms: one per hit plus about 2.5 per accepted hit for its three normals
-    budget = n_hits + int(3 * float(np.minimum(probs, 1.0).sum())) + 1024  # a probability over 1 accepts once
-    u = stream.uniforms(budget)
-    h = 0  # next hit
-    q = 0  # next uniform
-    chunk = 256
-    while h < n_hits:
-        k = min(chunk, n_hits - h)
-        if q + k + 64 > len(u):
-            u = stream.uniforms(max(2 * len(u), q + k + 4096))
-        hit = probs[h : h + k] > u[q : q + k]
-        t = int(hit.argmax())
-        if not hit[t]:
-            h += k
-            q += k
-            chunk = min(chunk * 2, 1 << 16)
-            continue
-        h += t
-        q += t + 1
-        chunk = max(64, 2 * (t + 1))
-        for _ in range(3):
-            if cached is not None:
-                normals.append(cached)
-                cached = None
-                continue
-            while True:
-                window = u[q : q + 16].tolist()
-                try:
-                    ret, keep, used = polar_normal(window, 0)
-                    break
-                except IndexError:  # 8 rejections in a row, or the end of the buffer
-                    if q + 64 > len(u):
-                        u = stream.uniforms(2 * len(u))
-                    window = u[q : q + 4096].tolist()
-                    ret, keep, used = polar_normal(window, 0)
-                    break
-            q += used
-            normals.append(ret)
-            cached = keep
-        accepted.append(h)
-        h += 1
-    stream.advance(2 * q)
-    return np.array(accepted, dtype=np.int64), np.array(normals).reshape(-1, 3), cached
+    h, d = 0, 0  # next hit, and the offset of its uniform
+    iv = 0  # next hit to visit
+    # one uniform per hit plus about 3.8 per accepted hit for its normals
+    want = n_hits + 4 * int(probs.sum()) + _SPARE_UNIFORMS
+    while True:
+        u = tape.head(want)[:want]
+        uv = u.data
+        try:
+            while h < n_hits:
+                end = min(n_hits, h + scan_hits)
+                if end + d > want:
+                    raise IndexError  # these hits need uniforms beyond the buffer
+                found = False
+                while visit[iv] < end:
+                    v = visit[iv]
+                    if pv[v] > uv[v + d]:
+                        end, found = v, True
+                        break
+                    iv += 1
+                if end > h:
+                    # the likely hits before end were just rejected with this offset: a scan of all
+                    # hits finds the first unlikely one accepted
+                    scan = probs[h:end] > u[h + d : end + d]
+                    first = int(scan.argmax())
+                    if scan[first]:
+                        end, found = h + first, True
+                if not found:
+                    h = end
+                    continue
+                q = end + d + 1  # the normals start after the accepted hit's uniform
+                if cached is None:
+                    n1, n2, q = polar_normal(uv, q)
+                    n3, keep, q = polar_normal(uv, q)
+                else:
+                    n1 = cached
+                    n2, n3, q = polar_normal(uv, q)
+                    keep = None
+                accepted.append(end)
+                normals += (n1, n2, n3)
+                cached = keep
+                h, d = end + 1, q - end - 1
+                iv = bisect_left(visit, h)  # visits past a scanned acceptance are decided again
+            break
+        except IndexError:  # the buffer ended: grow it and go on from the last accepted hit
+            want *= 2
+    return np.array(accepted, dtype=np.int64), np.array(normals).reshape(-1, 3), cached, n_hits + d
 
 
 def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, agent):
@@ -193,26 +252,36 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     radius = _round_to_int(agent.intra_loop_closure_radius * cfg.step_fragment / cfg.stepsize)
     circle = _CircleTable(radius)
     first = np.sort(_visits(cx, cy, "first"))  # cells in order of their first visit
-    # kollagen's map only holds cells first visited before the current pose. Poses are taken in
-    # blocks; a block looks only at cells first visited before its end, so few hits are discarded.
-    parts = []
-    bounds = np.linspace(0, n, num=min(n, 16) + 1).astype(np.int64)
-    for lo, hi in zip(bounds[:-1], bounds[1:]):
-        known = first[: np.searchsorted(first, hi)]
-        k, m, rank = _enumerate_hits(cx[lo:hi], cy[lo:hi], cx[known], cy[known], circle)
-        k = k + lo
-        j = known[m]
-        # intra-agent: only cells seen before, and (kollagen's quirk) only diagonal circle offsets
-        keep = (j < k) & circle.diagonal_by_rank[rank + 1]
-        parts.append((k[keep], j[keep], rank[keep]))
-    k, j, rank = (np.concatenate(c) for c in zip(*parts))
-    probs = circle.probabilities(
+    table = circle.probabilities(
         agent.same_position_intra_loop_closure_probability,
         agent.intra_loop_closure_probability_scaling,
         agent.intra_loop_closure_radius,
-    )[rank + 1]
-    acc, noise, _ = _sample(stream, probs, None)
-    i_to, j_from = k[acc], j[acc]
+    )
+    # kollagen's quirk: intra-agent loop closures only look at the diagonal circle offsets (and the
+    # same cell); NaN marks the others, so one look-up gives a hit's probability or its exclusion
+    allowed = np.where(circle.diagonal_by_rank, table, np.nan)
+    # kollagen's map only holds cells first visited before the current pose. Poses are taken in
+    # blocks; a block looks only at cells first visited before its end, so few hits are discarded.
+    blocks, probs = [], []
+    bounds = np.linspace(0, n, num=min(n, 16) + 1).astype(np.int64)
+    for lo, hi in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
+        known = first[: np.searchsorted(first, hi)]
+        k, m, rank = _enumerate_hits(cx[lo:hi], cy[lo:hi], cx[known], cy[known], circle)
+        p = allowed[rank + 1]
+        kept = np.flatnonzero((known[m] < k + lo) & ~np.isnan(p))  # cells seen before, allowed offsets
+        probs.append(p[kept])
+        blocks.append((lo, known, k, m, kept))
+    acc, noise, _, used = _sample(UniformTape(stream), np.concatenate(probs), None)
+    stream.advance(2 * used)
+    # the accepted hits' poses, read in the blocks they came from
+    ends = np.cumsum([len(kept) for *_, kept in blocks])
+    block_of = np.searchsorted(ends, acc, side="right")
+    i_to, j_from = np.empty(len(acc), dtype=np.int64), np.empty(len(acc), dtype=np.int64)
+    for b, (lo, known, k, m, kept) in enumerate(blocks):
+        sel = block_of == b
+        hit = kept[acc[sel] - (ends[b] - len(kept))]
+        i_to[sel] = k[hit] + lo
+        j_from[sel] = known[m[hit]]
     dX, dY, dT = relative_planar_pose(walk.x[j_from], walk.y[j_from], walk.theta[j_from],
                            walk.x[i_to], walk.y[i_to], walk.theta[i_to])
     sp, sa = agent.std_dev_intra_loop_closure_position, agent.std_dev_intra_loop_closure_angle
@@ -231,6 +300,8 @@ def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None, progr
         p.same_position_loop_closure_probability, p.loop_closure_probability_scaling, p.loop_closure_radius
     )
     pairs = agent_pairs(len(walks))
+    # kollagen seeds a new generator for every pair with the same seed: all pairs read one tape
+    tape = UniformTape(MT19937Stream(p.random_number_generator_seed))
 
     def one_pair(index: int):
         a, b = pairs[index]
@@ -241,8 +312,7 @@ def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None, progr
         k, m, rank = _enumerate_hits(bx, by, ax[last], ay[last], circle)
         j = last[m]
         probs = prob_by_rank[rank + 1]
-        stream = MT19937Stream(p.random_number_generator_seed)
-        acc, noise, _ = _sample(stream, probs, None)
+        acc, noise, _, _ = _sample(tape, probs, None)
         i_from, j_to = k[acc], j[acc]
         dX, dY, dT = relative_planar_pose(wb.x[i_from], wb.y[i_from], wb.theta[i_from],
                                wa.x[j_to], wa.y[j_to], wa.theta[j_to])

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-__all__ = ["MT19937Stream", "canonical_doubles", "polar_normal"]
+__all__ = ["MT19937Stream", "UniformTape", "canonical_doubles", "polar_normal"]
 
 _TWO32 = 4294967296.0
 _TWO64 = 18446744073709551616.0
@@ -97,3 +97,26 @@ class MT19937Stream:
     def uniforms(self, n: int) -> np.ndarray:
         """The next ``n`` canonical doubles (``2 n`` words), without moving the cursor."""
         return canonical_doubles(self.words(2 * n))
+
+
+class UniformTape:
+    """The canonical doubles of a stream from its current word on, decoded once and kept.
+
+    The tape reads the stream's words without moving its cursor (a reader that goes on drawing
+    advances the stream by two words per uniform it used). kollagen restarts its inter-agent
+    generator with the same seed for every pair of agents, so every pair reads the same uniforms:
+    one tape serves them all.
+    """
+
+    def __init__(self, stream: MT19937Stream) -> None:
+        self._stream = stream
+        self._values = np.empty(0)
+
+    def head(self, n: int) -> np.ndarray:
+        """The tape's first ``n`` uniforms or more (it at least doubles when it grows)."""
+        have = len(self._values)
+        if n > have:
+            n = max(n, 2 * have)
+            fresh = canonical_doubles(self._stream.words(2 * n)[2 * have :])
+            self._values = np.concatenate([self._values, fresh])
+        return self._values

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from studio.core.geometry import normalize_angle
+from studio.core.geometry import libm_cos_sin, normalize_angle
 from studio.generator.config import AgentConfig, SynthConfig
 from studio.generator.rng import MT19937Stream, canonical_doubles
 
@@ -60,54 +60,68 @@ class _Walk:
     drtheta: np.ndarray
 
 
+_SPARE_WORDS = 4096
+"""Words :func:`_walk_draws` reads beyond its estimate (about 5.1 words per sub-step) before it has to
+read more."""
+
+
 def _walk_draws(stream: MT19937Stream, n_steps: int, frag: int, retro: bool):
     """Turns and odometry normals in kollagen's draw order; leaves the stream after the last draw.
 
     Each step draws one integer (``uniform_int_distribution(-1, 1 + retro)``, Lemire's method) and
-    then, per sub-step, a position normal and an angle normal: one polar-method round whose two
-    uniforms start at any word offset, so uniforms are pre-decoded at every offset.
+    then, per sub-step, a position normal and an angle normal: one polar-method round whose tries
+    read the uniforms at words ``p`` and ``p + 2`` for any word offset ``p``. Whether a try is accepted
+    is decided for every offset at once, and so is the next accepted try of each offset (tries of a
+    round are 4 words apart); the walk through the words then only follows integers in Python, and
+    the normals of the accepted tries are computed in bulk (libm's log through :mod:`math`).
     """
     span = 3 + int(retro)
     threshold = ((1 << 32) - span) % span
-    turns = [0] * n_steps
-    n_pos = [0.0] * (n_steps * frag)
-    n_ang = [0.0] * (n_steps * frag)
-    log, sqrt = math.log, math.sqrt
-    want = n_steps + 6 * n_steps * frag + 4096
-    s = 0
-    while s < n_steps:
+    turns: list[int] = []
+    n_pos: list[np.ndarray] = []
+    n_ang: list[np.ndarray] = []
+    log = math.log
+    want = n_steps + 6 * n_steps * frag + _SPARE_WORDS
+    while len(turns) < n_steps:
         words = stream.words(want)
-        w = words.tolist()
-        u = canonical_doubles(words, every_offset=True).tolist()
+        u = canonical_doubles(words, every_offset=True)
+        x = 2.0 * u[:-2] - 1.0  # the try at word p
+        y = 2.0 * u[2:] - 1.0
+        r2 = x * x + y * y
+        # the first accepted try at or after each offset, among the offsets 4k words further on
+        # (past the buffer's end: an offset no word can be read at)
+        nxt = np.where((r2 <= 1.0) & (r2 != 0.0), np.arange(len(r2)), len(words))
+        for r in range(4):
+            nxt[r::4] = np.minimum.accumulate(nxt[r::4][::-1])[::-1]
+        wv, nv = words.data, nxt.data
+        accepted: list[int] = []
         p = 0
         try:
-            while s < n_steps:
+            while len(turns) < n_steps:
                 start = p
-                prod = w[p] * span
+                prod = wv[p] * span
                 p += 1
                 while (prod & 0xFFFFFFFF) < threshold:
-                    prod = w[p] * span
+                    prod = wv[p] * span
                     p += 1
-                base = s * frag
-                for k in range(frag):
-                    # rng.polar_normal inlined: this loop runs once per pose
-                    while True:
-                        x = 2.0 * u[p] - 1.0
-                        y = 2.0 * u[p + 2] - 1.0
-                        p += 4
-                        r2 = x * x + y * y
-                        if not (r2 > 1.0 or r2 == 0.0):
-                            break
-                    mult = sqrt(-2.0 * log(r2) / r2)
-                    n_pos[base + k] = y * mult
-                    n_ang[base + k] = x * mult
-                turns[s] = (prod >> 32) - 1
-                s += 1
+                tries = []
+                for _ in range(frag):
+                    tries.append(nv[p])
+                    p = tries[-1] + 4
+                if p > len(words):
+                    raise IndexError  # the last round has no accepted try in this buffer
+                accepted += tries
+                turns.append((prod >> 32) - 1)
         except IndexError:  # the buffer ended inside a step: redo that step with more words
             p = start
+        at = np.array(accepted, dtype=np.int64)
+        r2_at = r2[at]
+        mult = np.sqrt(-2.0 * np.array([log(v) for v in r2_at.tolist()]) / r2_at)
+        n_pos.append(y[at] * mult)
+        n_ang.append(x[at] * mult)
         stream.advance(p)
         want *= 2
-    return np.array(turns, dtype=np.int64), np.array(n_pos), np.array(n_ang)
+    return np.array(turns, dtype=np.int64), np.concatenate(n_pos), np.concatenate(n_ang)
 
 
 def _random_walk(stream: MT19937Stream, cfg: SynthConfig, agent: AgentConfig) -> _Walk:
@@ -146,22 +160,21 @@ def _random_walk(stream: MT19937Stream, cfg: SynthConfig, agent: AgentConfig) ->
 
 
 def _dead_reckon(odom_pos: np.ndarray, odom_ang: np.ndarray):
-    cos, sin, floor = math.cos, math.sin, math.floor
-    pi, two_pi = math.pi, 2 * math.pi
-    n = len(odom_pos) + 1
-    xs = [0.0] * n
-    ys = [0.0] * n
-    ts = [0.0] * n
-    x = y = t = 0.0
-    for k, (op, oa) in enumerate(zip(odom_pos.tolist(), odom_ang.tolist()), start=1):
+    """kollagen's dead reckoning from the origin: the heading is wrapped after every step (a recurrence,
+    run in Python); the positions are running sums, which numpy adds in kollagen's order."""
+    floor, pi, two_pi = math.floor, math.pi, 2 * math.pi
+    ts = [0.0] * (len(odom_ang) + 1)
+    t = 0.0
+    for k, oa in enumerate(odom_ang.tolist(), start=1):
         t = t + oa
         t = t - floor((t + pi) / two_pi) * 2.0 * pi
-        x = x + op * cos(t)
-        y = y + op * sin(t)
-        xs[k] = x
-        ys[k] = y
         ts[k] = t
-    return np.array(xs), np.array(ys), np.array(ts)
+    theta = np.array(ts)
+    c, s = libm_cos_sin(theta[1:])
+    # 0.0 first, so the first position is 0.0 + step as in kollagen (a -0.0 step gives 0.0)
+    x = np.cumsum(np.concatenate([[0.0], odom_pos * c]))
+    y = np.cumsum(np.concatenate([[0.0], odom_pos * s]))
+    return x, y, theta
 
 
 Walk = _Walk

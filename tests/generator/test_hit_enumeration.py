@@ -1,0 +1,50 @@
+"""Loop-closure candidates in kollagen's visiting order, against a plain per-query circle walk."""
+
+import numpy as np
+import pytest
+
+from studio.generator.loop_closures import _CircleTable, _enumerate_hits, discrete_circle
+
+
+def _plain_hits(qx, qy, tx, ty, radius):
+    """kollagen's loop: per query, the same cell, then every circle offset in DiscreteCircle's order."""
+    where = {(x, y): m for m, (x, y) in enumerate(zip(tx.tolist(), ty.tolist()))}
+    offsets = [(dx, dy) for dx, dy in discrete_circle(radius).tolist() if (dx, dy) != (0, 0)]
+    rank_of = {tuple(o): r for r, o in enumerate(discrete_circle(radius).tolist())}
+    hits = []
+    for k, (x, y) in enumerate(zip(qx.tolist(), qy.tolist())):
+        if (x, y) in where:
+            hits.append((k, where[(x, y)], -1))
+        for dx, dy in offsets:
+            if (x + dx, y + dy) in where:
+                hits.append((k, where[(x + dx, y + dy)], rank_of[(dx, dy)]))
+    return hits
+
+
+@pytest.mark.parametrize("dense", [True, False])
+@pytest.mark.parametrize("trial", range(6))
+def test_hits_match_the_plain_circle_walk(trial, dense, monkeypatch):
+    if not dense:  # the binary-search path used for sparse, far-flung cells
+        monkeypatch.setattr("studio.generator.loop_closures._DENSE_COUNT_FACTOR", 0)
+    rng = np.random.default_rng(trial)
+    radius = int(rng.integers(1, 7))
+    side = int(rng.integers(3, 30))
+    cells = rng.integers(-side, side, size=(int(rng.integers(1, 400)), 2))
+    tx, ty = np.unique(cells, axis=0)[rng.permutation(len(np.unique(cells, axis=0)))].T
+    qx, qy = rng.integers(-side - radius, side + radius, size=(2, int(rng.integers(1, 200))))
+    n = min(len(qx[::3]), len(tx))
+    qx[: 3 * n : 3], qy[: 3 * n : 3] = tx[:n], ty[:n]  # many same-cell hits
+
+    k, m, rank = _enumerate_hits(qx, qy, tx, ty, _CircleTable(radius))
+
+    want = _plain_hits(qx, qy, tx, ty, radius)
+    assert len(want) > 0
+    assert list(zip(k.tolist(), m.tolist(), rank.tolist())) == want
+
+
+def test_no_table_or_no_query_gives_no_hits():
+    one = np.array([0])
+    none = np.array([], dtype=np.int64)
+    for args in ((one, one, none, none), (none, none, one, one)):
+        k, m, rank = _enumerate_hits(*args, _CircleTable(3))
+        assert len(k) == len(m) == len(rank) == 0
