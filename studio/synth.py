@@ -83,7 +83,6 @@ def write_outputs(out: GeneratedDataset, parent: Path, name: str, *, multi_recor
     The multi-g2o folder and each extra are written by separate processes when ``jobs`` allows.
     """
     multi = parent / name
-    out.graph.to_se3()  # lift once, before the work is shared out
 
     def write_multi() -> None:
         multi.mkdir()

@@ -20,7 +20,7 @@ from studio.io.g2o import G2oDocument, g2o_text
 from studio.io.multig2o import Records
 from studio.io.tum import tum_text
 from studio.core.trajectory import Trajectory
-from studio.core.model import PoseGraph, PoseKind
+from studio.core.model import AgentGraph, PoseGraph, PoseKind
 from studio.core.units import NS_PER_S
 
 __all__ = ["write_single_g2o", "write_single_tum", "agent_offsets", "connector_measurements"]
@@ -90,10 +90,22 @@ def write_single_g2o(graph: PoseGraph, path: str | os.PathLike, *, records: Reco
         f.write(g2o_text(doc))
 
 
+def _se3_poses(agent: AgentGraph, ground_truth: bool) -> np.ndarray:
+    """An agent's ground truth or initial estimate as ``(n, 7)`` SE(3) poses (only those lifted)."""
+    if agent.kind is PoseKind.SE3:
+        poses = agent.ground_truth if ground_truth else agent.initial
+    elif ground_truth and agent.ground_truth_se3 is not None:
+        poses = agent.ground_truth_se3
+    else:
+        poses = planar_poses_to_se3(agent.ground_truth if ground_truth else agent.initial)
+    if poses is None:
+        raise GraphError(f"agent {agent.name} has no ground truth")
+    return poses
+
+
 def write_single_tum(graph: PoseGraph, path: str | os.PathLike, *, ground_truth: bool) -> None:
     """Concatenated ground truth (or initial estimate), timestamps = concatenated vertex ids."""
-    g = graph.to_se3()
-    poses = np.concatenate([a.ground_truth if ground_truth else a.initial for a in g.agents])
+    poses = np.concatenate([_se3_poses(a, ground_truth) for a in graph.agents])
     stamps = np.arange(len(poses), dtype=np.int64) * NS_PER_S
     with open(Path(path), "wb") as f:
         f.write(tum_text(Trajectory.from_poses(Path(path).stem, stamps, poses)))
