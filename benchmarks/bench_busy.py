@@ -1,13 +1,14 @@
 """`studio synth` on a busy machine: the parallel path against `--jobs 1`, next to noisy neighbours.
 
     python benchmarks/bench_busy.py [--preset multi10000x5] [--radius 6] [--repeat 5]
-                                    [--neighbours none cpu memory disk files mixed] [--jobs 0]
+                                    [--neighbours none cpu1 cpu memory disk files mixed] [--jobs 0 2]
 
 For each kind of neighbour, the neighbours are started, left to settle for a second, and then
-`studio synth CONFIG -o DIR --no-rrd -q` runs alternately with `--jobs 1` and with `--jobs J`
-(default 0: every core, what a user gets), --repeat times each. Neighbours (this script's own small
-loops, one per core unless said otherwise):
+`studio synth CONFIG -o DIR --no-rrd -q` runs in turn with `--jobs 1` and with each `--jobs J`
+(default: 0, what a user gets: the cores not busy at that moment; and 2, always parallel), --repeat
+times each. Neighbours (this script's own small loops, one per core unless said otherwise):
 
+* cpu1:   one busy Python loop;
 * cpu:    busy Python loops;
 * memory: numpy processes that allocate, touch and free 512 MiB arrays in a loop (page faults,
           memory bandwidth, the kernel zeroing pages);
@@ -85,6 +86,8 @@ def neighbour_plan(kind: str, cores: int) -> list[str]:
         return ["cpu", "memory", "disk", "files"]
     if kind in ("disk", "files"):
         return [kind]
+    if kind == "cpu1":
+        return ["cpu"]
     return [kind] * cores
 
 
@@ -125,9 +128,10 @@ def main() -> None:
     ap.add_argument("--radius", type=float, default=6.0,
                     help="loop-closure radius [m], intra and inter (the preset's with 0; default 6)")
     ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--jobs", type=int, default=0, help="the parallel setting compared with --jobs 1 (0: every core)")
-    ap.add_argument("--neighbours", nargs="*", default=["none", "cpu", "memory", "disk", "files", "mixed"],
-                    choices=["none", "cpu", "memory", "disk", "files", "mixed"])
+    ap.add_argument("--jobs", type=int, nargs="+", default=[0, 2],
+                    help="the settings compared with --jobs 1 (0: the default, the idle cores)")
+    kinds = ["none", "cpu1", "cpu", "memory", "disk", "files", "mixed"]
+    ap.add_argument("--neighbours", nargs="*", default=kinds, choices=kinds)
     ap.add_argument("--out", type=Path, default=None,
                     help="work folder (default: a temporary folder, removed after)")
     args = ap.parse_args()
@@ -139,7 +143,7 @@ def main() -> None:
             spec["intra_loop_closure_radius"] = args.radius
         doc["inter_agent_loop_closure_parameters"]["loop_closure_radius"] = args.radius
     print(f"# {time.strftime('%Y-%m-%d %H:%M')}  {cores} cores  python {sys.version.split()[0]}  "
-          f"{args.preset} R={args.radius:g} m  --jobs 1 vs --jobs {args.jobs}")
+          f"{args.preset} R={args.radius:g} m  --jobs 1 vs --jobs {' / '.join(map(str, args.jobs))}")
     print(f"{'neighbours':10} {'jobs':>4} {'load':>5} {'wall s':>7} {'cpu s':>6} {'minflt':>8} {'invcsw':>7}  ratio")
     with tempfile.TemporaryDirectory() as tmp_dir:
         work = Path(tmp_dir) if args.out is None else args.out
@@ -151,9 +155,10 @@ def main() -> None:
             try:
                 time.sleep(1.0)
                 load = os.getloadavg()[0]
-                rows: dict[int, list[dict[str, float]]] = {1: [], args.jobs: []}
+                settings = [1, *[j for j in args.jobs if j != 1]]
+                rows: dict[int, list[dict[str, float]]] = {j: [] for j in settings}
                 for k in range(args.repeat):
-                    for jobs in (1, args.jobs):
+                    for jobs in settings:
                         out = work / f"run_{kind}_{jobs}_{k}"
                         rows[jobs].append(run_once([studio, "synth", str(cfg), "-o", str(out), "--no-rrd", "-q",
                                                     "--jobs", str(jobs)]))
@@ -163,7 +168,7 @@ def main() -> None:
                 for p in work.glob("neighbour*"):
                     shutil.rmtree(p, ignore_errors=True)
             med = {j: {key: statistics.median(r[key] for r in runs) for key in runs[0]} for j, runs in rows.items()}
-            for jobs in (1, args.jobs):
+            for jobs in settings:
                 m = med[jobs]
                 ratio = f"{m['wall'] / med[1]['wall']:.2f}x" if jobs != 1 else ""
                 print(f"{kind:10} {jobs:>4} {load:5.1f} {m['wall']:7.2f} {m['cpu']:6.2f} {m['minflt']:8.0f} "

@@ -98,7 +98,7 @@ def synth(
     single_records: RecordKind = typer.Option(
         RecordKind.d2, "--single-records", help="g2o records of the single g2o file (kollagen: 2d)."
     ),
-    jobs: int = typer.Option(0, "--jobs", "-j", help="Processes to use (0: every core available)."),
+    jobs: int = typer.Option(0, "--jobs", "-j", help="Processes to use (0: the cores not busy with other work, at least 1)."),
     max_memory_gb: float = typer.Option(DEFAULT_MAX_MEMORY_GB, "--max-memory-gb",
                                         help="Refuse configs estimated to need more memory. [GB]"),
     max_output_gb: float = typer.Option(DEFAULT_MAX_OUTPUT_GB, "--max-output-gb",

@@ -388,9 +388,9 @@ def _client(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
                 return Client(scheduler, timeout="20s"), None
             except (OSError, TimeoutError, ValueError) as err:
                 raise ConfigError(f"scheduler: cannot connect to {scheduler} ({err})") from None
-        from studio.core.parallel import default_jobs
+        from studio.core.parallel import available_cores
 
-        n = workers or default_jobs()
+        n = workers or available_cores()
         # no dashboard; the scheduler's small HTTP server (health, metrics) on a free loopback port, not
         # on 8787 (whose 'already in use' warning would otherwise print when another cluster runs)
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",

@@ -127,14 +127,15 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
     Writes ``OUT/<name>/`` (multi-g2o), ``OUT/<name>_singleg2o/`` and ``OUT/<name>.config.json``,
     and (unless ``rrd`` is false) the Rerun recording ``OUT/<name>.rrd``, all staged and renamed
     into place at the end. Existing outputs are replaced only with ``force``.
-    ``jobs`` caps the processes used (default: every core available); the bytes do not depend on it.
+    ``jobs`` caps the processes used (default: the idle cores, see
+    :func:`~studio.core.parallel.default_jobs`); the bytes do not depend on it.
     Configs estimated to need more memory or disk than the limits are refused before any work.
     ``progress`` hears of each agent, agent pair, written part and recorded agent.
     """
     check_option("--max-memory-gb", max_memory_gb, allow_zero=False)
     check_option("--max-output-gb", max_output_gb, allow_zero=False)
     if jobs is not None and (isinstance(jobs, bool) or not 0 <= jobs <= 4096):
-        raise ConfigError(f"--jobs: expected 0 (every core) .. 4096, got {jobs!r}")
+        raise ConfigError(f"--jobs: expected 0 (the idle cores) .. 4096, got {jobs!r}")
     check_resources(config, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
     out_dir = Path(out_dir)
     name = config.name
