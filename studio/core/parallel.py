@@ -32,7 +32,7 @@ def available_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _other_runnable(samples: int = 5, interval_s: float = 0.002) -> int | None:
+def _other_runnable(samples: int = 3, interval_s: float = 0.001) -> int | None:
     """How many other tasks are running or waiting for a CPU right now (the median of a few readings
     of ``/proc/loadavg``'s runnable count, less this process), or None where it cannot be read."""
     counts = []
