@@ -105,7 +105,9 @@ def _se3_poses(agent: AgentGraph, ground_truth: bool) -> np.ndarray:
 
 def write_single_tum(graph: PoseGraph, path: str | os.PathLike, *, ground_truth: bool) -> None:
     """Concatenated ground truth (or initial estimate), timestamps = concatenated vertex ids."""
-    poses = np.concatenate([_se3_poses(a, ground_truth) for a in graph.agents])
+    lifted = graph.__dict__.get("_se3")  # already lifted in this process (PoseGraph.to_se3 caches it)
+    agents = lifted.agents if lifted is not None else graph.agents
+    poses = np.concatenate([_se3_poses(a, ground_truth) for a in agents])
     stamps = np.arange(len(poses), dtype=np.int64) * NS_PER_S
     with open(Path(path), "wb") as f:
         f.write(tum_text(Trajectory.from_poses(Path(path).stem, stamps, poses)))

@@ -368,14 +368,15 @@ def _format_block(v: np.ndarray, fmt: str) -> tuple[np.ndarray, np.ndarray]:
 
 def float_rows(rows: np.ndarray, fmts: Sequence[str], zeros: Sequence[str | None] | None = None) -> list[TextColumn]:
     """Like :func:`float_columns`, for rows that repeat (information matrices): each distinct row is
-    formatted once (rows all equal give columns of one row, which repeat on every line)."""
+    formatted once, as one field (rows all equal give one field of one row, repeated on every line);
+    mostly distinct rows give one column per value."""
     rows = np.ascontiguousarray(rows, dtype=np.float64)
     n = len(rows)
     if n == 0:
         return float_columns(rows, fmts, zeros)
     bits = rows.view(np.uint64).reshape(n, -1)
     if (bits == bits[0]).all():
-        return float_columns(rows[:1], fmts, zeros)
+        return [_joined(float_columns(rows[:1], fmts, zeros))]
     # group equal rows through a 64-bit hash of their bits, then check the grouping exactly
     weights = (np.arange(1, bits.shape[1] + 1, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15)) | np.uint64(1)
     with np.errstate(over="ignore"):
@@ -385,7 +386,13 @@ def float_rows(rows: np.ndarray, fmts: Sequence[str], zeros: Sequence[str | None
     inv = inv.ravel()
     if len(first) * 2 > n or not np.array_equal(bits[first][inv], bits):
         return float_columns(rows, fmts, zeros)  # mostly distinct rows (or a hash collision)
-    return [c.take(inv) for c in float_columns(rows[first], fmts, zeros)]
+    return [_joined(float_columns(rows[first], fmts, zeros)).take(inv)]
+
+
+def _joined(columns: Sequence[TextColumn]) -> TextColumn:
+    """The columns' texts of each row as one field, separated by single spaces (for a few rows)."""
+    lines = join_columns(columns, end="\n").decode("ascii").split("\n")[:-1]
+    return _from_strings(lines)
 
 
 def _layout(columns: Sequence[TextColumn], n: int, sep: bytes, end: bytes) -> tuple[np.ndarray, np.ndarray]:
