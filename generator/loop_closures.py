@@ -110,11 +110,13 @@ def _count_below(sorted_keys: np.ndarray, space: int, lookups: int) -> Callable[
     return lambda v: np.searchsorted(sorted_keys, v, side="left")
 
 
-def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
-    """Every (query k, table m) pair whose cells are at most the circle's radius apart.
+def _hit_layout(qx, qy, tx, ty, circle: _CircleTable):
+    """Where every hit of :func:`_enumerate_hits` comes from and where it goes, or None without hits.
 
-    Returns ``(k, m, rank)`` sorted in kollagen's visiting order: by query, then the same-cell check,
-    then the circle's order. Table cells must be distinct.
+    Returns ``(order, pos, offset, dest, query_first)``: the table sorted by key is ``order``; hit e
+    (in the order the ranges are laid end to end) is sorted-table entry ``pos[e]``, at flat circle
+    offset ``offset[e]`` (``(dx + R) (2R + 1) + dy + R``) and goes to place ``dest[e]`` in kollagen's
+    visiting order; query q's hits start at place ``query_first[q]``.
 
     Cells become keys ``x * stride + y``, so each (query, circle column dx) pair is one range of the
     sorted table keys; the ranges laid end to end give the hits by query, column and dy. The circle
@@ -125,8 +127,7 @@ def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
     R = circle.radius
     nq = len(qx)
     if len(tx) == 0 or nq == 0:
-        z = np.zeros(0, dtype=np.int64)
-        return z, z, z
+        return None
     xmin = min(int(qx.min()), int(tx.min())) - R
     ymin = min(int(qy.min()), int(ty.min())) - R
     stride = max(int(qy.max()), int(ty.max())) - ymin + R + 1
@@ -143,6 +144,8 @@ def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
     counts = below(centre + ylim + 1) - start
     first = np.cumsum(counts) - counts  # the segment's first hit
     total = int(first[-1] + counts[-1])
+    if total == 0:
+        return None
     pos = np.arange(total, dtype=np.int64) + np.repeat(start - first, counts)  # index in skey
     key = skey[pos]
     # place in the column: with w the keys below the mirror bound c - dy + 1, a hit with dy > 0 has
@@ -158,14 +161,64 @@ def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
     seg_first[:, :R] += same[:, None]
     dest = np.repeat(first, counts) + local
     dest[same_hit] = query_first[same]
-    k = np.repeat(np.arange(nq, dtype=np.int64), counts.reshape(nq, -1).sum(axis=1))
-    # rank of (dx, dy) from the circle's table, flat index (dx + R) (2R + 1) + dy + R, dy = key - centre
+    # flat offset (dx + R) (2R + 1) + dy + R, with dy = key - centre
     column = np.tile(np.arange(2 * R + 1, dtype=np.int64) * (2 * R + 1) + R, nq)
+    offset = np.repeat(column - centre, counts) + key
+    return order, pos, offset, dest, query_first
+
+
+def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
+    """Every (query k, table m) pair whose cells are at most the circle's radius apart.
+
+    Returns ``(k, m, rank)`` sorted in kollagen's visiting order: by query, then the same-cell check,
+    then the circle's order. Table cells must be distinct. (See :func:`_hit_layout`.)
+    """
+    layout = _hit_layout(qx, qy, tx, ty, circle)
+    if layout is None:
+        z = np.zeros(0, dtype=np.int64)
+        return z, z, z
+    order, pos, offset, dest, query_first = layout
+    total = len(pos)
+    counts = np.diff(query_first, append=total)
+    k = np.repeat(np.arange(len(qx), dtype=np.int64), counts)
     m = np.empty(total, dtype=np.int64)
     m[dest] = order[pos]
     rank = np.empty(total, dtype=np.int64)
-    rank[dest] = circle.rank.ravel()[np.repeat(column - centre, counts) + key]
+    rank[dest] = circle.rank.ravel()[offset]
     return k, m, rank
+
+
+class _Hits:
+    """The hits of :func:`_enumerate_hits` as their probabilities, with (query, table) pairs read
+    only for the hits asked for.
+
+    Each hit keeps its sorted-table index and circle offset packed in one integer, so putting the hits
+    in visiting order is one scatter; the (k, m) columns of every hit are never made.
+    """
+
+    def __init__(self, qx, qy, tx, ty, circle: _CircleTable, prob_by_rank: np.ndarray) -> None:
+        layout = _hit_layout(qx, qy, tx, ty, circle)
+        if layout is None:
+            self.probs = np.zeros(0)
+            return
+        order, pos, offset, dest, self._query_first = layout
+        self._order = order
+        self._bits = (circle.rank.size - 1).bit_length()
+        packed = np.empty(len(pos), dtype=np.int64)
+        packed[dest] = (pos << self._bits) | offset
+        self._packed = packed
+        #: per flat offset: the probability of its rank (offsets outside the circle never occur)
+        by_offset = prob_by_rank[circle.rank.ravel() + 1]
+        self.probs = by_offset[packed & ((1 << self._bits) - 1)]
+
+    def pairs(self, hits: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(k, m)`` of the given hits (indices in visiting order)."""
+        if len(hits) == 0:
+            z = np.zeros(0, dtype=np.int64)
+            return z, z
+        k = np.searchsorted(self._query_first, hits, side="right") - 1
+        m = self._order[self._packed[hits] >> self._bits]
+        return k, m
 
 
 _VISIT_PROBABILITY = 0.1
@@ -309,11 +362,10 @@ def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None, progr
         (ax, ay), (bx, by) = cells[a], cells[b]
         # kollagen's map keeps the last visit of each cell of agent a
         last = _visits(ax, ay, "last")
-        k, m, rank = _enumerate_hits(bx, by, ax[last], ay[last], circle)
-        j = last[m]
-        probs = prob_by_rank[rank + 1]
-        acc, noise, _, _ = _sample(tape, probs, None)
-        i_from, j_to = k[acc], j[acc]
+        hits = _Hits(bx, by, ax[last], ay[last], circle, prob_by_rank)
+        acc, noise, _, _ = _sample(tape, hits.probs, None)
+        i_from, m = hits.pairs(acc)
+        j_to = last[m]
         dX, dY, dT = relative_planar_pose(wb.x[i_from], wb.y[i_from], wb.theta[i_from],
                                wa.x[j_to], wa.y[j_to], wa.theta[j_to])
         meas = np.column_stack([
