@@ -345,25 +345,39 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     return Edges(PoseKind.SE2, j_from, i_to, meas.reshape(-1, 3), info)
 
 
-def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None, progress: Progress | None = None):
-    p = cfg.inter
-    radius = _round_to_int(p.loop_closure_radius * cfg.step_fragment / cfg.stepsize)
-    circle = _CircleTable(radius)
-    prob_by_rank = circle.probabilities(
-        p.same_position_loop_closure_probability, p.loop_closure_probability_scaling, p.loop_closure_radius
-    )
-    pairs = agent_pairs(len(walks))
-    # kollagen seeds a new generator for every pair with the same seed: all pairs read one tape
-    tape = UniformTape(MT19937Stream(p.random_number_generator_seed))
+class _InterPairs:
+    """kollagen's inter-agent loop closures as one task per agent pair, for any process to run.
 
-    def one_pair(index: int):
-        a, b = pairs[index]
-        wa, wb = walks[a], walks[b]
-        (ax, ay), (bx, by) = cells[a], cells[b]
+    ``pairs(i)`` computes pair ``i`` (of ``len(pairs)``, in kollagen's order) from the walks held at
+    construction; :meth:`edges` puts the pairs' results together. The caller may run the tasks in
+    forked processes, alongside other work (see :func:`studio.generator.kollagen.generate`).
+    """
+
+    def __init__(self, walks, cells, cfg: SynthConfig) -> None:
+        p = cfg.inter
+        self._inter = p
+        self._walks, self._cells = walks, cells
+        radius = _round_to_int(p.loop_closure_radius * cfg.step_fragment / cfg.stepsize)
+        self._circle = _CircleTable(radius)
+        self._prob_by_rank = self._circle.probabilities(
+            p.same_position_loop_closure_probability, p.loop_closure_probability_scaling, p.loop_closure_radius
+        )
+        self._pairs = agent_pairs(len(walks))
+        # kollagen seeds a new generator for every pair with the same seed: all pairs read one tape
+        self._tape = UniformTape(MT19937Stream(p.random_number_generator_seed))
+
+    def __len__(self) -> int:
+        return len(self._pairs)
+
+    def __call__(self, index: int):
+        p = self._inter
+        a, b = self._pairs[index]
+        wa, wb = self._walks[a], self._walks[b]
+        (ax, ay), (bx, by) = self._cells[a], self._cells[b]
         # kollagen's map keeps the last visit of each cell of agent a
         last = _visits(ax, ay, "last")
-        hits = _Hits(bx, by, ax[last], ay[last], circle, prob_by_rank)
-        acc, noise, _, _ = _sample(tape, hits.probs, None)
+        hits = _Hits(bx, by, ax[last], ay[last], self._circle, self._prob_by_rank)
+        acc, noise, _, _ = _sample(self._tape, hits.probs, None)
         i_from, m = hits.pairs(acc)
         j_to = last[m]
         dX, dY, dT = relative_planar_pose(wb.x[i_from], wb.y[i_from], wb.theta[i_from],
@@ -375,20 +389,28 @@ def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None, progr
         ])
         return np.full(len(acc), b), i_from, np.full(len(acc), a), j_to, meas.reshape(-1, 3)
 
-    done = parallel_map(one_pair, len(pairs), jobs,
+    def edges(self, done: list) -> InterAgentEdges:
+        """The pairs' results (in pair order) as kollagen's inter-agent loop closures."""
+        p = self._inter
+        cols = {c: [d[k] for d in done] for k, c in enumerate(("fa", "fi", "ta", "ti", "m"))}
+        meas = np.concatenate(cols["m"])
+        info = _diag_information(len(meas), p.estimated_information_position, p.estimated_information_angle)
+        return InterAgentEdges(
+            PoseKind.SE2,
+            np.concatenate(cols["fa"]),
+            np.concatenate(cols["fi"]),
+            np.concatenate(cols["ta"]),
+            np.concatenate(cols["ti"]),
+            meas,
+            info,
+        )
+
+
+def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None, progress: Progress | None = None):
+    pairs = _InterPairs(walks, cells, cfg)
+    done = parallel_map(pairs, len(pairs), jobs,
                         on_done=lambda d, n: report(progress, "synth: inter-agent loop closures", d, n, "pairs"))
-    cols = {c: [d[k] for d in done] for k, c in enumerate(("fa", "fi", "ta", "ti", "m"))}
-    meas = np.concatenate(cols["m"])
-    info = _diag_information(len(meas), p.estimated_information_position, p.estimated_information_angle)
-    return InterAgentEdges(
-        PoseKind.SE2,
-        np.concatenate(cols["fa"]),
-        np.concatenate(cols["fi"]),
-        np.concatenate(cols["ta"]),
-        np.concatenate(cols["ti"]),
-        meas,
-        info,
-    )
+    return pairs.edges(done)
 
 
 def _diag_information(n: int, position: float, angle: float) -> np.ndarray:
