@@ -113,10 +113,10 @@ def _count_below(sorted_keys: np.ndarray, space: int, lookups: int) -> Callable[
 def _hit_layout(qx, qy, tx, ty, circle: _CircleTable):
     """Where every hit of :func:`_enumerate_hits` comes from and where it goes, or None without hits.
 
-    Returns ``(order, pos, offset, dest, query_first)``: the table sorted by key is ``order``; hit e
-    (in the order the ranges are laid end to end) is sorted-table entry ``pos[e]``, at flat circle
-    offset ``offset[e]`` (``(dx + R) (2R + 1) + dy + R``) and goes to place ``dest[e]`` in kollagen's
-    visiting order; query q's hits start at place ``query_first[q]``.
+    Returns a :class:`_HitLayout`: the table sorted by key is ``order``; query q's hits start at place
+    ``query_first[q]``; its blocks give, for hit e (in the order the ranges are laid end to end), the
+    sorted-table entry ``pos[e]``, the flat circle offset ``offset[e]`` (``(dx + R) (2R + 1) + dy +
+    R``) and the place ``dest[e]`` in kollagen's visiting order.
 
     Cells become keys ``x * stride + y``, so each (query, circle column dx) pair is one range of the
     sorted table keys; the ranges laid end to end give the hits by query, column and dy. The circle
@@ -146,25 +146,58 @@ def _hit_layout(qx, qy, tx, ty, circle: _CircleTable):
     total = int(first[-1] + counts[-1])
     if total == 0:
         return None
-    pos = np.arange(total, dtype=np.int64) + np.repeat(start - first, counts)  # index in skey
-    key = skey[pos]
-    # place in the column: with w the keys below the mirror bound c - dy + 1, a hit with dy > 0 has
-    # pos - w keys before it in the column's order, one with dy <= 0 (so w > pos) has w - 1 - pos
-    t = pos - below(np.repeat(2 * centre + 1, counts) - key)
-    local = t ^ (t >> 63)  # t if t >= 0, else -t - 1
+    shift = start - first  # hit e of a segment is sorted-table entry e + shift
     # the same-cell hit (column dx = 0, dy = 0) goes first in its query, before the columns dx < 0
     seg_first = first.reshape(nq, 2 * R + 1)
     query_first = seg_first[:, 0].copy()
     at = below(centre[R :: 2 * R + 1])
     same = below(centre[R :: 2 * R + 1] + 1) > at
     same_hit = (seg_first[:, R] + at - start[R :: 2 * R + 1])[same]
-    seg_first[:, :R] += same[:, None]
-    dest = np.repeat(first, counts) + local
-    dest[same_hit] = query_first[same]
+    seg_first[:, :R] += same[:, None]  # now the segment's first place
     # flat offset (dx + R) (2R + 1) + dy + R, with dy = key - centre
     column = np.tile(np.arange(2 * R + 1, dtype=np.int64) * (2 * R + 1) + R, nq)
-    offset = np.repeat(column - centre, counts) + key
-    return order, pos, offset, dest, query_first
+    per_segment = (shift, counts, first, 2 * centre + 1, column - centre)
+    return _HitLayout(order, skey, below, per_segment, query_first, same_hit, query_first[same], 2 * R + 1, total)
+
+
+class _HitLayout:
+    """:func:`_hit_layout`'s per-segment tables, expanded to per-hit columns a block of queries at a
+    time (:meth:`blocks`), so that a block's dozen passes over its hits run in the CPU's cache."""
+
+    def __init__(self, order, skey, below, per_segment, query_first, same_hit, same_dest, columns, total):
+        self.order, self.query_first, self.total = order, query_first, total
+        self._skey, self._below, self._per_segment = skey, below, per_segment
+        self._same_hit, self._same_dest, self._columns = same_hit, same_dest, columns
+
+    def blocks(self, max_hits: int):
+        """``(h0, h1, pos, offset, dest)`` per block of whole queries holding about ``max_hits`` hits
+        (a query with more is a block of its own): its hits ``h0 <= e < h1`` (in the order the
+        ranges are laid end to end), which also fill places ``h0 .. h1 - 1`` of the visiting order."""
+        qf = self.query_first
+        cut = np.unique(np.searchsorted(qf, np.arange(0, self.total, max_hits), side="right") - 1).tolist()
+        bounds = cut + [len(qf)]
+        for q0, q1 in zip(bounds[:-1], bounds[1:]):
+            s0, s1 = q0 * self._columns, q1 * self._columns
+            h0 = int(qf[q0])
+            h1 = int(qf[q1]) if q1 < len(qf) else self.total
+            if h1 == h0:
+                continue
+            shift, counts, first, mirror, column = (v[s0:s1] for v in self._per_segment)
+            pos = np.arange(h0, h1, dtype=np.int64) + np.repeat(shift, counts)  # index in skey
+            key = self._skey[pos]
+            # place in the column: with w the keys below the mirror bound c - dy + 1, a hit with dy > 0
+            # has pos - w keys before it in the column's order, one with dy <= 0 (so w > pos) w - 1 - pos
+            t = pos - self._below(np.repeat(mirror, counts) - key)
+            dest = t ^ (t >> 63)  # t if t >= 0, else -t - 1
+            dest += np.repeat(first, counts)
+            i0, i1 = np.searchsorted(self._same_hit, [h0, h1])
+            dest[self._same_hit[i0:i1] - h0] = self._same_dest[i0:i1]
+            offset = np.repeat(column, counts) + key
+            yield h0, h1, pos, offset, dest
+
+
+_LAYOUT_BLOCK_HITS = 1 << 16
+"""Hits per block of :meth:`_HitLayout.blocks` (each per-hit column then takes 512 KiB)."""
 
 
 def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
@@ -177,14 +210,15 @@ def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
     if layout is None:
         z = np.zeros(0, dtype=np.int64)
         return z, z, z
-    order, pos, offset, dest, query_first = layout
-    total = len(pos)
-    counts = np.diff(query_first, append=total)
+    total = layout.total
+    counts = np.diff(layout.query_first, append=total)
     k = np.repeat(np.arange(len(qx), dtype=np.int64), counts)
     m = np.empty(total, dtype=np.int64)
-    m[dest] = order[pos]
     rank = np.empty(total, dtype=np.int64)
-    rank[dest] = circle.rank.ravel()[offset]
+    flat_rank = circle.rank.ravel()
+    for _, _, pos, offset, dest in layout.blocks(_LAYOUT_BLOCK_HITS):
+        m[dest] = layout.order[pos]
+        rank[dest] = flat_rank[offset]
     return k, m, rank
 
 
@@ -201,15 +235,15 @@ class _Hits:
         if layout is None:
             self.probs = np.zeros(0)
             return
-        order, pos, offset, dest, self._query_first = layout
-        self._order = order
-        self._bits = (circle.rank.size - 1).bit_length()
-        packed = np.empty(len(pos), dtype=np.int64)
-        packed[dest] = (pos << self._bits) | offset
-        self._packed = packed
+        self._order, self._query_first = layout.order, layout.query_first
+        bits = self._bits = (circle.rank.size - 1).bit_length()
+        packed = self._packed = np.empty(layout.total, dtype=np.int64)
+        self.probs = np.empty(layout.total)
         #: per flat offset: the probability of its rank (offsets outside the circle never occur)
         by_offset = prob_by_rank[circle.rank.ravel() + 1]
-        self.probs = by_offset[packed & ((1 << self._bits) - 1)]
+        for h0, h1, pos, offset, dest in layout.blocks(_LAYOUT_BLOCK_HITS):
+            packed[dest] = (pos << bits) | offset
+            self.probs[h0:h1] = by_offset[packed[h0:h1] & ((1 << bits) - 1)]
 
     def pairs(self, hits: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(k, m)`` of the given hits (indices in visiting order)."""

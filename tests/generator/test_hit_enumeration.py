@@ -21,11 +21,14 @@ def _plain_hits(qx, qy, tx, ty, radius):
     return hits
 
 
+@pytest.mark.parametrize("block_hits", [1 << 16, 1, 37])
 @pytest.mark.parametrize("dense", [True, False])
 @pytest.mark.parametrize("trial", range(6))
-def test_hits_match_the_plain_circle_walk(trial, dense, monkeypatch):
+def test_hits_match_the_plain_circle_walk(trial, dense, block_hits, monkeypatch):
     if not dense:  # the binary-search path used for sparse, far-flung cells
         monkeypatch.setattr("studio.generator.loop_closures._DENSE_COUNT_FACTOR", 0)
+    # per-hit columns made a few queries at a time (one query per block with 1)
+    monkeypatch.setattr("studio.generator.loop_closures._LAYOUT_BLOCK_HITS", block_hits)
     rng = np.random.default_rng(trial)
     radius = int(rng.integers(1, 7))
     side = int(rng.integers(3, 30))
@@ -42,8 +45,10 @@ def test_hits_match_the_plain_circle_walk(trial, dense, monkeypatch):
     assert list(zip(k.tolist(), m.tolist(), rank.tolist())) == want
 
 
+@pytest.mark.parametrize("block_hits", [1 << 16, 1, 37])
 @pytest.mark.parametrize("trial", range(6))
-def test_packed_hits_give_the_same_probabilities_and_pairs(trial):
+def test_packed_hits_give_the_same_probabilities_and_pairs(trial, block_hits, monkeypatch):
+    monkeypatch.setattr("studio.generator.loop_closures._LAYOUT_BLOCK_HITS", block_hits)
     rng = np.random.default_rng(100 + trial)
     radius = int(rng.integers(1, 7))
     side = int(rng.integers(3, 30))
