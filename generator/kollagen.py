@@ -22,7 +22,7 @@ from studio.core.progress import Progress, report
 from studio.generator.loop_closures import (
     _diag_information,
     _grid_cells,
-    _inter_loop_closures,
+    _InterPairs,
     _intra_loop_closures,
     agent_pairs,
     discrete_circle,
@@ -121,25 +121,32 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
     may use); the output does not depend on it.
     """
     seeds = effective_seeds([a.random_number_generator_seed for a in cfg.agents])
+    # the walks first (a few percent of the time), so that one pool of processes takes both the
+    # agents' intra-agent loop closures and the pairs' inter-agent ones: no second pool to fork, and
+    # no process idle while the last agents finish
+    streams = [MT19937Stream(seed) for seed in seeds]
+    walks = [_random_walk(stream, cfg, agent) for stream, agent in zip(streams, cfg.agents)]
+    aligned = _align(walks) if cfg.align else walks
+    cells = [_grid_cells(w.x, w.y, cfg) for w in aligned]
+    pairs = _InterPairs(aligned, cells, cfg) if len(walks) > 1 else None
+    n_agents, n_pairs = len(walks), len(pairs) if pairs is not None else 0
 
-    def one_agent(k: int):
-        stream = MT19937Stream(seeds[k])
-        walk = _random_walk(stream, cfg, cfg.agents[k])
-        return walk, _intra_loop_closures(stream, walk, cfg, cfg.agents[k])
+    def task(i: int):
+        if i < n_agents:  # the agents' streams go on from where their walks left them
+            return _intra_loop_closures(streams[i], walks[i], cfg, cfg.agents[i])
+        assert pairs is not None
+        return pairs(i - n_agents)
 
-    done = parallel_map(one_agent, len(seeds), jobs,
-                        on_done=lambda d, n: report(progress, "synth: walks and intra-agent loop closures", d, n,
-                                                    "agents"))
-    walks = [w for w, _ in done]
-    intra = [lc for _, lc in done]
+    def on_done(done: int, _total: int) -> None:
+        if done <= n_agents:
+            report(progress, "synth: walks and intra-agent loop closures", done, n_agents, "agents")
+        if done >= n_agents and n_pairs:
+            report(progress, "synth: inter-agent loop closures", done - n_agents, n_pairs, "pairs")
 
-    if cfg.align:
-        walks = _align(walks)
-
-    cells = [_grid_cells(w.x, w.y, cfg) for w in walks]
-    inter = (
-        _inter_loop_closures(walks, cells, cfg, jobs, progress) if len(walks) > 1 else InterAgentEdges.empty(PoseKind.SE2)
-    )
+    done = parallel_map(task, n_agents + n_pairs, jobs, on_done=on_done)
+    intra = done[:n_agents]
+    inter = pairs.edges(done[n_agents:]) if pairs is not None else InterAgentEdges.empty(PoseKind.SE2)
+    walks = aligned
 
     agents = []
     exact = []

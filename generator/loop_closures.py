@@ -110,11 +110,13 @@ def _count_below(sorted_keys: np.ndarray, space: int, lookups: int) -> Callable[
     return lambda v: np.searchsorted(sorted_keys, v, side="left")
 
 
-def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
-    """Every (query k, table m) pair whose cells are at most the circle's radius apart.
+def _hit_layout(qx, qy, tx, ty, circle: _CircleTable):
+    """Where every hit of :func:`_enumerate_hits` comes from and where it goes, or None without hits.
 
-    Returns ``(k, m, rank)`` sorted in kollagen's visiting order: by query, then the same-cell check,
-    then the circle's order. Table cells must be distinct.
+    Returns a :class:`_HitLayout`: the table sorted by key is ``order``; query q's hits start at place
+    ``query_first[q]``; its blocks give, for hit e (in the order the ranges are laid end to end), the
+    sorted-table entry ``pos[e]``, the flat circle offset ``offset[e]`` (``(dx + R) (2R + 1) + dy +
+    R``) and the place ``dest[e]`` in kollagen's visiting order.
 
     Cells become keys ``x * stride + y``, so each (query, circle column dx) pair is one range of the
     sorted table keys; the ranges laid end to end give the hits by query, column and dy. The circle
@@ -125,8 +127,7 @@ def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
     R = circle.radius
     nq = len(qx)
     if len(tx) == 0 or nq == 0:
-        z = np.zeros(0, dtype=np.int64)
-        return z, z, z
+        return None
     xmin = min(int(qx.min()), int(tx.min())) - R
     ymin = min(int(qy.min()), int(ty.min())) - R
     stride = max(int(qy.max()), int(ty.max())) - ymin + R + 1
@@ -143,29 +144,115 @@ def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
     counts = below(centre + ylim + 1) - start
     first = np.cumsum(counts) - counts  # the segment's first hit
     total = int(first[-1] + counts[-1])
-    pos = np.arange(total, dtype=np.int64) + np.repeat(start - first, counts)  # index in skey
-    key = skey[pos]
-    # place in the column: with w the keys below the mirror bound c - dy + 1, a hit with dy > 0 has
-    # pos - w keys before it in the column's order, one with dy <= 0 (so w > pos) has w - 1 - pos
-    t = pos - below(np.repeat(2 * centre + 1, counts) - key)
-    local = t ^ (t >> 63)  # t if t >= 0, else -t - 1
+    if total == 0:
+        return None
+    shift = start - first  # hit e of a segment is sorted-table entry e + shift
     # the same-cell hit (column dx = 0, dy = 0) goes first in its query, before the columns dx < 0
     seg_first = first.reshape(nq, 2 * R + 1)
     query_first = seg_first[:, 0].copy()
     at = below(centre[R :: 2 * R + 1])
     same = below(centre[R :: 2 * R + 1] + 1) > at
     same_hit = (seg_first[:, R] + at - start[R :: 2 * R + 1])[same]
-    seg_first[:, :R] += same[:, None]
-    dest = np.repeat(first, counts) + local
-    dest[same_hit] = query_first[same]
-    k = np.repeat(np.arange(nq, dtype=np.int64), counts.reshape(nq, -1).sum(axis=1))
-    # rank of (dx, dy) from the circle's table, flat index (dx + R) (2R + 1) + dy + R, dy = key - centre
+    seg_first[:, :R] += same[:, None]  # now the segment's first place
+    # flat offset (dx + R) (2R + 1) + dy + R, with dy = key - centre
     column = np.tile(np.arange(2 * R + 1, dtype=np.int64) * (2 * R + 1) + R, nq)
+    per_segment = (shift, counts, first, 2 * centre + 1, column - centre)
+    return _HitLayout(order, skey, below, per_segment, query_first, same_hit, query_first[same], 2 * R + 1, total)
+
+
+class _HitLayout:
+    """:func:`_hit_layout`'s per-segment tables, expanded to per-hit columns a block of queries at a
+    time (:meth:`blocks`), so that a block's dozen passes over its hits run in the CPU's cache."""
+
+    def __init__(self, order, skey, below, per_segment, query_first, same_hit, same_dest, columns, total):
+        self.order, self.query_first, self.total = order, query_first, total
+        self._skey, self._below, self._per_segment = skey, below, per_segment
+        self._same_hit, self._same_dest, self._columns = same_hit, same_dest, columns
+
+    def blocks(self, max_hits: int):
+        """``(h0, h1, pos, offset, dest)`` per block of whole queries holding about ``max_hits`` hits
+        (a query with more is a block of its own): its hits ``h0 <= e < h1`` (in the order the
+        ranges are laid end to end), which also fill places ``h0 .. h1 - 1`` of the visiting order."""
+        qf = self.query_first
+        cut = np.unique(np.searchsorted(qf, np.arange(0, self.total, max_hits), side="right") - 1).tolist()
+        bounds = cut + [len(qf)]
+        for q0, q1 in zip(bounds[:-1], bounds[1:]):
+            s0, s1 = q0 * self._columns, q1 * self._columns
+            h0 = int(qf[q0])
+            h1 = int(qf[q1]) if q1 < len(qf) else self.total
+            if h1 == h0:
+                continue
+            shift, counts, first, mirror, column = (v[s0:s1] for v in self._per_segment)
+            pos = np.arange(h0, h1, dtype=np.int64) + np.repeat(shift, counts)  # index in skey
+            key = self._skey[pos]
+            # place in the column: with w the keys below the mirror bound c - dy + 1, a hit with dy > 0
+            # has pos - w keys before it in the column's order, one with dy <= 0 (so w > pos) w - 1 - pos
+            t = pos - self._below(np.repeat(mirror, counts) - key)
+            dest = t ^ (t >> 63)  # t if t >= 0, else -t - 1
+            dest += np.repeat(first, counts)
+            i0, i1 = np.searchsorted(self._same_hit, [h0, h1])
+            dest[self._same_hit[i0:i1] - h0] = self._same_dest[i0:i1]
+            offset = np.repeat(column, counts) + key
+            yield h0, h1, pos, offset, dest
+
+
+_LAYOUT_BLOCK_HITS = 1 << 16
+"""Hits per block of :meth:`_HitLayout.blocks` (each per-hit column then takes 512 KiB)."""
+
+
+def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
+    """Every (query k, table m) pair whose cells are at most the circle's radius apart.
+
+    Returns ``(k, m, rank)`` sorted in kollagen's visiting order: by query, then the same-cell check,
+    then the circle's order. Table cells must be distinct. (See :func:`_hit_layout`.)
+    """
+    layout = _hit_layout(qx, qy, tx, ty, circle)
+    if layout is None:
+        z = np.zeros(0, dtype=np.int64)
+        return z, z, z
+    total = layout.total
+    counts = np.diff(layout.query_first, append=total)
+    k = np.repeat(np.arange(len(qx), dtype=np.int64), counts)
     m = np.empty(total, dtype=np.int64)
-    m[dest] = order[pos]
     rank = np.empty(total, dtype=np.int64)
-    rank[dest] = circle.rank.ravel()[np.repeat(column - centre, counts) + key]
+    flat_rank = circle.rank.ravel()
+    for _, _, pos, offset, dest in layout.blocks(_LAYOUT_BLOCK_HITS):
+        m[dest] = layout.order[pos]
+        rank[dest] = flat_rank[offset]
     return k, m, rank
+
+
+class _Hits:
+    """The hits of :func:`_enumerate_hits` as their probabilities, with (query, table) pairs read
+    only for the hits asked for.
+
+    Each hit keeps its sorted-table index and circle offset packed in one integer, so putting the hits
+    in visiting order is one scatter; the (k, m) columns of every hit are never made.
+    """
+
+    def __init__(self, qx, qy, tx, ty, circle: _CircleTable, prob_by_rank: np.ndarray) -> None:
+        layout = _hit_layout(qx, qy, tx, ty, circle)
+        if layout is None:
+            self.probs = np.zeros(0)
+            return
+        self._order, self._query_first = layout.order, layout.query_first
+        bits = self._bits = (circle.rank.size - 1).bit_length()
+        packed = self._packed = np.empty(layout.total, dtype=np.int64)
+        self.probs = np.empty(layout.total)
+        #: per flat offset: the probability of its rank (offsets outside the circle never occur)
+        by_offset = prob_by_rank[circle.rank.ravel() + 1]
+        for h0, h1, pos, offset, dest in layout.blocks(_LAYOUT_BLOCK_HITS):
+            packed[dest] = (pos << bits) | offset
+            self.probs[h0:h1] = by_offset[packed[h0:h1] & ((1 << bits) - 1)]
+
+    def pairs(self, hits: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(k, m)`` of the given hits (indices in visiting order)."""
+        if len(hits) == 0:
+            z = np.zeros(0, dtype=np.int64)
+            return z, z
+        k = np.searchsorted(self._query_first, hits, side="right") - 1
+        m = self._order[self._packed[hits] >> self._bits]
+        return k, m
 
 
 _VISIT_PROBABILITY = 0.1
@@ -292,28 +379,41 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     return Edges(PoseKind.SE2, j_from, i_to, meas.reshape(-1, 3), info)
 
 
-def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None, progress: Progress | None = None):
-    p = cfg.inter
-    radius = _round_to_int(p.loop_closure_radius * cfg.step_fragment / cfg.stepsize)
-    circle = _CircleTable(radius)
-    prob_by_rank = circle.probabilities(
-        p.same_position_loop_closure_probability, p.loop_closure_probability_scaling, p.loop_closure_radius
-    )
-    pairs = agent_pairs(len(walks))
-    # kollagen seeds a new generator for every pair with the same seed: all pairs read one tape
-    tape = UniformTape(MT19937Stream(p.random_number_generator_seed))
+class _InterPairs:
+    """kollagen's inter-agent loop closures as one task per agent pair, for any process to run.
 
-    def one_pair(index: int):
-        a, b = pairs[index]
-        wa, wb = walks[a], walks[b]
-        (ax, ay), (bx, by) = cells[a], cells[b]
+    ``pairs(i)`` computes pair ``i`` (of ``len(pairs)``, in kollagen's order) from the walks held at
+    construction; :meth:`edges` puts the pairs' results together. The caller may run the tasks in
+    forked processes, alongside other work (see :func:`studio.generator.kollagen.generate`).
+    """
+
+    def __init__(self, walks, cells, cfg: SynthConfig) -> None:
+        p = cfg.inter
+        self._inter = p
+        self._walks, self._cells = walks, cells
+        radius = _round_to_int(p.loop_closure_radius * cfg.step_fragment / cfg.stepsize)
+        self._circle = _CircleTable(radius)
+        self._prob_by_rank = self._circle.probabilities(
+            p.same_position_loop_closure_probability, p.loop_closure_probability_scaling, p.loop_closure_radius
+        )
+        self._pairs = agent_pairs(len(walks))
+        # kollagen seeds a new generator for every pair with the same seed: all pairs read one tape
+        self._tape = UniformTape(MT19937Stream(p.random_number_generator_seed))
+
+    def __len__(self) -> int:
+        return len(self._pairs)
+
+    def __call__(self, index: int):
+        p = self._inter
+        a, b = self._pairs[index]
+        wa, wb = self._walks[a], self._walks[b]
+        (ax, ay), (bx, by) = self._cells[a], self._cells[b]
         # kollagen's map keeps the last visit of each cell of agent a
         last = _visits(ax, ay, "last")
-        k, m, rank = _enumerate_hits(bx, by, ax[last], ay[last], circle)
-        j = last[m]
-        probs = prob_by_rank[rank + 1]
-        acc, noise, _, _ = _sample(tape, probs, None)
-        i_from, j_to = k[acc], j[acc]
+        hits = _Hits(bx, by, ax[last], ay[last], self._circle, self._prob_by_rank)
+        acc, noise, _, _ = _sample(self._tape, hits.probs, None)
+        i_from, m = hits.pairs(acc)
+        j_to = last[m]
         dX, dY, dT = relative_planar_pose(wb.x[i_from], wb.y[i_from], wb.theta[i_from],
                                wa.x[j_to], wa.y[j_to], wa.theta[j_to])
         meas = np.column_stack([
@@ -323,20 +423,28 @@ def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None, progr
         ])
         return np.full(len(acc), b), i_from, np.full(len(acc), a), j_to, meas.reshape(-1, 3)
 
-    done = parallel_map(one_pair, len(pairs), jobs,
+    def edges(self, done: list) -> InterAgentEdges:
+        """The pairs' results (in pair order) as kollagen's inter-agent loop closures."""
+        p = self._inter
+        cols = {c: [d[k] for d in done] for k, c in enumerate(("fa", "fi", "ta", "ti", "m"))}
+        meas = np.concatenate(cols["m"])
+        info = _diag_information(len(meas), p.estimated_information_position, p.estimated_information_angle)
+        return InterAgentEdges(
+            PoseKind.SE2,
+            np.concatenate(cols["fa"]),
+            np.concatenate(cols["fi"]),
+            np.concatenate(cols["ta"]),
+            np.concatenate(cols["ti"]),
+            meas,
+            info,
+        )
+
+
+def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None, progress: Progress | None = None):
+    pairs = _InterPairs(walks, cells, cfg)
+    done = parallel_map(pairs, len(pairs), jobs,
                         on_done=lambda d, n: report(progress, "synth: inter-agent loop closures", d, n, "pairs"))
-    cols = {c: [d[k] for d in done] for k, c in enumerate(("fa", "fi", "ta", "ti", "m"))}
-    meas = np.concatenate(cols["m"])
-    info = _diag_information(len(meas), p.estimated_information_position, p.estimated_information_angle)
-    return InterAgentEdges(
-        PoseKind.SE2,
-        np.concatenate(cols["fa"]),
-        np.concatenate(cols["fi"]),
-        np.concatenate(cols["ta"]),
-        np.concatenate(cols["ti"]),
-        meas,
-        info,
-    )
+    return pairs.edges(done)
 
 
 def _diag_information(n: int, position: float, angle: float) -> np.ndarray:

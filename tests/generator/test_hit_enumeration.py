@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from studio.generator.loop_closures import _CircleTable, _enumerate_hits, discrete_circle
+from studio.generator.loop_closures import _CircleTable, _enumerate_hits, _Hits, discrete_circle
 
 
 def _plain_hits(qx, qy, tx, ty, radius):
@@ -21,11 +21,14 @@ def _plain_hits(qx, qy, tx, ty, radius):
     return hits
 
 
+@pytest.mark.parametrize("block_hits", [1 << 16, 1, 37])
 @pytest.mark.parametrize("dense", [True, False])
 @pytest.mark.parametrize("trial", range(6))
-def test_hits_match_the_plain_circle_walk(trial, dense, monkeypatch):
+def test_hits_match_the_plain_circle_walk(trial, dense, block_hits, monkeypatch):
     if not dense:  # the binary-search path used for sparse, far-flung cells
         monkeypatch.setattr("studio.generator.loop_closures._DENSE_COUNT_FACTOR", 0)
+    # per-hit columns made a few queries at a time (one query per block with 1)
+    monkeypatch.setattr("studio.generator.loop_closures._LAYOUT_BLOCK_HITS", block_hits)
     rng = np.random.default_rng(trial)
     radius = int(rng.integers(1, 7))
     side = int(rng.integers(3, 30))
@@ -42,9 +45,35 @@ def test_hits_match_the_plain_circle_walk(trial, dense, monkeypatch):
     assert list(zip(k.tolist(), m.tolist(), rank.tolist())) == want
 
 
+@pytest.mark.parametrize("block_hits", [1 << 16, 1, 37])
+@pytest.mark.parametrize("trial", range(6))
+def test_packed_hits_give_the_same_probabilities_and_pairs(trial, block_hits, monkeypatch):
+    monkeypatch.setattr("studio.generator.loop_closures._LAYOUT_BLOCK_HITS", block_hits)
+    rng = np.random.default_rng(100 + trial)
+    radius = int(rng.integers(1, 7))
+    side = int(rng.integers(3, 30))
+    cells = np.unique(rng.integers(-side, side, size=(int(rng.integers(1, 400)), 2)), axis=0)
+    tx, ty = cells[rng.permutation(len(cells))].T
+    qx, qy = rng.integers(-side - radius, side + radius, size=(2, int(rng.integers(1, 200))))
+    n = min(len(qx[::3]), len(tx))
+    qx[: 3 * n : 3], qy[: 3 * n : 3] = tx[:n], ty[:n]
+    circle = _CircleTable(radius)
+    prob_by_rank = rng.random(circle.size + 1)
+
+    k, m, rank = _enumerate_hits(qx, qy, tx, ty, circle)
+    hits = _Hits(qx, qy, tx, ty, circle, prob_by_rank)
+
+    assert hits.probs.tolist() == prob_by_rank[rank + 1].tolist()
+    some = np.sort(rng.choice(len(k), size=min(len(k), 50), replace=False))
+    hk, hm = hits.pairs(some)
+    assert hk.tolist() == k[some].tolist() and hm.tolist() == m[some].tolist()
+    assert [len(v) for v in hits.pairs(np.zeros(0, dtype=np.int64))] == [0, 0]
+
+
 def test_no_table_or_no_query_gives_no_hits():
     one = np.array([0])
     none = np.array([], dtype=np.int64)
     for args in ((one, one, none, none), (none, none, one, one)):
         k, m, rank = _enumerate_hits(*args, _CircleTable(3))
         assert len(k) == len(m) == len(rank) == 0
+        assert len(_Hits(*args, _CircleTable(3), np.ones(30)).probs) == 0
