@@ -92,15 +92,14 @@ def write_single_g2o(graph: PoseGraph, path: str | os.PathLike, *, records: Reco
 
 def _se3_poses(agent: AgentGraph, ground_truth: bool) -> np.ndarray:
     """An agent's ground truth or initial estimate as ``(n, 7)`` SE(3) poses (only those lifted)."""
-    if agent.kind is PoseKind.SE3:
-        poses = agent.ground_truth if ground_truth else agent.initial
-    elif ground_truth and agent.ground_truth_se3 is not None:
-        poses = agent.ground_truth_se3
-    else:
-        poses = planar_poses_to_se3(agent.ground_truth if ground_truth else agent.initial)
+    poses = agent.ground_truth if ground_truth else agent.initial
     if poses is None:
         raise GraphError(f"agent {agent.name} has no ground truth")
-    return poses
+    if agent.kind is PoseKind.SE3:
+        return poses
+    if ground_truth and agent.ground_truth_se3 is not None:
+        return agent.ground_truth_se3
+    return planar_poses_to_se3(poses)
 
 
 def write_single_tum(graph: PoseGraph, path: str | os.PathLike, *, ground_truth: bool) -> None:
