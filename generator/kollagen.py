@@ -117,8 +117,8 @@ def _exact_odometry_information(walk: _Walk, cfg: SynthConfig, agent) -> np.ndar
 def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | None = None) -> SynthOutput:
     """Run kollagen's generator: walk, intra-agent loop closures, alignment, inter-agent loop closures.
 
-    ``jobs`` processes share the agents and then the agent pairs (default: every core this process
-    may use); the output does not depend on it.
+    ``jobs`` processes share the agents' and the agent pairs' loop closures (default: the cores other
+    work leaves idle, see :func:`studio.core.parallel.default_jobs`); the output does not depend on it.
     """
     seeds = effective_seeds([a.random_number_generator_seed for a in cfg.agents])
     # the walks first (a few percent of the time), so that one pool of processes takes both the
