@@ -94,10 +94,7 @@ def write_outputs(out: GeneratedDataset, parent: Path, name: str, *, multi_recor
 
     tasks = (write_multi, *(extra_task(e) for e in out.extras))
 
-    def run(k: int) -> None:
-        tasks[k]()
-
-    parallel_map(run, len(tasks), jobs, on_done=lambda d, n: report(progress, "synth: writing files", d, n, "parts"))
+    parallel_map(lambda k: tasks[k](), len(tasks), jobs, on_done=lambda d, n: report(progress, "synth: writing files", d, n, "parts"))
 
 
 def check_resources(config: SynthConfig, *, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,

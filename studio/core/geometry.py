@@ -11,6 +11,8 @@ import math
 
 import numpy as np
 
+from studio.core.repeats import distinct_if_repeated
+
 __all__ = [
     "normalize_angle",
     "yaw_to_quat_xyzw",
@@ -50,15 +52,12 @@ def yaw_to_quat_xyzw(theta: np.ndarray) -> np.ndarray:
     numpy's vectorised sin/cos may differ from libm by an ulp on some CPUs; kollagen's files are made
     with libm, so the values are computed with :mod:`math` to stay bit-exact.
     """
-    half = np.asarray(theta, dtype=np.float64) / 2
-    spread = None
-    if len(half) >= 64 and len(np.unique(half[:256])) < 128:  # few headings (ground truth on a grid)
-        half, spread = np.unique(half, return_inverse=True)
+    half, spread = distinct_if_repeated(np.asarray(theta, dtype=np.float64) / 2)  # ground truth: few headings
     values = half.tolist()
     out = np.zeros((len(values), 4))
     out[:, 2] = [math.sin(h) for h in values]
     out[:, 3] = [math.cos(h) for h in values]
-    return out if spread is None else out[spread.ravel()]
+    return out if spread is None else out[spread]
 
 
 def upper_to_matrix(upper: np.ndarray, dim: int) -> np.ndarray:

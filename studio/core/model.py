@@ -223,16 +223,32 @@ class AgentGraph:
     def num_poses(self) -> int:
         return len(self.initial)
 
+    def se3_poses(self, ground_truth: bool = False) -> np.ndarray | None:
+        """The initial estimate (or the ground truth, None where there is none) as ``(n, 7)`` SE(3)
+        poses: planar poses lifted once and kept, the ground truth read from a 3D file as it was."""
+        poses = self.ground_truth if ground_truth else self.initial
+        if self.kind is PoseKind.SE3 or poses is None:
+            return poses
+        if ground_truth and self.ground_truth_se3 is not None:
+            return self.ground_truth_se3
+        key = "_se3_truth" if ground_truth else "_se3_initial"
+        lifted = self.__dict__.get(key)
+        if lifted is None:
+            lifted = planar_poses_to_se3(poses)
+            object.__setattr__(self, key, lifted)
+        return lifted
+
     def to_se3(self) -> "AgentGraph":
         if self.kind is PoseKind.SE3:
             return self
+        initial = self.se3_poses()
+        assert initial is not None
         return AgentGraph(
             self.name,
             PoseKind.SE3,
             self.stamps_ns,
-            planar_poses_to_se3(self.initial),
-            self.ground_truth_se3 if self.ground_truth_se3 is not None
-            else None if self.ground_truth is None else planar_poses_to_se3(self.ground_truth),
+            initial,
+            self.se3_poses(ground_truth=True),
             self.odometry.to_se3(),
             self.loop_closures.to_se3(),
         )

@@ -91,22 +91,15 @@ def write_single_g2o(graph: PoseGraph, path: str | os.PathLike, *, records: Reco
 
 
 def _se3_poses(agent: AgentGraph, ground_truth: bool) -> np.ndarray:
-    """An agent's ground truth or initial estimate as ``(n, 7)`` SE(3) poses (only those lifted)."""
-    poses = agent.ground_truth if ground_truth else agent.initial
+    poses = agent.se3_poses(ground_truth)
     if poses is None:
         raise GraphError(f"agent {agent.name} has no ground truth")
-    if agent.kind is PoseKind.SE3:
-        return poses
-    if ground_truth and agent.ground_truth_se3 is not None:
-        return agent.ground_truth_se3
-    return planar_poses_to_se3(poses)
+    return poses
 
 
 def write_single_tum(graph: PoseGraph, path: str | os.PathLike, *, ground_truth: bool) -> None:
     """Concatenated ground truth (or initial estimate), timestamps = concatenated vertex ids."""
-    lifted = graph.__dict__.get("_se3")  # already lifted in this process (PoseGraph.to_se3 caches it)
-    agents = lifted.agents if lifted is not None else graph.agents
-    poses = np.concatenate([_se3_poses(a, ground_truth) for a in agents])
+    poses = np.concatenate([_se3_poses(a, ground_truth) for a in graph.agents])
     stamps = np.arange(len(poses), dtype=np.int64) * NS_PER_S
     with open(Path(path), "wb") as f:
         f.write(tum_text(Trajectory.from_poses(Path(path).stem, stamps, poses)))

@@ -9,8 +9,9 @@ numbers are formatted here in bulk, as columns of bytes, with the same correctly
   product held in two 64-bit words, shifted right with round-half-to-even, as C's ``printf`` rounds
   the exact binary value. ``X`` comes from ``log10`` and is corrected until the truncated digits
   have exactly 17 places. ``%f`` is the same with ``p = 6``.
-* The digits are laid out as ``%g`` does (fixed or exponent notation, trailing zeros removed) by
-  gathering from a per-number row of candidate characters.
+* The digits are laid out as ``%g`` does (fixed or exponent notation, trailing zeros removed): the
+  numbers are grouped by layout (exponent, sign, and for exponent notation the digits kept) and each
+  group is filled from one template at once.
 * Numbers outside the exact fast range (``|v| >= 1e17`` or ``< 1e-11`` for ``%.17g``; non-finite
   values) are formatted by Python's ``%``, which gives C's digits too.
 
@@ -27,6 +28,8 @@ from dataclasses import dataclass
 from typing import IO, Sequence
 
 import numpy as np
+
+from studio.core.repeats import distinct_if_repeated
 
 __all__ = ["TextColumn", "literal", "int_column", "digit_matrix", "float_columns", "float_rows", "concat",
            "join_columns", "write_text", "format_float"]
@@ -80,10 +83,10 @@ def _from_strings(texts: Sequence[str]) -> TextColumn:
 
 def digit_matrix(values: np.ndarray, places: int) -> np.ndarray:
     """``(n, places)`` ASCII digits of non-negative integers below ``10**places``, most significant first."""
-    return np.ascontiguousarray(digit_rows(values, places).T)
+    return np.ascontiguousarray(_digit_rows(values, places).T)
 
 
-def digit_rows(values: np.ndarray, places: int) -> np.ndarray:
+def _digit_rows(values: np.ndarray, places: int) -> np.ndarray:
     """``(places, n)``: row ``j`` holds digit ``j`` (ASCII, most significant first) of each value."""
     out = np.empty((places, len(values)), dtype=np.uint8)
     v = values.astype(np.uint64, copy=True)
@@ -205,7 +208,7 @@ def _g17_text(digits: np.ndarray, x: np.ndarray, neg: np.ndarray, ok: np.ndarray
     """``%.17g`` text of the numbers where ``ok``, from their 17 digits, decimal exponent and sign;
     other rows are left empty."""
     n = len(digits)
-    rows_ = digit_rows(digits, 17)
+    rows_ = _digit_rows(digits, 17)
     # significant digits kept: one past the last digit that is not 0
     place = np.arange(1, 17, dtype=np.uint8)[:, None]
     nd = 1 + ((rows_[1:] != ord("0")) * place).max(axis=0).astype(np.int64)
@@ -282,11 +285,8 @@ def float_columns(values: np.ndarray, fmts: Sequence[str], zeros: Sequence[str |
         bits = col.view(np.int64)
         if n > 1 and (bits == bits[0]).all():
             plan.append((col[:1], None))
-        elif n >= 64 and len(np.unique(bits[:256])) < 128:
-            uniq, inv = np.unique(bits, return_inverse=True)
-            plan.append((uniq.view(np.float64), inv.ravel()))
         else:
-            plan.append((col, None))
+            plan.append(distinct_if_repeated(col))
     out: list[TextColumn | None] = [None] * k
     for fmt in sorted(set(fmts)):
         cols = [c for c in range(k) if fmts[c] == fmt]
@@ -331,8 +331,12 @@ def _format_block(v: np.ndarray, fmt: str) -> tuple[np.ndarray, np.ndarray]:
         digits, x, ok = _g17_digits(np.where(nonzero, a, 1.0))
         ok &= nonzero
         chars, lengths = _g17_text(digits, x, neg, ok)
-        zero_text = b"0"
-    else:
+        is_zero = a == 0.0  # "0" and "-0"
+        chars[is_zero & ~neg, 0] = ord("0")
+        chars[is_zero & neg, :2] = np.frombuffer(b"-0", dtype=np.uint8)
+        lengths = np.where(is_zero, 1 + neg, lengths)
+        ok |= is_zero
+    else:  # zeros come out of _f6_text as "0.000000"
         body, lengths, ok = _f6_text(np.where(finite, a, 0.0))
         ok &= finite
         chars = np.zeros((n, body.shape[1] + 1), dtype=np.uint8)
@@ -340,17 +344,6 @@ def _format_block(v: np.ndarray, fmt: str) -> tuple[np.ndarray, np.ndarray]:
         chars[neg, 1:] = body[neg]
         chars[neg, 0] = ord("-")
         lengths = lengths + neg
-        zero_text = b"0.000000"
-    is_zero = (a == 0.0)
-    if is_zero.any():
-        raw = np.frombuffer(zero_text, dtype=np.uint8)
-        zneg = is_zero & neg
-        zpos = is_zero & ~neg
-        chars[zpos, : len(raw)] = raw
-        chars[zneg, 0] = ord("-")
-        chars[zneg, 1 : 1 + len(raw)] = raw
-        lengths = np.where(is_zero, len(raw) + neg, lengths)
-        ok |= is_zero
     width = chars.shape[1]
     slow = np.flatnonzero(~ok)
     if len(slow):  # outside the exact fast range (and non-finite): Python's % gives C's digits
