@@ -15,13 +15,12 @@ import os
 import shutil
 import statistics
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from timing import run_timed  # noqa: E402  (benchmarks/timing.py, beside this script)
+from timing import run_timed, work_folder  # noqa: E402  (benchmarks/timing.py, beside this script)
 
 
 def write_euroc(root: Path, rows: int) -> list[Path]:
@@ -64,8 +63,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=None, help="work folder (default: a temporary folder)")
     args = ap.parse_args()
     studio = shutil.which("studio") or str(Path(sys.executable).parent / "studio")
-    tmp_ctx = tempfile.TemporaryDirectory() if args.out is None else None
-    work = Path(tmp_ctx.name) if tmp_ctx else args.out
+    work = work_folder(args.out)
     seqs = write_euroc(work / "euroc", args.euroc_rows)
     kitti = write_kitti(work / "kitti", args.kitti_poses)
     jobs = {
@@ -81,8 +79,6 @@ def main() -> None:
             walls.append(wall)
             peak = max(peak, rss)
         print(f"{label:32} median {statistics.median(walls):6.2f} s  best {min(walls):6.2f} s  peak {peak:5.0f} MiB")
-    if tmp_ctx:
-        tmp_ctx.cleanup()
 
 
 if __name__ == "__main__":

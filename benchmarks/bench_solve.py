@@ -17,11 +17,10 @@ import shutil
 import statistics
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
-from timing import run_timed  # noqa: E402  (benchmarks/timing.py, beside this script)
+from timing import run_timed, work_folder  # noqa: E402  (benchmarks/timing.py, beside this script)
 
 PRESETS = ["multi3500x8", "multi10000x5"]
 METHODS = ["gtsam", "g2o"]
@@ -37,9 +36,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=None, help="work folder (default: a temporary folder)")
     args = ap.parse_args()
     studio = shutil.which("studio") or str(Path(sys.executable).parent / "studio")
-    tmp_ctx = tempfile.TemporaryDirectory() if args.out is None else None
-    work = Path(tmp_ctx.name) if tmp_ctx else args.out
-    work.mkdir(parents=True, exist_ok=True)
+    work = work_folder(args.out)
     print(f"# {time.strftime('%Y-%m-%d')}  {os.cpu_count()} cores  python {sys.version.split()[0]}  "
           f"load {os.getloadavg()[0]:.2f}  input {args.input}")
     print(f"{'dataset':13} {'method':7} {'median s':>9} {'best s':>7} {'peak MiB':>9} {'chi2':>12} "
@@ -68,8 +65,6 @@ def main() -> None:
                   f"{info['chi2_final']:12.2f} {ape['first-pose']:12.6f} {ape['se3']:8.5f}")
         if "gtsam" in medians and "g2o" in medians:
             print(f"{name:13} speed-up of gtsam over g2o: {medians['g2o'] / medians['gtsam']:.2f}x (median wall)")
-    if tmp_ctx:
-        tmp_ctx.cleanup()
 
 
 if __name__ == "__main__":

@@ -18,9 +18,10 @@ import resource
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
+
+from timing import work_folder  # benchmarks/timing.py, beside this script
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -34,9 +35,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=None, help="work folder (default: a temporary folder)")
     args = ap.parse_args()
     studio = shutil.which("studio") or str(Path(sys.executable).parent / "studio")
-    tmp_ctx = tempfile.TemporaryDirectory() if args.out is None else None
-    work = Path(tmp_ctx.name) if tmp_ctx else args.out
-    work.mkdir(parents=True, exist_ok=True)
+    work = work_folder(args.out)
     spec = work / "bench.toml"
     spec.write_text(f'name = "bench"\nbase = "{args.config.resolve()}"\nsteps = ["evaluate"]\n'
                     f'[grid]\nseed = {list(range(args.cells))}\n')
@@ -75,8 +74,6 @@ def main() -> None:
           f"load {load_loop[0]:.2f} -> {load_loop[1]:.2f}; largest process {rss_loop:.0f} MB")
     print(f"speed-up: {t_loop / t_sweep:.2f}x; sweep overhead per cell beyond its work on {args.workers} workers: "
           f"{(t_sweep * args.workers - work_s) / len(rows) * 1000:.0f} ms")
-    if tmp_ctx:
-        tmp_ctx.cleanup()
 
 
 if __name__ == "__main__":

@@ -9,11 +9,13 @@ the command's own peak. Without it, the figure is an upper bound and says so (``
 
 from __future__ import annotations
 
+import atexit
 import os
 import shutil
 import subprocess
 import tempfile
 import time
+from pathlib import Path
 
 _GNU_TIME = next((p for p in ("/usr/bin/time", shutil.which("gtime")) if p and os.access(p, os.X_OK)), None)
 
@@ -40,3 +42,14 @@ def run_timed(cmd: list[str]) -> tuple[float, float]:
             lines = [ln for ln in peak_file.read().split() if ln.strip().isdigit()]
             return wall, int(lines[-1]) / 1024.0
     return wall, usage.ru_maxrss / 1024.0
+
+
+def work_folder(out: Path | None) -> Path:
+    """The benchmark's work folder: ``out`` (created if missing), or a temporary folder removed when
+    the script ends."""
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        return out
+    tmp = tempfile.mkdtemp(prefix="studio-bench-")
+    atexit.register(shutil.rmtree, tmp, True)
+    return Path(tmp)
