@@ -25,7 +25,7 @@ import os
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -70,6 +70,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "MANY_INTER_LOOP_CLOSURES",
+    "fixed_id",
     "RecordResult",
     "inter_pair_path",
     "inter_style",
@@ -475,9 +476,11 @@ def _scene(graph: PoseGraph, real_time: bool) -> _Scene:
     )
 
 
-def _fixed_ids(part, label: str) -> None:
-    """Blueprint parts get random ids by default; derive them from their role instead."""
-    part.id = uuid.uuid5(_RECORDING_ID_NAMESPACE, f"blueprint/{label}")
+def fixed_id(part: Any, namespace: uuid.UUID, name: str) -> Any:
+    """Blueprint parts get random ids by default; give ``part`` the id of its role instead (``name``
+    within the recording kind's ``namespace``), so the same layout gives the same file content."""
+    part.id = uuid.uuid5(namespace, name)
+    return part
 
 
 def default_blueprint(scene: _Scene) -> rrb.Blueprint:
@@ -522,7 +525,7 @@ def default_blueprint(scene: _Scene) -> rrb.Blueprint:
     series = rrb.Vertical(*plots)
     root = rrb.Horizontal(space, series, column_shares=[2, 1])
     for part, label in parts + [(series, "series"), (root, "root")]:
-        _fixed_ids(part, label)
+        fixed_id(part, _RECORDING_ID_NAMESPACE, f"blueprint/{label}")
     return rrb.Blueprint(
         root,
         rrb.TimePanel(timeline=TIMELINE_NODE, play_state="paused", expanded=True),

@@ -35,7 +35,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from studio.recording.colours import ERROR_SCALE_RGB, GROUND_TRUTH_GREY
-from studio.recording.dataset import agent_colour
+from studio.recording.dataset import agent_colour, fixed_id
 from studio.recording.entities import (
     APPLICATION_ID,
     EVALUATION_ESTIMATE,
@@ -151,8 +151,7 @@ def log_evaluation(rec: Any, summary_markdown: str, series: Sequence[ErrorSeries
 
 
 def _fixed(part: Any, label: str) -> Any:
-    part.id = uuid.uuid5(_BLUEPRINT_NAMESPACE, f"evaluation/{label}")
-    return part
+    return fixed_id(part, _BLUEPRINT_NAMESPACE, f"evaluation/{label}")
 
 
 def evaluation_blueprint(series: Sequence[ErrorSeries]) -> Any:

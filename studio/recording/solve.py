@@ -57,9 +57,10 @@ def solve_recording_id(offsets: np.ndarray, kind: PoseKind, iterates: Sequence[t
 def solve_blueprint(names: Sequence[str]) -> Any:
     import rerun.blueprint as rrb
 
-    def fixed(part: Any, label: str) -> Any:  # blueprint parts get random ids by default
-        part.id = uuid.uuid5(_NAMESPACE, f"blueprint/{label}")
-        return part
+    from studio.recording.dataset import fixed_id
+
+    def fixed(part: Any, label: str) -> Any:
+        return fixed_id(part, _NAMESPACE, f"blueprint/{label}")
 
     return rrb.Blueprint(
         fixed(rrb.Horizontal(
