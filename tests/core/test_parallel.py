@@ -28,3 +28,38 @@ def test_other_runnable_reads_this_machine():
 def test_parallel_map_results_in_order_for_any_jobs():
     for jobs in (None, 1, 2, 3):
         assert parallel.parallel_map(lambda k: k * k, 7, jobs) == [k * k for k in range(7)]
+
+
+def test_parallel_map_runs_items_here_and_in_workers():
+    import os
+    import time
+
+    def where(k: int) -> int:
+        time.sleep(0.02)  # long enough that both processes get items
+        return os.getpid()
+
+    pids = parallel.parallel_map(where, 12, jobs=2)
+    assert os.getpid() in pids  # this process took part
+    assert len(set(pids)) == 2  # and exactly one forked worker did the rest
+
+
+def test_parallel_map_reports_progress_up_to_the_end():
+    seen: list[tuple[int, int]] = []
+    parallel.parallel_map(lambda k: k, 9, jobs=2, on_done=lambda d, n: seen.append((d, n)))
+    assert seen[0] == (0, 9) and seen[-1] == (9, 9)
+    assert all(n == 9 and 0 <= d <= 9 for d, n in seen)
+    assert [d for d, _ in seen] == sorted(d for d, _ in seen)
+
+
+def test_an_error_stops_every_process_from_claiming_more(tmp_path):
+    def item(k: int) -> int:
+        if k == 3:
+            raise ValueError("item 3 is bad")
+        (tmp_path / f"ran{k}").write_text("x")
+        return k
+
+    with pytest.raises(ValueError, match="item 3 is bad") as info:
+        parallel.parallel_map(item, 400, jobs=2)
+    assert info.value.__cause__ is None
+    ran = len(list(tmp_path.iterdir()))
+    assert 3 <= ran < 50  # the items before it ran; the claims stopped right after it
