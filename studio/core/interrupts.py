@@ -13,9 +13,11 @@ __all__ = ["interrupts_deferred"]
 
 @contextlib.contextmanager
 def interrupts_deferred() -> Iterator[None]:
-    """Hold SIGINT during the block and raise KeyboardInterrupt after it if one came (main thread
-    only; elsewhere the block runs as it is)."""
-    if threading.current_thread() is not threading.main_thread():
+    """Hold SIGINT during the block and hand it to the previous handler after it if one came (Python's
+    default handler raises KeyboardInterrupt). Only in the main thread, and only where SIGINT is
+    handled at all: elsewhere (other threads, workers that ignore it) the block runs as it is."""
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) in (
+            signal.SIG_IGN, None):
         yield
         return
     received: list[int] = []
@@ -29,4 +31,7 @@ def interrupts_deferred() -> Iterator[None]:
     finally:
         signal.signal(signal.SIGINT, previous)
     if received:
-        raise KeyboardInterrupt
+        if callable(previous):
+            previous(signal.SIGINT, None)
+        else:  # SIG_DFL: what the signal would have done
+            signal.raise_signal(signal.SIGINT)

@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
 from studio.core.errors import OutputError
+from studio.core.interrupts import interrupts_deferred
 
 __all__ = ["staged_outputs", "write_replacing", "check_not_overlapping", "verify_rrd", "os_error_message",
            "STAGING_PREFIX", "MARKER_NAME", "LOCK_PREFIX"]
@@ -218,26 +219,31 @@ def _target_lock(parent: Path, name: str) -> Iterator[None]:
     import fcntl
 
     lock = parent / f"{LOCK_PREFIX}{name}"
+    fd: int | None = None
+    held = False
     try:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-    except OSError as err:
-        raise OutputError(os_error_message(err, lock)) from None
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
-        except (BlockingIOError, FileNotFoundError):
-            same = False
-        if not same:
+        # Ctrl-C is held from creating the file to owning it: an interrupt that landed in between
+        # (right when the file appears, as a user or a test may send it) would leave it behind
+        with interrupts_deferred():
+            try:
+                fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as err:
+                raise OutputError(os_error_message(err, lock)) from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                held = os.fstat(fd).st_ino == os.stat(lock).st_ino
+            except (BlockingIOError, FileNotFoundError):
+                held = False
+        if not held:
             raise OutputError(f"{parent / name}: another studio run is writing this output now; "
                               "wait for it to finish")
-        try:
-            yield
-        finally:
+        yield
+    finally:
+        if held:
             with contextlib.suppress(OSError):
                 os.unlink(lock)
-    finally:
-        os.close(fd)
+        if fd is not None:
+            os.close(fd)
 
 
 def _mark(folder: Path) -> None:
@@ -309,35 +315,39 @@ def staged_outputs(parent: str | os.PathLike, names: list[str], *, force: bool =
             _check_replaceable(dst, None)
         _clean_stale(parent)
         staging = parent / f"{STAGING_PREFIX}{os.getpid()}-{names[0]}"
-        try:
-            if staging.exists():
-                shutil.rmtree(staging)
-            staging.mkdir()
-        except OSError as err:
-            raise OutputError(os_error_message(err, staging)) from None
+        made = False  # the staging folder exists and is ours to remove
         finished = False
         try:
+            with interrupts_deferred():  # Ctrl-C right after the folder appears still removes it
+                try:
+                    if staging.exists():
+                        shutil.rmtree(staging)
+                    staging.mkdir()
+                except OSError as err:
+                    raise OutputError(os_error_message(err, staging)) from None
+                made = True
             try:
                 yield staging
-                made = [n for n in names if (staging / n).exists()]
-                for name in made:
+                made_names = [n for n in names if (staging / n).exists()]
+                for name in made_names:
                     if (staging / name).is_dir():
                         _mark(staging / name)
                     _fsync_tree(staging / name)
-                for name in made:
+                for name in made_names:
                     if (parent / name).exists() or (parent / name).is_symlink():
                         _check_replaceable(parent / name, staging / name)
-                _replace_all(staging, parent, made)
+                _replace_all(staging, parent, made_names)
                 finished = True
             except OSError as err:
                 msg = os_error_message(err)
                 raise OutputError(msg.replace(str(staging) + os.sep, str(parent) + os.sep)
                                   .replace(str(staging), str(parent))) from None
         finally:
-            if not finished:
-                with contextlib.suppress(OSError):
-                    _rollback(staging, parent)
-            shutil.rmtree(staging, ignore_errors=True)
+            if made:
+                if not finished:
+                    with contextlib.suppress(OSError):
+                        _rollback(staging, parent)
+                shutil.rmtree(staging, ignore_errors=True)
 
 
 def _replace_all(staging: Path, parent: Path, made: list[str]) -> None:

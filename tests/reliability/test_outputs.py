@@ -201,3 +201,48 @@ def test_a_read_only_file_system_is_one_line(tmp_path):
         lines = res.stderr.splitlines()
         assert len(lines) == 1 and "Read-only file system" in lines[0], res.stderr
         assert list(mnt.iterdir()) == []
+
+
+@pytest.mark.parametrize("where", ["lock file", "staging folder"])
+def test_ctrl_c_the_moment_a_staging_entry_appears_leaves_nothing(tmp_path, monkeypatch, where):
+    # Ctrl-C lands right after the system call that made the entry, before the code that owns it
+    # runs (what `studio record` + SIGINT as soon as the entry shows up hit in CI, now and then)
+    import signal
+
+    real_open, real_mkdir = os.open, Path.mkdir
+
+    def open_then_ctrl_c(path, *args, **kwargs):
+        fd = real_open(path, *args, **kwargs)
+        if where == "lock file" and Path(path).name.startswith(LOCK_PREFIX):
+            os.kill(os.getpid(), signal.SIGINT)
+        return fd
+
+    def mkdir_then_ctrl_c(self, *args, **kwargs):
+        real_mkdir(self, *args, **kwargs)
+        if where == "staging folder" and self.name.startswith(STAGING_PREFIX):
+            os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(atomic.os, "open", open_then_ctrl_c)
+    monkeypatch.setattr(Path, "mkdir", mkdir_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        with staged_outputs(tmp_path, ["x.txt"]) as staging:
+            (staging / "x.txt").write_text("x")
+    monkeypatch.undo()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_process_that_ignores_ctrl_c_still_ignores_it_in_deferred_sections():
+    import signal
+
+    from studio.core.interrupts import interrupts_deferred
+
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # as in the pool's workers
+    try:
+        with interrupts_deferred():
+            os.kill(os.getpid(), signal.SIGINT)
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    with pytest.raises(KeyboardInterrupt):  # the default handler: raised after the section
+        with interrupts_deferred():
+            os.kill(os.getpid(), signal.SIGINT)
