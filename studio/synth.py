@@ -21,7 +21,7 @@ from studio.core.progress import Progress, report
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.core.checks import check_option
 from studio.io.atomic import staged_outputs
-from studio.io.multig2o import Records, write_multi_g2o
+from studio.io.multig2o import Records, multi_g2o_parts
 from studio.io.singleg2o import write_single_g2o, write_single_tum
 from studio.io.synth_config import read_synth_config, synth_config_to_json
 from studio.io.outliers_txt import write_outliers_txt
@@ -57,21 +57,26 @@ def load_synth_config(source: str | os.PathLike, *, warn: Callable[[str], None] 
     return read_synth_config(path, warn=warn)
 
 
-def _write_single_g2o_view(graph: PoseGraph, view: Extra, folder: Path, name: str, records: Records) -> None:
+def _single_g2o_view_parts(graph: PoseGraph, view: Extra, folder: Path, name: str,
+                           records: Records) -> list[Callable[[], None]]:
     assert isinstance(view, SingleG2oView)
-    folder.mkdir()
-    write_single_g2o(graph, folder / f"{name}.g2o", records=records,
-                     connector_information=view.connector_information,
-                     odometry_information=view.exact_odometry_information)
-    write_single_tum(graph, folder / f"{name}_GT.tum", ground_truth=True)
-    write_single_tum(graph, folder / f"{name}.tum", ground_truth=False)
+
+    def g2o_file() -> None:
+        write_single_g2o(graph, folder / f"{name}.g2o", records=records,
+                         connector_information=view.connector_information,
+                         odometry_information=view.exact_odometry_information)
+
+    return [g2o_file,
+            lambda: write_single_tum(graph, folder / f"{name}_GT.tum", ground_truth=True),
+            lambda: write_single_tum(graph, folder / f"{name}.tum", ground_truth=False)]
 
 
-ExtraWriter = Callable[[PoseGraph, Extra, Path, str, Records], None]
-"""``(graph, extra, OUT/<name><suffix>, name, records)``: writes one extra a generator offers."""
+ExtraWriter = Callable[[PoseGraph, Extra, Path, str, Records], list[Callable[[], None]]]
+"""``(graph, extra, OUT/<name><suffix>, name, records)``: the independent writes of one extra a
+generator offers, into that folder (which exists by then)."""
 
 #: The writer of each kind of extra (see :mod:`studio.generator.seam`).
-EXTRA_WRITERS: dict[type, ExtraWriter] = {SingleG2oView: _write_single_g2o_view}
+EXTRA_WRITERS: dict[type, ExtraWriter] = {SingleG2oView: _single_g2o_view_parts}
 
 
 def write_outputs(out: GeneratedDataset, parent: Path, name: str, *, multi_records: Records = "3d",
@@ -80,21 +85,21 @@ def write_outputs(out: GeneratedDataset, parent: Path, name: str, *, multi_recor
     """Write the multi-g2o folder of ``out`` and each extra it offers under ``parent`` (no staging;
     see :func:`synthesize`). ``single_records`` are the g2o records of the extras' files.
 
-    The multi-g2o folder and each extra are written by separate processes when ``jobs`` allows.
+    The files are independent writes (each file of an extra, an agent's folder, the inter-agent file),
+    shared between processes when ``jobs`` allows.
     """
+    tasks: list[Callable[[], None]] = []
+    # the extras' files first: each holds every agent (kollagen's single g2o file is the biggest file),
+    # so the processes share out the long writes first and end together on the short ones
+    for extra in out.extras:
+        folder = parent / f"{name}{extra.suffix}"
+        folder.mkdir()
+        tasks += EXTRA_WRITERS[type(extra)](out.graph, extra, folder, name, single_records)
     multi = parent / name
-
-    def write_multi() -> None:
-        multi.mkdir()
-        write_multi_g2o(out.graph, multi, records=multi_records)
-
-    def extra_task(extra: Extra) -> Callable[[], None]:
-        writer = EXTRA_WRITERS[type(extra)]
-        return lambda: writer(out.graph, extra, parent / f"{name}{extra.suffix}", name, single_records)
-
-    tasks = (write_multi, *(extra_task(e) for e in out.extras))
-
-    parallel_map(lambda k: tasks[k](), len(tasks), jobs, on_done=lambda d, n: report(progress, "synth: writing files", d, n, "parts"))
+    multi.mkdir()
+    tasks += multi_g2o_parts(out.graph, multi, records=multi_records)
+    parallel_map(lambda k: tasks[k](), len(tasks), jobs,
+                 on_done=lambda d, n: report(progress, "synth: writing files", d, n, "files"))
 
 
 def check_resources(config: SynthConfig, *, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,

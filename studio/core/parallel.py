@@ -21,7 +21,9 @@ from typing import Any, Callable, TypeVar
 __all__ = ["parallel_map", "default_jobs", "available_cores", "tune_allocator", "release_free_heap"]
 
 T = TypeVar("T")
-_TASK: list[Callable[[int], object]] = []
+_TASK: list[tuple[Callable[[int], Any], Any, Any, int]] = []
+"""The running map: ``(func, claim counter, finished counter, n_items)`` (shared counters of
+``multiprocessing.Value``); forked workers see it as it was at the fork."""
 
 
 def available_cores() -> int:

@@ -33,7 +33,7 @@ import json
 import os
 import re
 from pathlib import Path
-from typing import Literal
+from typing import Callable, Literal
 
 import numpy as np
 
@@ -46,7 +46,7 @@ from studio.core.trajectory import Trajectory
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.units import NS_PER_S
 
-__all__ = ["write_multi_g2o", "read_multi_g2o", "agent_g2o_document", "agent_folders", "Records", "FolderNames",
+__all__ = ["write_multi_g2o", "multi_g2o_parts", "read_multi_g2o", "agent_g2o_document", "agent_folders", "Records", "FolderNames",
            "AGENTS_FILE"]
 
 Records = Literal["2d", "3d"]
@@ -81,26 +81,48 @@ def write_multi_g2o(graph: PoseGraph, folder: str | os.PathLike, *, records: Rec
     """Write ``graph`` into ``folder`` (which must exist). ``records`` picks 2D or 3D g2o records;
     ``folder_names`` names the agent folders ``agent1..agentN`` (``agents.json`` keeps the agents'
     names where they differ, with ``sources``) or after the agents."""
+    for part in multi_g2o_parts(graph, folder, records=records, precision=precision,
+                                folder_names=folder_names, sources=sources):
+        part()
+
+
+def multi_g2o_parts(graph: PoseGraph, folder: str | os.PathLike, *, records: Records = "3d",
+                    precision: Precision = "kollagen", folder_names: FolderNames = "agents",
+                    sources: dict[str, str] | None = None) -> list[Callable[[], None]]:
+    """:func:`write_multi_g2o` as independent writes (one per agent folder, then the inter-agent file
+    and ``agents.json``), which may run in any order, in any process that has ``graph``."""
     folder = Path(folder)
     if folder_names not in ("agents", "robots"):
         raise GraphError(f"folder_names must be agents or robots, got {folder_names!r}")
-    dirs = [f"agent{k + 1}" if folder_names == "agents" else a.name for k, a in enumerate(graph.agents)]
-    g = graph.to_se3() if records == "3d" else graph
     if records == "2d" and graph.kind is not PoseKind.SE2:
         raise GraphError("2D records need a planar (SE2) graph")
-    lifted = graph.to_se3()
-    for agent, agent3, name in zip(g.agents, lifted.agents, dirs):
-        sub = folder / name
-        sub.mkdir()
-        write_g2o(sub / "posegraph.g2o", agent_g2o_document(agent))
-        if agent3.ground_truth is not None:
-            write_tum(sub / f"{name}_GT.tum", Trajectory.from_poses(agent.name, agent3.stamps_ns, agent3.ground_truth))
-    write_inter_lc_dat(folder / "inter_agent_lc.dat", g.inter, precision)
-    if any(d != a.name for d, a in zip(dirs, graph.agents)):
+    dirs = [f"agent{k + 1}" if folder_names == "agents" else a.name for k, a in enumerate(graph.agents)]
+
+    def agent_part(k: int) -> Callable[[], None]:
+        def write() -> None:
+            agent = graph.agents[k]
+            sub = folder / dirs[k]
+            sub.mkdir()
+            write_g2o(sub / "posegraph.g2o", agent_g2o_document(agent.to_se3() if records == "3d" else agent))
+            truth = agent.se3_poses(ground_truth=True)
+            if truth is not None:
+                write_tum(sub / f"{dirs[k]}_GT.tum", Trajectory.from_poses(agent.name, agent.stamps_ns, truth))
+        return write
+
+    def inter_part() -> None:
+        inter = graph.inter.to_se3() if records == "3d" else graph.inter
+        write_inter_lc_dat(folder / "inter_agent_lc.dat", inter, precision)
+
+    def agents_file_part() -> None:
         entries = [{"folder": d, "name": a.name, **({"source": sources[a.name]} if sources and a.name in sources else {})}
                    for d, a in zip(dirs, graph.agents)]
         (folder / AGENTS_FILE).write_text(json.dumps({"format": _AGENTS_FORMAT, "agents": entries}, indent=2) + "\n",
                                           encoding="utf-8")
+
+    parts = [agent_part(k) for k in range(len(graph.agents))] + [inter_part]
+    if any(d != a.name for d, a in zip(dirs, graph.agents)):
+        parts.append(agents_file_part)
+    return parts
 
 
 def _read_agents_file(folder: Path) -> list[tuple[str, str]] | None:
