@@ -54,9 +54,9 @@ def default_jobs() -> int:
     other tasks keep busy right now (at least 1).
 
     The parallel path does more work than one process (forking, copy-on-write and fresh pages in the
-    workers: about 4x the page faults and +25 % CPU time on Multi10000x5), which pays off only with
-    idle cores; on a machine whose cores are all taken it made ``studio synth`` 1.2-1.3x slower than
-    ``--jobs 1`` (benchmarks/bench_busy.py), so there it runs in one process.
+    worker: about 3x the page faults and +20-25 % CPU time on Multi10000x5 at R = 6 m), which pays
+    off only with idle cores; on a machine whose cores are all taken it made ``studio synth`` up to
+    1.2x slower than ``--jobs 1`` (benchmarks/bench_busy.py), so there it runs in one process.
     """
     cores = available_cores()
     busy = _other_runnable()
