@@ -246,3 +246,22 @@ def test_a_process_that_ignores_ctrl_c_still_ignores_it_in_deferred_sections():
     with pytest.raises(KeyboardInterrupt):  # the default handler: raised after the section
         with interrupts_deferred():
             os.kill(os.getpid(), signal.SIGINT)
+
+
+def test_ctrl_c_while_the_command_line_loads_ends_quietly():
+    # the console script's entry point; Ctrl-C arrives while studio.cli (numpy, typer, ...) is imported
+    code = ("import builtins, os, signal\n"
+            "real = builtins.__import__\n"
+            "def imp(name, *args, **kwargs):\n"
+            "    if name == 'studio.cli':\n"
+            "        os.kill(os.getpid(), signal.SIGINT)\n"
+            "    return real(name, *args, **kwargs)\n"
+            "builtins.__import__ = imp\n"
+            "from studio._entry import main\n"
+            "main()\n")
+    res = subprocess.run([sys.executable, "-c", code, "--version"], capture_output=True, text=True,
+                         env=dict(os.environ, CI="true"), timeout=120)
+    assert res.returncode == 130 and res.stderr == "" and res.stdout == ""
+    ok = subprocess.run([sys.executable, "-c", "from studio._entry import main; main()", "--version"],
+                        capture_output=True, text=True, env=dict(os.environ, CI="true"), timeout=120)
+    assert ok.returncode == 0 and ok.stdout.startswith("studio ")
