@@ -2,7 +2,8 @@
 
 Every import of every module (top level, inside functions and under ``TYPE_CHECKING`` alike) is
 read with :mod:`ast`; a module may import its own package, any lower layer, and nothing else. The
-pipelines (modules directly in ``studio/``) may also use each other; ``studio.cli`` is the top.
+pipelines (modules directly in ``studio/``) may also use each other; ``studio.cli`` is the command
+line, and ``studio._entry`` (the console script's entry point, which only loads it) the top.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ REPO = Path(__file__).resolve().parents[2]
 #: Source folder -> import name (the setuptools package-dir mapping of pyproject.toml).
 ROOTS = {"studio": "studio", "generator": "studio.generator", "converters": "studio.converters"}
 
-#: Layer of each package; a pipeline is a module directly in studio/ (rank 5), the CLI is rank 6.
+#: Layer of each package; a pipeline is a module directly in studio/ (rank 5), the CLI is rank 6 and
+#: the console script's entry point rank 7.
 RANKS = {
     "studio.core": 0,
     "studio.generator": 1,
@@ -26,7 +28,7 @@ RANKS = {
     "studio.solvers": 3,
     "studio.recording": 4,
 }
-PIPELINE_RANK, CLI_RANK = 5, 6
+PIPELINE_RANK, CLI_RANK, ENTRY_RANK = 5, 6, 7
 
 
 def _module_name(path: Path) -> str:
@@ -48,6 +50,8 @@ def _unit(module: str) -> tuple[str, int]:
             return pkg, rank
     if module == "studio.cli":
         return module, CLI_RANK
+    if module == "studio._entry":
+        return module, ENTRY_RANK
     return module, PIPELINE_RANK
 
 
