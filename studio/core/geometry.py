@@ -52,12 +52,12 @@ def yaw_to_quat_xyzw(theta: np.ndarray) -> np.ndarray:
     numpy's vectorised sin/cos may differ from libm by an ulp on some CPUs; kollagen's files are made
     with libm, so the values are computed with :mod:`math` to stay bit-exact.
     """
-    half, spread = distinct_if_repeated(np.asarray(theta, dtype=np.float64) / 2)  # ground truth: few headings
-    values = half.tolist()
-    out = np.zeros((len(values), 4))
-    out[:, 2] = [math.sin(h) for h in values]
-    out[:, 3] = [math.cos(h) for h in values]
-    return out if spread is None else out[spread]
+    half = np.asarray(theta, dtype=np.float64) / 2
+    cos_half, sin_half = libm_cos_sin(half)
+    out = np.zeros((len(half), 4))
+    out[:, 2] = sin_half
+    out[:, 3] = cos_half
+    return out
 
 
 def upper_to_matrix(upper: np.ndarray, dim: int) -> np.ndarray:
@@ -135,13 +135,13 @@ def is_planar_se3(poses: np.ndarray, tolerance: float = 1e-9) -> bool:
 
 
 def libm_cos_sin(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """libm's cos and sin of every entry (see :func:`yaw_to_quat_xyzw`), once per distinct value."""
-    bits = np.ascontiguousarray(theta, dtype=np.float64).view(np.int64)  # keeps -0.0 apart from 0.0
-    uniq, inv = np.unique(bits, return_inverse=True)
-    lst = uniq.view(np.float64).tolist()
-    c = np.array([math.cos(t) for t in lst])
-    s = np.array([math.sin(t) for t in lst])
-    return c[inv], s[inv]
+    """libm's cos and sin of every entry (see :func:`yaw_to_quat_xyzw`), once per distinct value
+    where the values repeat (ground-truth headings on a grid)."""
+    values, spread = distinct_if_repeated(theta)  # by bit pattern: -0.0 keeps its sign
+    lst = values.tolist()
+    c = np.array([math.cos(t) for t in lst], dtype=np.float64)
+    s = np.array([math.sin(t) for t in lst], dtype=np.float64)
+    return (c, s) if spread is None else (c[spread], s[spread])
 
 
 def relative_planar_pose(x_from, y_from, th_from, x_to, y_to, th_to):

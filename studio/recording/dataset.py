@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from studio.core.errors import FormatError, OutputError
+from studio.core.geometry import is_planar_se3
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
 from studio.core.progress import Progress, report
 from studio.core.interrupts import interrupts_deferred
@@ -71,6 +72,7 @@ if TYPE_CHECKING:
 __all__ = [
     "MANY_INTER_LOOP_CLOSURES",
     "fixed_id",
+    "hash_columns",
     "RecordResult",
     "inter_pair_path",
     "inter_style",
@@ -155,25 +157,25 @@ def recording_id_for(graph: PoseGraph) -> str:
     """A UUID derived from the graph's columns (SE3 form): the same dataset gives the same id."""
     g = graph.to_se3()
     h = hashlib.sha256()
-
-    def add(arr: np.ndarray | None) -> None:
-        if arr is None:
-            h.update(b"none")
-        else:
-            a = np.ascontiguousarray(arr)
-            h.update(f"{a.dtype.str}{a.shape}".encode())
-            h.update(a.tobytes())
-
     for a in g.agents:
         h.update(a.name.encode() + b"\0")
-        for col in (a.stamps_ns, a.initial, a.ground_truth):
-            add(col)
+        hash_columns(h, a.stamps_ns, a.initial, a.ground_truth)
         for e in (a.odometry, a.loop_closures):
-            add(e.from_index)
-            add(e.to_index)
-    for col in (g.inter.from_agent, g.inter.from_index, g.inter.to_agent, g.inter.to_index):
-        add(col)
+            hash_columns(h, e.from_index, e.to_index)
+    hash_columns(h, g.inter.from_agent, g.inter.from_index, g.inter.to_agent, g.inter.to_index)
     return str(uuid.uuid5(_RECORDING_ID_NAMESPACE, h.hexdigest()))
+
+
+def hash_columns(h: Any, *columns: np.ndarray | None) -> None:
+    """Feed each column to the hash ``h`` (hashlib): its dtype, shape and bytes, or ``none`` for a
+    missing one. The recording ids derived from content (dataset, evaluation, solve) all use it."""
+    for col in columns:
+        if col is None:
+            h.update(b"none")
+            continue
+        a = np.ascontiguousarray(col)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
 
 
 def has_real_stamps(graph: PoseGraph) -> bool:
@@ -185,11 +187,8 @@ def _is_planar(graph: PoseGraph) -> bool:
     """SE2 graphs, and SE3 graphs whose poses all lie in z = 0 and turn about z only."""
     if graph.kind is PoseKind.SE2:
         return True
-    for a in graph.agents:
-        for poses in (a.initial, a.ground_truth):
-            if poses is not None and (np.any(poses[:, 2] != 0.0) or np.any(poses[:, 3:5] != 0.0)):
-                return False
-    return True
+    return all(is_planar_se3(poses, tolerance=0.0) for a in graph.agents for poses in (a.initial, a.ground_truth)
+               if poses is not None)
 
 
 def pose_kind_of(graph: PoseGraph) -> PoseKind:
