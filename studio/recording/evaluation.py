@@ -35,7 +35,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from studio.recording.colours import ERROR_SCALE_RGB, GROUND_TRUTH_GREY
-from studio.recording.dataset import agent_colour, fixed_id
+from studio.recording.dataset import agent_colour, fixed_id, hash_columns
 from studio.recording.entities import (
     APPLICATION_ID,
     EVALUATION_ESTIMATE,
@@ -90,24 +90,13 @@ def evaluation_recording_id(summary_markdown: str, series: Sequence[ErrorSeries]
     """
     h = hashlib.sha256(b"cslam-studio evaluation\0")
     h.update(summary_markdown.encode() + b"\0")
-
-    def add(arr: np.ndarray | None) -> None:
-        if arr is None:
-            h.update(b"none")
-            return
-        a = np.ascontiguousarray(arr)
-        h.update(f"{a.dtype.str}{a.shape}".encode())
-        h.update(a.tobytes())
-
     for s in series:
         h.update(s.agent.encode() + b"\0")
-        add(s.node_indices)
-        add(s.stamps_ns)
+        hash_columns(h, s.node_indices, s.stamps_ns)
         for metric in sorted(s.values):
             h.update(metric.encode() + b"\0")
-            add(s.values[metric])
-        add(s.ground_truth_xyz)
-        add(s.estimate_xyz)
+            hash_columns(h, s.values[metric])
+        hash_columns(h, s.ground_truth_xyz, s.estimate_xyz)
     return str(uuid.uuid5(_BLUEPRINT_NAMESPACE, h.hexdigest()))
 
 

@@ -45,11 +45,11 @@ def _error_colours(err: np.ndarray, scale: float) -> np.ndarray:
 def solve_recording_id(offsets: np.ndarray, kind: PoseKind, iterates: Sequence[tuple[int, np.ndarray]],
                        chi2_history: Sequence[float]) -> str:
     """A UUID derived from the run's columns (for a graph without a dataset recording to join)."""
+    from studio.recording.dataset import hash_columns
+
     h = hashlib.sha256(f"cslam-studio solve {kind.value}".encode())
-    for arr in [np.asarray(offsets, dtype=np.int64), np.asarray(chi2_history, dtype=np.float64)] + [
-            np.ascontiguousarray(p) for _, p in iterates]:
-        h.update(f"{arr.dtype.str}{arr.shape}".encode())
-        h.update(arr.tobytes())
+    hash_columns(h, np.asarray(offsets, dtype=np.int64), np.asarray(chi2_history, dtype=np.float64),
+                 *(p for _, p in iterates))
     h.update(repr([k for k, _ in iterates]).encode())
     return str(uuid.uuid5(_NAMESPACE, h.hexdigest()))
 
