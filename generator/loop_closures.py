@@ -17,13 +17,11 @@ import numpy as np
 
 from studio.core.geometry import relative_planar_pose
 from studio.core.model import Edges, InterAgentEdges, PoseKind
-from studio.core.parallel import parallel_map
-from studio.core.progress import Progress, report
 from studio.generator.config import SynthConfig
 from studio.generator.rng import MT19937Stream, UniformTape, polar_normal
 from studio.generator.walk import _round_half_away, _round_to_int, _Walk
 
-__all__ = ["discrete_circle", "agent_pairs", "intra_loop_closures", "inter_loop_closures"]
+__all__ = ["discrete_circle", "agent_pairs", "intra_loop_closures"]
 
 
 def discrete_circle(radius: int) -> np.ndarray:
@@ -440,13 +438,6 @@ class _InterPairs:
         )
 
 
-def _inter_loop_closures(walks, cells, cfg: SynthConfig, jobs: int | None, progress: Progress | None = None):
-    pairs = _InterPairs(walks, cells, cfg)
-    done = parallel_map(pairs, len(pairs), jobs,
-                        on_done=lambda d, n: report(progress, "synth: inter-agent loop closures", d, n, "pairs"))
-    return pairs.edges(done)
-
-
 def _diag_information(n: int, position: float, angle: float) -> np.ndarray:
     info = np.zeros((n, 6))
     info[:, 0] = position
@@ -456,4 +447,3 @@ def _diag_information(n: int, position: float, angle: float) -> np.ndarray:
 
 
 intra_loop_closures = _intra_loop_closures
-inter_loop_closures = _inter_loop_closures

@@ -16,9 +16,9 @@ import numpy as np
 
 from studio.core.geometry import planar_poses_to_se3, relative_planar_pose, se2_information_to_se3
 from studio.core.errors import GraphError
-from studio.io.g2o import G2oDocument, g2o_text
+from studio.io.g2o import G2oDocument, write_g2o
 from studio.io.multig2o import Records
-from studio.io.tum import tum_text
+from studio.io.tum import write_tum
 from studio.core.trajectory import Trajectory
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
 from studio.core.units import NS_PER_S
@@ -86,8 +86,7 @@ def write_single_g2o(graph: PoseGraph, path: str | os.PathLike, *, records: Reco
         doc = G2oDocument(PoseKind.SE3, doc.vertex_ids, planar_poses_to_se3(doc.vertex_poses), doc.edge_from,
                           doc.edge_to, planar_poses_to_se3(doc.edge_measurements),
                           se2_information_to_se3(doc.edge_information_upper))
-    with open(path, "wb") as f:
-        f.write(g2o_text(doc))
+    write_g2o(path, doc)
 
 
 def _se3_poses(agent: AgentGraph, ground_truth: bool) -> np.ndarray:
@@ -101,5 +100,4 @@ def write_single_tum(graph: PoseGraph, path: str | os.PathLike, *, ground_truth:
     """Concatenated ground truth (or initial estimate), timestamps = concatenated vertex ids."""
     poses = np.concatenate([_se3_poses(a, ground_truth) for a in graph.agents])
     stamps = np.arange(len(poses), dtype=np.int64) * NS_PER_S
-    with open(Path(path), "wb") as f:
-        f.write(tum_text(Trajectory.from_poses(Path(path).stem, stamps, poses)))
+    write_tum(path, Trajectory.from_poses(Path(path).stem, stamps, poses))
