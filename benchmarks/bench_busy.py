@@ -31,7 +31,6 @@ import shutil
 import statistics
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -39,6 +38,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from studio.generator.presets import preset  # noqa: E402
 from studio.io.synth_config import synth_config_to_json  # noqa: E402
+
+from timing import run_usage, work_folder  # noqa: E402  (benchmarks/timing.py, beside this script)
 
 NEIGHBOUR_CODE = {
     "cpu": "while True:\n    pass\n",
@@ -111,13 +112,7 @@ def stop_neighbours(procs: list[subprocess.Popen]) -> None:
 
 def run_once(cmd: list[str]) -> dict[str, float]:
     """Wall seconds and the rusage of one run (the process and every worker it waited for)."""
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
-    err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
-    if os.waitstatus_to_exitcode(status):
-        raise SystemExit(f"{' '.join(cmd)} failed: {err[-500:]}")
+    wall, usage = run_usage(cmd)
     return {"wall": wall, "cpu": usage.ru_utime + usage.ru_stime, "minflt": usage.ru_minflt,
             "nivcsw": usage.ru_nivcsw, "majflt": usage.ru_majflt}
 
@@ -145,35 +140,33 @@ def main() -> None:
     print(f"# {time.strftime('%Y-%m-%d %H:%M')}  {cores} cores  python {sys.version.split()[0]}  "
           f"{args.preset} R={args.radius:g} m  --jobs 1 vs --jobs {' / '.join(map(str, args.jobs))}")
     print(f"{'neighbours':10} {'jobs':>4} {'load':>5} {'wall s':>7} {'cpu s':>6} {'minflt':>8} {'invcsw':>7}  ratio")
-    with tempfile.TemporaryDirectory() as tmp_dir:
-        work = Path(tmp_dir) if args.out is None else args.out
-        work.mkdir(parents=True, exist_ok=True)
-        cfg = work / "busy.json"
-        cfg.write_text(json.dumps(doc, indent=2))
-        for kind in args.neighbours:
-            procs = start_neighbours(neighbour_plan(kind, cores), work)
-            try:
-                time.sleep(1.0)
-                load = os.getloadavg()[0]
-                settings = [1, *[j for j in args.jobs if j != 1]]
-                rows: dict[int, list[dict[str, float]]] = {j: [] for j in settings}
-                for k in range(args.repeat):
-                    for jobs in settings:
-                        out = work / f"run_{kind}_{jobs}_{k}"
-                        rows[jobs].append(run_once([studio, "synth", str(cfg), "-o", str(out), "--no-rrd", "-q",
-                                                    "--jobs", str(jobs)]))
-                        shutil.rmtree(out)
-            finally:
-                stop_neighbours(procs)
-                for p in work.glob("neighbour*"):
-                    shutil.rmtree(p, ignore_errors=True)
-            med = {j: {key: statistics.median(r[key] for r in runs) for key in runs[0]} for j, runs in rows.items()}
-            for jobs in settings:
-                m = med[jobs]
-                ratio = f"{m['wall'] / med[1]['wall']:.2f}x" if jobs != 1 else ""
-                print(f"{kind:10} {jobs:>4} {load:5.1f} {m['wall']:7.2f} {m['cpu']:6.2f} {m['minflt']:8.0f} "
-                      f"{m['nivcsw']:7.0f}  {ratio}", flush=True)
-            time.sleep(2.0)
+    work = work_folder(args.out)
+    cfg = work / "busy.json"
+    cfg.write_text(json.dumps(doc, indent=2))
+    for kind in args.neighbours:
+        procs = start_neighbours(neighbour_plan(kind, cores), work)
+        try:
+            time.sleep(1.0)
+            load = os.getloadavg()[0]
+            settings = [1, *[j for j in args.jobs if j != 1]]
+            rows: dict[int, list[dict[str, float]]] = {j: [] for j in settings}
+            for k in range(args.repeat):
+                for jobs in settings:
+                    out = work / f"run_{kind}_{jobs}_{k}"
+                    rows[jobs].append(run_once([studio, "synth", str(cfg), "-o", str(out), "--no-rrd", "-q",
+                                                "--jobs", str(jobs)]))
+                    shutil.rmtree(out)
+        finally:
+            stop_neighbours(procs)
+            for p in work.glob("neighbour*"):
+                shutil.rmtree(p, ignore_errors=True)
+        med = {j: {key: statistics.median(r[key] for r in runs) for key in runs[0]} for j, runs in rows.items()}
+        for jobs in settings:
+            m = med[jobs]
+            ratio = f"{m['wall'] / med[1]['wall']:.2f}x" if jobs != 1 else ""
+            print(f"{kind:10} {jobs:>4} {load:5.1f} {m['wall']:7.2f} {m['cpu']:6.2f} {m['minflt']:8.0f} "
+                  f"{m['nivcsw']:7.0f}  {ratio}", flush=True)
+        time.sleep(2.0)
 
 
 if __name__ == "__main__":

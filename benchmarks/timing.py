@@ -23,6 +23,7 @@ import subprocess
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 _GNU_TIME = next((p for p in ("/usr/bin/time", shutil.which("gtime")) if p and os.access(p, os.X_OK)), None)
 
@@ -44,27 +45,35 @@ def compile_studio() -> None:
     _compiled.append(True)
 
 
-def run_timed(cmd: list[str]) -> tuple[float, float]:
-    """Wall seconds and peak RSS (MiB) of one run of ``cmd``: the largest of the process and the
-    workers it waited for. Its stderr goes to a temporary file (never a pipe that could fill while
-    this waits), and its tail is shown when the run fails. The studio's bytecode is compiled first
-    (:func:`compile_studio`)."""
+def run_usage(cmd: list[str], *, shown: list[str] | None = None) -> tuple[float, Any]:
+    """Wall seconds and the ``resource.struct_rusage`` of one run of ``cmd`` (the process and the
+    workers it waited for). Its stderr goes to a temporary file (never a pipe that could fill while
+    this waits), and its tail is shown when the run fails, under the name ``shown`` (default
+    ``cmd``). The studio's bytecode is compiled first (:func:`compile_studio`)."""
     compile_studio()
-    with tempfile.TemporaryFile() as err, tempfile.NamedTemporaryFile("r") as peak_file:
-        full = [_GNU_TIME, "-f", "%M", "-o", peak_file.name, *cmd] if _GNU_TIME else cmd
+    with tempfile.TemporaryFile() as err:
         t0 = time.perf_counter()
-        proc = subprocess.Popen(full, stdout=subprocess.DEVNULL, stderr=err)
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err)
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - t0
         code = os.waitstatus_to_exitcode(status)
         if code:
             err.seek(0)
             tail = err.read().decode(errors="replace")[-500:]
-            raise SystemExit(f"{' '.join(cmd)} failed with exit code {code}: {tail}")
-        if _GNU_TIME:
-            lines = [ln for ln in peak_file.read().split() if ln.strip().isdigit()]
-            return wall, int(lines[-1]) / 1024.0
-    return wall, usage.ru_maxrss / 1024.0
+            raise SystemExit(f"{' '.join(shown or cmd)} failed with exit code {code}: {tail}")
+    return wall, usage
+
+
+def run_timed(cmd: list[str]) -> tuple[float, float]:
+    """Wall seconds and peak RSS (MiB) of one run of ``cmd`` (:func:`run_usage`): the largest of
+    the process and the workers it waited for."""
+    if _GNU_TIME is None:
+        wall, usage = run_usage(cmd)
+        return wall, usage.ru_maxrss / 1024.0
+    with tempfile.NamedTemporaryFile("r") as peak_file:
+        wall, _ = run_usage([_GNU_TIME, "-f", "%M", "-o", peak_file.name, *cmd], shown=cmd)
+        lines = [ln for ln in peak_file.read().split() if ln.strip().isdigit()]
+        return wall, int(lines[-1]) / 1024.0
 
 
 def work_folder(out: Path | None) -> Path:
