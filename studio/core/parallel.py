@@ -10,7 +10,6 @@ Also the allocator tuning of the command line (glibc only; never done on import)
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import multiprocessing
 import os
 import signal
@@ -150,7 +149,9 @@ def _libc():
     if not sys.platform.startswith("linux"):
         return None
     try:
-        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        # the symbols already loaded into this process (glibc's among them); find_library would run
+        # `ldconfig -p` in a subprocess, a few milliseconds in every forked worker
+        return ctypes.CDLL(None)
     except OSError:
         return None
 

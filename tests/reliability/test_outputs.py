@@ -265,3 +265,22 @@ def test_ctrl_c_while_the_command_line_loads_ends_quietly():
     ok = subprocess.run([sys.executable, "-c", "from studio._entry import main; main()", "--version"],
                         capture_output=True, text=True, env=dict(os.environ, CI="true"), timeout=120)
     assert ok.returncode == 0 and ok.stdout.startswith("studio ")
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts threads through Linux's /proc")
+def test_console_script_keeps_numpy_to_one_blas_thread():
+    # the studio works in processes; an idle OpenBLAS thread spinning after numpy loads took CPU from them
+    code = ("import os\n"
+            "os.environ.pop('OPENBLAS_NUM_THREADS', None)\n"
+            "from studio._entry import limit_blas_threads\n"
+            "limit_blas_threads()\n"
+            "import numpy\n"
+            "print(os.environ['OPENBLAS_NUM_THREADS'], len(os.listdir('/proc/self/task')))\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                         env=dict(os.environ, CI="true"))
+    assert res.stdout.split() == ["1", "1"], res.stderr
+    kept = subprocess.run([sys.executable, "-c", "import os\nfrom studio._entry import limit_blas_threads\n"
+                           "limit_blas_threads()\nprint(os.environ['OPENBLAS_NUM_THREADS'])\n"],
+                          capture_output=True, text=True, timeout=120,
+                          env=dict(os.environ, CI="true", OPENBLAS_NUM_THREADS="3"))
+    assert kept.stdout.strip() == "3"
