@@ -22,10 +22,10 @@ from typing import IO
 import numpy as np
 
 from studio.core.errors import FormatError
-from studio.io.textfmt import TextColumn, float_columns, float_rows, int_column, join_columns, literal, write_text
+from studio.io.textfmt import TextColumn, float_columns, float_rows, int_column, join_array, literal, write_text
 from studio.core.model import PoseKind
 
-__all__ = ["G2oDocument", "write_g2o", "read_g2o", "g2o_text", "SE3_INFO_ZERO_LITERAL", "SE3_POSE_ZERO_LITERAL",
+__all__ = ["G2oDocument", "write_g2o", "read_g2o", "g2o_text", "g2o_pieces", "SE3_INFO_ZERO_LITERAL", "SE3_POSE_ZERO_LITERAL",
            "MAX_TEXT_BYTES"]
 
 _TAGS = {
@@ -66,18 +66,23 @@ def _info_texts(info: np.ndarray, kind: PoseKind) -> list[TextColumn]:
     return float_rows(info, ["%.17g"] * 21, SE3_INFO_ZERO_LITERAL)
 
 
+def g2o_pieces(doc: G2oDocument) -> list[np.ndarray]:
+    """The text of a g2o file in two pieces (vertices, edges), as :func:`join_array` gives them."""
+    vtag, etag = _TAGS[doc.kind]
+    vertices = join_array([literal(vtag), int_column(doc.vertex_ids), *_pose_texts(doc.vertex_poses, doc.kind)])
+    edges = join_array([literal(etag), int_column(doc.edge_from), int_column(doc.edge_to),
+                        *_pose_texts(doc.edge_measurements, doc.kind),
+                        *_info_texts(doc.edge_information_upper, doc.kind)])
+    return [vertices, edges]
+
+
 def g2o_text(doc: G2oDocument) -> bytes:
     """The bytes of a g2o file."""
-    vtag, etag = _TAGS[doc.kind]
-    vertices = join_columns([literal(vtag), int_column(doc.vertex_ids), *_pose_texts(doc.vertex_poses, doc.kind)])
-    edges = join_columns([literal(etag), int_column(doc.edge_from), int_column(doc.edge_to),
-                          *_pose_texts(doc.edge_measurements, doc.kind),
-                          *_info_texts(doc.edge_information_upper, doc.kind)])
-    return vertices + edges
+    return b"".join(piece.tobytes() for piece in g2o_pieces(doc))
 
 
 def write_g2o(target: str | os.PathLike | IO[str], doc: G2oDocument) -> None:
-    write_text(target, g2o_text(doc))
+    write_text(target, g2o_pieces(doc))
 
 
 #: Text inputs larger than this are refused before reading: reading holds the file about four times

@@ -18,7 +18,7 @@ import numpy as np
 
 from studio.core.errors import FormatError
 from studio.io.g2o import SE3_INFO_ZERO_LITERAL, SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
-from studio.io.textfmt import float_columns, float_rows, int_column, join_columns, write_text
+from studio.io.textfmt import float_columns, float_rows, int_column, join_array, write_text
 from studio.core.model import InterAgentEdges, PoseKind
 
 __all__ = ["write_inter_lc_dat", "read_inter_lc_dat", "inter_lc_text", "Precision"]
@@ -26,8 +26,7 @@ __all__ = ["write_inter_lc_dat", "read_inter_lc_dat", "inter_lc_text", "Precisio
 Precision = Literal["kollagen", "full"]
 
 
-def inter_lc_text(inter: InterAgentEdges, precision: Precision = "kollagen") -> bytes:
-    """The bytes of the file."""
+def _inter_lc_array(inter: InterAgentEdges, precision: Precision) -> np.ndarray:
     fmt = "%f" if precision == "kollagen" else "%.17g"
     if inter.kind is PoseKind.SE3:
         meas = float_columns(inter.measurements, [fmt] * 7, SE3_POSE_ZERO_LITERAL)
@@ -37,12 +36,17 @@ def inter_lc_text(inter: InterAgentEdges, precision: Precision = "kollagen") -> 
         info = float_rows(inter.information_upper, [fmt] * 6, [None, "0.0", "0.0", None, "0.0", None])
     ids = [int_column(inter.from_agent + 1), int_column(inter.from_index),
            int_column(inter.to_agent + 1), int_column(inter.to_index)]
-    return join_columns([*ids, *meas, *info])
+    return join_array([*ids, *meas, *info])
+
+
+def inter_lc_text(inter: InterAgentEdges, precision: Precision = "kollagen") -> bytes:
+    """The bytes of the file."""
+    return _inter_lc_array(inter, precision).tobytes()
 
 
 def write_inter_lc_dat(target: str | os.PathLike | IO[str], inter: InterAgentEdges,
                        precision: Precision = "kollagen") -> None:
-    write_text(target, inter_lc_text(inter, precision))
+    write_text(target, _inter_lc_array(inter, precision))
 
 
 def read_inter_lc_dat(source: str | os.PathLike | IO[str], kind: PoseKind | None = None) -> InterAgentEdges:

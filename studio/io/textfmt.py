@@ -15,8 +15,11 @@ numbers are formatted here in bulk, as columns of bytes, with the same correctly
 * Numbers outside the exact fast range (``|v| >= 1e17`` or ``< 1e-11`` for ``%.17g``; non-finite
   values) are formatted by Python's ``%``, which gives C's digits too.
 
-A :class:`TextColumn` is left-aligned bytes with a length per row; :func:`join_columns` lays out
-whole lines (fields separated by single spaces) and returns the file's bytes in one piece. Columns
+A :class:`TextColumn` is left-aligned bytes with a length per row, padded with NUL bytes;
+:func:`join_columns` lays out whole lines (fields separated by single spaces) and returns the file's
+bytes in one piece (:func:`join_array`: as a numpy array, which a file takes without a copy). Text never
+holds a NUL byte, so the characters of the lines are the non-NUL bytes of the laid-out fields: one
+pass over them, instead of a mask made from every field's length. Columns
 that kollagen writes as a literal ``0.0`` (z, qx, qy and off-diagonal information entries of planar
 data) pass ``zero="0.0"``: a positive zero is then written that way.
 """
@@ -32,7 +35,7 @@ import numpy as np
 from studio.core.repeats import distinct_if_repeated
 
 __all__ = ["TextColumn", "literal", "int_column", "digit_matrix", "float_columns", "float_rows", "concat",
-           "join_columns", "write_text", "format_float"]
+           "join_columns", "join_array", "write_text", "format_float"]
 
 _WIDTH = 24  # the longest %.17g text: "-1.2345678901234567e-308"
 _FIX_DECIMALS = 6  # %f
@@ -44,7 +47,8 @@ _ONE = np.uint64(1)
 
 @dataclass(frozen=True, eq=False)
 class TextColumn:
-    """One text field per row: ``chars`` ``(n, width)`` uint8, left-aligned, ``lengths`` ``(n,)``.
+    """One text field per row: ``chars`` ``(n, width)`` uint8, left-aligned and padded with NUL bytes
+    (every byte past a row's length is 0: :func:`join_array` relies on it), ``lengths`` ``(n,)``.
 
     A column of one row stands for the same text on every row.
     """
@@ -119,7 +123,9 @@ def int_column(values: np.ndarray) -> TextColumn:
     src = pos - sign + (places - ndig)[:, None]
     chars = np.take_along_axis(digits, np.clip(src, 0, places - 1), axis=1)
     chars[neg, 0] = ord("-")
-    return TextColumn(chars, ndig + neg)
+    lengths = ndig + neg
+    chars[pos >= lengths[:, None]] = 0  # NUL padding
+    return TextColumn(chars, lengths)
 
 
 def _mul_128(m: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -236,6 +242,12 @@ def _g17_text(digits: np.ndarray, x: np.ndarray, neg: np.ndarray, ok: np.ndarray
         block[:] = np.frombuffer(text, dtype=np.uint8)
         block[:, positions] = columns[rows, : len(positions)]
         chars[rows, : len(text)] = block
+    # fixed notation lays out all 17 digits: where trailing zeros were dropped, NUL the rest
+    cut = np.flatnonzero(ok & fixed & (nd < 17))
+    if len(cut):
+        tail = chars[cut]
+        tail[np.arange(tail.shape[1])[None, :] >= lengths[cut][:, None]] = 0
+        chars[cut] = tail
     return chars, lengths
 
 
@@ -260,7 +272,9 @@ def _f6_text(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     dot = ndig_int[:, None]
     idx = np.where(j < dot, j + skip, np.where(j == dot, places, j - 1 + skip))
     src = np.concatenate([digits, np.full((n, 1), ord("."), dtype=np.uint8)], axis=1)
-    return np.take_along_axis(src, np.clip(idx, 0, places), axis=1), lengths, ok
+    body = np.take_along_axis(src, np.clip(idx, 0, places), axis=1)
+    body[j >= lengths[:, None]] = 0  # NUL padding
+    return body, lengths, ok
 
 
 def format_float(value: float, fmt: str = "%.17g") -> str:
@@ -311,6 +325,7 @@ def _with_zero(col: TextColumn, values: np.ndarray, zero: str | None) -> TextCol
     width = max(col.chars.shape[1], len(raw))
     chars = np.zeros((len(col), width), dtype=np.uint8)
     chars[:, : col.chars.shape[1]] = col.chars
+    chars[where] = 0
     chars[where, : len(raw)] = raw
     lengths = np.where(where, len(raw), col.lengths)
     return TextColumn(chars, lengths)
@@ -388,32 +403,23 @@ def _joined(columns: Sequence[TextColumn]) -> TextColumn:
     return _from_strings(lines)
 
 
-def _layout(columns: Sequence[TextColumn], n: int, sep: bytes, end: bytes) -> tuple[np.ndarray, np.ndarray]:
-    """Every field in its padded slot, a separator after each but the last, ``end`` at the end; and
-    the mask of the characters that are text (not padding)."""
+def _layout(columns: Sequence[TextColumn], n: int, sep: bytes, end: bytes) -> np.ndarray:
+    """Every field in its slot (as wide as its longest text, NUL-padded), a separator after each but
+    the last, ``end`` at the end: ``(n, total)`` bytes whose non-NUL bytes are the lines."""
     widths = [int(c.lengths.max()) if len(c) else 0 for c in columns]
     total = sum(widths) + len(sep) * (len(columns) - 1) + len(end)
     chars = np.empty((n, total), dtype=np.uint8)
-    # per output column: its field (the last one, of length 65535, is the separators and the end) and
-    # its place in the field; a character is text where its place is below the row's field length
-    field = np.full(total, len(columns), dtype=np.int64)
-    place = np.zeros(total, dtype=np.uint16)
-    lengths = np.full((n, len(columns) + 1), 65535, dtype=np.uint16)
     sep_raw = np.frombuffer(sep, dtype=np.uint8)
     pos = 0
     for i, (col, w) in enumerate(zip(columns, widths)):
         chars[:, pos : pos + w] = col.chars[:, :w]
-        lengths[:, i] = col.lengths
-        field[pos : pos + w] = i
-        place[pos : pos + w] = np.arange(w)
         pos += w
         if i < len(columns) - 1 and len(sep):
             chars[:, pos : pos + len(sep)] = sep_raw
             pos += len(sep)
     if end:
         chars[:, pos:] = np.frombuffer(end, dtype=np.uint8)
-    mask = lengths[:, field] > place
-    return chars, mask
+    return chars
 
 
 def concat(columns: Sequence[TextColumn]) -> TextColumn:
@@ -430,20 +436,28 @@ def concat(columns: Sequence[TextColumn]) -> TextColumn:
     return TextColumn(chars, offset)
 
 
-def join_columns(columns: Sequence[TextColumn], *, sep: str = " ", end: str = "\n") -> bytes:
-    """The text of whole lines: per row, the columns' texts separated by ``sep``, then ``end``.
-    Columns of one row repeat on every row."""
+def join_array(columns: Sequence[TextColumn], *, sep: str = " ", end: str = "\n") -> np.ndarray:
+    """The text of whole lines as a flat uint8 array: per row, the columns' texts separated by
+    ``sep``, then ``end``. Columns of one row repeat on every row."""
     n = max(len(c) for c in columns)
     if n == 0 or any(len(c) == 0 for c in columns):
-        return b""
-    chars, mask = _layout(columns, n, sep.encode("ascii"), end.encode("ascii"))
-    return chars[mask].tobytes()
+        return np.zeros(0, dtype=np.uint8)
+    chars = _layout(columns, n, sep.encode("ascii"), end.encode("ascii"))
+    return chars[chars != 0]
 
 
-def write_text(target: str | os.PathLike | IO[str], data: bytes) -> None:
-    """Write ASCII text (``join_columns`` output) to an open text stream or to a new file."""
+def join_columns(columns: Sequence[TextColumn], *, sep: str = " ", end: str = "\n") -> bytes:
+    """:func:`join_array` as bytes."""
+    return join_array(columns, sep=sep, end=end).tobytes()
+
+
+def write_text(target: str | os.PathLike | IO[str], data: bytes | np.ndarray | Sequence[bytes | np.ndarray]) -> None:
+    """Write ASCII text (:func:`join_columns` or :func:`join_array` output, or a list of pieces, one
+    after the other) to an open text stream or to a new file."""
+    pieces = [data] if isinstance(data, (bytes, np.ndarray)) else list(data)
     if hasattr(target, "write"):
-        target.write(data.decode("ascii"))
+        target.write("".join(bytes(p).decode("ascii") for p in pieces))
     else:
         with open(target, "wb") as f:
-            f.write(data)
+            for p in pieces:
+                f.write(p)

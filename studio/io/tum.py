@@ -23,7 +23,7 @@ import numpy as np
 from studio.core.errors import FormatError
 from studio.core.trajectory import Trajectory
 from studio.io.g2o import SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
-from studio.io.textfmt import (TextColumn, concat, digit_matrix, float_columns, int_column, join_columns, literal,
+from studio.io.textfmt import (TextColumn, concat, digit_matrix, float_columns, int_column, join_array, literal,
                                write_text)
 from studio.core.units import NS_PER_S
 
@@ -44,14 +44,18 @@ def format_stamps(stamps_ns: np.ndarray) -> TextColumn:
     return concat([sign, int_column(sec), literal("."), decimals])
 
 
+def _tum_array(traj: Trajectory) -> np.ndarray:
+    body = float_columns(traj.poses_xyz_quat_xyzw, ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
+    return join_array([format_stamps(traj.stamps_ns), *body])
+
+
 def tum_text(traj: Trajectory) -> bytes:
     """The bytes of a TUM file."""
-    body = float_columns(traj.poses_xyz_quat_xyzw, ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
-    return join_columns([format_stamps(traj.stamps_ns), *body])
+    return _tum_array(traj).tobytes()
 
 
 def write_tum(target: str | os.PathLike | IO[str], traj: Trajectory) -> None:
-    write_text(target, tum_text(traj))
+    write_text(target, _tum_array(traj))
 
 
 def _stamp_ns(token: str) -> int:

@@ -13,6 +13,7 @@ from studio.io.textfmt import (
     float_rows,
     format_float,
     int_column,
+    join_array,
     join_columns,
     literal,
 )
@@ -99,3 +100,34 @@ def test_format_float_single_values():
     assert format_float(0.1) == "0.10000000000000001"
     assert format_float(-2.0, "%f") == "-2.000000"
     assert format_float(1e300) == "1.0000000000000001e+300"
+
+
+def _padding_is_nul(col: TextColumn) -> bool:
+    beyond = np.arange(col.chars.shape[1])[None, :] >= np.asarray(col.lengths)[:, None]
+    return not col.chars[beyond].any()
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True, allow_subnormal=True), min_size=1, max_size=60),
+       st.lists(st.integers(-(2**63) + 1, 2**63 - 1), min_size=1, max_size=30))
+def test_every_column_is_nul_padded(floats, ints):
+    # join_array takes the lines' characters to be the non-NUL bytes of the laid-out fields
+    values = np.array(floats + [1.0, 0.5, 100.0, 0.0, 1e-3], dtype=np.float64)  # trailing zeros cut in fixed notation
+    for fmt in ("%.17g", "%f"):
+        for zero in (None, "0.0"):
+            (col,) = float_columns(values.reshape(-1, 1), [fmt], [zero])
+            assert _padding_is_nul(col), (fmt, zero)
+    (rows,) = float_rows(np.tile(values[:3], (4, 1)), ["%.17g"] * 3)
+    assert _padding_is_nul(rows)
+    ints_col = int_column(np.array(ints, dtype=np.int64))
+    assert _padding_is_nul(ints_col)
+    sign = TextColumn(np.array([[45], [0]], dtype=np.uint8), np.array([1, 0]))
+    assert _padding_is_nul(concat([sign, int_column(np.array([0, 123456])), literal("."), int_column(np.array([5, 7]))]))
+
+
+def test_join_array_matches_line_by_line_formatting():
+    rng = np.random.default_rng(3)
+    values = np.column_stack([rng.normal(size=500) * 10.0 ** rng.integers(-6, 8, 500), rng.integers(-40, 40, 500) * 0.25])
+    ids = rng.integers(-10**6, 10**6, 500)
+    text = join_array([literal("EDGE"), int_column(ids), *float_columns(values, ["%.17g", "%f"])]).tobytes()
+    assert text == b"".join(b"EDGE %d %.17g %f\n" % (i, a, b) for i, (a, b) in zip(ids.tolist(), values.tolist()))
