@@ -347,26 +347,25 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     allowed = np.where(circle.diagonal_by_rank, table, np.nan)
     # kollagen's map only holds cells first visited before the current pose. Poses are taken in
     # blocks; a block looks only at cells first visited before its end, so few hits are discarded.
-    blocks, probs = [], []
+    # Only the kept hits' probabilities and poses outlive their block (a block's hits take about ten
+    # times as much memory, and fresh memory is what a cold process pays for most).
+    probs, to_pose, from_pose = [], [], []
     bounds = np.linspace(0, n, num=min(n, 16) + 1).astype(np.int64)
     for lo, hi in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
         known = first[: np.searchsorted(first, hi)]
         k, m, rank = _enumerate_hits(cx[lo:hi], cy[lo:hi], cx[known], cy[known], circle)
         p = allowed[rank + 1]
-        kept = np.flatnonzero((known[m] < k + lo) & ~np.isnan(p))  # cells seen before, allowed offsets
+        m = known[m]  # the table entry's pose
+        k += lo  # the query's pose
+        kept = np.flatnonzero((m < k) & ~np.isnan(p))  # cells seen before, allowed offsets
         probs.append(p[kept])
-        blocks.append((lo, known, k, m, kept))
+        to_pose.append(k[kept])
+        from_pose.append(m[kept])
+        del k, m, rank, p, kept
     acc, noise, _, used = _sample(UniformTape(stream), np.concatenate(probs), None)
     stream.advance(2 * used)
-    # the accepted hits' poses, read in the blocks they came from
-    ends = np.cumsum([len(kept) for *_, kept in blocks])
-    block_of = np.searchsorted(ends, acc, side="right")
-    i_to, j_from = np.empty(len(acc), dtype=np.int64), np.empty(len(acc), dtype=np.int64)
-    for b, (lo, known, k, m, kept) in enumerate(blocks):
-        sel = block_of == b
-        hit = kept[acc[sel] - (ends[b] - len(kept))]
-        i_to[sel] = k[hit] + lo
-        j_from[sel] = known[m[hit]]
+    i_to = np.concatenate(to_pose)[acc]
+    j_from = np.concatenate(from_pose)[acc]
     dX, dY, dT = relative_planar_pose(walk.x[j_from], walk.y[j_from], walk.theta[j_from],
                            walk.x[i_to], walk.y[i_to], walk.theta[i_to])
     sp, sa = agent.std_dev_intra_loop_closure_position, agent.std_dev_intra_loop_closure_angle
