@@ -116,7 +116,7 @@ def _walk_draws(stream: MT19937Stream, n_steps: int, frag: int, retro: bool):
             p = start
         at = np.array(accepted, dtype=np.int64)
         r2_at = r2[at]
-        mult = np.sqrt(-2.0 * np.array([log(v) for v in r2_at.tolist()]) / r2_at)
+        mult = np.sqrt(-2.0 * np.fromiter(map(log, r2_at.tolist()), dtype=np.float64, count=len(r2_at)) / r2_at)
         n_pos.append(y[at] * mult)
         n_ang.append(x[at] * mult)
         stream.advance(p)

@@ -139,8 +139,8 @@ def libm_cos_sin(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     where the values repeat (ground-truth headings on a grid)."""
     values, spread = distinct_if_repeated(theta)  # by bit pattern: -0.0 keeps its sign
     lst = values.tolist()
-    c = np.array([math.cos(t) for t in lst], dtype=np.float64)
-    s = np.array([math.sin(t) for t in lst], dtype=np.float64)
+    c = np.fromiter(map(math.cos, lst), dtype=np.float64, count=len(lst))
+    s = np.fromiter(map(math.sin, lst), dtype=np.float64, count=len(lst))
     return (c, s) if spread is None else (c[spread], s[spread])
 
 

@@ -33,6 +33,7 @@ from typing import IO, Sequence
 import numpy as np
 
 from studio.core.repeats import distinct_if_repeated
+from studio.io.atomic import start_writeback
 
 __all__ = ["TextColumn", "literal", "int_column", "digit_matrix", "float_columns", "float_rows", "concat",
            "join_columns", "join_array", "write_text", "format_float"]
@@ -461,3 +462,4 @@ def write_text(target: str | os.PathLike | IO[str], data: bytes | np.ndarray | S
         with open(target, "wb") as f:
             for p in pieces:
                 f.write(p)
+            start_writeback(f)

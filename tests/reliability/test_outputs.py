@@ -284,3 +284,31 @@ def test_console_script_keeps_numpy_to_one_blas_thread():
                           capture_output=True, text=True, timeout=120,
                           env=dict(os.environ, CI="true", OPENBLAS_NUM_THREADS="3"))
     assert kept.stdout.strip() == "3"
+
+
+@pytest.mark.skipif(not hasattr(os, "posix_fadvise"), reason="no posix_fadvise here")
+def test_text_writers_start_the_disk_writing_and_survive_a_refusal(tmp_path, monkeypatch):
+    import numpy as np
+
+    from studio.io.textfmt import float_columns, join_array, write_text
+
+    calls = []
+    real = os.posix_fadvise
+
+    def record(fd, offset, length, advice):
+        calls.append((os.fstat(fd).st_size, advice))
+        return real(fd, offset, length, advice)
+
+    monkeypatch.setattr(os, "posix_fadvise", record)
+    text = join_array(float_columns(np.arange(1000.0).reshape(-1, 1) / 7.0, ["%.17g"]))
+    write_text(tmp_path / "a.txt", [text, text])
+    # asked after the whole file was written (flushed), for its dirty pages to go to disk now
+    assert calls == [(2 * len(text), os.POSIX_FADV_DONTNEED)]
+    assert (tmp_path / "a.txt").read_bytes() == text.tobytes() * 2
+
+    def refuse(*_args):
+        raise OSError(errno.EINVAL, "not here")
+
+    monkeypatch.setattr(os, "posix_fadvise", refuse)
+    write_text(tmp_path / "b.txt", text)
+    assert (tmp_path / "b.txt").read_bytes() == text.tobytes()
