@@ -92,14 +92,25 @@ def digit_matrix(values: np.ndarray, places: int) -> np.ndarray:
 
 
 def _digit_rows(values: np.ndarray, places: int) -> np.ndarray:
-    """``(places, n)``: row ``j`` holds digit ``j`` (ASCII, most significant first) of each value."""
+    """``(places, n)``: row ``j`` holds digit ``j`` (ASCII, most significant first) of each value.
+
+    Values below ``10**18`` are cut into two halves below ``10**9`` whose digits come from 32-bit
+    divisions (numpy vectorises those; 64-bit ones it does one by one): 2.5x faster for 17 digits.
+    """
     out = np.empty((places, len(values)), dtype=np.uint8)
-    v = values.astype(np.uint64, copy=True)
-    ten = np.uint64(10)
-    for j in range(places - 1, -1, -1):
-        q = v // ten
-        out[j] = v - q * ten
-        v = q
+    if places <= 9:
+        parts = [(values.astype(np.uint32), 0, places)]
+    elif places <= 18:
+        hi, lo = np.divmod(values.astype(np.uint64), np.uint64(10**9))
+        parts = [(hi.astype(np.uint32), 0, places - 9), (lo.astype(np.uint32), places - 9, places)]
+    else:
+        parts = [(values.astype(np.uint64, copy=True), 0, places)]
+    for v, first, stop in parts:
+        ten = v.dtype.type(10)
+        for j in range(stop - 1, first - 1, -1):
+            q = v // ten
+            out[j] = v - q * ten
+            v = q
     out += 48
     return out
 
@@ -197,58 +208,72 @@ def _g17_digits(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return digits, x, ok
 
 
-def _g17_layout(x: int, nd: int, negative: bool) -> tuple[bytes, list[int]]:
-    """How ``%.17g`` lays out a number with decimal exponent ``x`` and ``nd`` significant digits
-    (trailing zeros removed; fixed notation lays out all 17, the length cuts them): a template
-    text and the positions of its digits, in order."""
-    if 0 <= x < 17:  # fixed: ddd.ddd
-        text = "d" * (x + 1) + ("." + "d" * (16 - x) if x < 16 else "")
-    elif -4 <= x < 0:  # fixed: 0.000ddd
-        text = "0." + "0" * (-x - 1) + "d" * 17
-    else:  # d[.ddd]e-XX
-        text = "d" + ("." + "d" * (nd - 1) if nd > 1 else "") + f"e{'-' if x < 0 else '+'}{abs(x):02d}"
-    text = ("-" if negative else "") + text
-    return text.encode("ascii"), [i for i, c in enumerate(text) if c == "d"]
-
-
 def _g17_text(digits: np.ndarray, x: np.ndarray, neg: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``%.17g`` text of the numbers where ``ok``, from their 17 digits, decimal exponent and sign;
-    other rows are left empty."""
+    other rows are left empty (NUL).
+
+    The rows are sorted by layout (exponent and sign), so that each layout fills one contiguous
+    block of rows with a few slice copies (digits before and after the point); exponent notation,
+    which keeps only the significant digits, is split further by their number. The rows go back to
+    their order in one scatter.
+    """
     n = len(digits)
-    rows_ = _digit_rows(digits, 17)
+    fixed = (x >= -4) & (x < 17)
+    key = np.where(ok, (x + 20) * 2 + neg, -1).astype(np.int16)
+    order = np.argsort(key, kind="stable")
+    skey = key[order]
+    rows_ = _digit_rows(digits[order], 17)
     # significant digits kept: one past the last digit that is not 0
     place = np.arange(1, 17, dtype=np.uint8)[:, None]
     nd = 1 + ((rows_[1:] != ord("0")) * place).max(axis=0).astype(np.int64)
-    columns = np.ascontiguousarray(rows_.T)
-    fixed = (x >= -4) & (x < 17)
-    lengths = np.where(x >= 0, x + 1 + np.where(nd > x + 1, nd - x, 0),  # ddd[.ddd]
-                       np.where(fixed, 1 - x + nd,  # 0.000ddd
-                                nd + (nd > 1) + 4))  # d[.ddd]e-XX
-    lengths = np.where(ok, lengths + neg, 0)
-    # one layout per (exponent, sign) and, for exponent notation, digits kept: fill each group at once
-    key = np.where(ok, ((x + 20) * 32 + np.where(fixed, 0, nd)) * 2 + neg, -1).astype(np.int16)
-    order = np.argsort(key, kind="stable")
-    skey = key[order]
+    cols = np.ascontiguousarray(rows_.T)
+    xs, fx = x[order], fixed[order]
+    lengths_s = np.where(xs >= 0, xs + 1 + np.where(nd > xs + 1, nd - xs, 0),  # ddd[.ddd]
+                         np.where(fx, 1 - xs + nd,  # 0.000ddd
+                                  nd + (nd > 1) + 4))  # d[.ddd]e-XX
+    lengths_s = np.where(skey >= 0, lengths_s + (skey & 1), 0)
+    chars_s = np.zeros((n, _WIDTH + 1), dtype=np.uint8)
     bounds = np.flatnonzero(np.diff(skey)) + 1
-    chars = np.zeros((n, _WIDTH + 1), dtype=np.uint8)
-    starts = np.concatenate([[0], bounds]).tolist()
-    stops = np.concatenate([bounds, [n]]).tolist()
-    for lo, hi in zip(starts, stops):
+    for lo, hi in zip([0, *bounds.tolist()], [*bounds.tolist(), n]):
         k = int(skey[lo])
         if k < 0:
             continue
-        text, positions = _g17_layout(k // 64 - 20, (k // 2) % 32, bool(k % 2))
-        rows = order[lo:hi]
-        block = np.empty((hi - lo, len(text)), dtype=np.uint8)
-        block[:] = np.frombuffer(text, dtype=np.uint8)
-        block[:, positions] = columns[rows, : len(positions)]
-        chars[rows, : len(text)] = block
-    # fixed notation lays out all 17 digits: where trailing zeros were dropped, NUL the rest
-    cut = np.flatnonzero(ok & fixed & (nd < 17))
+        ex, o = k // 2 - 20, k % 2  # decimal exponent; 1 for a minus sign
+        block = chars_s[lo:hi]
+        if o:
+            block[:, 0] = ord("-")
+        if 0 <= ex < 17:  # ddd.ddd: all 17 digits (the length cuts trailing zeros)
+            block[:, o : o + ex + 1] = cols[lo:hi, : ex + 1]
+            if ex < 16:
+                block[:, o + ex + 1] = ord(".")
+                block[:, o + ex + 2 : o + 18] = cols[lo:hi, ex + 1 :]
+        elif -4 <= ex < 0:  # 0.000ddd
+            block[:, o : o + 1 - ex] = ord("0")
+            block[:, o + 1] = ord(".")
+            block[:, o + 1 - ex : o + 18 - ex] = cols[lo:hi]
+        else:  # d[.ddd]e-XX with the nd digits kept
+            exponent = np.frombuffer(f"e{'-' if ex < 0 else '+'}{abs(ex):02d}".encode("ascii"), dtype=np.uint8)
+            nd_block = nd[lo:hi]
+            for d in np.unique(nd_block).tolist():
+                sel = np.flatnonzero(nd_block == d)
+                text = np.empty((len(sel), d + (d > 1) + 4), dtype=np.uint8)
+                text[:, 0] = cols[lo + sel, 0]
+                if d > 1:
+                    text[:, 1] = ord(".")
+                    text[:, 2 : d + 1] = cols[lo + sel, 1:d]
+                text[:, -4:] = exponent
+                block[sel, o : o + text.shape[1]] = text
+    # fixed notation laid out all 17 digits: where trailing zeros were dropped, NUL the rest
+    cut = np.flatnonzero(fx & (nd < 17) & (skey >= 0))
     if len(cut):
-        tail = chars[cut]
-        tail[np.arange(tail.shape[1])[None, :] >= lengths[cut][:, None]] = 0
-        chars[cut] = tail
+        tail = chars_s[cut]
+        tail[np.arange(_WIDTH + 1)[None, :] >= lengths_s[cut][:, None]] = 0
+        chars_s[cut] = tail
+    chars = np.empty((n, _WIDTH + 1), dtype=np.uint8)
+    row = f"V{_WIDTH + 1}"
+    chars.view(row).ravel()[order] = chars_s.view(row).ravel()
+    lengths = np.empty(n, dtype=np.int64)
+    lengths[order] = lengths_s
     return chars, lengths
 
 
