@@ -36,10 +36,13 @@ def canonical_doubles(words: np.ndarray, *, every_offset: bool = False) -> np.nd
     value ``k`` is decoded from words ``k, k+1``, for a stream whose draws may start at any word.
     """
     if every_offset:
-        lo, hi = words[:-1].astype(np.float64), words[1:].astype(np.float64)
+        lo, hi = words[:-1], words[1:]
     else:
-        lo, hi = words[0::2].astype(np.float64), words[1::2].astype(np.float64)
-    out = (lo + hi * _TWO32) / _TWO64
+        lo, hi = words[0::2], words[1::2]
+    out = hi.astype(np.float64)
+    out *= _TWO32  # exact (a power of two)
+    out += lo  # one rounding, as libstdc++'s sum
+    out *= 1.0 / _TWO64  # exact: a power of two, and no result is subnormal
     np.minimum(out, _BELOW_ONE, out=out)
     return out
 

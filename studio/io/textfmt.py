@@ -157,6 +157,13 @@ def _scaled_digits(m: np.ndarray, k: np.ndarray, p: np.ndarray) -> tuple[np.ndar
     result is below ``2**63`` and the shift ``t = -(k + p)`` lies in ``-10 .. 63``."""
     hi, lo = _mul_128(m, _P5[p])
     t = -(k + p)
+    if len(t) and 1 <= t.min() and t.max() <= 63:  # the usual case: a plain right shift everywhere
+        tt = t.astype(np.uint64)
+        q = (hi << (np.uint64(64) - tt)) | (lo >> tt)
+        rem = lo & ((_ONE << tt) - _ONE)
+        half = _ONE << (tt - _ONE)
+        up = (rem > half) | ((rem == half) & ((q & _ONE) == _ONE))
+        return q, q + up
     left = t <= 0
     tt = np.where(left, 1, t).astype(np.uint64)  # shift for the right-shift branch
     q = np.where(tt == 64, hi, (hi << (np.uint64(64) - tt)) | (lo >> tt))
@@ -183,28 +190,41 @@ def _g17_digits(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         x = np.floor(np.log10(a)).astype(np.int64)
     ok = (x >= -11) & (x <= 16)
     digits = np.zeros(len(a), dtype=np.uint64)
-    todo = np.flatnonzero(ok)
+    # the rows still to do; None for all of them (the first pass, usually the only one with many
+    # rows, then needs no gathers and no scatters)
+    todo: np.ndarray | None = None if ok.all() else np.flatnonzero(ok)
     for _ in range(4):  # log10 is off by at most one; each pass fixes the exponent of the rest
-        if not len(todo):
+        if todo is None:
+            xs, ks, ms = x, k, m
+        elif len(todo):
+            xs, ks, ms = x[todo], k[todo], m[todo]
+        else:
             break
-        xs = x[todo]
         p = 16 - xs
-        t = -(k[todo] + p)
+        t = -(ks + p)
         inside = (p >= 0) & (p <= 27) & (t >= -10) & (t <= 64)
         if not inside.all():
+            if todo is None:
+                todo = np.arange(len(a))
             ok[todo[~inside]] = False
-            todo, xs, p = todo[inside], xs[inside], p[inside]
-        floor_, rounded = _scaled_digits(m[todo], k[todo], p)
+            todo, p, ks, ms = todo[inside], p[inside], ks[inside], ms[inside]
+        floor_, rounded = _scaled_digits(ms, ks, p)
         low = floor_ < _P10[16]
         high = floor_ >= _P10[17]
         good = ~(low | high)
         carry = good & (rounded == _P10[17])  # 9.99..95 rounds up to the next power of ten
-        digits[todo[good]] = np.where(carry[good], _P10[16], rounded[good])
-        x[todo[carry]] += 1
-        x[todo[low]] -= 1
-        x[todo[high]] += 1
-        todo = todo[~good]
-    ok[todo] = False
+        value = np.where(carry, _P10[16], rounded)
+        shift = carry.astype(np.int64) - low + high  # the exponent's correction
+        if todo is None:
+            digits = np.where(good, value, digits)
+            x = x + shift
+            todo = np.flatnonzero(~good)
+        else:
+            digits[todo[good]] = value[good]
+            x[todo] += shift
+            todo = todo[~good]
+    if todo is not None:
+        ok[todo] = False
     return digits, x, ok
 
 
