@@ -58,14 +58,16 @@ class SynthOutput:
 
 
 def _libstdcxx_reduce(values: np.ndarray) -> float:
-    """``std::reduce(first, last)`` as libstdc++ evaluates it for random-access iterators."""
-    vals = values.tolist()
-    init = 0.0
-    n4 = len(vals) - len(vals) % 4
-    for k in range(0, n4, 4):
-        init = init + ((vals[k] + vals[k + 1]) + (vals[k + 2] + vals[k + 3]))
-    for v in vals[n4:]:
-        init = init + v
+    """``std::reduce(first, last)`` as libstdc++ evaluates it for random-access iterators: the
+    running sum takes ``(v[k] + v[k+1]) + (v[k+2] + v[k+3])`` per block of four, then the rest one
+    by one. The blocks' sums are elementwise (numpy rounds each as C does) and ``add.accumulate``
+    adds them strictly in order, so the bits are libstdc++'s."""
+    v = np.asarray(values, dtype=np.float64)
+    n4 = len(v) - len(v) % 4
+    blocks = (v[0:n4:4] + v[1:n4:4]) + (v[2:n4:4] + v[3:n4:4])
+    init = float(np.add.accumulate(np.concatenate([[0.0], blocks]))[-1])
+    for x in v[n4:].tolist():
+        init = init + x
     return init
 
 
@@ -133,7 +135,8 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
 
     def task(i: int):
         if i < n_agents:  # the agents' streams go on from where their walks left them
-            return _intra_loop_closures(streams[i], walks[i], cfg, cfg.agents[i])
+            lcs = _intra_loop_closures(streams[i], walks[i], cfg, cfg.agents[i])
+            return lcs, _odometry_measurements(aligned[i])
         assert pairs is not None
         return pairs(i - n_agents)
 
@@ -150,10 +153,8 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
 
     agents = []
     exact = []
-    for idx, (walk, agent, lcs) in enumerate(zip(walks, cfg.agents, intra)):
+    for idx, (walk, agent, (lcs, odo)) in enumerate(zip(walks, cfg.agents, intra)):
         n = len(walk.x)
-        c, s = libm_cos_sin(walk.odom_ang)
-        odo = np.column_stack([walk.odom_pos * c, walk.odom_pos * s, walk.odom_ang])
         odometry = Edges(
             PoseKind.SE2,
             np.arange(n - 1),
@@ -182,6 +183,12 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
          p.estimated_information_angle]
     )
     return SynthOutput(graph, tuple(exact) if cfg.exact_information_matrix else None, connector, seeds)
+
+
+def _odometry_measurements(walk: _Walk) -> np.ndarray:
+    """``(n - 1, 3)`` odometry edges (dx, dy, dtheta) of a walk: its noisy step along its noisy turn."""
+    c, s = libm_cos_sin(walk.odom_ang)
+    return np.column_stack([walk.odom_pos * c, walk.odom_pos * s, walk.odom_ang])
 
 
 def _align(walks: list[_Walk]) -> list[_Walk]:
