@@ -2,7 +2,8 @@
 
 The script generated for ``studio.cli:main`` would import the command line (numpy, typer, ...: a tenth
 of a second) before any handler is in place, and Ctrl-C then printed Python's traceback. Here the
-import runs under a handler; once the command line runs, typer turns Ctrl-C into exit code 130.
+import runs under a handler; once the command line runs, typer turns Ctrl-C into exit code 130; once it
+has finished, Ctrl-C is ignored while the interpreter exits.
 
 It also keeps numpy's BLAS to one thread (``OPENBLAS_NUM_THREADS=1`` unless the caller set it), before
 numpy loads: the studio spreads work over processes, never over BLAS threads (its matrices are 3x3 to
@@ -14,6 +15,7 @@ about 0.1 s less wall time with one thread.
 from __future__ import annotations
 
 import os
+import signal
 import sys
 
 __all__ = ["main", "limit_blas_threads"]
@@ -32,4 +34,9 @@ def main() -> None:
         from studio.cli import main as cli_main
     except KeyboardInterrupt:
         sys.exit(_INTERRUPTED)
-    cli_main()
+    try:
+        cli_main()
+    finally:
+        # The command has finished (its outputs in place, or its error reported): a Ctrl-C now would
+        # only interrupt the interpreter's exit handlers, which print "Exception ignored ..." for it.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)

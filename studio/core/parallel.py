@@ -9,9 +9,11 @@ Also the allocator tuning of the command line (glibc only; never done on import)
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import multiprocessing
 import os
+import pickle
 import signal
 import sys
 import time
@@ -89,11 +91,74 @@ def _claim_loop(report: Callable[[], None] | None = None) -> dict[int, Any]:
             report()
 
 
-def _worker_init() -> None:
-    # Ctrl-C reaches the whole process group; only the parent handles it (and terminates the
-    # workers), otherwise a worker interrupted while holding the pool's queue lock can hang it.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    release_free_heap()
+def _worker(fd: int) -> None:
+    """A forked worker's whole life: claim items, send ``("ok", results)`` or ``("error", exception)``
+    through the pipe ``fd``, and leave with ``os._exit`` (never returning into the caller's code,
+    never running its exit handlers or flushing its buffers)."""
+    code = 1
+    try:
+        # Ctrl-C reaches the whole process group; only the parent handles it (and stops the workers).
+        # SIGTERM (how the parent stops a worker) ends a worker at once, whatever handler it inherited.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        release_free_heap()
+        try:
+            payload: tuple[str, Any] = ("ok", _claim_loop())
+        except BaseException as err:  # noqa: BLE001 - any error goes back to the parent
+            payload = ("error", err)
+        try:
+            data = pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception as err:  # noqa: BLE001 - a result or an error that cannot be pickled
+            data = pickle.dumps(("error", RuntimeError(f"a worker's result could not be sent back: {err}")))
+        with os.fdopen(fd, "wb") as pipe:
+            pipe.write(data)
+        code = 0
+    finally:
+        os._exit(code)
+
+
+def _stop(workers: list[tuple[int, int]]) -> None:
+    """Terminate and reap workers still running and close their pipes (after an error or Ctrl-C here)."""
+    for pid, fd in workers:
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGTERM)
+        if fd >= 0:
+            with contextlib.suppress(OSError):
+                os.close(fd)
+    for pid, _ in workers:
+        with contextlib.suppress(ChildProcessError):
+            os.waitpid(pid, 0)
+
+
+def _collect(workers: list[tuple[int, int]], results: dict[int, Any]) -> None:
+    """Read each worker's message to its end (a worker exits after writing it), reap it, and add its
+    results; a worker's error is raised (the first, in worker order) once every worker is reaped."""
+    error: BaseException | None = None
+    while workers:
+        pid, fd = workers.pop(0)
+        try:
+            with os.fdopen(fd, "rb") as pipe:
+                data = pipe.read()
+        except BaseException:
+            _stop([(pid, -1)])  # the pipe is closed; the worker may still run
+            raise
+        _, status = os.waitpid(pid, 0)
+        if data:
+            kind, value = pickle.loads(data)
+        else:
+            code = os.waitstatus_to_exitcode(status)
+            how = f"signal {-code}" if code < 0 else f"exit code {code}"
+            kind, value = "error", RuntimeError(f"a worker process ended ({how}) without sending its results")
+        if kind == "ok":
+            results.update(value)
+        elif error is None:
+            error = value
+    if error is not None:
+        # the worker's error, as if raised here: no traceback or cause from the other process, so the
+        # caller's one-line handling (e.g. OSError -> OutputError) sees a clean exception
+        error.__cause__ = None
+        raise error.with_traceback(None) from None
 
 
 def parallel_map(func: Callable[[int], T], n_items: int, jobs: int | None = None, *,
@@ -105,12 +170,17 @@ def parallel_map(func: Callable[[int], T], n_items: int, jobs: int | None = None
     pays a page fault for every fresh page it writes (measured: worker tasks ran up to twice as long
     as the same tasks here). ``on_done(done, n_items)``, if given, is called in this process with the
     number of items finished by all processes: after each of its own items, and at the end.
+
+    Workers are plain forks that send their results back through a pipe (``multiprocessing.Pool``,
+    with its helper threads and queues, took about 20 ms per map to start and stop). An item's error
+    is raised here as the item raised it; on an error or Ctrl-C here the workers are terminated and
+    reaped.
     """
     jobs = default_jobs() if jobs is None else jobs
     jobs = min(jobs, n_items)
     if on_done is not None:
         on_done(0, n_items)
-    if jobs <= 1 or "fork" not in multiprocessing.get_all_start_methods() or _TASK:
+    if jobs <= 1 or not hasattr(os, "fork") or _TASK:
         out = []
         for i in range(n_items):
             out.append(func(i))
@@ -121,23 +191,32 @@ def parallel_map(func: Callable[[int], T], n_items: int, jobs: int | None = None
     finished = ctx.Value("q", 0)
     _TASK.append((func, ctx.Value("q", 0), finished, n_items))
     report = None if on_done is None else (lambda: on_done(finished.value, n_items))
+    workers: list[tuple[int, int]] = []
     try:
-        with ctx.Pool(jobs - 1, initializer=_worker_init) as pool:
-            pending = [pool.apply_async(_claim_loop) for _ in range(jobs - 1)]
-            results = _claim_loop(report)
+        for _ in range(jobs - 1):
+            read_fd, write_fd = os.pipe()
+            # Ctrl-C is held from the fork until the worker is on the list (in the worker: until it
+            # ignores Ctrl-C; it would otherwise unwind the worker through this caller's code); a
+            # Ctrl-C held here reaches this process right after
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
             try:
-                for p in pending:
-                    results.update(p.get())
-            except Exception as err:
-                # the worker's error, as if raised here: no RemoteTraceback chained to it, so the
-                # caller's one-line handling (e.g. OSError -> OutputError) sees a clean exception
-                err.__cause__ = None
-                raise err.with_traceback(None) from None
+                pid = os.fork()
+                if pid == 0:
+                    os.close(read_fd)
+                    _worker(write_fd)
+                workers.append((pid, read_fd))
+                os.close(write_fd)
+            finally:
+                signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        results = _claim_loop(report)
+        _collect(workers, results)
         if on_done is not None:
             on_done(n_items, n_items)
         return [results[i] for i in range(n_items)]
     finally:
+        _stop(workers)
         _TASK.clear()
+
 
 _M_TRIM_THRESHOLD = -1
 _M_TOP_PAD = -2

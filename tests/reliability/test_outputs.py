@@ -312,3 +312,19 @@ def test_text_writers_start_the_disk_writing_and_survive_a_refusal(tmp_path, mon
     monkeypatch.setattr(os, "posix_fadvise", refuse)
     write_text(tmp_path / "b.txt", text)
     assert (tmp_path / "b.txt").read_bytes() == text.tobytes()
+
+
+def test_ctrl_c_while_the_interpreter_exits_prints_nothing():
+    # a Ctrl-C landing after the command finished, while exit handlers run (multiprocessing's
+    # finalizers, say), printed "Exception ignored in ..." with a traceback
+    code = ("import atexit, os, signal, sys, time\n"
+            "import studio.cli\n"
+            "def late_ctrl_c():\n"
+            "    os.kill(os.getpid(), signal.SIGINT)\n"
+            "    time.sleep(0.05)\n"
+            "atexit.register(late_ctrl_c)\n"
+            "from studio._entry import main\n"
+            "main()\n")
+    res = subprocess.run([sys.executable, "-c", code, "--version"], capture_output=True, text=True,
+                         env=dict(os.environ, CI="true"), timeout=120)
+    assert res.returncode == 0 and res.stdout.startswith("studio ") and res.stderr == ""
