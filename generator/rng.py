@@ -86,7 +86,7 @@ class MT19937Stream:
         fresh = self._state.randint(0, 1 << 32, size=need, dtype=np.uint32)
         keep = self._words[self.position - self._start :]
         self._start = self.position
-        self._words = np.concatenate([keep, fresh])
+        self._words = np.concatenate([keep, fresh]) if len(keep) else fresh
 
     def words(self, n: int) -> np.ndarray:
         """The next ``n`` words, without moving the cursor."""
@@ -121,5 +121,5 @@ class UniformTape:
         if n > have:
             n = max(n, 2 * have)
             fresh = canonical_doubles(self._stream.words(2 * n)[2 * have :])
-            self._values = np.concatenate([self._values, fresh])
+            self._values = np.concatenate([self._values, fresh]) if have else fresh
         return self._values
