@@ -2,7 +2,8 @@
 
     python benchmarks/bench_synth.py [--repeat 5] [--kollagen /path/to/kollagen/generate]
 
-Prints, per preset, the median and best wall time and the peak resident memory. `studio` is
+Prints, per preset, the median and best wall time, the peak resident memory and every run's time (in
+the order they ran). `studio` is
 `studio synth PRESET --no-rrd` (exactly kollagen's files); `studio+rrd` is the default command, which
 also writes the Rerun recording. With --kollagen, kollagen's own `generate` binary runs side by side on
 the same config (written from the preset) and its files are compared byte for byte with ours.
@@ -77,7 +78,7 @@ def main() -> None:
             for tool, walls in rows.items():
                 if walls:
                     print(f"{cfg.name:14} {tool:10} {statistics.median(walls):9.2f} {min(walls):8.2f} "
-                          f"{peaks[tool]:9.0f}  {len(walls)}")
+                          f"{peaks[tool]:9.0f}  {len(walls)}: {' '.join(f'{w:.2f}' for w in walls)}")
             if rows["kollagen"]:
                 ratio = statistics.median(rows["kollagen"]) / statistics.median(rows["studio"])
                 print(f"{cfg.name:14} speed-up   {ratio:9.2f}x (median kollagen / median studio), outputs identical")
