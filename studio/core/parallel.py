@@ -194,13 +194,18 @@ def parallel_map(func: Callable[[int], T], n_items: int, jobs: int | None = None
     workers: list[tuple[int, int]] = []
     try:
         for _ in range(jobs - 1):
-            read_fd, write_fd = os.pipe()
             # Ctrl-C is held from the fork until the worker is on the list (in the worker: until it
             # ignores Ctrl-C; it would otherwise unwind the worker through this caller's code); a
             # Ctrl-C held here reaches this process right after
             signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
             try:
-                pid = os.fork()
+                read_fd, write_fd = os.pipe()
+                try:
+                    pid = os.fork()
+                except OSError:  # no process to be had (EAGAIN, ENOMEM): the ones started do the work
+                    os.close(read_fd)
+                    os.close(write_fd)
+                    break
                 if pid == 0:
                     os.close(read_fd)
                     _worker(write_fd)

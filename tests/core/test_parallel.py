@@ -64,3 +64,31 @@ def test_an_error_stops_every_process_from_claiming_more(tmp_path):
     ran = len(list(tmp_path.iterdir()))
     assert ran < 50  # the claims stopped right after it (the pool's 400 items would all have run)
     assert not (tmp_path / "ran3").exists()
+
+
+def test_a_refused_fork_leaves_the_work_to_this_process(monkeypatch):
+    import errno
+    import os
+
+    def no_fork():
+        raise OSError(errno.EAGAIN, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(os, "fork", no_fork)
+    pids = parallel.parallel_map(lambda k: os.getpid(), 6, jobs=3)
+    assert pids == [os.getpid()] * 6
+
+
+def test_a_worker_that_dies_is_reported_in_one_line():
+    import os
+    import signal
+
+    def item(k: int) -> int:
+        if os.getpid() != parent and k >= 0:
+            os.kill(os.getpid(), signal.SIGKILL)  # the worker vanishes without a word
+        import time
+        time.sleep(0.05)
+        return k
+
+    parent = os.getpid()
+    with pytest.raises(RuntimeError, match=r"^a worker process ended \(signal 9\) without sending its results$"):
+        parallel.parallel_map(item, 8, jobs=2)
