@@ -506,5 +506,5 @@ def write_text(target: str | os.PathLike | IO[str], data: bytes | np.ndarray | S
     else:
         with open(target, "wb") as f:
             for p in pieces:
-                f.write(p)
+                f.write(p if isinstance(p, bytes) else np.ascontiguousarray(p).data)
             start_writeback(f)
