@@ -248,6 +248,12 @@ def test_a_process_that_ignores_ctrl_c_still_ignores_it_in_deferred_sections():
             os.kill(os.getpid(), signal.SIGINT)
 
 
+def _python(code: str, *args: str, **env: str) -> subprocess.CompletedProcess:
+    """Run ``code`` in a fresh interpreter (``args`` as its command line, ``env`` added; CI set)."""
+    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True,
+                          env=dict(os.environ, CI="true", **env), timeout=120)
+
+
 def test_ctrl_c_while_the_command_line_loads_ends_quietly():
     # the console script's entry point; Ctrl-C arrives while studio.cli (numpy, typer, ...) is imported
     code = ("import builtins, os, signal\n"
@@ -259,11 +265,9 @@ def test_ctrl_c_while_the_command_line_loads_ends_quietly():
             "builtins.__import__ = imp\n"
             "from studio._entry import main\n"
             "main()\n")
-    res = subprocess.run([sys.executable, "-c", code, "--version"], capture_output=True, text=True,
-                         env=dict(os.environ, CI="true"), timeout=120)
+    res = _python(code, "--version")
     assert res.returncode == 130 and res.stderr == "" and res.stdout == ""
-    ok = subprocess.run([sys.executable, "-c", "from studio._entry import main; main()", "--version"],
-                        capture_output=True, text=True, env=dict(os.environ, CI="true"), timeout=120)
+    ok = _python("from studio._entry import main; main()", "--version")
     assert ok.returncode == 0 and ok.stdout.startswith("studio ")
 
 
@@ -276,13 +280,10 @@ def test_console_script_keeps_numpy_to_one_blas_thread():
             "limit_blas_threads()\n"
             "import numpy\n"
             "print(os.environ['OPENBLAS_NUM_THREADS'], len(os.listdir('/proc/self/task')))\n")
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
-                         env=dict(os.environ, CI="true"))
+    res = _python(code)
     assert res.stdout.split() == ["1", "1"], res.stderr
-    kept = subprocess.run([sys.executable, "-c", "import os\nfrom studio._entry import limit_blas_threads\n"
-                           "limit_blas_threads()\nprint(os.environ['OPENBLAS_NUM_THREADS'])\n"],
-                          capture_output=True, text=True, timeout=120,
-                          env=dict(os.environ, CI="true", OPENBLAS_NUM_THREADS="3"))
+    kept = _python("import os\nfrom studio._entry import limit_blas_threads\n"
+                   "limit_blas_threads()\nprint(os.environ['OPENBLAS_NUM_THREADS'])\n", OPENBLAS_NUM_THREADS="3")
     assert kept.stdout.strip() == "3"
 
 
@@ -325,6 +326,5 @@ def test_ctrl_c_while_the_interpreter_exits_prints_nothing():
             "atexit.register(late_ctrl_c)\n"
             "from studio._entry import main\n"
             "main()\n")
-    res = subprocess.run([sys.executable, "-c", code, "--version"], capture_output=True, text=True,
-                         env=dict(os.environ, CI="true"), timeout=120)
+    res = _python(code, "--version")
     assert res.returncode == 0 and res.stdout.startswith("studio ") and res.stderr == ""
