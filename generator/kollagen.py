@@ -147,13 +147,13 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
             report(progress, "synth: inter-agent loop closures", done - n_agents, n_pairs, "pairs")
 
     done = parallel_map(task, n_agents + n_pairs, jobs, on_done=on_done)
-    intra = done[:n_agents]
+    per_agent = done[:n_agents]  # (intra-agent loop closures, odometry measurements)
     inter = pairs.edges(done[n_agents:]) if pairs is not None else InterAgentEdges.empty(PoseKind.SE2)
     walks = aligned
 
     agents = []
     exact = []
-    for idx, (walk, agent, (lcs, odo)) in enumerate(zip(walks, cfg.agents, intra)):
+    for idx, (walk, agent, (lcs, odo)) in enumerate(zip(walks, cfg.agents, per_agent)):
         n = len(walk.x)
         odometry = Edges(
             PoseKind.SE2,

@@ -55,9 +55,9 @@ def default_jobs() -> int:
     other tasks keep busy right now (at least 1).
 
     The parallel path does more work than one process (forking, copy-on-write and fresh pages in the
-    worker: about 3x the page faults and +20-25 % CPU time on Multi10000x5 at R = 6 m), which pays
+    worker: about 3x the page faults and 5-20 % more CPU time on Multi10000x5 at R = 6 m), which pays
     off only with idle cores; on a machine whose cores are all taken it made ``studio synth`` up to
-    1.2x slower than ``--jobs 1`` (benchmarks/bench_busy.py), so there it runs in one process.
+    1.14x slower than ``--jobs 1`` (benchmarks/bench_busy.py), so there it runs in one process.
     """
     cores = available_cores()
     busy = _other_runnable()

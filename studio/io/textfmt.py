@@ -10,8 +10,8 @@ numbers are formatted here in bulk, as columns of bytes, with the same correctly
   the exact binary value. ``X`` comes from ``log10`` and is corrected until the truncated digits
   have exactly 17 places. ``%f`` is the same with ``p = 6``.
 * The digits are laid out as ``%g`` does (fixed or exponent notation, trailing zeros removed): the
-  numbers are grouped by layout (exponent, sign, and for exponent notation the digits kept) and each
-  group is filled from one template at once.
+  numbers are sorted by layout (exponent and sign) and each layout fills its contiguous block of rows
+  with a few slice copies (exponent notation split further by the digits kept).
 * Numbers outside the exact fast range (``|v| >= 1e17`` or ``< 1e-11`` for ``%.17g``; non-finite
   values) are formatted by Python's ``%``, which gives C's digits too.
 
