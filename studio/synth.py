@@ -14,7 +14,7 @@ from studio.generator.config import SynthConfig, estimate_resources
 from studio.generator.extended import STUDIO
 from studio.generator.kollagen import SingleG2oView
 from studio.generator.seam import Extra, GeneratedDataset, Generator
-from studio.core.parallel import parallel_map
+from studio.core.parallel import parallel_map, run_team
 from studio.generator.presets import PRESETS, preset, preset_names
 from studio.core.errors import ConfigError
 from studio.core.progress import Progress, report
@@ -86,17 +86,18 @@ def write_outputs(out: GeneratedDataset, parent: Path, name: str, *, multi_recor
     see :func:`synthesize`). ``single_records`` are the g2o records of the extras' files.
 
     The files are independent writes (each file of an extra, an agent's folder, the inter-agent file),
-    shared between processes when ``jobs`` allows.
+    shared between processes when ``jobs`` allows. Within a team (:func:`~studio.core.parallel.run_team`)
+    every process makes the folders (they may come first to them) and writes the files it claims.
     """
     tasks: list[Callable[[], None]] = []
     # the extras' files first: each holds every agent (kollagen's single g2o file is the biggest file),
     # so the processes share out the long writes first and end together on the short ones
     for extra in out.extras:
         folder = parent / f"{name}{extra.suffix}"
-        folder.mkdir()
+        folder.mkdir(exist_ok=True)
         tasks += EXTRA_WRITERS[type(extra)](out.graph, extra, folder, name, single_records)
     multi = parent / name
-    multi.mkdir()
+    multi.mkdir(exist_ok=True)
     tasks += multi_g2o_parts(out.graph, multi, records=multi_records)
     parallel_map(lambda k: tasks[k](), len(tasks), jobs,
                  on_done=lambda d, n: report(progress, "synth: writing files", d, n, "files"))
@@ -148,9 +149,16 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
     config_name, rrd_name = f"{name}.config.json", f"{name}.rrd"
     names = [name, *extras, config_name] + ([rrd_name] if rrd else [])
     with staged_outputs(out_dir, names, force=force, inputs=()) as staging:
-        output = generator.generate(config, jobs=jobs, progress=progress)
-        write_outputs(output, staging, name, multi_records=multi_records,
-                      single_records=single_records, jobs=jobs, progress=progress)
+        def job(leader: bool) -> GeneratedDataset:
+            # every process of the team generates the dataset (sharing the parallel steps) and shares
+            # out the writes; only this one reports progress
+            heard = progress if leader else None
+            out = generator.generate(config, jobs=jobs, progress=heard)
+            write_outputs(out, staging, name, multi_records=multi_records,
+                          single_records=single_records, jobs=jobs, progress=heard)
+            return out
+
+        output = run_team(job, jobs)
         outliers = output.outliers
         if outliers is not None:
             write_outliers_txt(staging / name / "outliers.txt", outliers.rows, outliers.kinds)

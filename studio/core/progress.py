@@ -76,8 +76,10 @@ def terminal_progress(enabled: bool = True) -> Iterator[Progress | None]:
                 if current:  # a new step: the previous one is finished
                     prev = tasks[current[-1]]
                     t = bar.tasks[prev]
-                    if t.total is not None:
+                    if t.total is not None and t.completed != t.total:
+                        # its last items were done elsewhere (another process) since it last heard
                         bar.update(prev, completed=t.total)
+                        bar.update(prev, rate=_rate(prev, t.fields.get("unit", "")))
                 tasks[step] = bar.add_task(step, total=max(total, 0) or None, unit=unit, rate="")
                 current.append(step)
             task_id = tasks[step]

@@ -92,3 +92,132 @@ def test_a_worker_that_dies_is_reported_in_one_line():
     parent = os.getpid()
     with pytest.raises(RuntimeError, match=r"^a worker process ended \(signal 9\) without sending its results$"):
         parallel.parallel_map(item, 8, jobs=2)
+
+
+# --------------------------------------------------------------------------------------------------
+# Teams: one fork for a whole job, every map shared
+
+
+def _two_maps(leader: bool) -> tuple[list[int], list[tuple[int, int]], int]:
+    """A job of two maps, the second using every result of the first (as the writes use the graph)."""
+    import os
+    import time
+
+    def square(k: int) -> int:
+        time.sleep(0.02)  # long enough that both processes get items
+        return k * k
+
+    first = parallel.parallel_map(square, 12)
+    total = sum(first)  # every process must see every result to get this right
+
+    def tagged(k: int) -> tuple[int, int]:
+        time.sleep(0.02)
+        return total + first[k], os.getpid()
+
+    second = parallel.parallel_map(tagged, 12)
+    return first, second, os.getpid()
+
+
+def test_a_team_shares_every_map_and_gives_each_process_every_result():
+    import os
+
+    first, second, pid = parallel.run_team(_two_maps, jobs=2)
+    assert pid == os.getpid()  # the job's result is this process's
+    assert first == [k * k for k in range(12)]
+    total = sum(first)
+    assert [v for v, _ in second] == [total + k * k for k in range(12)]  # the worker had all of `first`
+    pids = {p for _, p in second}
+    assert os.getpid() in pids and len(pids) == 2  # both processes took items of the second map
+
+
+def test_a_team_of_one_runs_the_job_here():
+    import os
+
+    first, second, pid = parallel.run_team(_two_maps, jobs=1)
+    assert first == [k * k for k in range(12)]
+    assert {p for _, p in second} == {os.getpid()}
+
+
+def test_only_the_leader_is_told_it_leads(tmp_path):
+    def job(leader: bool) -> int:
+        import os
+
+        (tmp_path / f"{'leader' if leader else 'worker'}-{os.getpid()}").write_text("x")
+        return sum(parallel.parallel_map(lambda k: k, 4))
+
+    assert parallel.run_team(job, jobs=3) == 6
+    names = sorted(p.name.split("-")[0] for p in tmp_path.iterdir())
+    assert names == ["leader", "worker", "worker"]
+
+
+def test_a_workers_error_in_a_team_map_is_raised_here():
+    import os
+
+    parent = os.getpid()
+
+    def job(leader: bool) -> list[int]:
+        def item(k: int) -> int:
+            import time
+
+            time.sleep(0.02)
+            if os.getpid() != parent:
+                raise ValueError(f"item {k} failed in the worker")
+            return k
+
+        return parallel.parallel_map(item, 10)
+
+    with pytest.raises(ValueError, match=r"^item \d+ failed in the worker$") as info:
+        parallel.run_team(job, jobs=2)
+    assert info.value.__cause__ is None
+
+
+def test_a_team_worker_that_dies_is_reported_in_one_line():
+    import os
+    import signal
+
+    parent = os.getpid()
+
+    def job(leader: bool) -> list[int]:
+        def item(k: int) -> int:
+            if os.getpid() != parent:
+                os.kill(os.getpid(), signal.SIGKILL)
+            import time
+
+            time.sleep(0.05)
+            return k
+
+        return parallel.parallel_map(item, 8)
+
+    with pytest.raises(RuntimeError, match=r"^a worker process ended \(signal 9\) without sending its results$"):
+        parallel.run_team(job, jobs=2)
+
+
+def test_an_error_here_stops_the_team(tmp_path):
+    import os
+
+    def job(leader: bool) -> None:
+        parallel.parallel_map(lambda k: k, 4)
+        if leader:
+            raise OSError("disk full")
+        (tmp_path / f"worker-{os.getpid()}").write_text("waiting")
+        parallel.parallel_map(lambda k: k, 4)  # the worker waits here for the leader, in vain
+
+    with pytest.raises(OSError, match="disk full"):
+        parallel.run_team(job, jobs=2)
+    workers = [int(p.name.split("-")[1]) for p in tmp_path.iterdir()]
+    for pid in workers:  # stopped and reaped: no such process any more
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)
+
+
+def test_a_refused_fork_leaves_the_team_job_to_this_process(monkeypatch):
+    import errno
+    import os
+
+    def no_fork():
+        raise OSError(errno.EAGAIN, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(os, "fork", no_fork)
+    first, second, pid = parallel.run_team(_two_maps, jobs=3)
+    assert first == [k * k for k in range(12)]
+    assert {p for _, p in second} == {os.getpid()}
