@@ -17,12 +17,12 @@ import io
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
+from typing import IO, Iterator
 
 import numpy as np
 
 from studio.core.errors import FormatError
-from studio.io.textfmt import TextColumn, float_columns, float_rows, int_column, join_array, literal, write_text
+from studio.io.textfmt import TextColumn, float_columns, float_rows, int_column, join_array, literal, row_blocks, write_text
 from studio.core.model import PoseKind
 
 __all__ = ["G2oDocument", "write_g2o", "read_g2o", "g2o_text", "g2o_pieces", "SE3_INFO_ZERO_LITERAL", "SE3_POSE_ZERO_LITERAL",
@@ -66,14 +66,17 @@ def _info_texts(info: np.ndarray, kind: PoseKind) -> list[TextColumn]:
     return float_rows(info, ["%.17g"] * 21, SE3_INFO_ZERO_LITERAL)
 
 
-def g2o_pieces(doc: G2oDocument) -> list[np.ndarray]:
-    """The text of a g2o file in two pieces (vertices, edges), as :func:`join_array` gives them."""
+def g2o_pieces(doc: G2oDocument) -> Iterator[np.ndarray]:
+    """The text of a g2o file in pieces (vertices, then edges, a block of lines at a time), as
+    :func:`join_array` gives them; each piece is made when it is asked for."""
     vtag, etag = _TAGS[doc.kind]
-    vertices = join_array([literal(vtag), int_column(doc.vertex_ids), *_pose_texts(doc.vertex_poses, doc.kind)])
-    edges = join_array([literal(etag), int_column(doc.edge_from), int_column(doc.edge_to),
-                        *_pose_texts(doc.edge_measurements, doc.kind),
-                        *_info_texts(doc.edge_information_upper, doc.kind)])
-    return [vertices, edges]
+    for rows in row_blocks(len(doc.vertex_ids)):
+        yield join_array([literal(vtag), int_column(doc.vertex_ids[rows]),
+                          *_pose_texts(doc.vertex_poses[rows], doc.kind)])
+    for rows in row_blocks(len(doc.edge_from)):
+        yield join_array([literal(etag), int_column(doc.edge_from[rows]), int_column(doc.edge_to[rows]),
+                          *_pose_texts(doc.edge_measurements[rows], doc.kind),
+                          *_info_texts(doc.edge_information_upper[rows], doc.kind)])
 
 
 def g2o_text(doc: G2oDocument) -> bytes:

@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import io
 import os
-from typing import IO, Literal
+from typing import IO, Iterator, Literal
 
 import numpy as np
 
 from studio.core.errors import FormatError
 from studio.io.g2o import SE3_INFO_ZERO_LITERAL, SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
-from studio.io.textfmt import float_columns, float_rows, int_column, join_array, write_text
+from studio.io.textfmt import float_columns, float_rows, int_column, join_array, row_blocks, write_text
 from studio.core.model import InterAgentEdges, PoseKind
 
 __all__ = ["write_inter_lc_dat", "read_inter_lc_dat", "inter_lc_text", "Precision"]
@@ -26,27 +26,29 @@ __all__ = ["write_inter_lc_dat", "read_inter_lc_dat", "inter_lc_text", "Precisio
 Precision = Literal["kollagen", "full"]
 
 
-def _inter_lc_array(inter: InterAgentEdges, precision: Precision) -> np.ndarray:
+def _inter_lc_pieces(inter: InterAgentEdges, precision: Precision) -> Iterator[np.ndarray]:
+    """The text of the file, a block of lines at a time (each made when asked for)."""
     fmt = "%f" if precision == "kollagen" else "%.17g"
-    if inter.kind is PoseKind.SE3:
-        meas = float_columns(inter.measurements, [fmt] * 7, SE3_POSE_ZERO_LITERAL)
-        info = float_rows(inter.information_upper, [fmt] * 21, SE3_INFO_ZERO_LITERAL)
-    else:
-        meas = float_columns(inter.measurements, [fmt] * 3)
-        info = float_rows(inter.information_upper, [fmt] * 6, [None, "0.0", "0.0", None, "0.0", None])
-    ids = [int_column(inter.from_agent + 1), int_column(inter.from_index),
-           int_column(inter.to_agent + 1), int_column(inter.to_index)]
-    return join_array([*ids, *meas, *info])
+    for rows in row_blocks(len(inter)):
+        if inter.kind is PoseKind.SE3:
+            meas = float_columns(inter.measurements[rows], [fmt] * 7, SE3_POSE_ZERO_LITERAL)
+            info = float_rows(inter.information_upper[rows], [fmt] * 21, SE3_INFO_ZERO_LITERAL)
+        else:
+            meas = float_columns(inter.measurements[rows], [fmt] * 3)
+            info = float_rows(inter.information_upper[rows], [fmt] * 6, [None, "0.0", "0.0", None, "0.0", None])
+        ids = [int_column(inter.from_agent[rows] + 1), int_column(inter.from_index[rows]),
+               int_column(inter.to_agent[rows] + 1), int_column(inter.to_index[rows])]
+        yield join_array([*ids, *meas, *info])
 
 
 def inter_lc_text(inter: InterAgentEdges, precision: Precision = "kollagen") -> bytes:
     """The bytes of the file."""
-    return _inter_lc_array(inter, precision).tobytes()
+    return b"".join(piece.tobytes() for piece in _inter_lc_pieces(inter, precision))
 
 
 def write_inter_lc_dat(target: str | os.PathLike | IO[str], inter: InterAgentEdges,
                        precision: Precision = "kollagen") -> None:
-    write_text(target, _inter_lc_array(inter, precision))
+    write_text(target, _inter_lc_pieces(inter, precision))
 
 
 def read_inter_lc_dat(source: str | os.PathLike | IO[str], kind: PoseKind | None = None) -> InterAgentEdges:

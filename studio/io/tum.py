@@ -16,7 +16,7 @@ import math
 import os
 import re
 from pathlib import Path
-from typing import IO
+from typing import IO, Iterator
 
 import numpy as np
 
@@ -24,7 +24,7 @@ from studio.core.errors import FormatError
 from studio.core.trajectory import Trajectory
 from studio.io.g2o import SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
 from studio.io.textfmt import (TextColumn, concat, digit_matrix, float_columns, int_column, join_array, literal,
-                               write_text)
+                               row_blocks, write_text)
 from studio.core.units import NS_PER_S
 
 __all__ = ["write_tum", "read_tum", "read_tum_rows", "tum_text", "format_stamps"]
@@ -44,18 +44,21 @@ def format_stamps(stamps_ns: np.ndarray) -> TextColumn:
     return concat([sign, int_column(sec), literal("."), decimals])
 
 
-def _tum_array(traj: Trajectory) -> np.ndarray:
-    body = float_columns(traj.poses_xyz_quat_xyzw, ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
-    return join_array([format_stamps(traj.stamps_ns), *body])
+def _tum_pieces(traj: Trajectory) -> Iterator[np.ndarray]:
+    """The text of a TUM file, a block of lines at a time (each made when asked for)."""
+    poses, stamps = traj.poses_xyz_quat_xyzw, traj.stamps_ns
+    for rows in row_blocks(len(stamps)):
+        body = float_columns(poses[rows], ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
+        yield join_array([format_stamps(stamps[rows]), *body])
 
 
 def tum_text(traj: Trajectory) -> bytes:
     """The bytes of a TUM file."""
-    return _tum_array(traj).tobytes()
+    return b"".join(piece.tobytes() for piece in _tum_pieces(traj))
 
 
 def write_tum(target: str | os.PathLike | IO[str], traj: Trajectory) -> None:
-    write_text(target, _tum_array(traj))
+    write_text(target, _tum_pieces(traj))
 
 
 def _stamp_ns(token: str) -> int:
