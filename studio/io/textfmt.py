@@ -38,7 +38,7 @@ from studio.io.atomic import start_writeback
 __all__ = ["TextColumn", "BLOCK_ROWS", "row_blocks", "literal", "int_column", "digit_matrix", "float_columns", "float_rows", "concat",
            "join_columns", "join_array", "write_text", "format_float"]
 
-BLOCK_ROWS = int(os.environ.get("XX_BLOCK", 16384))
+BLOCK_ROWS = 16384
 """Lines the writers format at a time. A block's text and its intermediates take a few MB, so a
 file of any length is written within the same memory, which stays in the caches and, over a run,
 needs fewer fresh pages (each costs a page fault; on a VM whose host reclaims free memory, up to

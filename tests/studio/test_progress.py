@@ -98,3 +98,21 @@ def test_terminal_progress_is_none_off_a_terminal(capsys):
         report(progress, "step", 1, 2)  # a None progress is a no-op
     with terminal_progress(False) as progress:
         assert progress is None
+
+
+def test_a_command_in_a_pipe_does_not_load_rich(tmp_path):
+    code = ("import sys\n"
+            "from studio.core.progress import terminal_progress\n"
+            "with terminal_progress() as p:\n"
+            "    seen = (p is None, 'rich' in sys.modules)\n"
+            "open('seen.txt', 'w').write(repr(seen))\n")
+    env = {k: v for k, v in _env().items() if k not in ("FORCE_COLOR", "TTY_COMPATIBLE")}
+
+    def seen(extra: dict[str, str]) -> str:
+        proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env={**env, **extra},
+                              capture_output=True, text=True, timeout=60)
+        assert proc.returncode == 0, proc.stderr
+        return (tmp_path / "seen.txt").read_text()
+
+    assert seen({}) == "(True, False)"  # no progress, and rich never loaded
+    assert seen({"FORCE_COLOR": "1"}) == "(False, True)"  # rich draws when told to
