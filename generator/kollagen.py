@@ -28,7 +28,7 @@ from studio.generator.loop_closures import (
     discrete_circle,
 )
 from studio.generator.rng import MT19937Stream
-from studio.generator.walk import _random_walk, _round_half_away, _round_to_int, _Walk
+from studio.generator.walk import _dead_reckon, _random_walk, _round_half_away, _round_to_int, _Walk
 from studio.core.geometry import libm_cos_sin
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.units import NS_PER_S
@@ -128,7 +128,7 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
     # no process idle while the last agents finish
     streams = [MT19937Stream(seed) for seed in seeds]
     walks = [_random_walk(stream, cfg, agent) for stream, agent in zip(streams, cfg.agents)]
-    aligned = _align(walks) if cfg.align else walks
+    aligned, shifts = _align(walks) if cfg.align else (walks, [(0, 0)] * len(walks))
     cells = [_grid_cells(w.x, w.y, cfg) for w in aligned]
     pairs = _InterPairs(aligned, cells, cfg) if len(walks) > 1 else None
     n_agents, n_pairs = len(walks), len(pairs) if pairs is not None else 0
@@ -136,7 +136,7 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
     def task(i: int):
         if i < n_agents:  # the agents' streams go on from where their walks left them
             lcs = _intra_loop_closures(streams[i], walks[i], cfg, cfg.agents[i])
-            return lcs, _odometry_measurements(aligned[i])
+            return lcs, _odometry_measurements(aligned[i]), _initial_estimate(walks[i], shifts[i])
         assert pairs is not None
         return pairs(i - n_agents)
 
@@ -147,13 +147,13 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
             report(progress, "synth: inter-agent loop closures", done - n_agents, n_pairs, "pairs")
 
     done = parallel_map(task, n_agents + n_pairs, jobs, on_done=on_done)
-    per_agent = done[:n_agents]  # (intra-agent loop closures, odometry measurements)
+    per_agent = done[:n_agents]  # (intra-agent loop closures, odometry measurements, initial estimate)
     inter = pairs.edges(done[n_agents:]) if pairs is not None else InterAgentEdges.empty(PoseKind.SE2)
     walks = aligned
 
     agents = []
     exact = []
-    for idx, (walk, agent, (lcs, odo)) in enumerate(zip(walks, cfg.agents, per_agent)):
+    for idx, (walk, agent, (lcs, odo, initial)) in enumerate(zip(walks, cfg.agents, per_agent)):
         n = len(walk.x)
         odometry = Edges(
             PoseKind.SE2,
@@ -167,7 +167,7 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
                 name=f"agent{idx + 1}",
                 kind=PoseKind.SE2,
                 stamps_ns=np.arange(n, dtype=np.int64) * NS_PER_S,
-                initial=np.column_stack([walk.drx, walk.dry, walk.drtheta]),
+                initial=initial,
                 ground_truth=np.column_stack([walk.x, walk.y, walk.theta]),
                 odometry=odometry,
                 loop_closures=lcs,
@@ -191,25 +191,33 @@ def _odometry_measurements(walk: _Walk) -> np.ndarray:
     return np.column_stack([walk.odom_pos * c, walk.odom_pos * s, walk.odom_ang])
 
 
-def _align(walks: list[_Walk]) -> list[_Walk]:
-    """kollagen's ``align_center_of_masses``: integer shifts (in metres) towards agent 1's centre."""
+def _initial_estimate(walk: _Walk, shift: tuple[int, int]) -> np.ndarray:
+    """``(n, 3)`` dead reckoning of a walk (before alignment), moved by its alignment shift."""
+    x, y, theta = _dead_reckon(walk.odom_pos, walk.odom_ang)
+    sx, sy = shift
+    if sx != 0 or sy != 0:
+        x, y = x + sx, y + sy
+    return np.column_stack([x, y, theta])
+
+
+def _align(walks: list[_Walk]) -> tuple[list[_Walk], list[tuple[int, int]]]:
+    """kollagen's ``align_center_of_masses``: integer shifts (in metres) towards agent 1's centre;
+    the moved walks and each one's shift (the dead reckoning, made later, moves by it too)."""
     def centre(w: _Walk) -> tuple[int, int]:
         n = len(w.x)
         return _round_to_int(_libstdcxx_reduce(w.x) / n), _round_to_int(_libstdcxx_reduce(w.y) / n)
 
     x0, y0 = centre(walks[0])
-    out = []
+    out, shifts = [], []
     for w in walks:
         xc, yc = centre(w)
         sx, sy = x0 - xc, y0 - yc
+        shifts.append((sx, sy))
         if sx == 0 and sy == 0:
             out.append(w)
             continue
-        out.append(
-            _Walk(w.x + sx, w.y + sy, w.theta, w.delta_theta, w.odom_pos, w.odom_ang,
-                  w.drx + sx, w.dry + sy, w.drtheta)
-        )
-    return out
+        out.append(_Walk(w.x + sx, w.y + sy, w.theta, w.delta_theta, w.odom_pos, w.odom_ang))
+    return out, shifts
 
 
 @dataclass(frozen=True, eq=False)

@@ -55,9 +55,6 @@ class _Walk:
     delta_theta: np.ndarray  # per odometry edge: the turn (quarter turns) at a step's first sub-step
     odom_pos: np.ndarray
     odom_ang: np.ndarray
-    drx: np.ndarray
-    dry: np.ndarray
-    drtheta: np.ndarray
 
 
 _SPARE_WORDS = 4096
@@ -155,13 +152,15 @@ def _random_walk(stream: MT19937Stream, cfg: SynthConfig, agent: AgentConfig) ->
     turn_angle = np.array([normalize_angle(k * 0.5 * math.pi) for k in range(-1, 3)])[delta_theta + 1]
     noise_ang = agent.std_dev_angle * nang
     odom_ang = np.where(first, turn_angle + noise_ang, noise_ang)
-    drx, dry, drt = _dead_reckon(odom_pos, odom_ang)
-    return _Walk(x, y, theta, delta_theta, odom_pos, odom_ang, drx, dry, drt)
+    return _Walk(x, y, theta, delta_theta, odom_pos, odom_ang)
 
 
 def _dead_reckon(odom_pos: np.ndarray, odom_ang: np.ndarray):
     """kollagen's dead reckoning from the origin: the heading is wrapped after every step (a recurrence,
-    run in Python); the positions are running sums, which numpy adds in kollagen's order."""
+    run in Python); the positions are running sums, which numpy adds in kollagen's order.
+
+    Only the initial estimate needs it (loop closures use the ground truth and the odometry), so
+    the generator runs it in each agent's task, on any core, instead of before them."""
     floor, pi, two_pi = math.floor, math.pi, 2 * math.pi
     ts = [0.0] * (len(odom_ang) + 1)
     t = 0.0

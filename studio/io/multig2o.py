@@ -89,8 +89,9 @@ def write_multi_g2o(graph: PoseGraph, folder: str | os.PathLike, *, records: Rec
 def multi_g2o_parts(graph: PoseGraph, folder: str | os.PathLike, *, records: Records = "3d",
                     precision: Precision = "kollagen", folder_names: FolderNames = "agents",
                     sources: dict[str, str] | None = None) -> list[Callable[[], None]]:
-    """:func:`write_multi_g2o` as independent writes (one per agent folder, then the inter-agent file
-    and ``agents.json``), which may run in any order, in any process that has ``graph``."""
+    """:func:`write_multi_g2o` as independent writes, which may run in any order, in any process that
+    has ``graph``: the inter-agent file, each agent's ``posegraph.g2o``, each agent's ground truth,
+    then ``agents.json`` (the longer writes first, so that processes sharing them out end together)."""
     folder = Path(folder)
     if folder_names not in ("agents", "robots"):
         raise GraphError(f"folder_names must be agents or robots, got {folder_names!r}")
@@ -98,14 +99,21 @@ def multi_g2o_parts(graph: PoseGraph, folder: str | os.PathLike, *, records: Rec
         raise GraphError("2D records need a planar (SE2) graph")
     dirs = [f"agent{k + 1}" if folder_names == "agents" else a.name for k, a in enumerate(graph.agents)]
 
-    def agent_part(k: int) -> Callable[[], None]:
+    def graph_part(k: int) -> Callable[[], None]:
         def write() -> None:
             agent = graph.agents[k]
             sub = folder / dirs[k]
-            sub.mkdir()
+            sub.mkdir(exist_ok=True)  # the agent's other part may come first to it
             write_g2o(sub / "posegraph.g2o", agent_g2o_document(agent.to_se3() if records == "3d" else agent))
+        return write
+
+    def truth_part(k: int) -> Callable[[], None]:
+        def write() -> None:
+            agent = graph.agents[k]
             truth = agent.se3_poses(ground_truth=True)
             if truth is not None:
+                sub = folder / dirs[k]
+                sub.mkdir(exist_ok=True)
                 write_tum(sub / f"{dirs[k]}_GT.tum", Trajectory.from_poses(agent.name, agent.stamps_ns, truth))
         return write
 
@@ -119,7 +127,8 @@ def multi_g2o_parts(graph: PoseGraph, folder: str | os.PathLike, *, records: Rec
         (folder / AGENTS_FILE).write_text(json.dumps({"format": _AGENTS_FORMAT, "agents": entries}, indent=2) + "\n",
                                           encoding="utf-8")
 
-    parts = [agent_part(k) for k in range(len(graph.agents))] + [inter_part]
+    n = len(graph.agents)
+    parts = [inter_part] + [graph_part(k) for k in range(n)] + [truth_part(k) for k in range(n)]
     if any(d != a.name for d, a in zip(dirs, graph.agents)):
         parts.append(agents_file_part)
     return parts
