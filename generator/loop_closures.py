@@ -395,7 +395,7 @@ class _InterPairs:
         )
         self._pairs = agent_pairs(len(walks))
         # kollagen seeds a new generator for every pair with the same seed: all pairs read one tape
-        self._tape = UniformTape(MT19937Stream(p.random_number_generator_seed))
+        self._tape = UniformTape(MT19937Stream(p.random_number_generator_seed), owns=True)
 
     def __len__(self) -> int:
         return len(self._pairs)

@@ -97,6 +97,12 @@ class MT19937Stream:
     def advance(self, n_words: int) -> None:
         self.position += n_words
 
+    def forget_read(self) -> None:
+        """Drop the words before the cursor (they can no longer be read)."""
+        keep = self._words[self.position - self._start :]
+        self._words = keep.copy() if len(keep) else np.empty(0, dtype=np.uint32)
+        self._start = self.position
+
     def uniforms(self, n: int) -> np.ndarray:
         """The next ``n`` canonical doubles (``2 n`` words), without moving the cursor."""
         return canonical_doubles(self.words(2 * n))
@@ -106,13 +112,15 @@ class UniformTape:
     """The canonical doubles of a stream from its current word on, decoded once and kept.
 
     The tape reads the stream's words without moving its cursor (a reader that goes on drawing
-    advances the stream by two words per uniform it used). kollagen restarts its inter-agent
-    generator with the same seed for every pair of agents, so every pair reads the same uniforms:
-    one tape serves them all.
+    advances the stream by two words per uniform it used), unless it ``owns`` the stream: then it
+    moves the cursor past the words it decoded and the stream drops them (half the memory of a long
+    tape). kollagen restarts its inter-agent generator with the same seed for every pair of agents,
+    so every pair reads the same uniforms: one tape serves them all.
     """
 
-    def __init__(self, stream: MT19937Stream) -> None:
+    def __init__(self, stream: MT19937Stream, *, owns: bool = False) -> None:
         self._stream = stream
+        self._owns = owns
         self._values = np.empty(0)
 
     def head(self, n: int) -> np.ndarray:
@@ -120,6 +128,11 @@ class UniformTape:
         have = len(self._values)
         if n > have:
             n = max(n, 2 * have)
-            fresh = canonical_doubles(self._stream.words(2 * n)[2 * have :])
+            if self._owns:  # the stream's cursor is at the tape's end
+                fresh = canonical_doubles(self._stream.words(2 * (n - have)))
+                self._stream.advance(2 * (n - have))
+                self._stream.forget_read()
+            else:
+                fresh = canonical_doubles(self._stream.words(2 * n)[2 * have :])
             self._values = np.concatenate([self._values, fresh]) if have else fresh
         return self._values

@@ -102,3 +102,14 @@ def test_uniform_tape_grows_without_moving_the_stream():
     assert len(big) >= 200_000 and np.array_equal(big[:10], small)
     assert stream.position == 0
     assert big[150_000] == UniformTape(MT19937Stream(7)).head(150_001)[150_000]
+
+
+def test_a_tape_that_owns_its_stream_reads_the_same_uniforms_and_keeps_no_words():
+    plain = UniformTape(MT19937Stream(7))
+    stream = MT19937Stream(7)
+    owned = UniformTape(stream, owns=True)
+    for n in (10, 1000, 70_000, 150_001):  # growing past the stream's block of 65,536 words
+        assert np.array_equal(owned.head(n)[:n], plain.head(n)[:n])
+    got = len(owned.head(1))
+    assert stream.position == 2 * got  # the cursor sits at the tape's end
+    assert len(stream.words(0)) == 0 and stream._words.size < 65_536  # the decoded words are gone
