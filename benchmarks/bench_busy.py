@@ -4,9 +4,11 @@
                                     [--neighbours none cpu1 cpu memory disk files mixed] [--jobs 0 2]
 
 For each kind of neighbour, the neighbours are started, left to settle for a second, and then
-`studio synth CONFIG -o DIR --no-rrd -q` runs in turn with `--jobs 1` and with each `--jobs J`
-(default: 0, what a user gets: the cores not busy at that moment; and 2, always parallel), --repeat
-times each. Neighbours (this script's own small loops, one per core unless said otherwise):
+`studio synth CONFIG -o DIR --no-rrd -q` runs in turn with `--jobs 1`, with each `--jobs J`
+(default: 0, what a user gets: the cores not busy at that moment; and 2, always parallel) and with
+`--jobs 1` again (row `1*`: the control, whose ratio to the first `--jobs 1` is the noise of the
+measurement), --repeat times each; the order of the settings rotates from one repeat to the next,
+so that none always runs right after the same one. Neighbours (this script's own small loops, one per core unless said otherwise):
 
 * cpu1:   one busy Python loop;
 * cpu:    busy Python loops;
@@ -148,23 +150,25 @@ def main() -> None:
         try:
             time.sleep(1.0)
             load = os.getloadavg()[0]
-            settings = [1, *[j for j in args.jobs if j != 1]]
-            rows: dict[int, list[dict[str, float]]] = {j: [] for j in settings}
+            # (label, --jobs): the reference, the settings compared with it, the control
+            settings = [("1", 1), *[(str(j), j) for j in args.jobs if j != 1], ("1*", 1)]
+            rows: dict[str, list[dict[str, float]]] = {label: [] for label, _ in settings}
             for k in range(args.repeat):
-                for jobs in settings:
+                for label, jobs in settings[k % len(settings):] + settings[:k % len(settings)]:
                     out = work / f"run_{kind}_{jobs}_{k}"
-                    rows[jobs].append(run_once([studio, "synth", str(cfg), "-o", str(out), "--no-rrd", "-q",
-                                                "--jobs", str(jobs)]))
+                    rows[label].append(run_once([studio, "synth", str(cfg), "-o", str(out), "--no-rrd", "-q",
+                                                 "--jobs", str(jobs)]))
                     shutil.rmtree(out)
         finally:
             stop_neighbours(procs)
             for p in work.glob("neighbour*"):
                 shutil.rmtree(p, ignore_errors=True)
-        med = {j: {key: statistics.median(r[key] for r in runs) for key in runs[0]} for j, runs in rows.items()}
-        for jobs in settings:
-            m = med[jobs]
-            ratio = f"{m['wall'] / med[1]['wall']:.2f}x" if jobs != 1 else ""
-            print(f"{kind:10} {jobs:>4} {load:5.1f} {m['wall']:7.2f} {m['cpu']:6.2f} {m['minflt']:8.0f} "
+        med = {label: {key: statistics.median(r[key] for r in runs) for key in runs[0]}
+               for label, runs in rows.items()}
+        for label, _ in settings:
+            m = med[label]
+            ratio = f"{m['wall'] / med['1']['wall']:.2f}x" if label != "1" else ""
+            print(f"{kind:10} {label:>4} {load:5.1f} {m['wall']:7.2f} {m['cpu']:6.2f} {m['minflt']:8.0f} "
                   f"{m['nivcsw']:7.0f}  {ratio}", flush=True)
         time.sleep(2.0)
 

@@ -92,18 +92,24 @@ def _claim_loop(report: Callable[[], None] | None = None) -> dict[int, Any]:
             report()
 
 
+def _become_worker() -> None:
+    """A forked worker's first steps: Ctrl-C reaches the whole process group, but only the parent
+    handles it (and stops the workers); SIGTERM (how the parent stops a worker) ends a worker at once,
+    whatever handler it inherited; SIGINT, held during the fork, is let through (to be ignored); the
+    parent's free heap is given back (see :func:`release_free_heap`)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    release_free_heap()
+
+
 def _worker(fd: int) -> None:
     """A forked worker's whole life: claim items, send ``("ok", results)`` or ``("error", exception)``
     through the pipe ``fd``, and leave with ``os._exit`` (never returning into the caller's code,
     never running its exit handlers or flushing its buffers)."""
     code = 1
     try:
-        # Ctrl-C reaches the whole process group; only the parent handles it (and stops the workers).
-        # SIGTERM (how the parent stops a worker) ends a worker at once, whatever handler it inherited.
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-        release_free_heap()
+        _become_worker()
         try:
             payload: tuple[str, Any] = ("ok", _claim_loop())
         except BaseException as err:  # noqa: BLE001 - any error goes back to the parent
@@ -459,10 +465,7 @@ def _team_worker(job: Callable[[bool], Any], team: _Team) -> None:
     """A team worker's whole life: ``job(False)``, then ``os._exit`` (an error goes to the leader)."""
     code = 1
     try:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-        release_free_heap()
+        _become_worker()
         _TEAM.append(team)
         try:
             job(False)
