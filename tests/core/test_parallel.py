@@ -221,3 +221,48 @@ def test_a_refused_fork_leaves_the_team_job_to_this_process(monkeypatch):
     first, second, pid = parallel.run_team(_two_maps, jobs=3)
     assert first == [k * k for k in range(12)]
     assert {p for _, p in second} == {os.getpid()}
+
+
+def test_team_workers_end_when_their_leader_is_killed(tmp_path):
+    import os
+    import subprocess
+    import sys
+    import time
+
+    script = (
+        "import os, signal, time\n"
+        "from pathlib import Path\n"
+        "from studio.core import parallel\n"
+        f"folder = Path({str(tmp_path)!r})\n"
+        "leader = os.getpid()\n"
+        "def item(k):\n"
+        "    if os.getpid() != leader:\n"
+        "        (folder / f'worker-{os.getpid()}').touch()\n"
+        "    time.sleep(0.05)\n"
+        "    if os.getpid() == leader and k >= 4:\n"
+        "        os.kill(leader, signal.SIGKILL)  # the leader dies in the middle of the map\n"
+        "    return k\n"
+        "parallel.run_team(lambda lead: parallel.parallel_map(item, 40), jobs=2)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == -9
+    workers = {int(p.name.split("-")[1]) for p in tmp_path.iterdir()}
+    assert workers  # the worker took items before the leader died
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_alive(pid) for pid in workers):
+        time.sleep(0.05)
+    assert not any(_alive(pid) for pid in workers)  # it noticed and ended (no orphan left running)
+
+
+def _alive(pid: int) -> bool:
+    import os
+
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:
+        with open(f"/proc/{pid}/stat") as f:  # a zombie (not yet reaped by init) has ended too
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:  # gone meanwhile
+        return False
