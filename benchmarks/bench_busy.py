@@ -8,7 +8,8 @@ For each kind of neighbour, the neighbours are started, left to settle for a sec
 (default: 0, what a user gets: the cores not busy at that moment; and 2, always parallel) and with
 `--jobs 1` again (row `1*`: the control, whose ratio to the first `--jobs 1` is the noise of the
 measurement), --repeat times each; the order of the settings rotates from one repeat to the next,
-so that none always runs right after the same one. Neighbours (this script's own small loops, one per core unless said otherwise):
+so that none always runs right after the same one. Neighbours (this script's own small loops, one
+per core unless said otherwise):
 
 * cpu1:   one busy Python loop;
 * cpu:    busy Python loops;

@@ -18,7 +18,7 @@ import signal
 import struct
 import sys
 import time
-from typing import Any, Callable, TypeVar
+from typing import Any, Callable, NoReturn, TypeVar
 
 __all__ = ["parallel_map", "run_team", "default_jobs", "available_cores", "tune_allocator", "release_free_heap"]
 
@@ -55,10 +55,10 @@ def default_jobs() -> int:
     """The processes to use when the caller does not say: the cores this process may use, less those
     other tasks keep busy right now (at least 1).
 
-    The parallel path does more work than one process (forking, copy-on-write and fresh pages in the
-    worker: about 3x the page faults and 5-20 % more CPU time on Multi10000x5 at R = 6 m), which pays
+    The parallel path does more work than one process (forking, a heap and its page faults per
+    process: twice the page faults and 5-20 % more CPU time on Multi10000x5 at R = 6 m), which pays
     off only with idle cores; on a machine whose cores are all taken it made ``studio synth`` up to
-    1.14x slower than ``--jobs 1`` (benchmarks/bench_busy.py), so there it runs in one process.
+    1.25x slower than ``--jobs 1`` (benchmarks/bench_busy.py), so there it runs in one process.
     """
     cores = available_cores()
     busy = _other_runnable()
@@ -103,71 +103,225 @@ def _become_worker() -> None:
     release_free_heap()
 
 
-def _worker(fd: int) -> None:
-    """A forked worker's whole life: claim items, send ``("ok", results)`` or ``("error", exception)``
-    through the pipe ``fd``, and leave with ``os._exit`` (never returning into the caller's code,
-    never running its exit handlers or flushing its buffers)."""
-    code = 1
+# --------------------------------------------------------------------------------------------------
+# Messages between processes: length-prefixed pickles through pipes
+
+
+_HEADER = struct.Struct("<Q")
+
+
+def _send(fd: int, obj: Any) -> None:
+    """One message through a pipe: its length, then its pickle (made first: a pickling error writes
+    nothing)."""
+    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    view = memoryview(_HEADER.pack(len(data)) + data)
+    while view:
+        view = view[os.write(fd, view):]
+
+
+def _send_outcome(fd: int, kind: str, value: Any) -> None:
+    """A worker's ``("ok", results)`` or ``("error", exception)``; one that cannot be pickled goes as
+    a RuntimeError saying so."""
     try:
-        _become_worker()
-        try:
-            payload: tuple[str, Any] = ("ok", _claim_loop())
-        except BaseException as err:  # noqa: BLE001 - any error goes back to the parent
-            payload = ("error", err)
-        try:
-            data = pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL)
-        except Exception as err:  # noqa: BLE001 - a result or an error that cannot be pickled
-            data = pickle.dumps(("error", RuntimeError(f"a worker's result could not be sent back: {err}")))
-        with os.fdopen(fd, "wb") as pipe:
-            pipe.write(data)
-        code = 0
-    finally:
-        os._exit(code)
+        _send(fd, (kind, value))
+    except Exception as err:  # noqa: BLE001 - a result or an error that cannot be pickled
+        _send(fd, ("error", RuntimeError(f"a worker's result could not be sent back: {err}")))
 
 
-def _stop(workers: list[tuple[int, int]], *fds: int) -> None:
-    """Terminate and reap workers still running and close their pipes (after an error or Ctrl-C here).
-    ``workers`` are ``(pid, pipe fd)`` (fd -1: closed already); ``fds`` more pipe ends to close."""
-    for pid, fd in workers:
-        with contextlib.suppress(OSError):
-            os.kill(pid, signal.SIGTERM)
-    for fd in [fd for _, fd in workers] + list(fds):
-        if fd >= 0:
+def _recv(fd: int) -> Any:
+    """The next message of :func:`_send` from a pipe; ``_EOF`` if the other end closed it first."""
+    head = _read_exactly(fd, _HEADER.size)
+    if head is None:
+        return _EOF
+    body = _read_exactly(fd, _HEADER.unpack(head)[0])
+    return _EOF if body is None else pickle.loads(body)
+
+
+def _read_exactly(fd: int, size: int) -> bytearray | None:
+    buf = bytearray(size)
+    view, got = memoryview(buf), 0
+    while got < size:
+        n = os.readv(fd, [view[got:]])
+        if n == 0:
+            return None
+        got += n
+    return buf
+
+
+_EOF = object()
+
+
+def _raise_here(error: BaseException) -> NoReturn:
+    """A worker's error, as if raised here: no traceback or cause from the other process, so the
+    caller's one-line handling (e.g. OSError -> OutputError) sees a clean exception."""
+    error.__cause__ = None
+    raise error.with_traceback(None) from None
+
+
+def _how_it_ended(status: int) -> str:
+    code = os.waitstatus_to_exitcode(status)
+    return f"signal {-code}" if code < 0 else f"exit code {code}"
+
+
+class _LeaderGone(Exception):
+    """In a worker: the leader closed its pipe (it stopped the job); the worker just ends."""
+
+
+class _ErrorSent(Exception):
+    """In a worker: its error went to the leader already; the worker just ends."""
+
+
+# --------------------------------------------------------------------------------------------------
+# A team: this process and the workers it forked, linked by pipes
+
+
+class _Team:
+    """This process's view of its workers: the leader (``links`` to each worker: pid, the pipe from
+    it, the pipe to it) or a worker (one link to the leader, pid 0). A :func:`parallel_map` forks a
+    team for one map; :func:`run_team` forks one for a whole job."""
+
+    def __init__(self, leader: bool, claim: Any, finished: Any, links: list[tuple[int, int, int]]) -> None:
+        self.leader, self.claim, self.finished, self.links = leader, claim, finished, links
+        self.reaped: set[int] = set()
+        self.closed: set[int] = set()
+
+    def fork(self, n_workers: int, child: Callable[[_Team], None]) -> None:
+        """Fork up to ``n_workers`` workers, each running ``child`` with its own view of the team
+        (``child`` never returns); fewer when no process is to be had (EAGAIN, ENOMEM): the ones
+        started do the work."""
+        for _ in range(n_workers):
+            # Ctrl-C is held from the fork until the worker is on the list (in the worker: until it
+            # ignores Ctrl-C; it would otherwise unwind the worker through this caller's code); a
+            # Ctrl-C held here reaches this process right after
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+            try:
+                up_r, up_w = os.pipe()
+                down_r, down_w = os.pipe()
+                try:
+                    pid = os.fork()
+                except OSError:
+                    for fd in (up_r, up_w, down_r, down_w):
+                        os.close(fd)
+                    return
+                if pid == 0:
+                    os.close(up_r)
+                    os.close(down_w)
+                    for _, r, w in self.links:  # the other workers' pipes: their EOF is theirs
+                        os.close(r)
+                        os.close(w)
+                    child(_Team(False, self.claim, self.finished, [(0, down_r, up_w)]))
+                os.close(up_w)
+                os.close(down_r)
+                self.links.append((pid, up_r, down_w))
+            finally:
+                signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+    def map(self, func: Callable[[int], T], n_items: int,
+            on_done: Callable[[int, int], None] | None) -> list[T]:
+        """One :func:`parallel_map` shared by a running team: every process claims items, the workers
+        send their results to the leader, and the leader sends each worker the results it lacks (so
+        every process goes on with all of them, as one process would)."""
+        if not self.leader:
+            on_done = None
+        elif on_done is not None:
+            on_done(0, n_items)
+        report = None if on_done is None else (lambda: on_done(self.finished.value, n_items))
+        _TASK.append((func, self.claim, self.finished, n_items))
+        try:
+            results = _claim_loop(report)
+        except BaseException as err:
+            if self.leader:
+                raise
+            _send_outcome(self.links[0][2], "error", err)
+            raise _ErrorSent from None
+        finally:
+            _TASK.clear()
+        if self.leader:
+            theirs = self.receive(results)
+            # every worker is past its claims and waits for the reply: the counters are free again
+            self.claim.value = 0
+            self.finished.value = 0
+            for (_, _, to_worker), own in zip(self.links, theirs):
+                _send(to_worker, {i: r for i, r in results.items() if i not in own})
+            if on_done is not None:
+                on_done(n_items, n_items)
+        else:
+            _, from_leader, to_leader = self.links[0]
+            _send_outcome(to_leader, "ok", results)
+            rest = _recv(from_leader)
+            if rest is _EOF:
+                raise _LeaderGone
+            results.update(rest)
+        return [results[i] for i in range(n_items)]
+
+    def receive(self, results: dict[int, Any]) -> list[set[int]]:
+        """In the leader: each worker's results into ``results`` (the items each sent); a worker's
+        error (the first, in worker order) is raised once every worker has been heard."""
+        error: BaseException | None = None
+        theirs: list[set[int]] = []
+        for pid, from_worker, _ in self.links:
+            message = _recv(from_worker)
+            if message is _EOF:
+                _, status = os.waitpid(pid, 0)
+                self.reaped.add(pid)
+                message = ("error", RuntimeError(
+                    f"a worker process ended ({_how_it_ended(status)}) without sending its results"))
+            kind, value = message
+            if kind == "ok":
+                results.update(value)
+                theirs.append(set(value))
+            elif error is None:
+                error = value
+        if error is not None:
+            _raise_here(error)
+        return theirs
+
+    def finish(self) -> None:
+        """In the leader, once its work is done: close the pipes to the workers, take any last error
+        they sent, and reap them."""
+        error: BaseException | None = None
+        for pid, from_worker, to_worker in self.links:
+            self._close(to_worker)
+            message = _recv(from_worker)
+            self._close(from_worker)
+            if pid in self.reaped:
+                continue
+            _, status = os.waitpid(pid, 0)
+            self.reaped.add(pid)
+            if error is not None:
+                continue
+            if message is not _EOF and message[0] == "error":
+                error = message[1]
+            elif os.waitstatus_to_exitcode(status) != 0:
+                error = RuntimeError(f"a worker process ended ({_how_it_ended(status)})")
+        if error is not None:
+            _raise_here(error)
+
+    def _close(self, fd: int) -> None:
+        self.closed.add(fd)
+        os.close(fd)
+
+    def stop(self) -> None:
+        """In the leader, after an error or Ctrl-C (or when done): terminate and reap the workers
+        still running and close the pipes still open."""
+        live = [pid for pid, _, _ in self.links if pid not in self.reaped]
+        for pid in live:
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGTERM)
+        for fd in [fd for _, r, w in self.links for fd in (r, w) if fd not in self.closed]:
+            self.closed.add(fd)
             with contextlib.suppress(OSError):
                 os.close(fd)
-    for pid, _ in workers:
-        with contextlib.suppress(ChildProcessError):
-            os.waitpid(pid, 0)
+        for pid in live:
+            self.reaped.add(pid)
+            with contextlib.suppress(ChildProcessError):
+                os.waitpid(pid, 0)
 
 
-def _collect(workers: list[tuple[int, int]], results: dict[int, Any]) -> None:
-    """Read each worker's message to its end (a worker exits after writing it), reap it, and add its
-    results; a worker's error is raised (the first, in worker order) once every worker is reaped."""
-    error: BaseException | None = None
-    while workers:
-        pid, fd = workers.pop(0)
-        try:
-            with os.fdopen(fd, "rb") as pipe:
-                data = pipe.read()
-        except BaseException:
-            _stop([(pid, -1)])  # the pipe is closed; the worker may still run
-            raise
-        _, status = os.waitpid(pid, 0)
-        if data:
-            kind, value = pickle.loads(data)
-        else:
-            code = os.waitstatus_to_exitcode(status)
-            how = f"signal {-code}" if code < 0 else f"exit code {code}"
-            kind, value = "error", RuntimeError(f"a worker process ended ({how}) without sending its results")
-        if kind == "ok":
-            results.update(value)
-        elif error is None:
-            error = value
-    if error is not None:
-        # the worker's error, as if raised here: no traceback or cause from the other process, so the
-        # caller's one-line handling (e.g. OSError -> OutputError) sees a clean exception
-        error.__cause__ = None
-        raise error.with_traceback(None) from None
+def _shared_counters() -> tuple[Any, Any]:
+    """The claim and finished counters, shared with the processes forked after."""
+    ctx = multiprocessing.get_context("fork")
+    return ctx.Value("q", 0), ctx.Value("q", 0)
 
 
 def parallel_map(func: Callable[[int], T], n_items: int, jobs: int | None = None, *,
@@ -203,196 +357,37 @@ def parallel_map(func: Callable[[int], T], n_items: int, jobs: int | None = None
             if on_done is not None:
                 on_done(i + 1, n_items)
         return out
-    ctx = multiprocessing.get_context("fork")
-    finished = ctx.Value("q", 0)
-    _TASK.append((func, ctx.Value("q", 0), finished, n_items))
-    report = None if on_done is None else (lambda: on_done(finished.value, n_items))
-    workers: list[tuple[int, int]] = []
+    team = _Team(True, *_shared_counters(), [])
+    _TASK.append((func, team.claim, team.finished, n_items))
+    report = None if on_done is None else (lambda: on_done(team.finished.value, n_items))
     try:
-        for _ in range(jobs - 1):
-            # Ctrl-C is held from the fork until the worker is on the list (in the worker: until it
-            # ignores Ctrl-C; it would otherwise unwind the worker through this caller's code); a
-            # Ctrl-C held here reaches this process right after
-            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-            try:
-                read_fd, write_fd = os.pipe()
-                try:
-                    pid = os.fork()
-                except OSError:  # no process to be had (EAGAIN, ENOMEM): the ones started do the work
-                    os.close(read_fd)
-                    os.close(write_fd)
-                    break
-                if pid == 0:
-                    os.close(read_fd)
-                    _worker(write_fd)
-                workers.append((pid, read_fd))
-                os.close(write_fd)
-            finally:
-                signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        team.fork(jobs - 1, _map_worker)
         results = _claim_loop(report)
-        _collect(workers, results)
+        team.receive(results)
+        team.finish()
         if on_done is not None:
             on_done(n_items, n_items)
         return [results[i] for i in range(n_items)]
     finally:
-        _stop(workers)
+        team.stop()
         _TASK.clear()
 
 
-# --------------------------------------------------------------------------------------------------
-# Teams: one set of processes for a whole job
-
-
-_HEADER = struct.Struct("<Q")
-
-
-def _send(fd: int, obj: Any) -> None:
-    """One message through a pipe: its length, then its pickle."""
-    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
-    view = memoryview(_HEADER.pack(len(data)) + data)
-    while view:
-        view = view[os.write(fd, view):]
-
-
-def _recv(fd: int) -> Any:
-    """The next message of :func:`_send` from a pipe; ``_EOF`` if the other end closed it first."""
-    head = _read_exactly(fd, _HEADER.size)
-    if head is None:
-        return _EOF
-    body = _read_exactly(fd, _HEADER.unpack(head)[0])
-    return _EOF if body is None else pickle.loads(body)
-
-
-def _read_exactly(fd: int, size: int) -> bytearray | None:
-    buf = bytearray(size)
-    view, got = memoryview(buf), 0
-    while got < size:
-        n = os.readv(fd, [view[got:]])
-        if n == 0:
-            return None
-        got += n
-    return buf
-
-
-_EOF = object()
-
-
-class _LeaderGone(Exception):
-    """In a worker: the leader closed its pipe (it stopped the job); the worker just ends."""
-
-
-class _ErrorSent(Exception):
-    """In a worker: its error went to the leader already; the worker just ends."""
-
-
-class _Team:
-    """This process's view of a running team: the leader (``links`` to each worker: pid, the pipe
-    from it, the pipe to it) or a worker (one link to the leader, pid 0)."""
-
-    def __init__(self, leader: bool, claim: Any, finished: Any, links: list[tuple[int, int, int]]) -> None:
-        self.leader, self.claim, self.finished, self.links = leader, claim, finished, links
-        self.reaped: set[int] = set()
-        self.closed: set[int] = set()
-
-    def map(self, func: Callable[[int], T], n_items: int,
-            on_done: Callable[[int, int], None] | None) -> list[T]:
-        """One :func:`parallel_map` shared by the team: every process claims items, the workers send
-        their results to the leader, and the leader sends each worker the results it lacks (so every
-        process goes on with all of them, as one process would)."""
-        if not self.leader:
-            on_done = None
-        elif on_done is not None:
-            on_done(0, n_items)
-        report = None if on_done is None else (lambda: on_done(self.finished.value, n_items))
-        _TASK.append((func, self.claim, self.finished, n_items))
+def _map_worker(team: _Team) -> None:
+    """A :func:`parallel_map` worker's whole life: claim items, send ``("ok", results)`` or
+    ``("error", exception)`` to the parent, and leave with ``os._exit`` (never returning into the
+    caller's code, never running its exit handlers or flushing its buffers)."""
+    code = 1
+    try:
+        _become_worker()
         try:
-            results = _claim_loop(report)
-        except BaseException as err:
-            if self.leader:
-                raise
-            _send(self.links[0][2], ("error", err))
-            raise _ErrorSent from None
-        finally:
-            _TASK.clear()
-        if self.leader:
-            self._gather(results)
-            if on_done is not None:
-                on_done(n_items, n_items)
-        else:
-            _, from_leader, to_leader = self.links[0]
-            _send(to_leader, ("ok", results))
-            rest = _recv(from_leader)
-            if rest is _EOF:
-                raise _LeaderGone
-            results.update(rest)
-        return [results[i] for i in range(n_items)]
-
-    def _gather(self, results: dict[int, Any]) -> None:
-        """In the leader: the workers' results into ``results``, then the rest back to each worker."""
-        error: BaseException | None = None
-        theirs: list[set[int]] = []
-        for pid, from_worker, _ in self.links:
-            message = _recv(from_worker)
-            if message is _EOF:
-                message = ("error", self._vanished(pid))
-            kind, value = message
-            if kind == "ok":
-                results.update(value)
-                theirs.append(set(value))
-            elif error is None:
-                error = value
-        if error is not None:
-            error.__cause__ = None
-            raise error.with_traceback(None) from None
-        # every worker is past its claims and waits for the reply: the counters are free again
-        self.claim.value = 0
-        self.finished.value = 0
-        for (_, _, to_worker), own in zip(self.links, theirs):
-            _send(to_worker, {i: r for i, r in results.items() if i not in own})
-
-    def _vanished(self, pid: int) -> RuntimeError:
-        _, status = os.waitpid(pid, 0)
-        self.reaped.add(pid)
-        code = os.waitstatus_to_exitcode(status)
-        how = f"signal {-code}" if code < 0 else f"exit code {code}"
-        return RuntimeError(f"a worker process ended ({how}) without sending its results")
-
-    def finish(self) -> None:
-        """In the leader, once its job is done: close the pipes to the workers, take any last error
-        they sent, and reap them."""
-        error: BaseException | None = None
-        for pid, from_worker, to_worker in self.links:
-            self._close(to_worker)
-            message = _recv(from_worker)
-            self._close(from_worker)
-            if pid in self.reaped:
-                continue
-            _, status = os.waitpid(pid, 0)
-            self.reaped.add(pid)
-            code = os.waitstatus_to_exitcode(status)
-            if error is not None:
-                continue
-            if message is not _EOF and message[0] == "error":
-                error = message[1]
-            elif code != 0:
-                how = f"signal {-code}" if code < 0 else f"exit code {code}"
-                error = RuntimeError(f"a worker process ended ({how})")
-        if error is not None:
-            error.__cause__ = None
-            raise error.with_traceback(None) from None
-
-    def _close(self, fd: int) -> None:
-        self.closed.add(fd)
-        os.close(fd)
-
-    def stop(self) -> None:
-        """In the leader, after an error or Ctrl-C: terminate and reap the workers still running and
-        close the pipes still open."""
-        live = [(pid, -1) for pid, _, _ in self.links if pid not in self.reaped]
-        fds = [fd for _, r, w in self.links for fd in (r, w) if fd not in self.closed]
-        self.reaped.update(pid for pid, _ in live)
-        self.closed.update(fds)
-        _stop(live, *fds)
+            outcome: tuple[str, Any] = ("ok", _claim_loop())
+        except BaseException as err:  # noqa: BLE001 - any error goes back to the parent
+            outcome = ("error", err)
+        _send_outcome(team.links[0][2], *outcome)
+        code = 0
+    finally:
+        os._exit(code)
 
 
 _TEAM: list[_Team] = []
@@ -425,31 +420,8 @@ def run_team(job: Callable[[bool], T], jobs: int | None = None) -> T:
     team = _Team(True, None, None, [])  # alone until a worker is forked
     try:
         if jobs > 1 and hasattr(os, "fork"):
-            ctx = multiprocessing.get_context("fork")
-            team.claim, team.finished = ctx.Value("q", 0), ctx.Value("q", 0)
-        for _ in range(jobs - 1 if team.claim is not None else 0):
-            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})  # as in parallel_map
-            try:
-                up_r, up_w = os.pipe()
-                down_r, down_w = os.pipe()
-                try:
-                    pid = os.fork()
-                except OSError:  # no process to be had: the ones started do the work
-                    for fd in (up_r, up_w, down_r, down_w):
-                        os.close(fd)
-                    break
-                if pid == 0:
-                    os.close(up_r)
-                    os.close(down_w)
-                    for _, r, w in team.links:  # the other workers' pipes
-                        os.close(r)
-                        os.close(w)
-                    _team_worker(job, _Team(False, team.claim, team.finished, [(0, down_r, up_w)]))
-                os.close(up_w)
-                os.close(down_r)
-                team.links.append((pid, up_r, down_w))
-            finally:
-                signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+            team.claim, team.finished = _shared_counters()
+            team.fork(jobs - 1, lambda own: _team_worker(job, own))
         _TEAM.append(team)
         try:
             result = job(True)
@@ -474,10 +446,7 @@ def _team_worker(job: Callable[[bool], Any], team: _Team) -> None:
             pass
         except BaseException as err:  # noqa: BLE001 - any error goes to the leader
             with contextlib.suppress(BaseException):
-                try:
-                    _send(team.links[0][2], ("error", err))
-                except Exception as bad:  # noqa: BLE001 - an error that cannot be pickled
-                    _send(team.links[0][2], ("error", RuntimeError(f"a worker failed: {bad}")))
+                _send_outcome(team.links[0][2], "error", err)
     finally:
         os._exit(code)
 
