@@ -123,9 +123,9 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
     work leaves idle, see :func:`studio.core.parallel.default_jobs`); the output does not depend on it.
     """
     seeds = effective_seeds([a.random_number_generator_seed for a in cfg.agents])
-    # the walks first (a few percent of the time), so that one pool of processes takes both the
-    # agents' intra-agent loop closures and the pairs' inter-agent ones: no second pool to fork, and
-    # no process idle while the last agents finish
+    # the walks first (a tenth of the time; in a team every process makes them), so that one parallel
+    # step takes both the agents' intra-agent loop closures and the pairs' inter-agent ones: no
+    # second step to wait for, and no process idle while the last agents finish
     streams = [MT19937Stream(seed) for seed in seeds]
     walks = [_random_walk(stream, cfg, agent) for stream, agent in zip(streams, cfg.agents)]
     aligned, shifts = _align(walks) if cfg.align else (walks, [(0, 0)] * len(walks))
