@@ -39,10 +39,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from timing import run_usage, work_folder  # noqa: E402  (benchmarks/timing.py, beside this script)
+
 from studio.generator.presets import preset  # noqa: E402
 from studio.io.synth_config import synth_config_to_json  # noqa: E402
-
-from timing import run_usage, work_folder  # noqa: E402  (benchmarks/timing.py, beside this script)
 
 NEIGHBOUR_CODE = {
     "cpu": "while True:\n    pass\n",
@@ -100,9 +100,14 @@ def start_neighbours(kinds: list[str], work: Path) -> list[subprocess.Popen]:
     for i, kind in enumerate(kinds):
         folder = work / f"neighbour{i}"
         folder.mkdir(parents=True, exist_ok=True)
-        procs.append(subprocess.Popen([sys.executable, "-c", NEIGHBOUR_CODE[kind], str(folder)],
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                      start_new_session=True))
+        procs.append(
+            subprocess.Popen(
+                [sys.executable, "-c", NEIGHBOUR_CODE[kind], str(folder)],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+                start_new_session=True,
+            )
+        )
     return procs
 
 
@@ -116,22 +121,35 @@ def stop_neighbours(procs: list[subprocess.Popen]) -> None:
 def run_once(cmd: list[str]) -> dict[str, float]:
     """Wall seconds and the rusage of one run (the process and every worker it waited for)."""
     wall, usage = run_usage(cmd)
-    return {"wall": wall, "cpu": usage.ru_utime + usage.ru_stime, "minflt": usage.ru_minflt,
-            "nivcsw": usage.ru_nivcsw, "majflt": usage.ru_majflt}
+    return {
+        "wall": wall,
+        "cpu": usage.ru_utime + usage.ru_stime,
+        "minflt": usage.ru_minflt,
+        "nivcsw": usage.ru_nivcsw,
+        "majflt": usage.ru_majflt,
+    }
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--preset", default="multi10000x5")
-    ap.add_argument("--radius", type=float, default=6.0,
-                    help="loop-closure radius [m], intra and inter (the preset's with 0; default 6)")
+    ap.add_argument(
+        "--radius",
+        type=float,
+        default=6.0,
+        help="loop-closure radius [m], intra and inter (the preset's with 0; default 6)",
+    )
     ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--jobs", type=int, nargs="+", default=[0, 2],
-                    help="the settings compared with --jobs 1 (0: the default, the idle cores)")
+    ap.add_argument(
+        "--jobs",
+        type=int,
+        nargs="+",
+        default=[0, 2],
+        help="the settings compared with --jobs 1 (0: the default, the idle cores)",
+    )
     kinds = ["none", "cpu1", "cpu", "memory", "disk", "files", "mixed"]
     ap.add_argument("--neighbours", nargs="*", default=kinds, choices=kinds)
-    ap.add_argument("--out", type=Path, default=None,
-                    help="work folder (default: a temporary folder, removed after)")
+    ap.add_argument("--out", type=Path, default=None, help="work folder (default: a temporary folder, removed after)")
     args = ap.parse_args()
     studio = shutil.which("studio") or str(Path(sys.executable).parent / "studio")
     cores = len(os.sched_getaffinity(0))
@@ -140,8 +158,10 @@ def main() -> None:
         for spec in doc["agent_parameters"]["agent_specific"]:
             spec["intra_loop_closure_radius"] = args.radius
         doc["inter_agent_loop_closure_parameters"]["loop_closure_radius"] = args.radius
-    print(f"# {time.strftime('%Y-%m-%d %H:%M')}  {cores} cores  python {sys.version.split()[0]}  "
-          f"{args.preset} R={args.radius:g} m  --jobs 1 vs --jobs {' / '.join(map(str, args.jobs))}")
+    print(
+        f"# {time.strftime('%Y-%m-%d %H:%M')}  {cores} cores  python {sys.version.split()[0]}  "
+        f"{args.preset} R={args.radius:g} m  --jobs 1 vs --jobs {' / '.join(map(str, args.jobs))}"
+    )
     print(f"{'neighbours':10} {'jobs':>4} {'load':>5} {'wall s':>7} {'cpu s':>6} {'minflt':>8} {'invcsw':>7}  ratio")
     work = work_folder(args.out)
     cfg = work / "busy.json"
@@ -155,22 +175,25 @@ def main() -> None:
             settings = [("1", 1), *[(str(j), j) for j in args.jobs if j != 1], ("1*", 1)]
             rows: dict[str, list[dict[str, float]]] = {label: [] for label, _ in settings}
             for k in range(args.repeat):
-                for label, jobs in settings[k % len(settings):] + settings[:k % len(settings)]:
+                for label, jobs in settings[k % len(settings) :] + settings[: k % len(settings)]:
                     out = work / f"run_{kind}_{jobs}_{k}"
-                    rows[label].append(run_once([studio, "synth", str(cfg), "-o", str(out), "--no-rrd", "-q",
-                                                 "--jobs", str(jobs)]))
+                    rows[label].append(
+                        run_once([studio, "synth", str(cfg), "-o", str(out), "--no-rrd", "-q", "--jobs", str(jobs)])
+                    )
                     shutil.rmtree(out)
         finally:
             stop_neighbours(procs)
             for p in work.glob("neighbour*"):
                 shutil.rmtree(p, ignore_errors=True)
-        med = {label: {key: statistics.median(r[key] for r in runs) for key in runs[0]}
-               for label, runs in rows.items()}
+        med = {label: {key: statistics.median(r[key] for r in runs) for key in runs[0]} for label, runs in rows.items()}
         for label, _ in settings:
             m = med[label]
             ratio = f"{m['wall'] / med['1']['wall']:.2f}x" if label != "1" else ""
-            print(f"{kind:10} {label:>4} {load:5.1f} {m['wall']:7.2f} {m['cpu']:6.2f} {m['minflt']:8.0f} "
-                  f"{m['nivcsw']:7.0f}  {ratio}", flush=True)
+            print(
+                f"{kind:10} {label:>4} {load:5.1f} {m['wall']:7.2f} {m['cpu']:6.2f} {m['minflt']:8.0f} "
+                f"{m['nivcsw']:7.0f}  {ratio}",
+                flush=True,
+            )
         time.sleep(2.0)
 
 

@@ -33,8 +33,9 @@ def make_tum(work: Path, total: int = 1_000_000) -> list[Path]:
         if path.exists():
             continue
         n = total // 3 + (1 if k < total % 3 else 0)
-        s, p, q = loop_trajectory(n, rate_hz=100.0, radius=50.0, laps=20, phase=k,
-                                  centre=(UTM_EAST + 10 * k, UTM_NORTH, 30.0))
+        s, p, q = loop_trajectory(
+            n, rate_hz=100.0, radius=50.0, laps=20, phase=k, centre=(UTM_EAST + 10 * k, UTM_NORTH, 30.0)
+        )
         sec, ns = np.divmod(s, 1_000_000_000)
         rows = np.column_stack([p, q]).tolist()
         with open(path, "w") as f:
@@ -76,18 +77,24 @@ def timed(label: str, cfg: ConvertConfig, out: Path) -> None:
     t_write = marks.get("writing", t0)
     poses = sum(len(t) for t in res.trajectories)
     rss = max(resource.getrusage(who).ru_maxrss for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)) / 1024
-    print(f"{label}: {poses} poses -> {res.build.graph.num_poses} keyframes, "
-          f"{sum(res.build.graph.edge_counts().values())} edges in {dt:.2f} s (read {t_build - t0:.2f}, "
-          f"build {t_write - t_build:.2f}, write {t0 + dt - t_write:.2f}; peak RSS {rss:.0f} MiB); "
-          f"the .rrd recording adds {rec_s:.2f} s")
+    print(
+        f"{label}: {poses} poses -> {res.build.graph.num_poses} keyframes, "
+        f"{sum(res.build.graph.edge_counts().values())} edges in {dt:.2f} s (read {t_build - t0:.2f}, "
+        f"build {t_write - t_build:.2f}, write {t0 + dt - t_write:.2f}; peak RSS {rss:.0f} MiB); "
+        f"the .rrd recording adds {rec_s:.2f} s"
+    )
 
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("what", nargs="*", metavar="{tum,bag}", help="which benchmarks to run (default: both)")
-    ap.add_argument("--out", type=Path, default=None,
-                    help="folder for the generated inputs and outputs, kept and reused (default: a temporary "
-                         "folder, removed after)")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="folder for the generated inputs and outputs, kept and reused (default: a temporary "
+        "folder, removed after)",
+    )
     args = ap.parse_args(argv)
     bad = [w for w in args.what if w not in ("tum", "bag")]
     if bad:

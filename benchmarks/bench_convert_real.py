@@ -19,7 +19,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from timing import run_timed, work_folder  # noqa: E402  (benchmarks/timing.py, beside this script)
 
 
@@ -68,8 +67,16 @@ def main() -> None:
     kitti = write_kitti(work / "kitti", args.kitti_poses)
     jobs = {
         f"euroc 5 x {args.euroc_rows} rows": [studio, "convert", "euroc", *map(str, seqs)],
-        f"kitti {args.kitti_poses} poses --split 3": [studio, "convert", "kitti", str(kitti), "--split", "3",
-                                                       "--overlap", "10"],
+        f"kitti {args.kitti_poses} poses --split 3": [
+            studio,
+            "convert",
+            "kitti",
+            str(kitti),
+            "--split",
+            "3",
+            "--overlap",
+            "10",
+        ],
     }
     print(f"# {time.strftime('%Y-%m-%d')}  {os.cpu_count()} cores  load {os.getloadavg()[0]:.2f}")
     for label, cmd in jobs.items():

@@ -43,11 +43,11 @@ print(json.dumps({"startup_s": t1 - t0, "evaluate_s": t2 - t1, "rss_before_mb": 
 """
 
 
-
 def _run(dataset: str, estimate: str) -> dict:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")])))
-    out = subprocess.run([sys.executable, "-c", _CHILD, dataset, estimate],
-                         check=True, capture_output=True, text=True, env=env)
+    out = subprocess.run(
+        [sys.executable, "-c", _CHILD, dataset, estimate], check=True, capture_output=True, text=True, env=env
+    )
     return json.loads(out.stdout)
 
 
@@ -56,8 +56,12 @@ def main() -> None:
     parser.add_argument("--dataset", help="a multi-g2o folder (default: synthesize Multi10000x5)")
     parser.add_argument("--estimate", default="", help="an estimate to score (default: the initial estimate)")
     parser.add_argument("--repeat", type=int, default=3, help="timed runs; the fastest is reported")
-    parser.add_argument("--out", type=Path, default=None,
-                        help="folder for the synthesized dataset (default: a temporary folder, removed after)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="folder for the synthesized dataset (default: a temporary folder, removed after)",
+    )
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp_dir:
         tmp = args.out or Path(tmp_dir)
@@ -71,12 +75,16 @@ def main() -> None:
         best = min(runs, key=lambda r: r["evaluate_s"])
     print(f"dataset:      {dataset} ({best['poses']} poses, APE mean {best['ape_mean']:.6f} m)")
     print(f"start-up:     {best['startup_s']:.2f} s (imports)")
-    print(f"evaluate:     {best['evaluate_s']:.2f} s wall (best of {len(runs)}: "
-          f"{', '.join('%.2f' % r['evaluate_s'] for r in runs)})")
+    print(
+        f"evaluate:     {best['evaluate_s']:.2f} s wall (best of {len(runs)}: "
+        f"{', '.join(format(r['evaluate_s'], '.2f') for r in runs)})"
+    )
     peak = max(runs, key=lambda r: r["max_rss_mb"])
-    print(f"peak memory:  {peak['max_rss_mb']:.0f} MiB resident (whole process), of which "
-          f"{peak['max_rss_mb'] - peak['rss_before_mb']:.0f} MiB added by evaluate "
-          f"({peak['rss_before_mb']:.0f} MiB after the imports)")
+    print(
+        f"peak memory:  {peak['max_rss_mb']:.0f} MiB resident (whole process), of which "
+        f"{peak['max_rss_mb'] - peak['rss_before_mb']:.0f} MiB added by evaluate "
+        f"({peak['rss_before_mb']:.0f} MiB after the imports)"
+    )
 
 
 if __name__ == "__main__":

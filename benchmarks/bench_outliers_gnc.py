@@ -37,8 +37,11 @@ def main() -> None:
     doc = synth_config_to_json(preset("multi3500x8"))
     doc["number_of_agents"], doc["number_of_steps"] = args.agents, args.steps
     doc["agent_parameters"]["agent_specific"] = doc["agent_parameters"]["agent_specific"][: args.agents]
-    doc["studio"] = {"version": 1, "walk": args.walk,
-                     "outliers": {"intra_fraction": args.fraction, "inter_fraction": args.fraction, "seed": args.seed}}
+    doc["studio"] = {
+        "version": 1,
+        "walk": args.walk,
+        "outliers": {"intra_fraction": args.fraction, "inter_fraction": args.fraction, "seed": args.seed},
+    }
     cfg = parse_synth_config(doc, name="gnc_bench")
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
@@ -51,11 +54,15 @@ def main() -> None:
     counts = res.output.graph.edge_counts()
     closures = counts["intra_loop_closures"] + counts["inter_loop_closures"]
     hit = rejected & set(planted)
-    print(f"{args.walk}: {args.agents} agents x {args.steps} steps, {closures} loop closures, "
-          f"{len(planted)} planted outliers; synth {t1 - t0:.2f} s, gnc {t2 - t1:.2f} s, "
-          f"peak {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB")
-    print(f"rejected {len(rejected)}: precision {len(hit) / max(len(rejected), 1):.3f}, "
-          f"recall {len(hit) / max(len(planted), 1):.3f}")
+    print(
+        f"{args.walk}: {args.agents} agents x {args.steps} steps, {closures} loop closures, "
+        f"{len(planted)} planted outliers; synth {t1 - t0:.2f} s, gnc {t2 - t1:.2f} s, "
+        f"peak {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB"
+    )
+    print(
+        f"rejected {len(rejected)}: precision {len(hit) / max(len(rejected), 1):.3f}, "
+        f"recall {len(hit) / max(len(planted), 1):.3f}"
+    )
     for kind in ("random", "aliasing"):
         mine = {r for r, k in planted.items() if k == kind}
         print(f"  {kind:9} planted {len(mine):4d}  rejected {len(mine & rejected):4d}")

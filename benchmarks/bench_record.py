@@ -60,11 +60,17 @@ def main(argv: list[str] | None = None) -> None:
     from studio.generator.presets import preset_names
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("presets", nargs="*", default=["multi10000x5"], metavar="PRESET",
-                    help=f"presets to record (default: multi10000x5; known: {', '.join(preset_names())})")
+    ap.add_argument(
+        "presets",
+        nargs="*",
+        default=["multi10000x5"],
+        metavar="PRESET",
+        help=f"presets to record (default: multi10000x5; known: {', '.join(preset_names())})",
+    )
     ap.add_argument("--repeat", type=int, default=3, help="recordings per preset (default: 3)")
-    ap.add_argument("--out", type=Path, default=None,
-                    help="folder for the .rrd files (default: a temporary folder, removed after)")
+    ap.add_argument(
+        "--out", type=Path, default=None, help="folder for the .rrd files (default: a temporary folder, removed after)"
+    )
     args = ap.parse_args(argv)
     for name in args.presets:
         if name not in preset_names():

@@ -27,10 +27,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from timing import run_timed  # noqa: E402  (benchmarks/timing.py, beside this script)
+
 from studio.generator.presets import preset  # noqa: E402
 from studio.io.synth_config import synth_config_to_json  # noqa: E402
-
-from timing import run_timed  # noqa: E402  (benchmarks/timing.py, beside this script)
 
 
 def config(agents: int, steps: int, radius: float) -> dict:
@@ -100,12 +100,22 @@ def main() -> None:
                         walls.append(wall)
                         peak = max(peak, rss)
                         counts = count_edges(out / "cfg")
-                    row = {"panel": panel, "x": x, "tool": tool, "wall_s": round(statistics.median(walls), 3),
-                           "peak_mib": round(peak, 1), "poses": counts[0], "edges": counts[1],
-                           "load1": round(load, 2)}
+                    row = {
+                        "panel": panel,
+                        "x": x,
+                        "tool": tool,
+                        "wall_s": round(statistics.median(walls), 3),
+                        "peak_mib": round(peak, 1),
+                        "poses": counts[0],
+                        "edges": counts[1],
+                        "load1": round(load, 2),
+                    }
                     rows.append(row)
-                    print(f"{panel:7} {x:>6} {tool:9} {row['wall_s']:7.2f} {row['peak_mib']:9.0f} "
-                          f"{counts[0]:7d} {counts[1]:7d} {load:5.2f}", flush=True)
+                    print(
+                        f"{panel:7} {x:>6} {tool:9} {row['wall_s']:7.2f} {row['peak_mib']:9.0f} "
+                        f"{counts[0]:7d} {counts[1]:7d} {load:5.2f}",
+                        flush=True,
+                    )
     with open(args.csv, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
@@ -132,9 +142,11 @@ def plot(rows: list[dict], path: Path, args: argparse.Namespace) -> None:
         ax.grid(alpha=0.3)
         ax.legend()
     loads = [r["load1"] for r in rows]
-    fig.suptitle(f"Generation time (base: Multi3500x8 parameters, {args.agents} agents, {args.steps} steps, "
-                 f"R = {args.radius:g} m; 1-min load {min(loads):.1f}-{max(loads):.1f} on {os.cpu_count()} cores)",
-                 fontsize=9)
+    fig.suptitle(
+        f"Generation time (base: Multi3500x8 parameters, {args.agents} agents, {args.steps} steps, "
+        f"R = {args.radius:g} m; 1-min load {min(loads):.1f}-{max(loads):.1f} on {os.cpu_count()} cores)",
+        fontsize=9,
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=90)
 

@@ -31,16 +31,24 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3, help="runs per method (default 3)")
     ap.add_argument("--presets", nargs="*", default=PRESETS, help="presets to solve")
     ap.add_argument("--methods", nargs="*", default=METHODS, help="methods to run")
-    ap.add_argument("--input", choices=["single", "multi"], default="single",
-                    help="solve the single g2o (as the paper) or the multi-g2o folder")
+    ap.add_argument(
+        "--input",
+        choices=["single", "multi"],
+        default="single",
+        help="solve the single g2o (as the paper) or the multi-g2o folder",
+    )
     ap.add_argument("--out", type=Path, default=None, help="work folder (default: a temporary folder)")
     args = ap.parse_args()
     studio = shutil.which("studio") or str(Path(sys.executable).parent / "studio")
     work = work_folder(args.out)
-    print(f"# {time.strftime('%Y-%m-%d')}  {os.cpu_count()} cores  python {sys.version.split()[0]}  "
-          f"load {os.getloadavg()[0]:.2f}  input {args.input}")
-    print(f"{'dataset':13} {'method':7} {'median s':>9} {'best s':>7} {'peak MiB':>9} {'chi2':>12} "
-          f"{'APE 1st-pose':>12} {'APE se3':>8}")
+    print(
+        f"# {time.strftime('%Y-%m-%d')}  {os.cpu_count()} cores  python {sys.version.split()[0]}  "
+        f"load {os.getloadavg()[0]:.2f}  input {args.input}"
+    )
+    print(
+        f"{'dataset':13} {'method':7} {'median s':>9} {'best s':>7} {'peak MiB':>9} {'chi2':>12} "
+        f"{'APE 1st-pose':>12} {'APE se3':>8}"
+    )
     for name in args.presets:
         subprocess.run([studio, "synth", name, "-o", str(work), "-q", "--no-rrd", "--force"], check=True)
         dataset = work / name
@@ -57,12 +65,18 @@ def main() -> None:
             estimate = out / info["estimate"]
             ape = {}
             for align in ("first-pose", "se3"):
-                ev = subprocess.run([studio, "evaluate", str(dataset), "--estimate", str(estimate), "--align", align,
-                                     "--json"], check=True, capture_output=True, text=True)
+                ev = subprocess.run(
+                    [studio, "evaluate", str(dataset), "--estimate", str(estimate), "--align", align, "--json"],
+                    check=True,
+                    capture_output=True,
+                    text=True,
+                )
                 ape[align] = json.loads(ev.stdout)["all"]["ape_translation_m"]["mean"]
             medians[method] = statistics.median(walls)
-            print(f"{name:13} {method:7} {medians[method]:9.2f} {min(walls):7.2f} {peak:9.0f} "
-                  f"{info['chi2_final']:12.2f} {ape['first-pose']:12.6f} {ape['se3']:8.5f}")
+            print(
+                f"{name:13} {method:7} {medians[method]:9.2f} {min(walls):7.2f} {peak:9.0f} "
+                f"{info['chi2_final']:12.2f} {ape['first-pose']:12.6f} {ape['se3']:8.5f}"
+            )
         if "gtsam" in medians and "g2o" in medians:
             print(f"{name:13} speed-up of gtsam over g2o: {medians['g2o'] / medians['gtsam']:.2f}x (median wall)")
 

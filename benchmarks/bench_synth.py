@@ -24,10 +24,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from timing import run_timed  # noqa: E402  (benchmarks/timing.py, beside this script)
+
 from studio.generator.presets import preset  # noqa: E402
 from studio.io.synth_config import synth_config_to_json  # noqa: E402
-
-from timing import run_timed  # noqa: E402  (benchmarks/timing.py, beside this script)
 
 PRESETS = ["multi3500x8", "multi10000x5"]
 
@@ -42,8 +42,12 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--kollagen", type=Path, help="kollagen's `generate` binary, to run side by side")
     ap.add_argument("--presets", nargs="*", default=PRESETS)
-    ap.add_argument("--out", type=Path, default=None,
-                    help="work folder for the outputs (default: a temporary folder, removed after)")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="work folder for the outputs (default: a temporary folder, removed after)",
+    )
     args = ap.parse_args()
     studio = shutil.which("studio") or str(Path(sys.executable).parent / "studio")
     print(f"# {time.strftime('%Y-%m-%d')}  {os.cpu_count()} cores  python {sys.version.split()[0]}")
@@ -77,8 +81,10 @@ def main() -> None:
                 shutil.rmtree(out)
             for tool, walls in rows.items():
                 if walls:
-                    print(f"{cfg.name:14} {tool:10} {statistics.median(walls):9.2f} {min(walls):8.2f} "
-                          f"{peaks[tool]:9.0f}  {len(walls)}: {' '.join(f'{w:.2f}' for w in walls)}")
+                    print(
+                        f"{cfg.name:14} {tool:10} {statistics.median(walls):9.2f} {min(walls):8.2f} "
+                        f"{peaks[tool]:9.0f}  {len(walls)}: {' '.join(f'{w:.2f}' for w in walls)}"
+                    )
             if rows["kollagen"]:
                 ratio = statistics.median(rows["kollagen"]) / statistics.median(rows["studio"])
                 print(f"{cfg.name:14} speed-up   {ratio:9.2f}x (median kollagen / median studio), outputs identical")

@@ -15,15 +15,15 @@ conversion takes yaw about the true up axis.
 
 from __future__ import annotations
 
-import os
 import re
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from studio.converters.names import safe_agent_name
-from studio.core.trajectory import Trajectory, Warn
 from studio.converters.tum import read_tum_trajectory
-from studio.core.errors import ConfigError, FormatError
+from studio.core.errors import FormatError
+from studio.core.trajectory import Trajectory, Warn
+from studio.core.types import PathLike
 
 __all__ = ["read_airmuseum", "find_ground_truth_files", "BODY_FRAMES"]
 
@@ -47,18 +47,22 @@ def find_ground_truth_files(root: Path) -> list[tuple[str, Path]]:
             stem = _GT_WORD.sub("", p.stem).strip("_- .") or p.stem
             found.append((safe_agent_name(stem), p))
         elif p.is_dir():
-            inner = [q for q in sorted(p.iterdir())
-                     if q.is_file() and q.suffix.lower() in _EXT and _GT_WORD.search(q.stem)]
+            inner = [
+                q for q in sorted(p.iterdir()) if q.is_file() and q.suffix.lower() in _EXT and _GT_WORD.search(q.stem)
+            ]
             if len(inner) > 1:
-                raise FormatError(f"{p}: {len(inner)} ground-truth files ({inner[0].name}, {inner[1].name}); "
-                                  "expected one per robot folder")
+                raise FormatError(
+                    f"{p}: {len(inner)} ground-truth files ({inner[0].name}, {inner[1].name}); "
+                    "expected one per robot folder"
+                )
             if inner:
                 found.append((safe_agent_name(p.name), inner[0]))
     return found
 
 
-def read_airmuseum(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
-                   warn: Warn | None = None, progress=None) -> list[Trajectory]:
+def read_airmuseum(
+    inputs: Sequence[PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None, progress=None
+) -> list[Trajectory]:
     """``studio convert airmuseum DIR``: every robot with a ground-truth file."""
     root = Path(inputs[0])
     if not root.is_dir():

@@ -26,31 +26,40 @@ changing a loop-closure option does not change the odometry noise.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 
-from studio.core.progress import Progress  # the callback type of build_graph (re-exported)
 from studio.core.checks import check_option
 from studio.core.errors import ConfigError
 from studio.core.geometry import (
     normalize_angle,
-    relative_planar_pose,
-    yaw_from_quat_xyzw,
     quat_angle,
     quat_canonical,
     quat_conj,
     quat_from_rotvec,
     quat_mul,
     quat_rotate,
+    relative_planar_pose,
+    yaw_from_quat_xyzw,
 )
-from studio.core.trajectory import Trajectory
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
+from studio.core.progress import Progress  # the callback type of build_graph (re-exported)
+from studio.core.trajectory import Trajectory
 from studio.core.units import NS_PER_S
 
-__all__ = ["GraphOptions", "option_help", "Gap", "BuildResult", "build_graph", "pairs_within", "select_keyframes",
-           "step_turns_rad"]
+__all__ = [
+    "GraphOptions",
+    "option_help",
+    "Gap",
+    "BuildResult",
+    "build_graph",
+    "pairs_within",
+    "select_keyframes",
+    "step_turns_rad",
+]
 
 _DIAG21 = np.array([0, 6, 11, 15, 18, 20])  # diagonal entries of a 6x6 upper triangle
 _DIAG6 = np.array([0, 3, 5])  # diagonal entries of a 3x3 upper triangle
@@ -74,33 +83,43 @@ class GraphOptions:
     """How trajectories become a graph. Each field's help and unit are in its metadata
     (:func:`option_help`); a value of 0 turns an optional rule off where noted."""
 
-    seed: int = _opt(0, "Seed of every random draw (noise, loop-closure selection, outliers): same inputs, "
-                        "options and seed give byte-identical output.")
+    seed: int = _opt(
+        0,
+        "Seed of every random draw (noise, loop-closure selection, outliers): same inputs, "
+        "options and seed give byte-identical output.",
+    )
     keyframe_distance: float = _opt(1.0, "A keyframe every this much path (0: off).", "m")
     keyframe_angle: float = _opt(15.0, "A keyframe every this much accumulated rotation (0: off).", "deg")
     keyframe_time: float = _opt(0.0, "A keyframe every this long (0: off).", "s")
     max_gap: float = _opt(1.0, "Stamps further apart than this are a ground-truth gap: bridged and reported.", "s")
     gap_sigma_m_per_s: float = _opt(0.05, "Extra translation std dev of a gap-bridging edge per second of gap.", "m/s")
-    gap_sigma_rad_per_s: float = _opt(0.005, "Extra rotation std dev of a gap-bridging edge per second of gap.",
-                                      "rad/s")
+    gap_sigma_rad_per_s: float = _opt(
+        0.005, "Extra rotation std dev of a gap-bridging edge per second of gap.", "rad/s"
+    )
     odo_sigma_m_per_m: float = _opt(0.02, "Odometry translation std dev per metre travelled, on each axis.", "m/m")
     odo_sigma_rad_per_rad: float = _opt(0.02, "Odometry rotation std dev per radian turned, on each axis.", "rad/rad")
     odo_sigma_rad_per_m: float = _opt(0.001, "Odometry rotation std dev per metre travelled.", "rad/m")
     odo_sigma_min_m: float = _opt(0.002, "Odometry translation std dev floor.", "m")
     odo_sigma_min_rad: float = _opt(0.0005, "Odometry rotation std dev floor.", "rad")
     lc_radius: float = _opt(2.0, "Loop-closure radius R.", "m")
-    lc_prob_intra: float = _opt(0.5, "Intra-agent loop-closure probability p at distance 0 "
-                                     "(a pair at distance d is accepted with p exp(-5 (d/R)^2)).")
+    lc_prob_intra: float = _opt(
+        0.5,
+        "Intra-agent loop-closure probability p at distance 0 "
+        "(a pair at distance d is accepted with p exp(-5 (d/R)^2)).",
+    )
     lc_prob_inter: float = _opt(0.5, "Inter-agent loop-closure probability p at distance 0.")
     lc_min_time: float = _opt(30.0, "Intra-agent pairs must be at least this far apart in time.", "s")
     lc_min_index: int = _opt(10, "Intra-agent pairs must be at least this many keyframes apart.")
-    lc_max_heading: float = _opt(0.0, "Heading compatibility: the x axes of both poses within this angle (0: off).",
-                                 "deg")
+    lc_max_heading: float = _opt(
+        0.0, "Heading compatibility: the x axes of both poses within this angle (0: off).", "deg"
+    )
     rendezvous: float = _opt(0.0, "Inter-agent pairs must be within this time of each other (0: any time).", "s")
     lc_sigma_m: float = _opt(0.05, "Loop-closure translation noise std dev, on each axis.", "m")
     lc_sigma_rad: float = _opt(0.01, "Loop-closure rotation noise std dev, on each axis.", "rad")
-    outlier_fraction: float = _opt(0.0, "Fraction of accepted loop closures turned into outliers (a wrong vertex), "
-                                        "in [0, 1); listed in outliers.txt.")
+    outlier_fraction: float = _opt(
+        0.0,
+        "Fraction of accepted loop closures turned into outliers (a wrong vertex), in [0, 1); listed in outliers.txt.",
+    )
     planar: bool = _opt(False, "Project to SE(2) (x, y, yaw) and write 2D records.")
 
     def __post_init__(self) -> None:
@@ -166,8 +185,9 @@ def step_turns_rad(quat_xyzw: np.ndarray) -> np.ndarray:
     return quat_angle(quat_mul(quat_conj(quat_xyzw[:-1]), quat_xyzw[1:]))
 
 
-def select_keyframes(stamps_ns: np.ndarray, positions: np.ndarray, step_turn_rad: np.ndarray,
-                     opts: GraphOptions) -> tuple[np.ndarray, np.ndarray]:
+def select_keyframes(
+    stamps_ns: np.ndarray, positions: np.ndarray, step_turn_rad: np.ndarray, opts: GraphOptions
+) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the keyframes, and the boolean "a gap follows this pose" of every pose.
 
     ``positions`` are ``(n, 2)`` or ``(n, 3)`` metres; ``step_turn_rad`` the ``n - 1`` rotation angles
@@ -244,8 +264,9 @@ def _relative_se2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.column_stack([dx, dy, dth])
 
 
-def _perturb_se2(rel: np.ndarray, sigma_t: np.ndarray, sigma_r: np.ndarray,
-                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def _perturb_se2(
+    rel: np.ndarray, sigma_t: np.ndarray, sigma_r: np.ndarray, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
     """Planar measurement ``(dx + n_x, dy + n_y, dyaw + n_yaw)`` with its diagonal information.
 
     Six normals are drawn per edge as in the spatial model (x, y and the z rotation are used), so a
@@ -266,8 +287,7 @@ def _compose_se2(first: np.ndarray, steps: np.ndarray) -> np.ndarray:
     c, s = np.cos(yaw[:-1]), np.sin(yaw[:-1])
     dx = c * steps[:, 0] - s * steps[:, 1]
     dy = s * steps[:, 0] + c * steps[:, 1]
-    xy = first[0:2] + np.column_stack([np.concatenate([[0.0], np.cumsum(dx)]),
-                                       np.concatenate([[0.0], np.cumsum(dy)])])
+    xy = first[0:2] + np.column_stack([np.concatenate([[0.0], np.cumsum(dx)]), np.concatenate([[0.0], np.cumsum(dy)])])
     return np.column_stack([xy, normalize_angle(yaw)])
 
 
@@ -275,8 +295,13 @@ def _compose_se2(first: np.ndarray, steps: np.ndarray) -> np.ndarray:
 BYTES_PER_CANDIDATE = 64
 
 
-def pairs_within(points_xyz: np.ndarray, radius: float, *, max_bytes: float | None = None,
-                 on_step: Callable[[int, int], None] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pairs_within(
+    points_xyz: np.ndarray,
+    radius: float,
+    *,
+    max_bytes: float | None = None,
+    on_step: Callable[[int, int], None] | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All pairs ``i < j`` with ``|p_i - p_j| < radius``, found with a grid of ``radius``-sized cells.
 
     Returns ``(i, j, d)`` sorted by ``(i, j)``. Cost: sort + binary search per neighbour cell, and
@@ -342,8 +367,13 @@ def pairs_within(points_xyz: np.ndarray, radius: float, *, max_bytes: float | No
     return i[o], j[o], d[o]
 
 
-def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
-                progress: Progress | None = None, max_memory_gb: float | None = None) -> BuildResult:
+def build_graph(
+    trajectories: Sequence[Trajectory],
+    opts: GraphOptions,
+    *,
+    progress: Progress | None = None,
+    max_memory_gb: float | None = None,
+) -> BuildResult:
     """Build the pose graph of ``trajectories`` (agent order kept); see the module docstring.
 
     ``max_memory_gb`` bounds the loop-closure search, checked before it allocates anything.
@@ -354,8 +384,9 @@ def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
         files = [str(t.source) for t in trajectories if t.name == dup][:2]
-        raise ConfigError(f"two agents are named {dup!r} ({' and '.join(files)}); rename one of the inputs "
-                          "or name them with --agent")
+        raise ConfigError(
+            f"two agents are named {dup!r} ({' and '.join(files)}); rename one of the inputs or name them with --agent"
+        )
     planar = opts.planar
     origin = trajectories[0].positions_xyz[0].copy()
     if planar:
@@ -416,13 +447,19 @@ def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
     S = np.concatenate(kf_stamps)
     A = np.concatenate(kf_agent)
     V = np.concatenate(kf_index)
-    i, j, d = pairs_within(P, opts.lc_radius, max_bytes=None if max_memory_gb is None else max_memory_gb * 1e9,
-                           on_step=None if progress is None else
-                           (lambda done, total: progress("loop-closure search", done, total, "pairs")))
+    i, j, d = pairs_within(
+        P,
+        opts.lc_radius,
+        max_bytes=None if max_memory_gb is None else max_memory_gb * 1e9,
+        on_step=None
+        if progress is None
+        else (lambda done, total: progress("loop-closure search", done, total, "pairs")),
+    )
     same = A[i] == A[j]
     dt_ns = np.abs(S[j] - S[i])
-    ok = np.where(same, (dt_ns >= int(round(opts.lc_min_time * NS_PER_S))) & (np.abs(V[j] - V[i]) >= opts.lc_min_index),
-                  True)
+    ok = np.where(
+        same, (dt_ns >= int(round(opts.lc_min_time * NS_PER_S))) & (np.abs(V[j] - V[i]) >= opts.lc_min_index), True
+    )
     if opts.rendezvous > 0:
         ok &= same | (dt_ns <= int(round(opts.rendezvous * NS_PER_S)))
     if opts.lc_max_heading > 0:
@@ -443,8 +480,8 @@ def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
     sig_t, sig_r = np.full(n_lc, opts.lc_sigma_m), np.full(n_lc, opts.lc_sigma_rad)
     if planar:
         meas_lc, info_lc = _perturb_se2(
-            _relative_se2(np.column_stack([P[i, 0:2], H[i]]), np.column_stack([P[j, 0:2], H[j]])),
-            sig_t, sig_r, rng_lc)
+            _relative_se2(np.column_stack([P[i, 0:2], H[i]]), np.column_stack([P[j, 0:2], H[j]])), sig_t, sig_r, rng_lc
+        )
     else:
         t_rel, q_rel = _relative(P[i], H[i], P[j], H[j])
         meas_lc, info_lc = _perturb(t_rel, q_rel, sig_t, sig_r, rng_lc)
@@ -467,14 +504,27 @@ def build_graph(trajectories: Sequence[Trajectory], opts: GraphOptions, *,
     for a, (name, st, init, gt, meas, info) in enumerate(agents_data):
         sel = same & (A[i] == a)
         m = len(st)
-        agents.append(AgentGraph(
-            name, kind, st, init, gt,
-            Edges(kind, np.arange(m - 1), np.arange(1, m), meas, info),
-            Edges(kind, V[i[sel]], V[j_out[sel]], meas_lc[sel], info_lc[sel]),
-        ))
+        agents.append(
+            AgentGraph(
+                name,
+                kind,
+                st,
+                init,
+                gt,
+                Edges(kind, np.arange(m - 1), np.arange(1, m), meas, info),
+                Edges(kind, V[i[sel]], V[j_out[sel]], meas_lc[sel], info_lc[sel]),
+            )
+        )
     inter_sel = ~same
-    inter = InterAgentEdges(kind, A[i[inter_sel]], V[i[inter_sel]], A[j_out[inter_sel]], V[j_out[inter_sel]],
-                            meas_lc[inter_sel], info_lc[inter_sel])
+    inter = InterAgentEdges(
+        kind,
+        A[i[inter_sel]],
+        V[i[inter_sel]],
+        A[j_out[inter_sel]],
+        V[j_out[inter_sel]],
+        meas_lc[inter_sel],
+        info_lc[inter_sel],
+    )
     graph = PoseGraph(kind, tuple(agents), inter)
     out_rows = np.column_stack([A[i], V[i], A[j_out], V[j_out]])[outlier].astype(np.int64).reshape(-1, 4)
     counts = {

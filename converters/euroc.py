@@ -12,14 +12,14 @@ sequence folder (``mh_01_easy``).
 
 from __future__ import annotations
 
-import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from studio.converters.names import safe_agent_name
 from studio.converters.text import read_table
 from studio.core.errors import ConfigError, FormatError
 from studio.core.trajectory import Trajectory, Warn, clean_trajectory
+from studio.core.types import PathLike
 
 __all__ = ["read_euroc", "euroc_ground_truth", "GT_RELATIVE"]
 
@@ -39,8 +39,13 @@ def euroc_ground_truth(path: Path) -> tuple[str, Path] | None:
     return None
 
 
-def read_euroc(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None,
-               progress: object = None) -> list[Trajectory]:
+def read_euroc(
+    inputs: Sequence[PathLike],
+    *,
+    agents: Sequence[str] = (),
+    warn: Warn | None = None,
+    progress: object = None,
+) -> list[Trajectory]:
     """``studio convert euroc SEQ...``: one agent per sequence, in the order given."""
     out = []
     for raw in inputs:

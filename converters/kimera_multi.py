@@ -6,14 +6,14 @@ the quaternion **scalar first**. Every robot of the folder is an agent, named af
 
 from __future__ import annotations
 
-import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from studio.converters.names import safe_agent_name
 from studio.converters.text import read_table
 from studio.core.errors import ConfigError, FormatError
 from studio.core.trajectory import Trajectory, Warn, clean_trajectory
+from studio.core.types import PathLike
 
 __all__ = ["read_kimera_multi", "kimera_files", "SUFFIX"]
 
@@ -24,12 +24,18 @@ _WHAT = "Kimera-Multi ground truth: timestamp_kf [ns], x, y, z, qw, qx, qy, qz"
 def kimera_files(folder: Path) -> list[Path]:
     if not folder.is_dir():
         return []
-    return sorted((p for p in folder.iterdir() if p.is_file() and p.name.endswith(SUFFIX)),
-                  key=lambda p: p.name[: -len(SUFFIX)])
+    return sorted(
+        (p for p in folder.iterdir() if p.is_file() and p.name.endswith(SUFFIX)), key=lambda p: p.name[: -len(SUFFIX)]
+    )
 
 
-def read_kimera_multi(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None,
-                      progress: object = None) -> list[Trajectory]:
+def read_kimera_multi(
+    inputs: Sequence[PathLike],
+    *,
+    agents: Sequence[str] = (),
+    warn: Warn | None = None,
+    progress: object = None,
+) -> list[Trajectory]:
     """``studio convert kimera-multi GT_FOLDER`` (or the csv files themselves)."""
     files: list[Path] = []
     for raw in inputs:

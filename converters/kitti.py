@@ -12,16 +12,16 @@ Inputs are pose files; a ``times.txt`` is taken from beside the file or from
 
 from __future__ import annotations
 
-import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
 from studio.converters.names import safe_agent_name
 from studio.converters.text import read_table
-from studio.core.errors import ConfigError, FormatError
+from studio.core.errors import FormatError
 from studio.core.trajectory import Trajectory, Warn, clean_trajectory
+from studio.core.types import PathLike
 
 __all__ = ["read_kitti", "kitti_times_for", "CAMERA_TO_Z_UP"]
 
@@ -38,8 +38,13 @@ def kitti_times_for(poses: Path) -> Path | None:
     return None
 
 
-def read_kitti(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None,
-               progress: object = None) -> list[Trajectory]:
+def read_kitti(
+    inputs: Sequence[PathLike],
+    *,
+    agents: Sequence[str] = (),
+    warn: Warn | None = None,
+    progress: object = None,
+) -> list[Trajectory]:
     """``studio convert kitti POSES.txt...``: one agent per pose file."""
     from scipy.spatial.transform import Rotation
 

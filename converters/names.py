@@ -30,8 +30,17 @@ def safe_agent_name(raw: str) -> str:
 
 def check_agent_name(name: str, where: str) -> str:
     """Validate a name the user typed (``--agent NAME=SPEC``): it must already be safe."""
-    if not name or "/" in name or "\\" in name or ".." in name or name.startswith(".") \
-            or name in RESERVED_NAMES or safe_agent_name(name) != name:
-        raise ConfigError(f"{where}: agent name {name!r} is not a safe folder name "
-                          "(letters, digits, '_', '-', '+', '.'; no '/', no '..', no leading dot)")
+    if (
+        not name
+        or "/" in name
+        or "\\" in name
+        or ".." in name
+        or name.startswith(".")
+        or name in RESERVED_NAMES
+        or safe_agent_name(name) != name
+    ):
+        raise ConfigError(
+            f"{where}: agent name {name!r} is not a safe folder name "
+            "(letters, digits, '_', '-', '+', '.'; no '/', no '..', no leading dot)"
+        )
     return name

@@ -10,31 +10,46 @@ them when called. A new source is one module with its reader and one entry here.
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol, Sequence
+from pathlib import Path
+from typing import Protocol
 
 from studio.converters.airmuseum import read_airmuseum
 from studio.converters.euroc import euroc_ground_truth, read_euroc
 from studio.converters.kimera_multi import kimera_files, read_kimera_multi
 from studio.converters.kitti import read_kitti
 from studio.converters.s3e import read_s3e
-from studio.core.trajectory import Trajectory, Warn
 from studio.converters.tum import read_tum_sources
 from studio.core.errors import ConfigError
 from studio.core.progress import Progress
+from studio.core.trajectory import Trajectory, Warn
+from studio.core.types import PathLike
 
-__all__ = ["SourceReader", "Source", "SOURCES", "READERS", "get_reader", "get_source", "source_names",
-           "check_inputs", "guess_source"]
+__all__ = [
+    "SourceReader",
+    "Source",
+    "SOURCES",
+    "READERS",
+    "get_reader",
+    "get_source",
+    "source_names",
+    "check_inputs",
+    "guess_source",
+]
 
 
 class SourceReader(Protocol):
     """Read one source's inputs into one :class:`Trajectory` per agent."""
 
-    def __call__(self, inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
-                 warn: Warn | None = None, progress: Progress | None = None) -> list[Trajectory]:
-        ...
+    def __call__(
+        self,
+        inputs: Sequence[PathLike],
+        *,
+        agents: Sequence[str] = (),
+        warn: Warn | None = None,
+        progress: Progress | None = None,
+    ) -> list[Trajectory]: ...
 
 
 @dataclass(frozen=True)
@@ -50,8 +65,13 @@ class Source:
     """Takes ``--agent NAME=SPEC`` (bags)."""
 
 
-def _read_bag(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
-              warn: Warn | None = None, progress: Progress | None = None) -> list[Trajectory]:
+def _read_bag(
+    inputs: Sequence[PathLike],
+    *,
+    agents: Sequence[str] = (),
+    warn: Warn | None = None,
+    progress: Progress | None = None,
+) -> list[Trajectory]:
     from studio.converters.rosbag import read_bag_sources
 
     return read_bag_sources(inputs, agents=agents, warn=warn, progress=progress)
@@ -85,7 +105,7 @@ def get_reader(name: str) -> SourceReader:
     return get_source(name).read
 
 
-def check_inputs(name: str, inputs: Sequence[str | os.PathLike], agents: Sequence[str]) -> None:
+def check_inputs(name: str, inputs: Sequence[PathLike], agents: Sequence[str]) -> None:
     """The source's facts, checked once before its reader runs."""
     src = get_source(name)
     if agents and not src.takes_agents:
@@ -129,7 +149,7 @@ def _kind_of(path: Path) -> str | None:
     return None
 
 
-def guess_source(inputs: Sequence[str | os.PathLike]) -> str:
+def guess_source(inputs: Sequence[PathLike]) -> str:
     """The source format of ``inputs`` where the paths tell it unambiguously (a ``.bag``/``.mcap``
     or a folder with ``metadata.yaml``: bag; an EuRoC sequence folder; a Kimera-Multi ground-truth
     folder; an S3E or AirMuseum sequence; ``.tum`` files; a KITTI poses file of 12 numbers per line).
@@ -142,6 +162,8 @@ def guess_source(inputs: Sequence[str | os.PathLike]) -> str:
     unknown = [p for p, k in kinds.items() if k is None]
     found = {k for k in kinds.values() if k is not None}
     if unknown or len(found) != 1:
-        why = f"cannot tell the source of {unknown[0]}" if unknown else f"the inputs look like {', '.join(sorted(found))}"
+        why = (
+            f"cannot tell the source of {unknown[0]}" if unknown else f"the inputs look like {', '.join(sorted(found))}"
+        )
         raise ConfigError(f"{why}: name it (studio convert SOURCE INPUT..., SOURCE one of {', '.join(READERS)})")
     return found.pop()

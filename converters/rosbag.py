@@ -24,18 +24,27 @@ from __future__ import annotations
 import os
 import sqlite3
 import struct
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import numpy as np
 
 from studio.converters.names import check_agent_name
-from studio.core.trajectory import Trajectory, Warn, clean_trajectory
 from studio.core.errors import ConfigError, FormatError
+from studio.core.trajectory import Trajectory, Warn, clean_trajectory
+from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 
-__all__ = ["typestore_for", "AgentSpec", "parse_agent_spec", "read_bag", "read_bag_sources", "POSE_TYPES", "HEADING_TYPES"]
+__all__ = [
+    "typestore_for",
+    "AgentSpec",
+    "parse_agent_spec",
+    "read_bag",
+    "read_bag_sources",
+    "POSE_TYPES",
+    "HEADING_TYPES",
+]
 
 #: Message types that give a pose (or a position, for NavSatFix) per message.
 POSE_TYPES = (
@@ -114,8 +123,15 @@ class _Collector:
 
 
 def _pose_values(p) -> tuple[float, ...]:
-    return (p.position.x, p.position.y, p.position.z,
-            p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)
+    return (
+        p.position.x,
+        p.position.y,
+        p.position.z,
+        p.orientation.x,
+        p.orientation.y,
+        p.orientation.z,
+        p.orientation.w,
+    )
 
 
 def _take(col: _Collector, msgtype: str, msg) -> None:
@@ -156,8 +172,9 @@ def _utm(lat: np.ndarray, lon: np.ndarray, where: str) -> np.ndarray:
     keys = np.unique(zones * 2 + south)
     if len(keys) > 1:
         names = [f"{k // 2}{'S' if k % 2 else 'N'}" for k in keys.tolist()]
-        raise FormatError(f"{where}: NavSatFix positions span UTM zones {' and '.join(names)}; "
-                          "split the recording per zone")
+        raise FormatError(
+            f"{where}: NavSatFix positions span UTM zones {' and '.join(names)}; split the recording per zone"
+        )
     zone, is_south = int(zones[0]), bool(south[0])
     epsg = (32700 if is_south else 32600) + zone
     tr = Transformer.from_crs("EPSG:4326", f"EPSG:{epsg}", always_xy=True)
@@ -193,8 +210,9 @@ def _finish(col: _Collector, bag: str, warn: Warn | None) -> Trajectory:
     if not col.stamps:
         if spec.parent_frame is not None:
             seen = ", ".join(f"{a}->{b}" for a, b in sorted(col.frames_seen)) or "none"
-            raise FormatError(f"{where}: no transform {spec.parent_frame}->{spec.child_frame} "
-                              f"(transforms seen: {seen})")
+            raise FormatError(
+                f"{where}: no transform {spec.parent_frame}->{spec.child_frame} (transforms seen: {seen})"
+            )
         extra = f" ({col.status_dropped} with no fix dropped)" if col.status_dropped else ""
         raise FormatError(f"{where}: no usable messages{extra}; a trajectory needs at least 2")
     stamps = np.array(col.stamps, dtype=np.int64)
@@ -237,11 +255,10 @@ class _PlainMcap:
         self._store = store
         self.connections: list = []
 
-    def __enter__(self) -> "_PlainMcap":
+    def __enter__(self) -> _PlainMcap:
         from rosbags.interfaces import MessageDefinitionFormat
-        from rosbags.typesys import get_types_from_idl, get_types_from_msg
-
         from rosbags.rosbag2 import ReaderError
+        from rosbags.typesys import get_types_from_idl, get_types_from_msg
 
         try:
             self._reader.open()
@@ -287,13 +304,29 @@ def _open_errors() -> tuple[type[BaseException], ...]:
     from rosbags.serde import SerdeError
     from rosbags.typesys import TypesysError
 
-    return (AnyReaderError, ReaderError1, ReaderError2, SerdeError, TypesysError, sqlite3.Error, struct.error,
-            EOFError, OSError, UnicodeDecodeError)  # e.g. one inverted byte in metadata.yaml
+    return (
+        AnyReaderError,
+        ReaderError1,
+        ReaderError2,
+        SerdeError,
+        TypesysError,
+        sqlite3.Error,
+        struct.error,
+        EOFError,
+        OSError,
+        UnicodeDecodeError,
+    )  # e.g. one inverted byte in metadata.yaml
 
 
-def read_bag(bag: str | os.PathLike | Sequence[str | os.PathLike], specs: Sequence[AgentSpec] | Mapping[str, str], *,
-             warn: Warn | None = None, skip_missing: bool = False, progress=None,
-             ignore_case: bool = False) -> list[Trajectory]:
+def read_bag(
+    bag: PathLike | Sequence[PathLike],
+    specs: Sequence[AgentSpec] | Mapping[str, str],
+    *,
+    warn: Warn | None = None,
+    skip_missing: bool = False,
+    progress=None,
+    ignore_case: bool = False,
+) -> list[Trajectory]:
     """One trajectory per agent spec, read in one pass over the bag.
 
     ``specs`` is a list of :class:`AgentSpec` or a ``{name: SPEC}`` mapping. With ``skip_missing`` an
@@ -320,7 +353,7 @@ def read_bag(bag: str | os.PathLike | Sequence[str | os.PathLike], specs: Sequen
     store = typestore_for(ros1=is_ros1)
     errors = _open_errors()
     try:
-        with (_PlainMcap(paths[0], store) if plain_mcap else AnyReader(paths, default_typestore=store)) as reader:
+        with _PlainMcap(paths[0], store) if plain_mcap else AnyReader(paths, default_typestore=store) as reader:
             topics = {t: info.msgtype for t, info in reader.topics.items()}
 
             def known(topic: str) -> bool:
@@ -335,9 +368,14 @@ def read_bag(bag: str | os.PathLike | Sequence[str | os.PathLike], specs: Sequen
                 def actual(t: str) -> str:
                     return lower.get(t.lower(), t)
 
-                specs = [replace(sp, topic=actual(sp.topic),
-                                 heading_topic=None if sp.heading_topic is None else actual(sp.heading_topic))
-                         for sp in specs]
+                specs = [
+                    replace(
+                        sp,
+                        topic=actual(sp.topic),
+                        heading_topic=None if sp.heading_topic is None else actual(sp.heading_topic),
+                    )
+                    for sp in specs
+                ]
             for spec in specs:
                 missing = [t for t in (spec.topic, spec.heading_topic) if t is not None and not known(t)]
                 if missing:
@@ -347,20 +385,27 @@ def read_bag(bag: str | os.PathLike | Sequence[str | os.PathLike], specs: Sequen
                 col = _Collector(spec)
                 col.kind = topics[spec.topic] or ""
                 if col.kind not in POSE_TYPES:
-                    raise FormatError(f"{name}: topic {spec.topic} has type {col.kind}, which is not supported "
-                                      f"(supported: {', '.join(t.replace('/msg/', '/') for t in POSE_TYPES)})")
+                    raise FormatError(
+                        f"{name}: topic {spec.topic} has type {col.kind}, which is not supported "
+                        f"(supported: {', '.join(t.replace('/msg/', '/') for t in POSE_TYPES)})"
+                    )
                 if (col.kind == "tf2_msgs/msg/TFMessage") != (spec.parent_frame is not None):
-                    raise FormatError(f"{name}: topic {spec.topic} is {col.kind}; TF topics take "
-                                      "/tf:PARENT:CHILD and only TF topics do")
+                    raise FormatError(
+                        f"{name}: topic {spec.topic} is {col.kind}; TF topics take "
+                        "/tf:PARENT:CHILD and only TF topics do"
+                    )
                 if spec.heading_topic is not None:
                     if col.kind != "sensor_msgs/msg/NavSatFix":
-                        raise FormatError(f"{name}: a heading topic goes with a NavSatFix topic, "
-                                          f"{spec.topic} is {col.kind}")
+                        raise FormatError(
+                            f"{name}: a heading topic goes with a NavSatFix topic, {spec.topic} is {col.kind}"
+                        )
                     htype = topics[spec.heading_topic]
                     if htype not in HEADING_TYPES:
-                        raise FormatError(f"{name}: heading topic {spec.heading_topic} has type {htype}, which "
-                                          f"is not supported (supported: "
-                                          f"{', '.join(t.replace('/msg/', '/') for t in HEADING_TYPES)})")
+                        raise FormatError(
+                            f"{name}: heading topic {spec.heading_topic} has type {htype}, which "
+                            f"is not supported (supported: "
+                            f"{', '.join(t.replace('/msg/', '/') for t in HEADING_TYPES)})"
+                        )
                     by_topic.setdefault(spec.heading_topic, []).append((col, True))
                 by_topic.setdefault(spec.topic, []).append((col, False))
                 cols.append(col)
@@ -387,14 +432,16 @@ def read_bag(bag: str | os.PathLike | Sequence[str | os.PathLike], specs: Sequen
     return [_finish(col, name, warn) for col in cols]
 
 
-def read_bag_sources(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
-                     warn: Warn | None = None, progress=None) -> list[Trajectory]:
+def read_bag_sources(
+    inputs: Sequence[PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None, progress=None
+) -> list[Trajectory]:
     """``studio convert bag BAG --agent NAME=SPEC ...``: agents in the order given."""
     if not inputs:
         raise ConfigError("studio convert bag needs a bag (a ROS 1 .bag file, a ROS 2 bag folder or an .mcap file)")
     if not agents:
-        raise ConfigError("studio convert bag needs at least one --agent NAME=SPEC "
-                          "(SPEC: /topic, /fix+/heading or /tf:PARENT:CHILD)")
+        raise ConfigError(
+            "studio convert bag needs at least one --agent NAME=SPEC (SPEC: /topic, /fix+/heading or /tf:PARENT:CHILD)"
+        )
     specs = [parse_agent_spec(a) for a in agents]
     names = [s.name for s in specs]
     for n in names:
@@ -403,5 +450,3 @@ def read_bag_sources(inputs: Sequence[str | os.PathLike], *, agents: Sequence[st
     if len(inputs) > 1 and not all(Path(p).suffix == ".bag" for p in inputs):
         raise ConfigError("several inputs must all be ROS 1 .bag files (a ROS 2 bag is one folder)")
     return read_bag(list(inputs), specs, warn=warn, progress=progress)
-
-

@@ -15,17 +15,17 @@ without a ground-truth file is read from a ROS 2 bag found in the same places (a
 
 from __future__ import annotations
 
-import os
 import re
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
-from studio.core.trajectory import Trajectory, Warn
-from studio.io.tum import read_tum_rows
 from studio.converters.tum import read_tum_trajectory
-from studio.core.errors import ConfigError, FormatError
+from studio.core.errors import FormatError
+from studio.core.trajectory import Trajectory, Warn
+from studio.core.types import PathLike
+from studio.io.tum import read_tum_rows
 
 __all__ = ["S3E_AGENTS", "read_s3e"]
 
@@ -42,8 +42,9 @@ def _candidates(root: Path) -> list[Path]:
     return found
 
 
-def read_s3e(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
-             warn: Warn | None = None, progress=None) -> list[Trajectory]:
+def read_s3e(
+    inputs: Sequence[PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None, progress=None
+) -> list[Trajectory]:
     """``studio convert s3e DIR``: alpha, bob and carol (those present), in that order."""
     root = Path(inputs[0])
     if not root.is_dir():
@@ -65,8 +66,10 @@ def read_s3e(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
         from studio.converters.rosbag import read_bag
 
         specs = {a: f"/{a}/fix+/{a}/heading" for a in missing}
-        bag_trajs = {t.name: t for t in read_bag(bags[0], specs, warn=warn, skip_missing=True, progress=progress,
-                                                  ignore_case=True)}
+        bag_trajs = {
+            t.name: t
+            for t in read_bag(bags[0], specs, warn=warn, skip_missing=True, progress=progress, ignore_case=True)
+        }
     short = []
     for agent in S3E_AGENTS:
         if agent in files:
@@ -75,16 +78,22 @@ def read_s3e(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
             if n <= MIN_GT_POSES:
                 short.append(files[agent])
                 if warn is not None:
-                    warn(f"{files[agent]}: only {n} poses (an indoor S3E sequence has just its start and end); "
-                         f"agent {agent} left out")
+                    warn(
+                        f"{files[agent]}: only {n} poses (an indoor S3E sequence has just its start and end); "
+                        f"agent {agent} left out"
+                    )
                 continue
             out.append(read_tum_trajectory(files[agent], name=agent, warn=warn))
         elif agent in bag_trajs:
             out.append(bag_trajs[agent])
     if not out and short:
-        raise FormatError(f"{short[0]}: only start and end poses in every ground-truth file of {root} "
-                          "(an indoor S3E sequence): nothing to convert")
+        raise FormatError(
+            f"{short[0]}: only start and end poses in every ground-truth file of {root} "
+            "(an indoor S3E sequence): nothing to convert"
+        )
     if not out:
-        raise FormatError(f"{root}: no S3E ground truth (alpha_gt.txt, bob_gt.txt, carol_gt.txt) "
-                          "and no ROS 2 bag with /<agent>/fix topics")
+        raise FormatError(
+            f"{root}: no S3E ground truth (alpha_gt.txt, bob_gt.txt, carol_gt.txt) "
+            "and no ROS 2 bag with /<agent>/fix topics"
+        )
     return out

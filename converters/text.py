@@ -5,13 +5,13 @@ Kimera-Multi readers."""
 from __future__ import annotations
 
 import math
-import os
 import re
 from pathlib import Path
 
 import numpy as np
 
 from studio.core.errors import FormatError
+from studio.core.types import PathLike
 
 __all__ = ["read_table"]
 
@@ -31,9 +31,15 @@ def _quaternion_order(header: str) -> str:
     return "".join(m.group(1) for m in map(_QUAT_NAME.match, names) if m)
 
 
-def read_table(path: str | os.PathLike, columns: int | tuple[int, ...], *, what: str,
-               int_first: bool = False, header: bool = True,
-               quaternion: str | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+def read_table(
+    path: PathLike,
+    columns: int | tuple[int, ...],
+    *,
+    what: str,
+    int_first: bool = False,
+    header: bool = True,
+    quaternion: str | None = None,
+) -> tuple[np.ndarray, np.ndarray | None]:
     """Rows of ``columns`` numbers (or any of several counts), as ``(values, first_column_int)``.
 
     ``int_first`` keeps the first column exactly as an int64 (nanosecond stamps) besides the float
@@ -62,8 +68,10 @@ def read_table(path: str | os.PathLike, columns: int | tuple[int, ...], *, what:
         if line and quaternion and not rows:
             order = _quaternion_order(line)
             if len(order) == 4 and sorted(order) == sorted(quaternion) and order != quaternion:
-                raise FormatError(f"{path}:{lineno}: the header orders the quaternion {' '.join(order)}; "
-                                  f"{what} has {' '.join(quaternion)}")
+                raise FormatError(
+                    f"{path}:{lineno}: the header orders the quaternion {' '.join(order)}; "
+                    f"{what} has {' '.join(quaternion)}"
+                )
         if not line or line.startswith("#"):
             continue
         parts = [p for p in line.replace(",", " ").split()]

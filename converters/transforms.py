@@ -16,8 +16,14 @@ from studio.core.geometry import quat_angle, quat_conj, quat_mul
 from studio.core.trajectory import Trajectory
 from studio.core.units import NS_PER_S
 
-__all__ = ["body_frame_rotation", "apply_body_frame", "orientation_is_uninformative", "derive_orientation",
-           "split_trajectory", "FRAME_LETTERS"]
+__all__ = [
+    "body_frame_rotation",
+    "apply_body_frame",
+    "orientation_is_uninformative",
+    "derive_orientation",
+    "split_trajectory",
+    "FRAME_LETTERS",
+]
 
 #: Directions a body axis may point to, in FLU coordinates.
 FRAME_LETTERS = {"f": (1, 0, 0), "b": (-1, 0, 0), "l": (0, 1, 0), "r": (0, -1, 0), "u": (0, 0, 1), "d": (0, 0, -1)}
@@ -40,8 +46,9 @@ def apply_body_frame(traj: Trajectory, code: str) -> Trajectory:
 
     r_body_flu = Rotation.from_matrix(body_frame_rotation(code).T).as_quat()
     q = quat_mul(traj.quat_xyzw, np.broadcast_to(r_body_flu, traj.quat_xyzw.shape))
-    return Trajectory(traj.name, traj.stamps_ns, traj.positions_xyz, q / np.linalg.norm(q, axis=1, keepdims=True),
-                      traj.source)
+    return Trajectory(
+        traj.name, traj.stamps_ns, traj.positions_xyz, q / np.linalg.norm(q, axis=1, keepdims=True), traj.source
+    )
 
 
 def orientation_is_uninformative(traj: Trajectory, tolerance_rad: float = 1e-6) -> bool:
@@ -64,8 +71,10 @@ def derive_orientation(traj: Trajectory, window_m: float) -> Trajectory:
     chord = p[ahead, 0:2] - p[behind, 0:2]
     moving = np.linalg.norm(chord, axis=1) >= window_m / 4
     if not moving.any():
-        raise FormatError(f"{traj.source or traj.name}: the trajectory moves less than {window_m / 4:g} m: "
-                          "no heading can be derived from its motion")
+        raise FormatError(
+            f"{traj.source or traj.name}: the trajectory moves less than {window_m / 4:g} m: "
+            "no heading can be derived from its motion"
+        )
     yaw = np.arctan2(chord[:, 1], chord[:, 0])
     idx = np.where(moving, np.arange(len(yaw)), 0)
     np.maximum.accumulate(idx, out=idx)  # hold the last heading
@@ -88,16 +97,23 @@ def split_trajectory(traj: Trajectory, parts: int, overlap_s: float) -> list[Tra
     overlap_ns = int(round(overlap_s * NS_PER_S))
     length = (t1 - t0 + (parts - 1) * overlap_ns) / parts
     if length <= overlap_ns:
-        raise ConfigError(f"overlap: {overlap_s:g} s is not shorter than each of the {parts} windows "
-                          f"({length / NS_PER_S:.3g} s) of {traj.name}")
+        raise ConfigError(
+            f"overlap: {overlap_s:g} s is not shorter than each of the {parts} windows "
+            f"({length / NS_PER_S:.3g} s) of {traj.name}"
+        )
     out = []
     for k in range(parts):
         start = t0 + k * (length - overlap_ns)
         end = start + length
         sel = (traj.stamps_ns >= start) & (traj.stamps_ns <= end if k == parts - 1 else traj.stamps_ns < end)
         if sel.sum() < 2:
-            raise FormatError(f"{traj.source or traj.name}: window {k + 1} of {parts} holds {int(sel.sum())} poses; "
-                              "a trajectory needs at least 2")
-        out.append(Trajectory(f"{traj.name}_{k + 1}", traj.stamps_ns[sel], traj.positions_xyz[sel],
-                              traj.quat_xyzw[sel], traj.source))
+            raise FormatError(
+                f"{traj.source or traj.name}: window {k + 1} of {parts} holds {int(sel.sum())} poses; "
+                "a trajectory needs at least 2"
+            )
+        out.append(
+            Trajectory(
+                f"{traj.name}_{k + 1}", traj.stamps_ns[sel], traj.positions_xyz[sel], traj.quat_xyzw[sel], traj.source
+            )
+        )
     return out

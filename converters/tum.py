@@ -7,14 +7,13 @@ and de-duplicated with a warning that counts them. One file is one agent, named 
 
 from __future__ import annotations
 
-import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
-from studio.core.parallel import parallel_map
 from studio.converters.names import safe_agent_name
+from studio.core.parallel import parallel_map
 from studio.core.trajectory import Trajectory, Warn, clean_trajectory
-from studio.core.errors import ConfigError
+from studio.core.types import PathLike
 from studio.io.tum import read_tum_rows
 
 __all__ = ["read_tum_trajectory", "read_tum_sources"]
@@ -23,7 +22,7 @@ __all__ = ["read_tum_trajectory", "read_tum_sources"]
 _PARALLEL_MIN_BYTES = 8 * 1024 * 1024
 
 
-def read_tum_trajectory(path: str | os.PathLike, *, name: str | None = None, warn: Warn | None = None) -> Trajectory:
+def read_tum_trajectory(path: PathLike, *, name: str | None = None, warn: Warn | None = None) -> Trajectory:
     """One trajectory; ``name`` defaults to a safe version of the file's stem."""
     path = Path(path)
     stamps_ns, poses = read_tum_rows(path)
@@ -31,8 +30,9 @@ def read_tum_trajectory(path: str | os.PathLike, *, name: str | None = None, war
     return clean_trajectory(agent, stamps_ns, poses[:, :3], poses[:, 3:], str(path), warn)
 
 
-def read_tum_sources(inputs: Sequence[str | os.PathLike], *, agents: Sequence[str] = (),
-                     warn: Warn | None = None, progress=None) -> list[Trajectory]:
+def read_tum_sources(
+    inputs: Sequence[PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None, progress=None
+) -> list[Trajectory]:
     """``studio convert tum FILE...``: one agent per file, in the order given."""
     sizes = [Path(p).stat().st_size if Path(p).is_file() else 0 for p in inputs]
     total = sum(sizes)

@@ -81,7 +81,7 @@ class SynthConfig:
     inter: InterLoopClosureConfig
     name: str = field(default="dataset")
     """Dataset name: the stem of the JSON file, or the preset's name."""
-    studio: "StudioExtensions | None" = None
+    studio: StudioExtensions | None = None
     """The JSON's ``"studio"`` block (3D walk, noise models, outliers), or None: kollagen exactly."""
 
     def __post_init__(self) -> None:

@@ -27,8 +27,8 @@ from studio.generator.config import SynthConfig
 from studio.generator.extensions import NoiseModel, sample_noise
 from studio.generator.grid3d import generate_grid3d
 from studio.generator.kollagen import SingleG2oView, SynthOutput, effective_seeds, generate
-from studio.generator.seam import GeneratedDataset
 from studio.generator.outliers import PlantedOutliers, plant_outliers
+from studio.generator.seam import GeneratedDataset
 
 __all__ = ["StudioOutput", "generate_studio", "rotate_exact_information", "StudioGenerator", "STUDIO"]
 
@@ -71,7 +71,7 @@ def _renoise_planar(graph: PoseGraph, cfg: SynthConfig, seeds: tuple[int, ...]) 
     assert ext is not None
     odo_m, intra_m, inter_m = (ext.noise_of(c) for c in ("odometry", "intra", "inter"))
     agents = []
-    for k, (a, ac, seed) in enumerate(zip(graph.agents, cfg.agents, seeds)):
+    for a, ac, seed in zip(graph.agents, cfg.agents, seeds):
         gt = a.ground_truth
         assert gt is not None
         odo, lc, initial = a.odometry, a.loop_closures, a.initial
@@ -81,19 +81,39 @@ def _renoise_planar(graph: PoseGraph, cfg: SynthConfig, seeds: tuple[int, ...]) 
             n = sample_noise(odo_m, rng, (len(rx), 2))
             op = np.hypot(rx, ry) + ac.std_dev_position * n[:, 0]
             oa = rt + ac.std_dev_angle * n[:, 1]
-            odo = Edges(PoseKind.SE2, odo.from_index, odo.to_index,
-                        np.column_stack([op * np.cos(oa), op * np.sin(oa), oa]), odo.information_upper)
+            odo = Edges(
+                PoseKind.SE2,
+                odo.from_index,
+                odo.to_index,
+                np.column_stack([op * np.cos(oa), op * np.sin(oa), oa]),
+                odo.information_upper,
+            )
             t = normalize_angle(gt[0, 2] + np.cumsum(oa))
-            initial = np.column_stack([
-                gt[0, 0] + np.concatenate([[0.0], np.cumsum(op * np.cos(t))]),
-                gt[0, 1] + np.concatenate([[0.0], np.cumsum(op * np.sin(t))]),
-                np.concatenate([[gt[0, 2]], t])])
+            initial = np.column_stack(
+                [
+                    gt[0, 0] + np.concatenate([[0.0], np.cumsum(op * np.cos(t))]),
+                    gt[0, 1] + np.concatenate([[0.0], np.cumsum(op * np.sin(t))]),
+                    np.concatenate([[gt[0, 2]], t]),
+                ]
+            )
         if not intra_m.is_gaussian and len(lc):
             rng = np.random.default_rng([seed % 2**32, _STREAM_INTRA])
-            lc = Edges(PoseKind.SE2, lc.from_index, lc.to_index,
-                       _planar_lc(gt, gt, lc.from_index, lc.to_index, intra_m, rng,
-                                  ac.std_dev_intra_loop_closure_position, ac.std_dev_intra_loop_closure_angle),
-                       lc.information_upper)
+            lc = Edges(
+                PoseKind.SE2,
+                lc.from_index,
+                lc.to_index,
+                _planar_lc(
+                    gt,
+                    gt,
+                    lc.from_index,
+                    lc.to_index,
+                    intra_m,
+                    rng,
+                    ac.std_dev_intra_loop_closure_position,
+                    ac.std_dev_intra_loop_closure_angle,
+                ),
+                lc.information_upper,
+            )
         agents.append(AgentGraph(a.name, a.kind, a.stamps_ns, initial, gt, odo, lc))
     inter = graph.inter
     gts = [a.ground_truth for a in graph.agents]
@@ -102,15 +122,38 @@ def _renoise_planar(graph: PoseGraph, cfg: SynthConfig, seeds: tuple[int, ...]) 
         src = np.array([gts[fa][fi] for fa, fi in zip(inter.from_agent.tolist(), inter.from_index.tolist())])
         dst = np.array([gts[ta][ti] for ta, ti in zip(inter.to_agent.tolist(), inter.to_index.tolist())]).reshape(-1, 3)
         idx = np.arange(len(inter))
-        meas = _planar_lc(src, dst, idx, idx, inter_m, rng, cfg.inter.std_dev_loop_closure_position,
-                          cfg.inter.std_dev_loop_closure_angle)
-        inter = InterAgentEdges(PoseKind.SE2, inter.from_agent, inter.from_index, inter.to_agent, inter.to_index,
-                                meas, inter.information_upper)
+        meas = _planar_lc(
+            src,
+            dst,
+            idx,
+            idx,
+            inter_m,
+            rng,
+            cfg.inter.std_dev_loop_closure_position,
+            cfg.inter.std_dev_loop_closure_angle,
+        )
+        inter = InterAgentEdges(
+            PoseKind.SE2,
+            inter.from_agent,
+            inter.from_index,
+            inter.to_agent,
+            inter.to_index,
+            meas,
+            inter.information_upper,
+        )
     return PoseGraph(PoseKind.SE2, tuple(agents), inter, dict(graph.metadata))
 
 
-def _planar_lc(gt_from: np.ndarray, gt_to: np.ndarray, fr: np.ndarray, to: np.ndarray, model: NoiseModel,
-               rng: np.random.Generator, sp: float, sa: float) -> np.ndarray:
+def _planar_lc(
+    gt_from: np.ndarray,
+    gt_to: np.ndarray,
+    fr: np.ndarray,
+    to: np.ndarray,
+    model: NoiseModel,
+    rng: np.random.Generator,
+    sp: float,
+    sa: float,
+) -> np.ndarray:
     a, b = gt_from[fr], gt_to[to]
     dx, dy, dt = relative_planar_pose(a[:, 0], a[:, 1], a[:, 2], b[:, 0], b[:, 1], b[:, 2])
     n = sample_noise(model, rng, (len(fr), 3))
@@ -141,13 +184,17 @@ def generate_studio(cfg: SynthConfig, *, jobs: int | None = None, progress: Prog
             # measurement frame does not depend on it (see rotate_exact_information)
             truths = [a.ground_truth for a in graph.agents]
             assert all(t is not None for t in truths)  # kollagen's agents always have ground truth
-            exact = tuple(rotate_exact_information(e, normalize_angle(t[1:, 2] - t[:-1, 2]))  # type: ignore[index]
-                          for e, t in zip(exact, truths))
+            exact = tuple(
+                rotate_exact_information(e, normalize_angle(t[1:, 2] - t[:-1, 2]))  # type: ignore[index]
+                for e, t in zip(exact, truths)
+            )
         out = SynthOutput(graph, exact, out.connector_information, out.seeds)
         gts = [a.ground_truth for a in graph.agents]
         positions = [np.column_stack([g[:, 0], g[:, 1], np.zeros(len(g))]) for g in gts]  # type: ignore[index, arg-type]
-        cells = [np.column_stack([np.rint(p[:, 0:2] * F / cfg.stepsize), np.zeros(len(p))]).astype(np.int64)
-                 for p in positions]
+        cells = [
+            np.column_stack([np.rint(p[:, 0:2] * F / cfg.stepsize), np.zeros(len(p))]).astype(np.int64)
+            for p in positions
+        ]
         headings = [np.rint(g[:, 2] / (math.pi / 2)).astype(np.int64) % 4 for g in gts]  # type: ignore[index]
     planted = None
     if ext.outliers is not None:
@@ -167,12 +214,16 @@ class StudioGenerator:
         three_d = config.studio is not None and config.studio.walk == "grid3d"
         return () if three_d else ("_singleg2o",)
 
-    def generate(self, config: SynthConfig, *, jobs: int | None = None,
-                 progress: Progress | None = None) -> GeneratedDataset:
+    def generate(
+        self, config: SynthConfig, *, jobs: int | None = None, progress: Progress | None = None
+    ) -> GeneratedDataset:
         res = generate_studio(config, jobs=jobs, progress=progress)
         out = res.output
-        extras = (SingleG2oView(out.connector_information, out.exact_odometry_information),) \
-            if out.graph.kind is PoseKind.SE2 else ()
+        extras = (
+            (SingleG2oView(out.connector_information, out.exact_odometry_information),)
+            if out.graph.kind is PoseKind.SE2
+            else ()
+        )
         return GeneratedDataset(out.graph, extras, res.outliers)
 
 

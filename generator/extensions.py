@@ -16,8 +16,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["NoiseModel", "OutlierConfig", "Grid3dConfig", "StudioExtensions", "NOISE_MODELS", "WALKS",
-           "OUTLIER_KINDS", "INFORMATION_FRAMES", "EXTENSIONS_VERSION", "noise_variance", "sample_noise"]
+__all__ = [
+    "NoiseModel",
+    "OutlierConfig",
+    "Grid3dConfig",
+    "StudioExtensions",
+    "NOISE_MODELS",
+    "WALKS",
+    "OUTLIER_KINDS",
+    "INFORMATION_FRAMES",
+    "EXTENSIONS_VERSION",
+    "noise_variance",
+    "sample_noise",
+]
 
 #: The version of the ``"studio"`` block this code reads.
 EXTENSIONS_VERSION = 1
@@ -132,5 +143,9 @@ class StudioExtensions:
 
     @property
     def changes_kollagen_bytes(self) -> bool:
-        return (self.walk != "kollagen" or any(not m.is_gaussian for _, m in self.noise)
-                or self.outliers is not None or self.information_frame != "kollagen")
+        return (
+            self.walk != "kollagen"
+            or any(not m.is_gaussian for _, m in self.noise)
+            or self.outliers is not None
+            or self.information_frame != "kollagen"
+        )

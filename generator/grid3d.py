@@ -67,8 +67,9 @@ def compose_se3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.column_stack([t, q / np.linalg.norm(q, axis=1, keepdims=True)])
 
 
-def noisy(true_rel: np.ndarray, model: NoiseModel, sigma_pos: float, sigma_ang: float,
-          rng: np.random.Generator) -> np.ndarray:
+def noisy(
+    true_rel: np.ndarray, model: NoiseModel, sigma_pos: float, sigma_ang: float, rng: np.random.Generator
+) -> np.ndarray:
     """``true_rel (+) (dt, Exp(dr))`` with the model's draws (translation first, then rotation)."""
     n = len(true_rel)
     dt = sample_noise(model, rng, (n, 3)) * sigma_pos
@@ -98,8 +99,13 @@ def walk3d(cfg: SynthConfig, ext: StudioExtensions, seed: int) -> Walk3d:
     heading_steps = np.cumsum(np.where(vertical, 0, turns)) % 4
     heading_sub = np.repeat(heading_steps, F)
     vert_sub = np.repeat(vertical, F)
-    d = np.column_stack([np.where(vert_sub, 0, _DX[heading_sub]), np.where(vert_sub, 0, _DY[heading_sub]),
-                         np.where(vert_sub, np.repeat(up, F), 0)])
+    d = np.column_stack(
+        [
+            np.where(vert_sub, 0, _DX[heading_sub]),
+            np.where(vert_sub, 0, _DY[heading_sub]),
+            np.where(vert_sub, np.repeat(up, F), 0),
+        ]
+    )
     cells = np.vstack([np.zeros((1, 3), dtype=np.int64), np.cumsum(d, axis=0)])
     heading = np.concatenate([[0], heading_sub]).astype(np.int64)
     h = cfg.stepsize / F
@@ -129,7 +135,7 @@ def _hits(query: np.ndarray, table: np.ndarray, radius: float):
     tree = cKDTree(table)
     ks, ms, ds = [], [], []
     for lo in range(0, len(query), _CHUNK):
-        res = cKDTree(query[lo:lo + _CHUNK]).sparse_distance_matrix(tree, radius, output_type="ndarray")
+        res = cKDTree(query[lo : lo + _CHUNK]).sparse_distance_matrix(tree, radius, output_type="ndarray")
         ks.append(res["i"].astype(np.int64) + lo)
         ms.append(res["j"].astype(np.int64))
         ds.append(res["v"])
@@ -172,26 +178,48 @@ def generate_grid3d(cfg: SynthConfig, seeds: tuple[int, ...]) -> tuple[PoseGraph
         true_odo = relative_se3(w.poses[:-1], w.poses[1:])
         z_odo = noisy(true_odo, ext.noise_of("odometry"), a.std_dev_position, a.std_dev_angle, rng_odo)
         initial = _dead_reckon(w.poses[0], z_odo)
-        odo = Edges(PoseKind.SE3, np.arange(n - 1), np.arange(1, n), z_odo,
-                    se3_information(n - 1, a.estimated_information_position, a.estimated_information_angle))
+        odo = Edges(
+            PoseKind.SE3,
+            np.arange(n - 1),
+            np.arange(1, n),
+            z_odo,
+            se3_information(n - 1, a.estimated_information_position, a.estimated_information_angle),
+        )
         # intra-agent loop closures: first visits of cells, at least one step back
         first = _visits(w.cells, "first")
         kq, m, d = _hits(_metric(w.cells, cell), _metric(w.cells[first], cell), a.intra_loop_closure_radius)
         j = first[m]
         keep = j < kq - F
         kq, j, d = kq[keep], j[keep], d[keep]
-        p = _probabilities(d, a.same_position_intra_loop_closure_probability,
-                           a.intra_loop_closure_probability_scaling, a.intra_loop_closure_radius, eps)
+        p = _probabilities(
+            d,
+            a.same_position_intra_loop_closure_probability,
+            a.intra_loop_closure_probability_scaling,
+            a.intra_loop_closure_radius,
+            eps,
+        )
         rng_lc = np.random.default_rng([seed % 2**32, _STREAM_LOOPS])
         acc = rng_lc.random(len(p)) < p
         fr, to = j[acc], kq[acc]
-        z_lc = noisy(relative_se3(w.poses[fr], w.poses[to]), ext.noise_of("intra"),
-                     a.std_dev_intra_loop_closure_position, a.std_dev_intra_loop_closure_angle, rng_lc)
-        lcs = Edges(PoseKind.SE3, fr, to, z_lc.reshape(-1, 7),
-                    se3_information(len(fr), a.estimated_information_intra_position,
-                                    a.estimated_information_intra_angle))
-        agents.append(AgentGraph(f"agent{k + 1}", PoseKind.SE3, np.arange(n, dtype=np.int64) * NS_PER_S,
-                                 initial, w.poses, odo, lcs))
+        z_lc = noisy(
+            relative_se3(w.poses[fr], w.poses[to]),
+            ext.noise_of("intra"),
+            a.std_dev_intra_loop_closure_position,
+            a.std_dev_intra_loop_closure_angle,
+            rng_lc,
+        )
+        lcs = Edges(
+            PoseKind.SE3,
+            fr,
+            to,
+            z_lc.reshape(-1, 7),
+            se3_information(len(fr), a.estimated_information_intra_position, a.estimated_information_intra_angle),
+        )
+        agents.append(
+            AgentGraph(
+                f"agent{k + 1}", PoseKind.SE3, np.arange(n, dtype=np.int64) * NS_PER_S, initial, w.poses, odo, lcs
+            )
+        )
     inter = _inter(cfg, walks, cell, eps) if len(walks) > 1 else InterAgentEdges.empty(PoseKind.SE3)
     graph = PoseGraph(PoseKind.SE3, tuple(agents), inter, {"generator": "studio grid3d", "name": cfg.name})
     return graph, walks
@@ -207,19 +235,36 @@ def _inter(cfg: SynthConfig, walks: list[Walk3d], cell: np.ndarray, eps: float) 
             last = _visits(wa.cells, "last")
             kq, m, d = _hits(_metric(wb.cells, cell), _metric(wa.cells[last], cell), p.loop_closure_radius)
             j = last[m]
-            prob = _probabilities(d, p.same_position_loop_closure_probability, p.loop_closure_probability_scaling,
-                                  p.loop_closure_radius, eps)
+            prob = _probabilities(
+                d,
+                p.same_position_loop_closure_probability,
+                p.loop_closure_probability_scaling,
+                p.loop_closure_radius,
+                eps,
+            )
             rng = np.random.default_rng([p.random_number_generator_seed % 2**32, _STREAM_INTER, a, b])
             acc = rng.random(len(prob)) < prob
             fi, tj = kq[acc], j[acc]
-            z = noisy(relative_se3(wb.poses[fi], wa.poses[tj]), cfg.studio.noise_of("inter"),
-                      p.std_dev_loop_closure_position, p.std_dev_loop_closure_angle, rng)
+            z = noisy(
+                relative_se3(wb.poses[fi], wa.poses[tj]),
+                cfg.studio.noise_of("inter"),
+                p.std_dev_loop_closure_position,
+                p.std_dev_loop_closure_angle,
+                rng,
+            )
             for c, val in zip(cols, (np.full(len(fi), b), fi, np.full(len(fi), a), tj, z.reshape(-1, 7))):
                 c.append(val)
     meas = np.concatenate(cols[4])
     fa, fi, ta, ti = (np.concatenate(c) for c in cols[:4])
-    return InterAgentEdges(PoseKind.SE3, fa, fi, ta, ti, meas,
-                           se3_information(len(meas), p.estimated_information_position, p.estimated_information_angle))
+    return InterAgentEdges(
+        PoseKind.SE3,
+        fa,
+        fi,
+        ta,
+        ti,
+        meas,
+        se3_information(len(meas), p.estimated_information_position, p.estimated_information_angle),
+    )
 
 
 def _dead_reckon(start: np.ndarray, rel: np.ndarray) -> np.ndarray:
@@ -234,8 +279,12 @@ def _dead_reckon(start: np.ndarray, rel: np.ndarray) -> np.ndarray:
         x += tx + qw * ux + (qy * uz - qz * uy)
         y += ty + qw * uy + (qz * ux - qx * uz)
         z += tz + qw * uz + (qx * uy - qy * ux)
-        qx, qy, qz, qw = (qw * bx + qx * bw + qy * bz - qz * by, qw * by - qx * bz + qy * bw + qz * bx,
-                          qw * bz + qx * by - qy * bx + qz * bw, qw * bw - qx * bx - qy * by - qz * bz)
+        qx, qy, qz, qw = (
+            qw * bx + qx * bw + qy * bz - qz * by,
+            qw * by - qx * bz + qy * bw + qz * bx,
+            qw * bz + qx * by - qy * bx + qz * bw,
+            qw * bw - qx * bx - qy * by - qz * bz,
+        )
         norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
         qx, qy, qz, qw = qx / norm, qy / norm, qz / norm, qw / norm
         out[k] = (x, y, z, qx, qy, qz, qw)

@@ -16,9 +16,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from studio.generator.config import SynthConfig
+from studio.core.geometry import libm_cos_sin
+from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.parallel import parallel_map
 from studio.core.progress import Progress, report
+from studio.core.units import NS_PER_S
+from studio.generator.config import SynthConfig
 from studio.generator.loop_closures import (
     _diag_information,
     _grid_cells,
@@ -28,13 +31,19 @@ from studio.generator.loop_closures import (
     discrete_circle,
 )
 from studio.generator.rng import MT19937Stream
-from studio.generator.walk import _dead_reckon, _random_walk, _round_half_away, _round_to_int, _Walk
-from studio.core.geometry import libm_cos_sin
-from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
-from studio.core.units import NS_PER_S
 from studio.generator.seam import GeneratedDataset
-__all__ = ["KOLLAGEN", "KollagenGenerator", "SingleG2oView", "SynthOutput", "generate", "effective_seeds", "discrete_circle", "agent_pairs"]
+from studio.generator.walk import _dead_reckon, _random_walk, _round_to_int, _Walk
 
+__all__ = [
+    "KOLLAGEN",
+    "KollagenGenerator",
+    "SingleG2oView",
+    "SynthOutput",
+    "generate",
+    "effective_seeds",
+    "discrete_circle",
+    "agent_pairs",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,8 +188,14 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
     graph = PoseGraph(PoseKind.SE2, tuple(agents), inter, {"generator": "kollagen", "name": cfg.name})
     p = cfg.inter
     connector = np.array(
-        [p.estimated_information_position, 0.0, 0.0, p.estimated_information_position, 0.0,
-         p.estimated_information_angle]
+        [
+            p.estimated_information_position,
+            0.0,
+            0.0,
+            p.estimated_information_position,
+            0.0,
+            p.estimated_information_angle,
+        ]
     )
     return SynthOutput(graph, tuple(exact) if cfg.exact_information_matrix else None, connector, seeds)
 
@@ -203,6 +218,7 @@ def _initial_estimate(walk: _Walk, shift: tuple[int, int]) -> np.ndarray:
 def _align(walks: list[_Walk]) -> tuple[list[_Walk], list[tuple[int, int]]]:
     """kollagen's ``align_center_of_masses``: integer shifts (in metres) towards agent 1's centre;
     the moved walks and each one's shift (the dead reckoning, made later, moves by it too)."""
+
     def centre(w: _Walk) -> tuple[int, int]:
         n = len(w.x)
         return _round_to_int(_libstdcxx_reduce(w.x) / n), _round_to_int(_libstdcxx_reduce(w.y) / n)
@@ -239,8 +255,9 @@ class KollagenGenerator:
     def extra_suffixes(self, config: SynthConfig) -> tuple[str, ...]:
         return ("_singleg2o",)
 
-    def generate(self, config: SynthConfig, *, jobs: int | None = None,
-                 progress: Progress | None = None) -> GeneratedDataset:
+    def generate(
+        self, config: SynthConfig, *, jobs: int | None = None, progress: Progress | None = None
+    ) -> GeneratedDataset:
         out = generate(config, jobs=jobs, progress=progress)
         view = SingleG2oView(out.connector_information, out.exact_odometry_information)
         return GeneratedDataset(out.graph, (view,))

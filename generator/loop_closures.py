@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -41,6 +41,7 @@ def discrete_circle(radius: int) -> np.ndarray:
 def agent_pairs(n: int) -> list[tuple[int, int]]:
     """The pairs kollagen's ``get_all_pairs`` yields (lexicographic), for n >= 2."""
     return [(a, b) for a in range(n) for b in range(a + 1, n)]
+
 
 # --------------------------------------------------------------------------------------------------
 # Loop-closure candidates and their sampling
@@ -366,8 +367,9 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     stream.advance(2 * used)
     i_to = np.concatenate(to_pose)[acc]
     j_from = np.concatenate(from_pose)[acc]
-    dX, dY, dT = relative_planar_pose(walk.x[j_from], walk.y[j_from], walk.theta[j_from],
-                           walk.x[i_to], walk.y[i_to], walk.theta[i_to])
+    dX, dY, dT = relative_planar_pose(
+        walk.x[j_from], walk.y[j_from], walk.theta[j_from], walk.x[i_to], walk.y[i_to], walk.theta[i_to]
+    )
     sp, sa = agent.std_dev_intra_loop_closure_position, agent.std_dev_intra_loop_closure_angle
     meas = np.column_stack([dX + noise[:, 0] * sp, dY + noise[:, 1] * sp, dT + noise[:, 2] * sa])
     info = _diag_information(
@@ -411,13 +413,16 @@ class _InterPairs:
         acc, noise, _, _ = _sample(self._tape, hits.probs, None)
         i_from, m = hits.pairs(acc)
         j_to = last[m]
-        dX, dY, dT = relative_planar_pose(wb.x[i_from], wb.y[i_from], wb.theta[i_from],
-                               wa.x[j_to], wa.y[j_to], wa.theta[j_to])
-        meas = np.column_stack([
-            dX + noise[:, 0] * p.std_dev_loop_closure_position,
-            dY + noise[:, 1] * p.std_dev_loop_closure_position,
-            dT + noise[:, 2] * p.std_dev_loop_closure_angle,
-        ])
+        dX, dY, dT = relative_planar_pose(
+            wb.x[i_from], wb.y[i_from], wb.theta[i_from], wa.x[j_to], wa.y[j_to], wa.theta[j_to]
+        )
+        meas = np.column_stack(
+            [
+                dX + noise[:, 0] * p.std_dev_loop_closure_position,
+                dY + noise[:, 1] * p.std_dev_loop_closure_position,
+                dT + noise[:, 2] * p.std_dev_loop_closure_angle,
+            ]
+        )
         return np.full(len(acc), b), i_from, np.full(len(acc), a), j_to, meas.reshape(-1, 3)
 
     def edges(self, done: list) -> InterAgentEdges:

@@ -56,9 +56,11 @@ def local_patterns(cells: np.ndarray, heading: np.ndarray, half: int) -> np.ndar
     cells = np.asarray(cells, dtype=np.int64)
     lo = cells.min(axis=0) - half
     span = cells.max(axis=0) + half - lo + 1
+
     def key(c: np.ndarray) -> np.ndarray:
         c = c - lo
         return (c[..., 0] * span[1] + c[..., 1]) * span[2] + c[..., 2]
+
     occupied = np.unique(key(cells))
     off = np.arange(-half, half + 1)
     ox, oy = np.meshgrid(off, off, indexing="ij")
@@ -70,8 +72,14 @@ def local_patterns(cells: np.ndarray, heading: np.ndarray, half: int) -> np.ndar
     return np.unique(rows, axis=0, return_inverse=True)[1].ravel()
 
 
-def plant_outliers(graph: PoseGraph, positions: list[np.ndarray], cells: list[np.ndarray],
-                   headings: list[np.ndarray], step_fragment: int, cfg: OutlierConfig) -> PlantedOutliers:
+def plant_outliers(
+    graph: PoseGraph,
+    positions: list[np.ndarray],
+    cells: list[np.ndarray],
+    headings: list[np.ndarray],
+    step_fragment: int,
+    cfg: OutlierConfig,
+) -> PlantedOutliers:
     """Replace the ``to`` vertex of some loop closures (see the module doc).
 
     ``positions[k]`` (n, 3) are agent k's ground-truth positions [m], ``cells[k]`` its (n, 3) integer
@@ -126,10 +134,23 @@ def plant_outliers(graph: PoseGraph, positions: list[np.ndarray], cells: list[np
         return new_to, kind_of, k
 
     agents = list(graph.agents)
-    intra_ends = np.concatenate([
-        np.column_stack([np.full(len(a.loop_closures), k), a.loop_closures.from_index,
-                         np.full(len(a.loop_closures), k), a.loop_closures.to_index])
-        for k, a in enumerate(agents)]).astype(np.int64).reshape(-1, 4)
+    intra_ends = (
+        np.concatenate(
+            [
+                np.column_stack(
+                    [
+                        np.full(len(a.loop_closures), k),
+                        a.loop_closures.from_index,
+                        np.full(len(a.loop_closures), k),
+                        a.loop_closures.to_index,
+                    ]
+                )
+                for k, a in enumerate(agents)
+            ]
+        )
+        .astype(np.int64)
+        .reshape(-1, 4)
+    )
     new_intra, kinds_intra, asked_intra = choose(intra_ends, cfg.intra_fraction)
     inter = graph.inter
     inter_ends = np.column_stack([inter.from_agent, inter.from_index, inter.to_agent, inter.to_index]).reshape(-1, 4)
@@ -148,16 +169,31 @@ def plant_outliers(graph: PoseGraph, positions: list[np.ndarray], cells: list[np
                 kinds.append(kinds_intra[offset + e])
         offset += len(lc)
         if len(lc):
-            agents[k] = AgentGraph(a.name, a.kind, a.stamps_ns, a.initial, a.ground_truth, a.odometry,
-                                   Edges(lc.kind, lc.from_index, to, lc.measurements, lc.information_upper),
-                                   a.ground_truth_se3)
+            agents[k] = AgentGraph(
+                a.name,
+                a.kind,
+                a.stamps_ns,
+                a.initial,
+                a.ground_truth,
+                a.odometry,
+                Edges(lc.kind, lc.from_index, to, lc.measurements, lc.information_upper),
+                a.ground_truth_se3,
+            )
     to_index = inter.to_index.copy()
     for e in sorted(new_inter):
         to_index[e] = new_inter[e]
         rows.append((int(inter.from_agent[e]), int(inter.from_index[e]), int(inter.to_agent[e]), int(to_index[e])))
         kinds.append(kinds_inter[e])
-    new_inter_edges = InterAgentEdges(inter.kind, inter.from_agent, inter.from_index, inter.to_agent, to_index,
-                                      inter.measurements, inter.information_upper)
+    new_inter_edges = InterAgentEdges(
+        inter.kind,
+        inter.from_agent,
+        inter.from_index,
+        inter.to_agent,
+        to_index,
+        inter.measurements,
+        inter.information_upper,
+    )
     out = PoseGraph(graph.kind, tuple(agents), new_inter_edges, dict(graph.metadata))
-    return PlantedOutliers(out, np.array(rows, dtype=np.int64).reshape(-1, 4), tuple(kinds),
-                           {"intra": asked_intra, "inter": asked_inter})
+    return PlantedOutliers(
+        out, np.array(rows, dtype=np.int64).reshape(-1, 4), tuple(kinds), {"intra": asked_intra, "inter": asked_inter}
+    )

@@ -20,25 +20,43 @@ def _multi3500x8() -> SynthConfig:
     info_odo = 1111.111111111111  # 1 / 0.03^2
     agents = tuple(
         AgentConfig(
-            std_dev_position=0.03, std_dev_angle=0.03,
-            estimated_information_position=info_odo, estimated_information_angle=info_odo,
+            std_dev_position=0.03,
+            std_dev_angle=0.03,
+            estimated_information_position=info_odo,
+            estimated_information_angle=info_odo,
             random_number_generator_seed=seed,
-            std_dev_intra_loop_closure_position=0.02, std_dev_intra_loop_closure_angle=0.02,
-            estimated_information_intra_position=2500.0, estimated_information_intra_angle=2500.0,
-            intra_loop_closure_radius=5.0, same_position_intra_loop_closure_probability=0.5,
+            std_dev_intra_loop_closure_position=0.02,
+            std_dev_intra_loop_closure_angle=0.02,
+            estimated_information_intra_position=2500.0,
+            estimated_information_intra_angle=2500.0,
+            intra_loop_closure_radius=5.0,
+            same_position_intra_loop_closure_probability=0.5,
             intra_loop_closure_probability_scaling=0.05,
         )
         for seed in seeds
     )
     inter = InterLoopClosureConfig(
-        std_dev_loop_closure_position=0.025, std_dev_loop_closure_angle=0.025,
-        estimated_information_position=1599.9999999999998, estimated_information_angle=1599.9999999999998,
-        loop_closure_radius=5.0, loop_closure_probability_scaling=0.05,
-        same_position_loop_closure_probability=0.8, random_number_generator_seed=2710,
+        std_dev_loop_closure_position=0.025,
+        std_dev_loop_closure_angle=0.025,
+        estimated_information_position=1599.9999999999998,
+        estimated_information_angle=1599.9999999999998,
+        loop_closure_radius=5.0,
+        loop_closure_probability_scaling=0.05,
+        same_position_loop_closure_probability=0.8,
+        random_number_generator_seed=2710,
     )
-    return SynthConfig(number_of_steps=875, align=True, number_of_agents=8, exact_information_matrix=False,
-                       stepsize=1.0, step_fragment=4, allow_retrocession=True, agents=agents, inter=inter,
-                       name="multi3500x8")
+    return SynthConfig(
+        number_of_steps=875,
+        align=True,
+        number_of_agents=8,
+        exact_information_matrix=False,
+        stepsize=1.0,
+        step_fragment=4,
+        allow_retrocession=True,
+        agents=agents,
+        inter=inter,
+        name="multi3500x8",
+    )
 
 
 def _multi10000x5() -> SynthConfig:
@@ -47,25 +65,43 @@ def _multi10000x5() -> SynthConfig:
     info_ang = 7561.436672967864  # 1 / 0.0115^2
     agents = tuple(
         AgentConfig(
-            std_dev_position=0.023, std_dev_angle=0.0115,
-            estimated_information_position=info_pos, estimated_information_angle=info_ang,
+            std_dev_position=0.023,
+            std_dev_angle=0.0115,
+            estimated_information_position=info_pos,
+            estimated_information_angle=info_ang,
             random_number_generator_seed=seed,
-            std_dev_intra_loop_closure_position=0.023, std_dev_intra_loop_closure_angle=0.0115,
-            estimated_information_intra_position=info_pos, estimated_information_intra_angle=info_ang,
-            intra_loop_closure_radius=3.0, same_position_intra_loop_closure_probability=0.5,
+            std_dev_intra_loop_closure_position=0.023,
+            std_dev_intra_loop_closure_angle=0.0115,
+            estimated_information_intra_position=info_pos,
+            estimated_information_intra_angle=info_ang,
+            intra_loop_closure_radius=3.0,
+            same_position_intra_loop_closure_probability=0.5,
             intra_loop_closure_probability_scaling=0.05,
         )
         for seed in seeds
     )
     inter = InterLoopClosureConfig(
-        std_dev_loop_closure_position=0.023, std_dev_loop_closure_angle=0.0115,
-        estimated_information_position=info_pos, estimated_information_angle=info_ang,
-        loop_closure_radius=3.0, loop_closure_probability_scaling=0.05,
-        same_position_loop_closure_probability=1.0, random_number_generator_seed=2708,
+        std_dev_loop_closure_position=0.023,
+        std_dev_loop_closure_angle=0.0115,
+        estimated_information_position=info_pos,
+        estimated_information_angle=info_ang,
+        loop_closure_radius=3.0,
+        loop_closure_probability_scaling=0.05,
+        same_position_loop_closure_probability=1.0,
+        random_number_generator_seed=2708,
     )
-    return SynthConfig(number_of_steps=2500, align=True, number_of_agents=5, exact_information_matrix=False,
-                       stepsize=1.0, step_fragment=4, allow_retrocession=False, agents=agents, inter=inter,
-                       name="multi10000x5")
+    return SynthConfig(
+        number_of_steps=2500,
+        align=True,
+        number_of_agents=5,
+        exact_information_matrix=False,
+        stepsize=1.0,
+        step_fragment=4,
+        allow_retrocession=False,
+        agents=agents,
+        inter=inter,
+        name="multi10000x5",
+    )
 
 
 def _cube3d() -> SynthConfig:
@@ -75,10 +111,12 @@ def _cube3d() -> SynthConfig:
     base = _multi3500x8()
     agents = tuple(dataclasses.replace(a, intra_loop_closure_radius=3.0) for a in base.agents[:4])
     inter = dataclasses.replace(base.inter, loop_closure_radius=3.0)
-    studio = StudioExtensions(walk="grid3d", grid3d=Grid3dConfig(vertical_probability=0.15, vertical_step=1.0,
-                                                                 tilt_std_dev=0.02))
-    return dataclasses.replace(base, number_of_steps=500, number_of_agents=4, agents=agents, inter=inter,
-                               name="cube3d", studio=studio)
+    studio = StudioExtensions(
+        walk="grid3d", grid3d=Grid3dConfig(vertical_probability=0.15, vertical_step=1.0, tilt_std_dev=0.02)
+    )
+    return dataclasses.replace(
+        base, number_of_steps=500, number_of_agents=4, agents=agents, inter=inter, name="cube3d", studio=studio
+    )
 
 
 def _multi3500x8_outliers() -> SynthConfig:
@@ -88,8 +126,12 @@ def _multi3500x8_outliers() -> SynthConfig:
     return dataclasses.replace(_multi3500x8(), name="multi3500x8_outliers", studio=studio)
 
 
-PRESETS = {"multi3500x8": _multi3500x8, "multi10000x5": _multi10000x5, "cube3d": _cube3d,
-           "multi3500x8_outliers": _multi3500x8_outliers}
+PRESETS = {
+    "multi3500x8": _multi3500x8,
+    "multi10000x5": _multi10000x5,
+    "cube3d": _cube3d,
+    "multi3500x8_outliers": _multi3500x8_outliers,
+}
 
 
 def preset_names() -> list[str]:

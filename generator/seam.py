@@ -50,8 +50,9 @@ class Generator(Protocol[ConfigT_contra]):
         pipeline can refuse existing outputs first)."""
         ...
 
-    def generate(self, config: ConfigT_contra, *, jobs: int | None = None,
-                 progress: Progress | None = None) -> GeneratedDataset:
+    def generate(
+        self, config: ConfigT_contra, *, jobs: int | None = None, progress: Progress | None = None
+    ) -> GeneratedDataset:
         """Generate the dataset; ``jobs`` caps the processes, the result does not depend on it;
         ``progress`` hears of the work done (studio.core.progress)."""
         ...

@@ -32,6 +32,7 @@ def _round_to_int(v: float) -> int:
         t += 1 if v > 0 else -1
     return int(t)
 
+
 def _quarter_angle_table() -> dict[int, tuple[float, float, float]]:
     """theta_int -> (theta as kollagen stores it, cos, sin), for theta_int in -3..3."""
     table = {}

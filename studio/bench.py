@@ -30,12 +30,14 @@ import multiprocessing
 import os
 import resource
 import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 from studio.core.errors import ConfigError, StudioError
 from studio.core.progress import Progress, report
+from studio.core.types import PathLike
 from studio.io.atomic import write_replacing
 from studio.io.spec_file import check_spec_keys, read_spec_file
 
@@ -151,8 +153,9 @@ def bench_spec_from_dict(data: Mapping[str, Any], source: str) -> BenchSpec:
         try:
             Alignment(a)
         except ValueError:
-            raise ConfigError(f"{source}: alignments: unknown alignment {a!r} "
-                              f"(known: {', '.join(x.value for x in Alignment)})") from None
+            raise ConfigError(
+                f"{source}: alignments: unknown alignment {a!r} (known: {', '.join(x.value for x in Alignment)})"
+            ) from None
     options = data.get("options", {})
     if not isinstance(options, Mapping) or not all(isinstance(v, Mapping) for v in options.values()):
         raise ConfigError(f"{source}: options: expected a table per method ([options.gtsam] ...)")
@@ -161,16 +164,16 @@ def bench_spec_from_dict(data: Mapping[str, Any], source: str) -> BenchSpec:
             raise ConfigError(f"{source}: options.{m}: not one of the spec's methods ({', '.join(methods)})")
         for key in opts:
             if key not in SOLVE_OPTIONS:
-                raise ConfigError(f"{source}: options.{m}.{key}: unknown solve option "
-                                  f"(known: {', '.join(sorted(SOLVE_OPTIONS))})")
+                raise ConfigError(
+                    f"{source}: options.{m}.{key}: unknown solve option (known: {', '.join(sorted(SOLVE_OPTIONS))})"
+                )
     name = data.get("name", Path(source).stem if source != "<built-in>" else "bench")
     if not isinstance(name, str) or not name or "/" in name:
         raise ConfigError(f"{source}: name: expected a plain name")
-    return BenchSpec(name, datasets, cases, methods, inp, alignments,
-                     {k: dict(v) for k, v in options.items()}, source)
+    return BenchSpec(name, datasets, cases, methods, inp, alignments, {k: dict(v) for k, v in options.items()}, source)
 
 
-def load_bench_spec(source: str | os.PathLike) -> BenchSpec:
+def load_bench_spec(source: PathLike) -> BenchSpec:
     """``paper`` (the built-in spec) or the path of a ``.toml`` / ``.json`` spec."""
     text = str(source)
     if text == "paper" and not Path(text).exists():
@@ -196,8 +199,7 @@ def _prepare_dataset(name: str, case: str, datasets_dir: Path) -> tuple[Path, Pa
     from studio.synth import load_synth_config, synthesize
 
     config = load_synth_config(name)
-    config = dataclasses.replace(config, exact_information_matrix=(case == "exact"),
-                                 name=f"{config.name}-{case}")
+    config = dataclasses.replace(config, exact_information_matrix=(case == "exact"), name=f"{config.name}-{case}")
     dataset = datasets_dir / config.name
     single = datasets_dir / f"{config.name}_singleg2o" / f"{config.name}.g2o"
     if not (dataset.is_dir() and single.is_file()):
@@ -219,9 +221,16 @@ def _run_cell(cell: Cell, spec: BenchSpec, dataset: str, single: str | None, run
     info = {"estimate": str(res.estimate_path), "planar": res.planar}
     wall = time.perf_counter() - t0
     row: dict[str, Any] = {
-        "dataset": cell.dataset, "case": cell.case, "method": cell.method, "input": spec.input,
-        "iterations": res.iterations, "chi2_initial": res.chi2_initial, "chi2_final": res.chi2_final,
-        "solve_s": res.seconds, "wall_s": wall, **info,
+        "dataset": cell.dataset,
+        "case": cell.case,
+        "method": cell.method,
+        "input": spec.input,
+        "iterations": res.iterations,
+        "chi2_initial": res.chi2_initial,
+        "chi2_final": res.chi2_final,
+        "solve_s": res.seconds,
+        "wall_s": wall,
+        **info,
     }
     for align in spec.alignments:
         ev = evaluate(dataset, estimate=res.estimate_path, align=align)
@@ -248,8 +257,7 @@ def _in_fresh_process(func: Callable[..., dict[str, Any]], *args: Any) -> dict[s
 # ------------------------------------------------------------------------------------------- the bench
 
 
-def bench(spec: BenchSpec, out_dir: str | os.PathLike, *, progress: Progress | None = None,
-          isolate: bool = True) -> BenchResult:
+def bench(spec: BenchSpec, out_dir: PathLike, *, progress: Progress | None = None, isolate: bool = True) -> BenchResult:
     """Run every cell of ``spec`` not finished yet under ``out_dir`` and write the tables and plot.
 
     ``isolate`` runs each cell in a fresh process (its own peak memory); tests may turn it off.
@@ -264,9 +272,12 @@ def bench(spec: BenchSpec, out_dir: str | os.PathLike, *, progress: Progress | N
         from studio.synth import load_synth_config
 
         load_synth_config(d)  # bad names fail before any work
-    cells = [Cell(d, c if not _is_folder_dataset(d) else "as-is", m)
-             for d in spec.datasets for c in (spec.cases if not _is_folder_dataset(d) else ("as-is",))
-             for m in spec.methods]
+    cells = [
+        Cell(d, c if not _is_folder_dataset(d) else "as-is", m)
+        for d in spec.datasets
+        for c in (spec.cases if not _is_folder_dataset(d) else ("as-is",))
+        for m in spec.methods
+    ]
     cells = list(dict.fromkeys(cells))
     rows: list[dict[str, Any]] = []
     computed = 0
@@ -276,9 +287,11 @@ def bench(spec: BenchSpec, out_dir: str | os.PathLike, *, progress: Progress | N
         report(progress, "bench cells", k, total, "cells")
         pair = (cell.dataset, cell.case)
         if pair not in prepared:
-            prepared[pair] = _prepare_dataset(cell.dataset, cell.case if cell.case != "as-is" else "diagonal",
-                                              datasets_dir) if not _is_folder_dataset(cell.dataset) \
+            prepared[pair] = (
+                _prepare_dataset(cell.dataset, cell.case if cell.case != "as-is" else "diagonal", datasets_dir)
+                if not _is_folder_dataset(cell.dataset)
                 else (Path(cell.dataset), None)
+            )
             odo_path = runs_dir / f"{Cell(cell.dataset, cell.case, 'odometry').key}.json"
             if odo_path.is_file():
                 rows.append(json.loads(odo_path.read_text(encoding="utf-8")))
@@ -291,12 +304,23 @@ def bench(spec: BenchSpec, out_dir: str | os.PathLike, *, progress: Progress | N
         if done.is_file():
             rows.append(json.loads(done.read_text(encoding="utf-8")))
             continue
-        args = (cell, spec, str(dataset), None if single is None else str(single), str(runs_dir / cell.key / "estimate"))
+        args = (
+            cell,
+            spec,
+            str(dataset),
+            None if single is None else str(single),
+            str(runs_dir / cell.key / "estimate"),
+        )
         try:
             row = _in_fresh_process(_run_cell, *args) if isolate else _run_cell(*args)
         except StudioError as err:
-            row = {"dataset": cell.dataset, "case": cell.case, "method": cell.method, "input": spec.input,
-                   "error": str(err)}
+            row = {
+                "dataset": cell.dataset,
+                "case": cell.case,
+                "method": cell.method,
+                "input": spec.input,
+                "error": str(err),
+            }
         computed += 1
         _write_json(done, row)
         rows.append(row)
@@ -347,8 +371,21 @@ def _write_tables(spec: BenchSpec, out: Path, rows: list[dict[str, Any]], comput
     import pandas as pd
 
     df = pd.DataFrame(rows)
-    first = ["dataset", "case", "method", "input"] + [f"ape_{a}_m" for a in spec.alignments] + [
-        "iterations", "chi2_initial", "chi2_final", "solve_s", "wall_s", "peak_rss_mb", "planar", "estimate", "error"]
+    first = (
+        ["dataset", "case", "method", "input"]
+        + [f"ape_{a}_m" for a in spec.alignments]
+        + [
+            "iterations",
+            "chi2_initial",
+            "chi2_final",
+            "solve_s",
+            "wall_s",
+            "peak_rss_mb",
+            "planar",
+            "estimate",
+            "error",
+        ]
+    )
     df = df[[c for c in first if c in df.columns] + sorted(c for c in df.columns if c not in first)]
     csv_path = out / "bench.csv"
     write_replacing(csv_path, lambda tmp: df.to_csv(tmp, index=False))
@@ -357,12 +394,25 @@ def _write_tables(spec: BenchSpec, out: Path, rows: list[dict[str, Any]], comput
         write_replacing(parquet_path, lambda tmp: df.to_parquet(tmp, index=False))  # type: ignore[arg-type]
     except ImportError:
         parquet_path = None
-    md = [f"# Bench `{spec.name}`", "",
-          f"Input: {spec.input}. APE: evo translation mean over all agents [m].", ""]
+    md = [f"# Bench `{spec.name}`", "", f"Input: {spec.input}. APE: evo translation mean over all agents [m].", ""]
     for align in spec.alignments:
         md += [f"## APE, alignment `{align}`", "", format_paper_table(rows, spec, align)]
-    cols = [c for c in ("dataset", "case", "method", "iterations", "chi2_initial", "chi2_final", "solve_s",
-                        "wall_s", "peak_rss_mb", "error") if c in df.columns]
+    cols = [
+        c
+        for c in (
+            "dataset",
+            "case",
+            "method",
+            "iterations",
+            "chi2_initial",
+            "chi2_final",
+            "solve_s",
+            "wall_s",
+            "peak_rss_mb",
+            "error",
+        )
+        if c in df.columns
+    ]
     md += ["## Runs", "", "| " + " | ".join(cols) + " |", "|" + "|".join(["---"] * len(cols)) + "|"]
     for r in rows:
         if r["method"] == "odometry":

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,6 +43,7 @@ from studio.core.errors import FormatError
 from studio.core.geometry import is_planar_se3, se3_information_to_se2
 from studio.core.model import PoseKind
 from studio.core.residuals import Convention, chi2_parts, chi2_terms, edge_errors
+from studio.core.types import PathLike
 
 __all__ = ["ClassCheck", "CheckReport", "check", "format_check", "CONSISTENT_TOLERANCE", "SIGNIFICANCE"]
 
@@ -96,12 +96,18 @@ class ClassCheck:
 
     @property
     def verdicts(self) -> dict[str, str]:
-        return {part: verdict(c.chi2, c.dof) for part, c in
-                (("total", self.total), ("translation", self.translation), ("rotation", self.rotation))}
+        return {
+            part: verdict(c.chi2, c.dof)
+            for part, c in (("total", self.total), ("translation", self.translation), ("rotation", self.rotation))
+        }
 
     def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"class": self.name, "agent": self.agent, "edges": self.edges,
-                               "excluded_outlier_candidates": self.excluded}
+        out: dict[str, Any] = {
+            "class": self.name,
+            "agent": self.agent,
+            "edges": self.edges,
+            "excluded_outlier_candidates": self.excluded,
+        }
         for part in ("total", "translation", "rotation"):
             c = getattr(self, part)
             out[part] = {"chi2": c.chi2, "dof": c.dof, "factor": c.factor, "verdict": verdict(c.chi2, c.dof)}
@@ -133,8 +139,15 @@ class CheckReport:
             "rotation_convention": self.convention,
             "classes": [c.to_dict() for c in self.classes],
             "outlier_candidates": [
-                {"from_agent": int(r[0]), "from_vertex": int(r[1]), "to_agent": int(r[2]), "to_vertex": int(r[3]),
-                 "chi2": float(r[4])} for r in self.outliers],
+                {
+                    "from_agent": int(r[0]),
+                    "from_vertex": int(r[1]),
+                    "to_agent": int(r[2]),
+                    "to_vertex": int(r[3]),
+                    "chi2": float(r[4]),
+                }
+                for r in self.outliers
+            ],
             "listed_outliers": self.listed_outliers,
             "listed_outliers_flagged": self.listed_flagged,
             "notes": list(self.notes),
@@ -169,8 +182,10 @@ EdgeSet = tuple[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
 def _multi_g2o(graph: Any, folder: Path) -> tuple[PoseKind, list[np.ndarray], list[EdgeSet], list[str]]:
     missing = [a.name for a in graph.agents if a.ground_truth is None]
     if missing:
-        raise FormatError(f"{folder}: agent {missing[0]} has no ground truth ({missing[0]}_GT.tum); "
-                          "a dataset is checked at its ground truth")
+        raise FormatError(
+            f"{folder}: agent {missing[0]} has no ground truth ({missing[0]}_GT.tum); "
+            "a dataset is checked at its ground truth"
+        )
     sets: list[EdgeSet] = []
     for k, a in enumerate(graph.agents):
         for name, edges in (("odometry", a.odometry), ("intra", a.loop_closures)):
@@ -189,8 +204,9 @@ def _single_g2o(path: Path) -> tuple[PoseKind, list[np.ndarray], list[EdgeSet], 
 
     gt_path = path.with_name(f"{path.stem}_GT.tum")
     if not gt_path.is_file():
-        raise FormatError(f"{path}: no ground truth beside it ({gt_path.name}); a dataset is checked at its "
-                          "ground truth")
+        raise FormatError(
+            f"{path}: no ground truth beside it ({gt_path.name}); a dataset is checked at its ground truth"
+        )
     doc = read_g2o(path)
     gt = read_tum(gt_path).poses_xyz_quat_xyzw
     n = len(doc.vertex_ids)
@@ -203,12 +219,21 @@ def _single_g2o(path: Path) -> tuple[PoseKind, list[np.ndarray], list[EdgeSet], 
     odo = doc.edge_to == doc.edge_from + 1
     zeros = np.zeros(len(doc.edge_from), dtype=np.int64)
     sets: list[EdgeSet] = [
-        (name, zeros[sel], doc.edge_from[sel], zeros[sel], doc.edge_to[sel], doc.edge_measurements[sel],
-         doc.edge_information_upper[sel]) for name, sel in (("odometry", odo), ("loop closures", ~odo))]
+        (
+            name,
+            zeros[sel],
+            doc.edge_from[sel],
+            zeros[sel],
+            doc.edge_to[sel],
+            doc.edge_measurements[sel],
+            doc.edge_information_upper[sel],
+        )
+        for name, sel in (("odometry", odo), ("loop closures", ~odo))
+    ]
     return doc.kind, [gt], sets, [path.stem]
 
 
-def check(dataset: str | os.PathLike, *, convention: Convention = "g2o") -> CheckReport:
+def check(dataset: PathLike, *, convention: Convention = "g2o") -> CheckReport:
     """Check ``dataset`` at its ground truth (see the module docstring): a multi-g2o folder, or a
     single g2o file with ``<stem>_GT.tum`` beside it (kollagen's single view)."""
     from scipy.stats import chi2 as chi2_dist
@@ -225,8 +250,11 @@ def check(dataset: str | os.PathLike, *, convention: Convention = "g2o") -> Chec
         loaded = _multi_g2o(read_multi_g2o(folder), folder)
     kind, truth, edge_sets, names = loaded
     notes = []
-    planar = kind is PoseKind.SE3 and all(is_planar_se3(t) for t in truth) and \
-        all(is_planar_se3(e[5]) for e in edge_sets if len(e[5]))
+    planar = (
+        kind is PoseKind.SE3
+        and all(is_planar_se3(t) for t in truth)
+        and all(is_planar_se3(e[5]) for e in edge_sets if len(e[5]))
+    )
     if planar:
         notes.append("3D records of planar data: checked in SE(2) (x, y, yaw); z, roll and pitch are not scored")
 
@@ -245,8 +273,9 @@ def check(dataset: str | os.PathLike, *, convention: Convention = "g2o") -> Chec
     for name, a_from, v_from, a_to, v_to, meas, upper in edge_sets:
         if len(v_from) == 0:
             continue
-        e = edge_errors(stacked[offsets[a_from] + v_from], stacked[offsets[a_to] + v_to], rows(meas),
-                        convention=convention)
+        e = edge_errors(
+            stacked[offsets[a_from] + v_from], stacked[offsets[a_to] + v_to], rows(meas), convention=convention
+        )
         up = se3_information_to_se2(upper) if planar else upper
         t, r = chi2_parts(e, up)
         cls.append(np.full(len(e), name))
@@ -286,13 +315,24 @@ def check(dataset: str | os.PathLike, *, convention: Convention = "g2o") -> Chec
         rare = flagged[sel].sum() <= MAX_EXCLUDED_FRACTION * sel.sum()
         use = sel & ~flagged if rare else sel
         excluded = int((sel & ~use).sum())
-        groups = [("all", use)] + ([(names[k], use & (ag == k)) for k in range(len(names))]
-                                   if name in ("odometry", "intra") and len(names) > 1 else [])
+        groups = [("all", use)] + (
+            [(names[k], use & (ag == k)) for k in range(len(names))]
+            if name in ("odometry", "intra") and len(names) > 1
+            else []
+        )
         for label, s_ in groups:
             n = int(s_.sum())
-            classes.append(ClassCheck(name, label, n, Component(float(tot[s_].sum()), n * d),
-                                      Component(float(tr[s_].sum()), n * dt), Component(float(ro[s_].sum()), n * (d - dt)),
-                                      excluded if label == "all" else 0))
+            classes.append(
+                ClassCheck(
+                    name,
+                    label,
+                    n,
+                    Component(float(tot[s_].sum()), n * d),
+                    Component(float(tr[s_].sum()), n * dt),
+                    Component(float(ro[s_].sum()), n * (d - dt)),
+                    excluded if label == "all" else 0,
+                )
+            )
 
     listed = _read_listed_outliers(folder)
     listed_n = listed_flagged = None
@@ -300,17 +340,20 @@ def check(dataset: str | os.PathLike, *, convention: Convention = "g2o") -> Chec
         listed_n = len(listed)
         have = {tuple(r) for r in rows_out[flagged].tolist()}
         listed_flagged = sum(tuple(r) in have for r in listed.tolist())
-    return CheckReport(str(folder), checked, convention, tuple(classes), candidates, listed_n, listed_flagged,
-                       tuple(notes))
+    return CheckReport(
+        str(folder), checked, convention, tuple(classes), candidates, listed_n, listed_flagged, tuple(notes)
+    )
 
 
 def format_check(report: CheckReport, *, per_agent: bool = False) -> str:
     """A plain-text table: one row per class (and per agent with ``per_agent``)."""
-    lines = [f"dataset:    {report.dataset}",
-             f"checked as: {report.kind.value}; rotation error: "
-             + ("quaternion vector part (g2o's EDGE_SE3:QUAT)" if report.convention == "g2o"
-                else "rotation vector (GTSAM)") + (" [planar: angle]" if report.kind is PoseKind.SE2 else ""),
-             "factor:     chi2 / degrees of freedom at the ground truth (1 = consistent)"]
+    lines = [
+        f"dataset:    {report.dataset}",
+        f"checked as: {report.kind.value}; rotation error: "
+        + ("quaternion vector part (g2o's EDGE_SE3:QUAT)" if report.convention == "g2o" else "rotation vector (GTSAM)")
+        + (" [planar: angle]" if report.kind is PoseKind.SE2 else ""),
+        "factor:     chi2 / degrees of freedom at the ground truth (1 = consistent)",
+    ]
     lines += [f"note:       {n}" for n in report.notes]
     head = ("class", "agent", "edges", "chi2/dof", "t chi2/dof", "r chi2/dof", "verdict (total; translation; rotation)")
     body = []
@@ -318,18 +361,34 @@ def format_check(report: CheckReport, *, per_agent: bool = False) -> str:
         if c.agent != "all" and not per_agent:
             continue
         v = c.verdicts
-        body.append((c.name, c.agent, str(c.edges) + (f" (+{c.excluded} out)" if c.excluded else ""), f"{c.total.factor:.4g}", f"{c.translation.factor:.4g}",
-                     f"{c.rotation.factor:.4g}", f"{v['total']}; {v['translation']}; {v['rotation']}"))
+        body.append(
+            (
+                c.name,
+                c.agent,
+                str(c.edges) + (f" (+{c.excluded} out)" if c.excluded else ""),
+                f"{c.total.factor:.4g}",
+                f"{c.translation.factor:.4g}",
+                f"{c.rotation.factor:.4g}",
+                f"{v['total']}; {v['translation']}; {v['rotation']}",
+            )
+        )
     widths = [max(len(r[i]) for r in [head, *body]) for i in range(len(head))]
     lines += ["", "  ".join(h.ljust(w) for h, w in zip(head, widths))]
     lines += ["  ".join(x.ljust(w) for x, w in zip(r, widths)) for r in body]
     n = len(report.outliers)
-    lines += ["", f"outlier candidates: {n}" + ("" if report.listed_outliers is None else
-                                                f" (the dataset lists {report.listed_outliers} outliers; "
-                                                f"{report.listed_flagged} of them flagged)")]
+    lines += [
+        "",
+        f"outlier candidates: {n}"
+        + (
+            ""
+            if report.listed_outliers is None
+            else f" (the dataset lists {report.listed_outliers} outliers; {report.listed_flagged} of them flagged)"
+        ),
+    ]
     for r in report.outliers[:10]:
-        lines.append(f"  agent {int(r[0]) + 1} vertex {int(r[1])} -> agent {int(r[2]) + 1} vertex {int(r[3])}: "
-                     f"chi2 {r[4]:.4g}")
+        lines.append(
+            f"  agent {int(r[0]) + 1} vertex {int(r[1])} -> agent {int(r[2]) + 1} vertex {int(r[3])}: chi2 {r[4]:.4g}"
+        )
     if n > 10:
         lines.append(f"  ... {n - 10} more (--json lists all)")
     return "\n".join(lines) + "\n"

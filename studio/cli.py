@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import enum
 import functools
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -17,8 +16,8 @@ import typer
 
 from studio.core.alignment import Alignment
 from studio.core.errors import StudioError
-from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.core.progress import terminal_progress
+from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 
 app = typer.Typer(
     name="studio",
@@ -49,8 +48,9 @@ def _print_version(value: bool) -> None:
 
 @app.callback()
 def _root(
-    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
-                                 help="Print the version and exit."),
+    version: bool = typer.Option(
+        False, "--version", callback=_print_version, is_eager=True, help="Print the version and exit."
+    ),
 ) -> None:
     """cslam-studio: collaborative-SLAM pose-graph datasets."""
 
@@ -61,7 +61,7 @@ def _as_flags(err: StudioError) -> str:
     text = str(err)
     option = getattr(err, "option", None)
     if option and text.startswith(f"{option}:"):
-        return "--" + option.replace("_", "-") + text[len(option):]
+        return "--" + option.replace("_", "-") + text[len(option) :]
     return text
 
 
@@ -87,7 +87,8 @@ def _warn(msg: str) -> None:
 @cli_errors
 def synth(
     config: str = typer.Argument(
-        ..., metavar="CONFIG.json|PRESET",
+        ...,
+        metavar="CONFIG.json|PRESET",
         help="A kollagen JSON config, or a built-in preset: multi3500x8, multi10000x5, cube3d, multi3500x8_outliers.",
     ),
     out: Path = typer.Option(..., "-o", "--out", help="Parent folder of the outputs (kollagen's DEST)."),
@@ -98,11 +99,15 @@ def synth(
     single_records: RecordKind = typer.Option(
         RecordKind.d2, "--single-records", help="g2o records of the single g2o file (kollagen: 2d)."
     ),
-    jobs: int = typer.Option(0, "--jobs", "-j", help="Processes to use (0: the cores not busy with other work, at least 1)."),
-    max_memory_gb: float = typer.Option(DEFAULT_MAX_MEMORY_GB, "--max-memory-gb",
-                                        help="Refuse configs estimated to need more memory. [GB]"),
-    max_output_gb: float = typer.Option(DEFAULT_MAX_OUTPUT_GB, "--max-output-gb",
-                                        help="Refuse configs estimated to write more. [GB]"),
+    jobs: int = typer.Option(
+        0, "--jobs", "-j", help="Processes to use (0: the cores not busy with other work, at least 1)."
+    ),
+    max_memory_gb: float = typer.Option(
+        DEFAULT_MAX_MEMORY_GB, "--max-memory-gb", help="Refuse configs estimated to need more memory. [GB]"
+    ),
+    max_output_gb: float = typer.Option(
+        DEFAULT_MAX_OUTPUT_GB, "--max-output-gb", help="Refuse configs estimated to write more. [GB]"
+    ),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
     rrd: bool = typer.Option(True, "--rrd/--no-rrd", help="Also write the Rerun recording OUT/<name>.rrd."),
 ) -> None:
@@ -116,9 +121,18 @@ def synth(
     t0 = time.perf_counter()
     cfg = load_synth_config(config, warn=_warn)
     with terminal_progress(not quiet) as progress:
-        res = synthesize(cfg, out, force=force, multi_records=multi_records.value,
-                         single_records=single_records.value, jobs=jobs or None,
-                         max_memory_gb=max_memory_gb, max_output_gb=max_output_gb, rrd=rrd, progress=progress)
+        res = synthesize(
+            cfg,
+            out,
+            force=force,
+            multi_records=multi_records.value,
+            single_records=single_records.value,
+            jobs=jobs or None,
+            max_memory_gb=max_memory_gb,
+            max_output_gb=max_output_gb,
+            rrd=rrd,
+            progress=progress,
+        )
     if not quiet:
         counts = res.output.graph.edge_counts()
         typer.echo(
@@ -163,13 +177,18 @@ def record(
 def evaluate(
     dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder with <agent>_GT.tum ground truth."),
     estimate: Path | None = typer.Option(
-        None, "--estimate", "-e",
+        None,
+        "--estimate",
+        "-e",
         help="An optimizer's output: a single g2o file (ids as in the dataset's single g2o), a multi-g2o "
-             "folder, or a folder of <agent>.tum / <agent>_*.tum files. Default: the dataset's initial estimate.",
+        "folder, or a folder of <agent>.tum / <agent>_*.tum files. Default: the dataset's initial estimate.",
     ),
-    align: Alignment = typer.Option(Alignment.none, "--align",
-                                    help="Alignment before scoring: none, first-pose (each agent's first pose on its "
-                                         "ground truth), se3 or sim3 (Umeyama). See docs/evaluation.md."),
+    align: Alignment = typer.Option(
+        Alignment.none,
+        "--align",
+        help="Alignment before scoring: none, first-pose (each agent's first pose on its "
+        "ground truth), se3 or sim3 (Umeyama). See docs/evaluation.md.",
+    ),
     align_per_agent: bool = typer.Option(False, "--align-per-agent", help="One alignment per agent, not one for all."),
     rpe_delta_m: float = typer.Option(1.0, "--rpe-delta-m", help="RPE distance in metres of ground-truth path."),
     rpe_delta_nodes: int = typer.Option(1, "--rpe-delta-nodes", help="RPE distance in nodes."),
@@ -198,9 +217,16 @@ def evaluate(
     if align_per_agent and align not in (Alignment.se3, Alignment.sim3):
         raise ConfigError("--align-per-agent needs --align se3 or --align sim3")
     with terminal_progress() as progress:
-        ev = evaluate_dataset(dataset, estimate=estimate, align=align.value, align_per_agent=align_per_agent,
-                              rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes,
-                              tum_max_diff_s=tum_max_diff, progress=progress)
+        ev = evaluate_dataset(
+            dataset,
+            estimate=estimate,
+            align=align.value,
+            align_per_agent=align_per_agent,
+            rpe_delta_m=rpe_delta_m,
+            rpe_delta_nodes=rpe_delta_nodes,
+            tum_max_diff_s=tum_max_diff,
+            progress=progress,
+        )
         if rrd is not None:
             from studio.evaluate import write_evaluation_recording
 
@@ -246,9 +272,11 @@ def snapshot(
     out: Path = typer.Option(..., "-o", "--out", help="The picture to write (PNG)."),
     node: int = typer.Option(None, "--node", help="Put the time cursor on this node (default: the last)."),
     size: str = typer.Option("1400x900", "--size", help="Window size WIDTHxHEIGHT."),
-    theme: ThemeChoice = typer.Option(ThemeChoice.dark, "--theme",
-                                      help="dark, or light: the views on the light theme's white background "
-                                           "(the viewer's panels stay dark)."),
+    theme: ThemeChoice = typer.Option(
+        ThemeChoice.dark,
+        "--theme",
+        help="dark, or light: the views on the light theme's white background (the viewer's panels stay dark).",
+    ),
     force: bool = typer.Option(False, "--force", help="Replace an existing picture."),
 ) -> None:
     """Render a recording to a PNG without a display (needs a Vulkan driver, e.g. mesa-vulkan-drivers).
@@ -270,35 +298,61 @@ def snapshot(
 @cli_errors
 def convert(
     ctx: typer.Context,
-    source: str = typer.Argument(None, metavar="[FORMAT]", show_default=False,
-                                 help="Source format: tum, s3e, airmuseum, bag, euroc, kitti, kimera-multi; "
-                                      "guessed from the inputs when left out and unambiguous."),
-    inputs: list[Path] = typer.Argument(None, metavar="INPUT...", show_default=False,
-                                        help="TUM files (tum), a sequence folder (s3e, airmuseum, euroc), a bag "
-                                             "(.bag, ROS 2 folder, .mcap), KITTI poses files, a Kimera-Multi "
-                                             "ground-truth folder."),
+    source: str = typer.Argument(
+        None,
+        metavar="[FORMAT]",
+        show_default=False,
+        help="Source format: tum, s3e, airmuseum, bag, euroc, kitti, kimera-multi; "
+        "guessed from the inputs when left out and unambiguous.",
+    ),
+    inputs: list[Path] = typer.Argument(
+        None,
+        metavar="INPUT...",
+        show_default=False,
+        help="TUM files (tum), a sequence folder (s3e, airmuseum, euroc), a bag "
+        "(.bag, ROS 2 folder, .mcap), KITTI poses files, a Kimera-Multi "
+        "ground-truth folder.",
+    ),
     out: Path = typer.Option(..., "-o", "--out", help="The dataset folder to write."),
-    agent: list[str] = typer.Option([], "--agent", metavar="NAME=SPEC",
-                                    help="Bag agents: NAME=/odom, NAME=/fix+/heading or NAME=/tf:PARENT:CHILD."),
-    config: Path = typer.Option(None, "--config", exists=True, dir_okay=False,
-                                help="A convert.json: reproduce its dataset (options given here win)."),
+    agent: list[str] = typer.Option(
+        [], "--agent", metavar="NAME=SPEC", help="Bag agents: NAME=/odom, NAME=/fix+/heading or NAME=/tf:PARENT:CHILD."
+    ),
+    config: Path = typer.Option(
+        None,
+        "--config",
+        exists=True,
+        dir_okay=False,
+        help="A convert.json: reproduce its dataset (options given here win).",
+    ),
     force: bool = typer.Option(False, "--force", help="Replace an existing dataset folder."),
     rrd: bool = typer.Option(True, "--rrd/--no-rrd", help="Also write the Rerun recording OUT/<name>.rrd."),
-    max_memory_gb: float = typer.Option(DEFAULT_MAX_MEMORY_GB, "--max-memory-gb",
-                                        help="Refuse a loop-closure search estimated to need more memory."),
+    max_memory_gb: float = typer.Option(
+        DEFAULT_MAX_MEMORY_GB, "--max-memory-gb", help="Refuse a loop-closure search estimated to need more memory."
+    ),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
-    orientation: str = typer.Option("auto", "--orientation",
-                                    help="keep the trajectories' orientation, derive headings from the motion, or "
-                                         "auto: derive where it carries no information (S3E)."),
-    heading_window_m: float = typer.Option(2.0, "--heading-window-m",
-                                           help="Path length over which a derived heading is measured, in metres."),
-    body_frame: list[str] = typer.Option([], "--body-frame", metavar="NAME=CODE",
-                                         help="An agent's body axes, e.g. robotA=ufl (AirMuseum's are the default)."),
+    orientation: str = typer.Option(
+        "auto",
+        "--orientation",
+        help="keep the trajectories' orientation, derive headings from the motion, or "
+        "auto: derive where it carries no information (S3E).",
+    ),
+    heading_window_m: float = typer.Option(
+        2.0, "--heading-window-m", help="Path length over which a derived heading is measured, in metres."
+    ),
+    body_frame: list[str] = typer.Option(
+        [],
+        "--body-frame",
+        metavar="NAME=CODE",
+        help="An agent's body axes, e.g. robotA=ufl (AirMuseum's are the default).",
+    ),
     split: int = typer.Option(0, "--split", help="Split each trajectory into this many agents over time (0: off)."),
     overlap: float = typer.Option(0.0, "--overlap", help="Overlap of consecutive --split windows, in seconds."),
-    folder_names: str = typer.Option("agents", "--folder-names",
-                                     help="agents: folders agent1..agentN with agents.json (kollagen's reader); "
-                                          "robots: folders named after the robots."),
+    folder_names: str = typer.Option(
+        "agents",
+        "--folder-names",
+        help="agents: folders agent1..agentN with agents.json (kollagen's reader); "
+        "robots: folders named after the robots.",
+    ),
     **graph_options: Any,
 ) -> None:
     """Turn real trajectories into a multi-g2o dataset with synthetic odometry and loop closures.
@@ -311,41 +365,65 @@ def convert(
     _tune_allocator()
     import dataclasses
 
+    from studio.convert import ConvertConfig, read_convert_config
+    from studio.convert import convert as run_convert
     from studio.converters.build import GraphOptions
-    from studio.convert import ConvertConfig, convert as run_convert, read_convert_config
-    from studio.core.errors import ConfigError
 
     # options typed on the command line win over the --config file (compared by name: typer may
     # vendor click, so its ParameterSource enum is not imported)
     from studio.converters.registry import guess_source, source_names
+    from studio.core.errors import ConfigError
 
-    given = {name for name in ctx.params
-             if getattr(ctx.get_parameter_source(name), "name", "") in ("COMMANDLINE", "ENVIRONMENT")}
+    given = {
+        name
+        for name in ctx.params
+        if getattr(ctx.get_parameter_source(name), "name", "") in ("COMMANDLINE", "ENVIRONMENT")
+    }
     option_names = [f.name for f in dataclasses.fields(GraphOptions)]
-    pipeline: dict[str, Any] = {"orientation": orientation, "heading_window_m": heading_window_m, "body_frames": tuple(body_frame),
-                "split": split, "overlap_s": overlap, "folder_names": folder_names}
-    flags = {"orientation": "orientation", "heading_window_m": "heading_window_m", "body_frames": "body_frame",
-             "split": "split", "overlap_s": "overlap", "folder_names": "folder_names"}
+    pipeline: dict[str, Any] = {
+        "orientation": orientation,
+        "heading_window_m": heading_window_m,
+        "body_frames": tuple(body_frame),
+        "split": split,
+        "overlap_s": overlap,
+        "folder_names": folder_names,
+    }
+    flags = {
+        "orientation": "orientation",
+        "heading_window_m": "heading_window_m",
+        "body_frames": "body_frame",
+        "split": "split",
+        "overlap_s": "overlap",
+        "folder_names": "folder_names",
+    }
     if source is not None and source not in source_names():
         inputs = [Path(source), *(inputs or [])]  # no FORMAT given: the first input
         source = guess_source(inputs)
     if config is not None:
         base = read_convert_config(config)
         overrides = {k: graph_options[k] for k in option_names if k in given}
-        cfg = ConvertConfig(source or base.source, tuple(str(p) for p in inputs) if inputs else base.inputs,
-                            tuple(agent) if agent else base.agents,
-                            dataclasses.replace(base.options, **overrides),
-                            **{k: (pipeline[k] if flags[k] in given else getattr(base, k)) for k in pipeline})
+        cfg = ConvertConfig(
+            source or base.source,
+            tuple(str(p) for p in inputs) if inputs else base.inputs,
+            tuple(agent) if agent else base.agents,
+            dataclasses.replace(base.options, **overrides),
+            **{k: (pipeline[k] if flags[k] in given else getattr(base, k)) for k in pipeline},
+        )
     else:
         if not source:
-            raise ConfigError(f"give a FORMAT ({', '.join(source_names())}), inputs whose format can be guessed, "
-                              "or --config")
-        cfg = ConvertConfig(source, tuple(str(p) for p in inputs or ()), tuple(agent),
-                            GraphOptions(**{k: graph_options[k] for k in option_names}), **pipeline)
+            raise ConfigError(
+                f"give a FORMAT ({', '.join(source_names())}), inputs whose format can be guessed, or --config"
+            )
+        cfg = ConvertConfig(
+            source,
+            tuple(str(p) for p in inputs or ()),
+            tuple(agent),
+            GraphOptions(**{k: graph_options[k] for k in option_names}),
+            **pipeline,
+        )
     t0 = time.perf_counter()
     with terminal_progress(not quiet) as progress:
-        res = run_convert(cfg, out, force=force, warn=_warn, progress=progress, rrd=rrd,
-                          max_memory_gb=max_memory_gb)
+        res = run_convert(cfg, out, force=force, warn=_warn, progress=progress, rrd=rrd, max_memory_gb=max_memory_gb)
     if not quiet:
         g = res.build.graph
         counts = g.edge_counts()
@@ -356,8 +434,10 @@ def convert(
             f"outliers), {len(res.build.gaps)} gaps, in {time.perf_counter() - t0:.2f} s\n  {res.dataset_dir}"
         )
         if res.orientation:
-            typer.echo(f"  headings derived from motion (the orientation carried no information): "
-                       f"{', '.join(sorted(res.orientation))}")
+            typer.echo(
+                f"  headings derived from motion (the orientation carried no information): "
+                f"{', '.join(sorted(res.orientation))}"
+            )
         for gap in res.build.gaps:
             typer.echo(f"  gap: {gap.agent} vertex {gap.vertex}: {gap.seconds:.3f} s, {gap.metres:.2f} m bridged")
 
@@ -416,18 +496,25 @@ class DimensionChoice(str, enum.Enum):
 def solve(
     dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder or a single .g2o file."),
     out: Path = typer.Option(..., "-o", "--out", help="Folder to write: the estimate and solve.json."),
-    method: MethodChoice = typer.Option(MethodChoice.gtsam, "--method", "-m",
-                                        help="gtsam (chordal guess + GN), g2o (paper's setup), gnc (robust), "
-                                             "command (an external program)."),
+    method: MethodChoice = typer.Option(
+        MethodChoice.gtsam,
+        "--method",
+        "-m",
+        help="gtsam (chordal guess + GN), g2o (paper's setup), gnc (robust), command (an external program).",
+    ),
     optimizer: OptimizerChoice = typer.Option(OptimizerChoice.gn, "--optimizer", help="gn or lm (gtsam)."),
     init: InitChoice = typer.Option(InitChoice.chordal, "--init", help="Initial guess (gtsam, gnc)."),
-    iterations: int | None = typer.Option(None, "--iterations",
-                                          help="Most iterations (default 20; g2o: exactly 10, as the paper)."),
-    command: str = typer.Option("", "--command",
-                                help="Program for --method command, with {input} and {output}, "
-                                     "e.g. 'se-sync {input} {output}'."),
-    dimension: DimensionChoice = typer.Option(DimensionChoice.auto, "--dimension",
-                                              help="auto: planar 3D data is solved in SE(2)."),
+    iterations: int | None = typer.Option(
+        None, "--iterations", help="Most iterations (default 20; g2o: exactly 10, as the paper)."
+    ),
+    command: str = typer.Option(
+        "",
+        "--command",
+        help="Program for --method command, with {input} and {output}, e.g. 'se-sync {input} {output}'.",
+    ),
+    dimension: DimensionChoice = typer.Option(
+        DimensionChoice.auto, "--dimension", help="auto: planar 3D data is solved in SE(2)."
+    ),
     rrd: Path | None = typer.Option(None, "--rrd", help="Also write the run as a Rerun recording (.rrd)."),
     force: bool = typer.Option(False, "--force", help="Replace an existing OUT (and --rrd file)."),
     as_json: bool = typer.Option(False, "--json", help="Print solve.json instead of a summary."),
@@ -441,16 +528,27 @@ def solve(
 
     from studio.solve import solve as run_solve
 
-    res = run_solve(dataset, out, method=method.value, optimizer=optimizer.value, init=init.value,
-                    max_iterations=iterations, command=command, dimension=dimension.value,  # type: ignore[arg-type]
-                    force=force, rrd=rrd)
+    res = run_solve(
+        dataset,
+        out,
+        method=method.value,
+        optimizer=optimizer.value,
+        init=init.value,
+        max_iterations=iterations,
+        command=command,
+        dimension=dimension.value,  # type: ignore[arg-type]
+        force=force,
+        rrd=rrd,
+    )
     if as_json:
         typer.echo(json.dumps(res.to_dict(), indent=2))
         return
     rejected = "" if res.rejected is None else f", {len(res.rejected)} loop closures rejected"
-    typer.echo(f"{dataset.name}: {res.method}, {res.iterations} iterations, chi2 {res.chi2_initial:.6g} -> "
-               f"{res.chi2_final:.6g} (dead reckoning {res.chi2_dataset:.6g}){rejected}, {res.seconds:.2f} s\n"
-               f"  {res.estimate_path}" + ("" if res.rrd_path is None else f"\n  {res.rrd_path}"))
+    typer.echo(
+        f"{dataset.name}: {res.method}, {res.iterations} iterations, chi2 {res.chi2_initial:.6g} -> "
+        f"{res.chi2_final:.6g} (dead reckoning {res.chi2_dataset:.6g}){rejected}, {res.seconds:.2f} s\n"
+        f"  {res.estimate_path}" + ("" if res.rrd_path is None else f"\n  {res.rrd_path}")
+    )
 
 
 class ConventionChoice(str, enum.Enum):
@@ -463,8 +561,10 @@ class ConventionChoice(str, enum.Enum):
 def check(
     dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder with ground truth."),
     convention: ConventionChoice = typer.Option(
-        ConventionChoice.g2o, "--convention",
-        help="3D rotation error: g2o (quaternion vector part, ~angle/2) or rotvec (rotation vector, GTSAM)."),
+        ConventionChoice.g2o,
+        "--convention",
+        help="3D rotation error: g2o (quaternion vector part, ~angle/2) or rotvec (rotation vector, GTSAM).",
+    ),
     per_agent: bool = typer.Option(False, "--per-agent", help="One row per agent and class."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON (every class, agent and candidate)."),
 ) -> None:
@@ -482,8 +582,11 @@ def check(
 @app.command()
 @cli_errors
 def bench(
-    spec: str = typer.Argument(..., metavar="SPEC.toml|SPEC.json|paper",
-                               help="A bench spec, or the built-in 'paper' (the kollagen paper's Tables I-II)."),
+    spec: str = typer.Argument(
+        ...,
+        metavar="SPEC.toml|SPEC.json|paper",
+        help="A bench spec, or the built-in 'paper' (the kollagen paper's Tables I-II).",
+    ),
     out: Path = typer.Option(..., "-o", "--out", help="Folder of the bench: datasets, runs, tables, plot."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="No progress bar and no table."),
 ) -> None:
@@ -499,8 +602,10 @@ def bench(
         res = run_bench(parsed, out, progress=progress)
     if not quiet:
         typer.echo(format_paper_table(res.rows, parsed, parsed.alignments[0]), nl=False)
-        typer.echo(f"{res.computed} cells run, {len([r for r in res.rows if r['method'] != 'odometry']) - res.computed} "
-                   f"reused\n  {res.markdown_path}\n  {res.csv_path}" + (f"\n  {res.plot_path}" if res.plot_path else ""))
+        typer.echo(
+            f"{res.computed} cells run, {len([r for r in res.rows if r['method'] != 'odometry']) - res.computed} "
+            f"reused\n  {res.markdown_path}\n  {res.csv_path}" + (f"\n  {res.plot_path}" if res.plot_path else "")
+        )
 
 
 @app.command()
@@ -508,10 +613,10 @@ def bench(
 def sweep(
     spec: Path = typer.Argument(..., metavar="SPEC.toml|SPEC.json", help="The sweep: base, grid, steps."),
     out: Path = typer.Option(..., "-o", "--out", help="Folder of the sweep (shared by every worker)."),
-    scheduler: str | None = typer.Option(None, "--scheduler",
-                                         help="A Dask scheduler, e.g. tcp://host:8786 (default: a local cluster)."),
-    workers: int | None = typer.Option(None, "--workers", help="Workers of the local cluster (default: cores).",
-                                       min=1),
+    scheduler: str | None = typer.Option(
+        None, "--scheduler", help="A Dask scheduler, e.g. tcp://host:8786 (default: a local cluster)."
+    ),
+    workers: int | None = typer.Option(None, "--workers", help="Workers of the local cluster (default: cores).", min=1),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="No progress bar and no summary."),
 ) -> None:
     """Run a parameter grid of datasets (and solve/evaluate/check on each) on Dask; one table.
@@ -525,8 +630,10 @@ def sweep(
     with terminal_progress(not quiet) as progress:
         res = run_sweep(parsed, out, scheduler=scheduler, workers=workers, progress=progress)
     if not quiet:
-        typer.echo(f"{parsed.name}: {len(res.rows)} cells ({res.computed} run now, {res.failed} failed)\n"
-                   f"  {res.table_path}\n  {res.markdown_path}" + "".join(f"\n  {p}" for p in res.plot_paths))
+        typer.echo(
+            f"{parsed.name}: {len(res.rows)} cells ({res.computed} run now, {res.failed} failed)\n"
+            f"  {res.table_path}\n  {res.markdown_path}" + "".join(f"\n  {p}" for p in res.plot_paths)
+        )
 
 
 def _tune_allocator() -> None:

@@ -26,14 +26,15 @@ import dataclasses
 import difflib
 import json
 import math
-import os
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-from typing import Any, Callable, Mapping, Sequence
 
 from studio.converters.build import BuildResult, GraphOptions, Progress, build_graph
+from studio.converters.registry import check_inputs, get_reader
 from studio.converters.transforms import (
     apply_body_frame,
     body_frame_rotation,
@@ -41,17 +42,16 @@ from studio.converters.transforms import (
     orientation_is_uninformative,
     split_trajectory,
 )
-from studio.converters.registry import check_inputs, get_reader
-from studio.core.trajectory import Trajectory
-from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.checks import check_option
+from studio.core.errors import ConfigError, FormatError, OutputError
+from studio.core.model import PoseGraph
+from studio.core.trajectory import Trajectory
+from studio.core.types import PathLike
+from studio.core.units import DEFAULT_MAX_MEMORY_GB
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
-from studio.core.model import PoseGraph
-from studio.core.units import DEFAULT_MAX_MEMORY_GB
 
-__all__ = ["ConvertConfig", "ConvertResult", "convert", "read_convert_config", "convert_config_to_json",
-           "CONFIG_NAME"]
+__all__ = ["ConvertConfig", "ConvertResult", "convert", "read_convert_config", "convert_config_to_json", "CONFIG_NAME"]
 
 CONFIG_NAME = "convert.json"
 _FORMAT = "studio-convert/1"
@@ -95,10 +95,17 @@ class ConvertConfig:
         if isinstance(self.split, bool) or not isinstance(self.split, int) or self.split < 0 or self.split == 1:
             raise ConfigError(f"split: expected 0 (off) or an integer of at least 2, got {self.split!r}")
         for name, value in (("heading_window_m", self.heading_window_m), ("overlap_s", self.overlap_s)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0 \
-                    or (name == "heading_window_m" and value == 0):
-                raise ConfigError(f"{name}: expected a {'positive' if name == 'heading_window_m' else 'non-negative'} "
-                                  f"number, got {value!r}")
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float))
+                or not math.isfinite(value)
+                or value < 0
+                or (name == "heading_window_m" and value == 0)
+            ):
+                raise ConfigError(
+                    f"{name}: expected a {'positive' if name == 'heading_window_m' else 'non-negative'} "
+                    f"number, got {value!r}"
+                )
         for spec in self.body_frames:
             name, sep, code = spec.partition("=")
             if not sep or not name:
@@ -124,8 +131,12 @@ _PIPELINE_FIELDS = ("orientation", "heading_window_m", "body_frames", "split", "
 
 
 def convert_config_to_json(cfg: ConvertConfig) -> dict[str, Any]:
-    out: dict[str, Any] = {"format": _FORMAT, "source": cfg.source, "inputs": list(cfg.inputs),
-                           "agents": list(cfg.agents)}
+    out: dict[str, Any] = {
+        "format": _FORMAT,
+        "source": cfg.source,
+        "inputs": list(cfg.inputs),
+        "agents": list(cfg.agents),
+    }
     out.update(dataclasses.asdict(cfg.options))
     for key in _PIPELINE_FIELDS:
         value = getattr(cfg, key)
@@ -152,16 +163,18 @@ def config_from_mapping(data: Mapping[str, Any], where: str = "config") -> Conve
         options = GraphOptions(**opts)
     except ConfigError as err:
         raise ConfigError(f"{where}: {err}") from None
-    extra: dict[str, Any] = {k: (tuple(data[k]) if k == "body_frames" else data[k])
-                             for k in _PIPELINE_FIELDS if k in data}
+    extra: dict[str, Any] = {
+        k: (tuple(data[k]) if k == "body_frames" else data[k]) for k in _PIPELINE_FIELDS if k in data
+    }
     try:
-        return ConvertConfig(str(data["source"]), tuple(data.get("inputs", [])), tuple(data.get("agents", [])),
-                             options, **extra)
+        return ConvertConfig(
+            str(data["source"]), tuple(data.get("inputs", [])), tuple(data.get("agents", [])), options, **extra
+        )
     except ConfigError as err:
         raise ConfigError(f"{where}: {err}") from None
 
 
-def read_convert_config(path: str | os.PathLike) -> ConvertConfig:
+def read_convert_config(path: PathLike) -> ConvertConfig:
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -188,29 +201,49 @@ def _resolve_inputs(cfg: ConvertConfig) -> ConvertConfig:
     return dataclasses.replace(cfg, inputs=tuple(inputs))
 
 
-def _report(result_build: BuildResult, trajs: Sequence[Trajectory], warnings: Sequence[str],
-            orientation: Mapping[str, str]) -> dict[str, Any]:
+def _report(
+    result_build: BuildResult, trajs: Sequence[Trajectory], warnings: Sequence[str], orientation: Mapping[str, str]
+) -> dict[str, Any]:
     g = result_build.graph
     return {
         "origin_xyz": [float(v) for v in result_build.origin_xyz],
         "agents": [
-            {"name": a.name, "folder": f"agent{k + 1}", "source": t.source, "poses_in": len(t),
-             "keyframes": a.num_poses, "orientation": orientation.get(a.name, "as given"),
-             "first_stamp_ns": int(a.stamps_ns[0]), "last_stamp_ns": int(a.stamps_ns[-1]),
-             "odometry": len(a.odometry), "intra_loop_closures": len(a.loop_closures)}
+            {
+                "name": a.name,
+                "folder": f"agent{k + 1}",
+                "source": t.source,
+                "poses_in": len(t),
+                "keyframes": a.num_poses,
+                "orientation": orientation.get(a.name, "as given"),
+                "first_stamp_ns": int(a.stamps_ns[0]),
+                "last_stamp_ns": int(a.stamps_ns[-1]),
+                "odometry": len(a.odometry),
+                "intra_loop_closures": len(a.loop_closures),
+            }
             for k, (a, t) in enumerate(zip(g.agents, trajs))
         ],
-        "gaps": [{"agent": gap.agent, "vertex": gap.vertex, "start_ns": gap.start_ns, "end_ns": gap.end_ns,
-                  "seconds": gap.seconds, "metres": gap.metres} for gap in result_build.gaps],
+        "gaps": [
+            {
+                "agent": gap.agent,
+                "vertex": gap.vertex,
+                "start_ns": gap.start_ns,
+                "end_ns": gap.end_ns,
+                "seconds": gap.seconds,
+                "metres": gap.metres,
+            }
+            for gap in result_build.gaps
+        ],
         "counts": {**g.edge_counts(), **result_build.candidates},
         "warnings": list(warnings),
     }
 
 
 def _outlier_lines(build: BuildResult) -> str:
-    head = ("# Loop closures that are outliers: they point at a wrong vertex (ground truth for robust\n"
-            "# optimisers). Columns: agent_from vertex_from agent_to vertex_to; agents 1-based as in\n"
-            "# inter_agent_lc.dat, vertices 0-based; equal agents: an intra-agent loop closure.\n")
+    head = (
+        "# Loop closures that are outliers: they point at a wrong vertex (ground truth for robust\n"
+        "# optimisers). Columns: agent_from vertex_from agent_to vertex_to; agents 1-based as in\n"
+        "# inter_agent_lc.dat, vertices 0-based; equal agents: an intra-agent loop closure.\n"
+    )
     rows = "".join(f"{a + 1} {b} {c + 1} {d}\n" for a, b, c, d in build.outliers.tolist())
     return head + rows
 
@@ -252,10 +285,17 @@ def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tup
     return derived, orientation
 
 
-def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
-            warn: Callable[[str], None] | None = None, progress: Progress | None = None,
-            recorder: Callable[[PoseGraph, Path], None] | None = None, rrd: bool = True,
-            max_memory_gb: float = DEFAULT_MAX_MEMORY_GB) -> ConvertResult:
+def convert(
+    cfg: ConvertConfig,
+    out: PathLike,
+    *,
+    force: bool = False,
+    warn: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
+    recorder: Callable[[PoseGraph, Path], None] | None = None,
+    rrd: bool = True,
+    max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
+) -> ConvertResult:
     """Read ``cfg``'s sources, build the graph and write the dataset folder ``out``.
 
     Nothing is written when an input is bad, and an existing ``out`` is replaced only with ``force``.
@@ -288,19 +328,27 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
     try:
         with np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
             trajs, orientation = prepare_trajectories(
-                cfg, reader(cfg.inputs, agents=cfg.agents, warn=_warn, progress=progress))
+                cfg, reader(cfg.inputs, agents=cfg.agents, warn=_warn, progress=progress)
+            )
             build = build_graph(trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb)
     except FloatingPointError as err:
-        raise FormatError(f"{', '.join(Path(p).name for p in cfg.inputs)}: numbers out of the finite range "
-                          f"while reading or building ({err}): a value in the input is absurd") from None
+        raise FormatError(
+            f"{', '.join(Path(p).name for p in cfg.inputs)}: numbers out of the finite range "
+            f"while reading or building ({err}): a value in the input is absurd"
+        ) from None
     with staged_outputs(out.parent, [out.name], force=force, inputs=cfg.inputs) as staging:
         ds = staging / out.name
         ds.mkdir()
         if progress:
             progress("writing", 0, 2, "parts")
-        write_multi_g2o(build.graph, ds, records="2d" if cfg.options.planar else "3d", precision="full",
-                        folder_names=cfg.folder_names,  # type: ignore[arg-type]
-                        sources={t.name: Path(t.source).name for t in trajs})
+        write_multi_g2o(
+            build.graph,
+            ds,
+            records="2d" if cfg.options.planar else "3d",
+            precision="full",
+            folder_names=cfg.folder_names,  # type: ignore[arg-type]
+            sources={t.name: Path(t.source).name for t in trajs},
+        )
         if progress:
             progress("writing", 1, 2, "parts")
         _write_text(ds / CONFIG_NAME, json.dumps(convert_config_to_json(cfg), indent=2) + "\n")
@@ -316,11 +364,17 @@ def convert(cfg: ConvertConfig, out: str | os.PathLike, *, force: bool = False,
             # input paths reduced to file names: the recording must not depend on where it was made
             shown = convert_config_to_json(cfg)
             shown["inputs"] = [Path(p).name for p in cfg.inputs]
-            record_graph(build.graph, ds / f"{out.name}.rrd", name=out.name,
-                         config_json=json.dumps(shown, sort_keys=True), outliers=build.outliers,
-                         progress=progress)
-    return ConvertResult(cfg, out, tuple(trajs), build, tuple(warnings),
-                         out / f"{out.name}.rrd" if rrd else None, orientation)
+            record_graph(
+                build.graph,
+                ds / f"{out.name}.rrd",
+                name=out.name,
+                config_json=json.dumps(shown, sort_keys=True),
+                outliers=build.outliers,
+                progress=progress,
+            )
+    return ConvertResult(
+        cfg, out, tuple(trajs), build, tuple(warnings), out / f"{out.name}.rrd" if rrd else None, orientation
+    )
 
 
 def _write_text(path: Path, text: str) -> None:

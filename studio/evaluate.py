@@ -23,13 +23,12 @@ The translation APE is evo's own ``APE.process_data``.
 
 from __future__ import annotations
 
-import enum
 import json
 import math
-import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -37,6 +36,7 @@ from studio.core.alignment import Alignment
 from studio.core.errors import EvaluationError, OutputError
 from studio.core.model import PoseGraph
 from studio.core.progress import Progress, report
+from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 
 if TYPE_CHECKING:
@@ -73,7 +73,7 @@ class ErrorStats:
     sse: float
 
     @classmethod
-    def of(cls, errors: np.ndarray) -> "ErrorStats | None":
+    def of(cls, errors: np.ndarray) -> ErrorStats | None:
         if len(errors) == 0:
             return None
         from evo.core import metrics
@@ -157,7 +157,8 @@ class Evaluation:
         if self.alignment is Alignment.first_pose:
             return "first pose of each agent put on its ground truth"
         return f"{self.alignment.value} Umeyama alignment, " + (
-            "one per agent" if self.align_per_agent else "one for all agents")
+            "one per agent" if self.align_per_agent else "one for all agents"
+        )
 
     def to_dict(self) -> dict:
         return {
@@ -165,8 +166,7 @@ class Evaluation:
             "estimate": self.estimate,
             "estimate_layout": self.estimate_layout,
             "alignment": {"mode": self.alignment.value, "per_agent": self.align_per_agent},
-            "rpe": {"delta_m": self.rpe_delta_m, "delta_nodes": self.rpe_delta_nodes,
-                    "pairs_from": "ground truth"},
+            "rpe": {"delta_m": self.rpe_delta_m, "delta_nodes": self.rpe_delta_nodes, "pairs_from": "ground truth"},
             "agents": [a.to_dict() for a in self.agents],
             "all": self.overall.to_dict(),
         }
@@ -181,8 +181,9 @@ class Evaluation:
 def _trajectory(poses7: np.ndarray, stamps_ns: np.ndarray):
     from evo.core.trajectory import PoseTrajectory3D
 
-    return PoseTrajectory3D(positions_xyz=poses7[:, 0:3], orientations_quat_wxyz=poses7[:, [6, 3, 4, 5]],
-                            timestamps=stamps_ns / NS_PER_S)
+    return PoseTrajectory3D(
+        positions_xyz=poses7[:, 0:3], orientations_quat_wxyz=poses7[:, [6, 3, 4, 5]], timestamps=stamps_ns / NS_PER_S
+    )
 
 
 def _check_finite(poses: np.ndarray, where: str) -> None:
@@ -194,8 +195,9 @@ def _check_finite(poses: np.ndarray, where: str) -> None:
         raise EvaluationError(f"{where}: pose {int(np.flatnonzero(norms < 1e-9)[0])} has a zero quaternion")
 
 
-def _matched(graph: PoseGraph, estimate: Sequence[Trajectory] | None, by_time: bool, max_diff_s: float,
-             warnings: list[str]):
+def _matched(
+    graph: PoseGraph, estimate: Sequence[Trajectory] | None, by_time: bool, max_diff_s: float, warnings: list[str]
+):
     """Per agent: (gt poses, est poses, gt stamps, vertex indices) of the poses to compare."""
     from evo.core.sync import matching_time_indices
 
@@ -217,19 +219,25 @@ def _matched(graph: PoseGraph, estimate: Sequence[Trajectory] | None, by_time: b
         if not by_time:
             if len(poses) != agent.num_poses:
                 raise EvaluationError(
-                    f"estimate of {agent.name}: {len(poses)} poses for the dataset's {agent.num_poses}")
+                    f"estimate of {agent.name}: {len(poses)} poses for the dataset's {agent.num_poses}"
+                )
             out.append((agent.ground_truth, poses, agent.stamps_ns, np.arange(agent.num_poses)))
             continue
-        i_gt, i_est = matching_time_indices(agent.stamps_ns / NS_PER_S, np.asarray(est.stamps_ns) / NS_PER_S, max_diff_s)
+        i_gt, i_est = matching_time_indices(
+            agent.stamps_ns / NS_PER_S, np.asarray(est.stamps_ns) / NS_PER_S, max_diff_s
+        )
         if not i_gt:
             raise EvaluationError(
                 f"estimate of {agent.name}: no timestamp matches the ground truth within {max_diff_s} s "
                 f"(estimate {est.stamps_ns[0] / NS_PER_S:.9g}..{est.stamps_ns[-1] / NS_PER_S:.9g} s, ground truth "
-                f"{agent.stamps_ns[0] / NS_PER_S:.9g}..{agent.stamps_ns[-1] / NS_PER_S:.9g} s)")
+                f"{agent.stamps_ns[0] / NS_PER_S:.9g}..{agent.stamps_ns[-1] / NS_PER_S:.9g} s)"
+            )
         i_gt, i_est = np.asarray(i_gt), np.asarray(i_est)
         if len(i_gt) < agent.num_poses:
-            warnings.append(f"estimate of {agent.name}: {len(i_gt)} of {agent.num_poses} ground-truth poses "
-                            f"matched within {max_diff_s} s; only those are scored")
+            warnings.append(
+                f"estimate of {agent.name}: {len(i_gt)} of {agent.num_poses} ground-truth poses "
+                f"matched within {max_diff_s} s; only those are scored"
+            )
         out.append((agent.ground_truth[i_gt], poses[i_est], agent.stamps_ns[i_gt], i_gt))
     return out
 
@@ -274,8 +282,9 @@ def _rpe(gt: np.ndarray, est: np.ndarray, delta: float, unit) -> tuple[np.ndarra
         poses = np.zeros((n, 4, 4))
         poses[:, 0:3, 3] = gt[:, 0:3]
     try:
-        pairs = np.asarray(metrics.id_pairs_from_delta(poses, delta, unit, 0.1, all_pairs=False),
-                           dtype=np.int64).reshape(-1, 2)
+        pairs = np.asarray(
+            metrics.id_pairs_from_delta(poses, delta, unit, 0.1, all_pairs=False), dtype=np.int64
+        ).reshape(-1, 2)
     except filters.FilterException:
         return np.zeros(0), np.zeros(0)
     i, j = pairs[:, 0], pairs[:, 1]
@@ -310,11 +319,20 @@ def _quiet_numpy(func):
 
 
 @_quiet_numpy
-def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_time: bool = False,
-          align: Alignment | str = Alignment.none,
-          align_per_agent: bool = False, rpe_delta_m: float = 1.0, rpe_delta_nodes: int = 1,
-          tum_max_diff_s: float = DEFAULT_TUM_MAX_DIFF_S, dataset: str = "", estimate_label: str = "",
-          estimate_layout: str = "") -> Evaluation:
+def score(
+    graph: PoseGraph,
+    estimate: Sequence[Trajectory] | None = None,
+    *,
+    by_time: bool = False,
+    align: Alignment | str = Alignment.none,
+    align_per_agent: bool = False,
+    rpe_delta_m: float = 1.0,
+    rpe_delta_nodes: int = 1,
+    tum_max_diff_s: float = DEFAULT_TUM_MAX_DIFF_S,
+    dataset: str = "",
+    estimate_label: str = "",
+    estimate_layout: str = "",
+) -> Evaluation:
     """Score ``estimate`` (one :class:`~studio.core.trajectory.Trajectory` per agent, or None for the
     graph's initial estimate) against the graph's ground truth. No I/O.
 
@@ -325,8 +343,7 @@ def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_
     try:
         align = Alignment(align)
     except ValueError:
-        raise EvaluationError(f"unknown alignment {align!r} "
-                              f"(known: {', '.join(a.value for a in Alignment)})") from None
+        raise EvaluationError(f"unknown alignment {align!r} (known: {', '.join(a.value for a in Alignment)})") from None
     if not (math.isfinite(rpe_delta_m) and rpe_delta_m > 0):
         raise EvaluationError(f"the RPE distance must be a positive number of metres, got {rpe_delta_m!r}")
     if rpe_delta_nodes < 1:
@@ -353,8 +370,12 @@ def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_
                 transforms.append((r, t, s))
                 aligned.append((gt, _apply(est, r, t, s), st, idx))
         else:
-            r, t, s = _umeyama(np.concatenate([m[1][:, 0:3] for m in matched]),
-                               np.concatenate([m[0][:, 0:3] for m in matched]), sim3, "all agents")
+            r, t, s = _umeyama(
+                np.concatenate([m[1][:, 0:3] for m in matched]),
+                np.concatenate([m[0][:, 0:3] for m in matched]),
+                sim3,
+                "all agents",
+            )
             transforms.append((r, t, s))
             aligned = [(gt, _apply(est, r, t, s), st, idx) for gt, est, st, idx in matched]
         matched = aligned
@@ -375,17 +396,26 @@ def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_
         bad = np.flatnonzero(~np.isfinite(np.asarray(series, dtype=float)))
         if len(bad):  # an estimate far beyond any map (e.g. a vertex at 1e200) overflows the errors
             k %= len(names)
-            raise EvaluationError(f"{estimate_label or 'estimate'}: agent {names[k]}: the error at pose {int(bad[0])} "
-                                  "is not finite (a pose beyond the finite range?)")
+            raise EvaluationError(
+                f"{estimate_label or 'estimate'}: agent {names[k]}: the error at pose {int(bad[0])} "
+                "is not finite (a pose beyond the finite range?)"
+            )
 
     def row(name, n, at, ar, rm, rn) -> AgentScore:
         ape_t, ape_r = ErrorStats.of(at), ErrorStats.of(ar)
         assert ape_t is not None and ape_r is not None  # every scored agent has at least one pose
-        return AgentScore(name, n, ape_t, ape_r, ErrorStats.of(rm[0]),
-                          ErrorStats.of(rm[1]), ErrorStats.of(rn[0]), ErrorStats.of(rn[1]))
+        return AgentScore(
+            name,
+            n,
+            ape_t,
+            ape_r,
+            ErrorStats.of(rm[0]),
+            ErrorStats.of(rm[1]),
+            ErrorStats.of(rn[0]),
+            ErrorStats.of(rn[1]),
+        )
 
-    rows = tuple(row(names[k], len(matched[k][0]), ape_t[k], ape_r[k], rpe_m[k], rpe_n[k])
-                 for k in range(len(names)))
+    rows = tuple(row(names[k], len(matched[k][0]), ape_t[k], ape_r[k], rpe_m[k], rpe_n[k]) for k in range(len(names)))
 
     def pool(series):
         return tuple(np.concatenate([s[c] for s in series]) for c in (0, 1))
@@ -397,21 +427,32 @@ def score(graph: PoseGraph, estimate: Sequence[Trajectory] | None = None, *, by_
         estimate_layout=estimate_layout or ("initial" if estimate is None else "arrays"),
         alignment=align,
         align_per_agent=align is Alignment.first_pose or (align_per_agent and align is not Alignment.none),
-        rpe_delta_m=float(rpe_delta_m), rpe_delta_nodes=int(rpe_delta_nodes),
-        agents=rows, overall=overall,
+        rpe_delta_m=float(rpe_delta_m),
+        rpe_delta_nodes=int(rpe_delta_nodes),
+        agents=rows,
+        overall=overall,
         node_indices=tuple(np.asarray(m[3], dtype=np.int64) for m in matched),
         stamps_ns=tuple(m[2] for m in matched),
-        ape_translation_series_m=tuple(ape_t), ape_rotation_series_deg=tuple(ape_r),
+        ape_translation_series_m=tuple(ape_t),
+        ape_rotation_series_deg=tuple(ape_r),
         ground_truth_xyz=tuple(np.ascontiguousarray(m[0][:, 0:3]) for m in matched),
         estimate_xyz=tuple(np.ascontiguousarray(m[1][:, 0:3]) for m in matched),
-        alignment_transforms=tuple(transforms), warnings=tuple(warnings),
+        alignment_transforms=tuple(transforms),
+        warnings=tuple(warnings),
     )
 
 
-def evaluate(dataset: str | os.PathLike, *, estimate: str | os.PathLike | None = None,
-             align: Alignment | str = Alignment.none, align_per_agent: bool = False,
-             rpe_delta_m: float = 1.0, rpe_delta_nodes: int = 1,
-             tum_max_diff_s: float = DEFAULT_TUM_MAX_DIFF_S, progress: Progress | None = None) -> Evaluation:
+def evaluate(
+    dataset: PathLike,
+    *,
+    estimate: PathLike | None = None,
+    align: Alignment | str = Alignment.none,
+    align_per_agent: bool = False,
+    rpe_delta_m: float = 1.0,
+    rpe_delta_nodes: int = 1,
+    tum_max_diff_s: float = DEFAULT_TUM_MAX_DIFF_S,
+    progress: Progress | None = None,
+) -> Evaluation:
     """Read the multi-g2o folder ``dataset`` and score ``estimate`` (or, if None, the dataset's
     initial estimate) against its ground truth. See the module docstring for the conventions.
 
@@ -427,11 +468,19 @@ def evaluate(dataset: str | os.PathLike, *, estimate: str | os.PathLike | None =
     report(progress, step, 1, 3, "stages")
     est = None if estimate is None else read_estimate(estimate, graph)
     report(progress, step, 2, 3, "stages")
-    ev = score(graph, None if est is None else est.agents, by_time=est is not None and est.by_time,
-                 align=align, align_per_agent=align_per_agent,
-                 rpe_delta_m=rpe_delta_m, rpe_delta_nodes=rpe_delta_nodes, tum_max_diff_s=tum_max_diff_s,
-                 dataset=str(dataset), estimate_label="initial estimate" if est is None else est.source,
-                 estimate_layout="initial" if est is None else est.layout)
+    ev = score(
+        graph,
+        None if est is None else est.agents,
+        by_time=est is not None and est.by_time,
+        align=align,
+        align_per_agent=align_per_agent,
+        rpe_delta_m=rpe_delta_m,
+        rpe_delta_nodes=rpe_delta_nodes,
+        tum_max_diff_s=tum_max_diff_s,
+        dataset=str(dataset),
+        estimate_label="initial estimate" if est is None else est.source,
+        estimate_layout="initial" if est is None else est.layout,
+    )
     report(progress, step, 3, 3, "stages")
     return ev
 
@@ -484,8 +533,10 @@ def format_table(ev: Evaluation) -> str:
         return "  ".join(r[0].ljust(widths[0]) if c == 0 else r[c].rjust(widths[c]) for c in range(len(r)))
 
     rule = "-" * len(line(head))
-    return "\n".join(_header_lines(ev) + ["", line(head), rule] + [line(r) for r in body[:-1]]
-                     + [rule, line(body[-1])]) + "\n"
+    return (
+        "\n".join(_header_lines(ev) + ["", line(head), rule] + [line(r) for r in body[:-1]] + [rule, line(body[-1])])
+        + "\n"
+    )
 
 
 def format_markdown(ev: Evaluation) -> str:
@@ -504,8 +555,14 @@ def format_markdown(ev: Evaluation) -> str:
 # ---------------------------------------------------------------------------------------------- recording
 
 
-def write_evaluation_recording(ev: Evaluation, path: str | os.PathLike, *, force: bool = False,
-                               recording_id: str | None = None, progress: Progress | None = None) -> Path:
+def write_evaluation_recording(
+    ev: Evaluation,
+    path: PathLike,
+    *,
+    force: bool = False,
+    recording_id: str | None = None,
+    progress: Progress | None = None,
+) -> Path:
     """Write ``ev`` as a new ``.rrd``, atomically: the estimate against the ground truth in 3D (the
     estimate coloured by its APE translation), one plot per metric with every agent, and the table
     of statistics, laid out by :func:`studio.recording.evaluation.evaluation_blueprint`.
@@ -517,11 +574,14 @@ def write_evaluation_recording(ev: Evaluation, path: str | os.PathLike, *, force
 
     path = Path(path)
     series = [
-        ErrorSeries(a.name, ev.node_indices[k], ev.stamps_ns[k],
-                    {"ape_translation_m": ev.ape_translation_series_m[k],
-                     "ape_rotation_deg": ev.ape_rotation_series_deg[k]},
-                    ground_truth_xyz=ev.ground_truth_xyz[k] if ev.ground_truth_xyz else None,
-                    estimate_xyz=ev.estimate_xyz[k] if ev.estimate_xyz else None)
+        ErrorSeries(
+            a.name,
+            ev.node_indices[k],
+            ev.stamps_ns[k],
+            {"ape_translation_m": ev.ape_translation_series_m[k], "ape_rotation_deg": ev.ape_rotation_series_deg[k]},
+            ground_truth_xyz=ev.ground_truth_xyz[k] if ev.ground_truth_xyz else None,
+            estimate_xyz=ev.estimate_xyz[k] if ev.estimate_xyz else None,
+        )
         for k, a in enumerate(ev.agents)
     ]
     report(progress, "evaluation recording", 0, 1, "files")

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,8 +32,9 @@ import numpy as np
 
 from studio.core.errors import ConfigError, FormatError
 from studio.core.geometry import is_planar_se3, planar_poses_to_se3, se3_information_to_se2, se3_poses_to_planar
-from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
+from studio.core.model import AgentGraph, PoseGraph, PoseKind
 from studio.core.trajectory import Trajectory
+from studio.core.types import PathLike
 from studio.solvers import DEFAULT_METHOD, get_method
 from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
 
@@ -97,9 +97,16 @@ class SolveResult:
 
 
 def _planar_problem(p: Problem) -> Problem:
-    return Problem(PoseKind.SE2, se3_poses_to_planar(p.initial), p.edge_from, p.edge_to,
-                   se3_poses_to_planar(p.measurements), se3_information_to_se2(p.information_upper), p.robust,
-                   p.anchor)
+    return Problem(
+        PoseKind.SE2,
+        se3_poses_to_planar(p.initial),
+        p.edge_from,
+        p.edge_to,
+        se3_poses_to_planar(p.measurements),
+        se3_information_to_se2(p.information_upper),
+        p.robust,
+        p.anchor,
+    )
 
 
 def _flatten(graph: PoseGraph) -> tuple[Problem, np.ndarray]:
@@ -119,13 +126,19 @@ def _flatten(graph: PoseGraph) -> tuple[Problem, np.ndarray]:
     meas.append(inter.measurements)
     info.append(inter.information_upper)
     robust.append(np.ones(len(inter), dtype=bool))
-    problem = Problem(graph.kind, np.concatenate([a.initial for a in graph.agents]),
-                      np.concatenate(fr).astype(np.int64), np.concatenate(to).astype(np.int64),
-                      np.concatenate(meas), np.concatenate(info), np.concatenate(robust))
+    problem = Problem(
+        graph.kind,
+        np.concatenate([a.initial for a in graph.agents]),
+        np.concatenate(fr).astype(np.int64),
+        np.concatenate(to).astype(np.int64),
+        np.concatenate(meas),
+        np.concatenate(info),
+        np.concatenate(robust),
+    )
     return problem, offsets
 
 
-def load_problem(dataset: str | os.PathLike, *, dimension: Dimension = "auto") -> Loaded:
+def load_problem(dataset: PathLike, *, dimension: Dimension = "auto") -> Loaded:
     """Read a multi-g2o folder or a single g2o file into a :class:`Problem` (see the module doc)."""
     from studio.io.g2o import read_g2o
     from studio.io.multig2o import read_multi_g2o
@@ -145,8 +158,9 @@ def load_problem(dataset: str | os.PathLike, *, dimension: Dimension = "auto") -
         if n == 0 or not np.array_equal(doc.vertex_ids[order], np.arange(n)):
             raise FormatError(f"{path}: vertex ids must be 0..{n - 1} to be solved")
         fr, to = doc.edge_from, doc.edge_to
-        problem = Problem(doc.kind, doc.vertex_poses[order], fr, to, doc.edge_measurements,
-                          doc.edge_information_upper, to != fr + 1)
+        problem = Problem(
+            doc.kind, doc.vertex_poses[order], fr, to, doc.edge_measurements, doc.edge_information_upper, to != fr + 1
+        )
         offsets = np.array([0, n])
     else:
         raise FormatError(f"{path}: no such dataset (a multi-g2o folder or a .g2o file)")
@@ -171,11 +185,14 @@ MAX_COORDINATE_M = 1e9
 
 def _check_magnitudes(problem: Problem, path: Path) -> None:
     for what, rows in (("vertex", problem.initial), ("edge", problem.measurements)):
-        far = np.flatnonzero(np.abs(rows[:, 0:3 if problem.kind is PoseKind.SE3 else 2]).max(axis=1)
-                             > MAX_COORDINATE_M)
+        far = np.flatnonzero(
+            np.abs(rows[:, 0 : 3 if problem.kind is PoseKind.SE3 else 2]).max(axis=1) > MAX_COORDINATE_M
+        )
         if far.size:
-            raise FormatError(f"{path}: {what} {int(far[0])} (global id order) lies beyond {MAX_COORDINATE_M:g} m: "
-                              "not a pose graph an optimizer can take")
+            raise FormatError(
+                f"{path}: {what} {int(far[0])} (global id order) lies beyond {MAX_COORDINATE_M:g} m: "
+                "not a pose graph an optimizer can take"
+            )
 
 
 def _agent_rows(offsets: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -195,13 +212,23 @@ def _write_estimate(loaded: Loaded, poses: np.ndarray, staging: Path, stem: str)
     if loaded.graph is None:
         doc = loaded.single_doc
         name = f"{stem}.g2o"
-        write_g2o(staging / name, G2oDocument(doc.kind, np.arange(len(lifted)), lifted, doc.edge_from,
-                                              doc.edge_to, doc.edge_measurements, doc.edge_information_upper))
+        write_g2o(
+            staging / name,
+            G2oDocument(
+                doc.kind,
+                np.arange(len(lifted)),
+                lifted,
+                doc.edge_from,
+                doc.edge_to,
+                doc.edge_measurements,
+                doc.edge_information_upper,
+            ),
+        )
         return name
     graph = loaded.graph
     agents = []
     for k, a in enumerate(graph.agents):
-        est = lifted[loaded.offsets[k]:loaded.offsets[k + 1]]
+        est = lifted[loaded.offsets[k] : loaded.offsets[k + 1]]
         agents.append(AgentGraph(a.name, a.kind, a.stamps_ns, est, None, a.odometry, a.loop_closures))
     estimate = PoseGraph(graph.kind, tuple(agents), graph.inter)
     folder = staging / "estimate"
@@ -215,10 +242,20 @@ def _write_estimate(loaded: Loaded, poses: np.ndarray, staging: Path, stem: str)
     return "estimate"
 
 
-def solve(dataset: str | os.PathLike, out: str | os.PathLike, *, method: str = DEFAULT_METHOD,
-          optimizer: str = "gn", init: str = "chordal", max_iterations: int | None = None,
-          relative_tolerance: float = 1e-9, command: str = "", dimension: Dimension = "auto",
-          force: bool = False, rrd: str | os.PathLike | None = None) -> SolveResult:
+def solve(
+    dataset: PathLike,
+    out: PathLike,
+    *,
+    method: str = DEFAULT_METHOD,
+    optimizer: str = "gn",
+    init: str = "chordal",
+    max_iterations: int | None = None,
+    relative_tolerance: float = 1e-9,
+    command: str = "",
+    dimension: Dimension = "auto",
+    force: bool = False,
+    rrd: PathLike | None = None,
+) -> SolveResult:
     """Optimize ``dataset`` with ``method`` and write the estimate and ``solve.json`` into the folder
     ``out`` (staged, renamed into place; an existing ``out`` is replaced only with ``force``).
 
@@ -249,8 +286,10 @@ def solve(dataset: str | os.PathLike, out: str | os.PathLike, *, method: str = D
     iterates: list[tuple[int, np.ndarray]] = []
     on_iteration: Iteration | None = None
     if rrd_path is not None:
+
         def on_iteration(k: int, poses: np.ndarray) -> None:
             iterates.append((k, poses.copy()))
+
     try:
         solution = solver(problem, options, on_iteration)
     except RuntimeError as err:  # GTSAM's and g2o's own failures (e.g. an indeterminate system)
@@ -264,23 +303,43 @@ def solve(dataset: str | os.PathLike, out: str | os.PathLike, *, method: str = D
         ta, tv = _agent_rows(loaded.offsets, problem.edge_to[ids])
         rejected = np.column_stack([fa, fv, ta, tv]).astype(np.int64).reshape(-1, 4)
     chi2_initial = solution.chi2_history[0] if solution.chi2_history else graph_chi2(problem, problem.initial)
-    result = SolveResult(out, out, method, options, solution.iterations, graph_chi2(problem, problem.initial),
-                         chi2_initial, graph_chi2(problem, solution.poses), seconds,
-                         problem.kind is PoseKind.SE2 and loaded.source_kind is PoseKind.SE3,
-                         rejected, solution, rrd_path)
+    result = SolveResult(
+        out,
+        out,
+        method,
+        options,
+        solution.iterations,
+        graph_chi2(problem, problem.initial),
+        chi2_initial,
+        graph_chi2(problem, solution.poses),
+        seconds,
+        problem.kind is PoseKind.SE2 and loaded.source_kind is PoseKind.SE3,
+        rejected,
+        solution,
+        rrd_path,
+    )
     stem = Path(dataset).stem
     with staged_outputs(out.parent, [out.name], force=force) as staging:
         folder = staging / out.name
         folder.mkdir()
         name = _write_estimate(loaded, solution.poses, folder, stem)
         result = dataclasses.replace(result, estimate_path=out / name)
-        (folder / SOLVE_JSON).write_text(json.dumps(result.to_dict(), indent=2, default=_json_default) + "\n",
-                                         encoding="utf-8")
+        (folder / SOLVE_JSON).write_text(
+            json.dumps(result.to_dict(), indent=2, default=_json_default) + "\n", encoding="utf-8"
+        )
     if rrd_path is not None:
         from studio.recording.solve import write_solve_recording
 
-        write_solve_recording(rrd_path, loaded.graph, loaded.offsets, problem.kind, iterates,
-                              solution.chi2_history, name=f"{stem} ({method})", force=force)
+        write_solve_recording(
+            rrd_path,
+            loaded.graph,
+            loaded.offsets,
+            problem.kind,
+            iterates,
+            solution.chi2_history,
+            name=f"{stem} ({method})",
+            force=force,
+        )
     return result
 
 

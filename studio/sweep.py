@@ -31,6 +31,7 @@ parameter in ``OUT/plots/`` and ``OUT/sweep.rrd`` (the summary series over the c
 from __future__ import annotations
 
 import copy
+import functools
 import hashlib
 import importlib
 import itertools
@@ -41,17 +42,28 @@ import os
 import shutil
 import time
 import warnings
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 from studio.core.errors import ConfigError, StudioError
 from studio.core.progress import Progress, report
+from studio.core.types import PathLike
 from studio.io.atomic import write_replacing
 from studio.io.spec_file import check_spec_keys, read_spec_file
 
-__all__ = ["SweepSpec", "SweepResult", "CellTask", "load_sweep_spec", "sweep_spec_from_dict", "expand", "sweep",
-           "run_cell", "STEPS"]
+__all__ = [
+    "SweepSpec",
+    "SweepResult",
+    "CellTask",
+    "load_sweep_spec",
+    "sweep_spec_from_dict",
+    "expand",
+    "sweep",
+    "run_cell",
+    "STEPS",
+]
 
 _KEYS = {"name", "base", "grid", "cells", "steps", "options"}
 _SEED_STRIDE = 1_000_003
@@ -133,17 +145,25 @@ def sweep_spec_from_dict(data: Any, source: str) -> SweepSpec:
     name = data.get("name", Path(source).stem if source != "<spec>" else "sweep")
     if not isinstance(name, str) or not name or not all(ch.isalnum() or ch in "-_." for ch in name):
         raise ConfigError(f"{source}: name: expected letters, digits, '-', '_' or '.'")
-    return SweepSpec(name, base, {k: list(v) for k, v in grid.items()}, tuple(dict(c) for c in cells),
-                     tuple(steps), {k: dict(v) for k, v in options.items()}, source)
+    return SweepSpec(
+        name,
+        base,
+        {k: list(v) for k, v in grid.items()},
+        tuple(dict(c) for c in cells),
+        tuple(steps),
+        {k: dict(v) for k, v in options.items()},
+        source,
+    )
 
 
-def load_sweep_spec(path: str | os.PathLike) -> SweepSpec:
+def load_sweep_spec(path: PathLike) -> SweepSpec:
     path = Path(path)
     spec = sweep_spec_from_dict(read_spec_file(path, what="sweep spec"), str(path))
     base = spec.base
     if not Path(base).is_absolute() and (path.parent / base).is_file():
-        spec = SweepSpec(spec.name, str(path.parent / base), spec.grid, spec.cells, spec.steps, spec.options,
-                         spec.source)
+        spec = SweepSpec(
+            spec.name, str(path.parent / base), spec.grid, spec.cells, spec.steps, spec.options, spec.source
+        )
     return spec
 
 
@@ -159,8 +179,9 @@ def _base(spec: SweepSpec) -> tuple[str, dict[str, Any]]:
         return "synth", synth_config_to_json(preset(spec.base))
     path = Path(spec.base)
     if not path.is_file():
-        raise ConfigError(f"{spec.source}: base: {spec.base}: no such file, and not a preset "
-                          f"(presets: {', '.join(sorted(PRESETS))})")
+        raise ConfigError(
+            f"{spec.source}: base: {spec.base}: no such file, and not a preset (presets: {', '.join(sorted(PRESETS))})"
+        )
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as err:
@@ -213,9 +234,13 @@ def _apply(kind: str, base: dict[str, Any], params: Mapping[str, Any], where: st
             doc["agent_parameters"]["agent_specific"] = [copy.deepcopy(entries[k % len(entries)]) for k in range(n)]
         if seed:
             for entry in doc["agent_parameters"]["agent_specific"]:
-                entry["random_number_generator_seed"] = (entry["random_number_generator_seed"] + _SEED_STRIDE * seed) % _INT32
+                entry["random_number_generator_seed"] = (
+                    entry["random_number_generator_seed"] + _SEED_STRIDE * seed
+                ) % _INT32
             inter = doc["inter_agent_loop_closure_parameters"]
-            inter["random_number_generator_seed"] = (inter["random_number_generator_seed"] + _SEED_STRIDE * seed) % _INT32
+            inter["random_number_generator_seed"] = (
+                inter["random_number_generator_seed"] + _SEED_STRIDE * seed
+            ) % _INT32
     return doc
 
 
@@ -224,7 +249,7 @@ def cell_name(spec_name: str, params: Mapping[str, Any]) -> str:
     return f"{spec_name}-{digest}"
 
 
-def expand(spec: SweepSpec, out: str | os.PathLike) -> list[CellTask]:
+def expand(spec: SweepSpec, out: PathLike) -> list[CellTask]:
     """Every cell of the spec (grid combinations, then the explicit cells), validated."""
     kind, base = _base(spec)
     keys = list(spec.grid)
@@ -249,8 +274,9 @@ def expand(spec: SweepSpec, out: str | os.PathLike) -> list[CellTask]:
             from studio.convert import config_from_mapping
 
             config_from_mapping(doc, where)
-        tasks.append(CellTask(name, kind, doc, params, str(Path(out)), spec.steps,
-                              {s: dict(o) for s, o in spec.options.items()}))
+        tasks.append(
+            CellTask(name, kind, doc, params, str(Path(out)), spec.steps, {s: dict(o) for s, o in spec.options.items()})
+        )
     return tasks
 
 
@@ -277,8 +303,7 @@ def _step_solve(task: CellTask, cell_dir: Path, dataset: Path, row: dict[str, An
     from studio.solve import solve
 
     res = solve(dataset, cell_dir / "solved", **opts)
-    row.update(solve_method=res.method, solve_iterations=res.iterations, chi2_final=res.chi2_final,
-               solve_s=res.seconds)
+    row.update(solve_method=res.method, solve_iterations=res.iterations, chi2_final=res.chi2_final, solve_s=res.seconds)
     _evaluate(dataset, row, "ape_solved", res.estimate_path)
 
 
@@ -350,8 +375,11 @@ def run_cell(task: CellTask) -> dict[str, Any]:
         else:
             from studio.convert import config_from_mapping, convert
 
-            res_c = convert(config_from_mapping(task.config, str(out / "configs" / f"{task.name}.json")),
-                            cell_dir / task.name, rrd="record" in task.steps)
+            res_c = convert(
+                config_from_mapping(task.config, str(out / "configs" / f"{task.name}.json")),
+                cell_dir / task.name,
+                rrd="record" in task.steps,
+            )
             dataset = res_c.dataset_dir
             g = res_c.build.graph
         row["make_s"] = time.perf_counter() - t0
@@ -378,8 +406,16 @@ def _client(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
     except ImportError:
         raise ConfigError("studio sweep needs Dask: pip install 'cslam-studio[sweep]'") from None
     # Dask's own logs and warnings never reach the user's terminal: the sweep reports what matters
-    for name in ("distributed", "distributed.worker", "distributed.scheduler", "distributed.nanny",
-                 "distributed.core", "distributed.comm", "distributed.client", "tornado"):
+    for name in (
+        "distributed",
+        "distributed.worker",
+        "distributed.scheduler",
+        "distributed.nanny",
+        "distributed.core",
+        "distributed.comm",
+        "distributed.client",
+        "tornado",
+    ):
         logging.getLogger(name).setLevel(logging.CRITICAL + 1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -393,14 +429,27 @@ def _client(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
         n = workers or available_cores()
         # no dashboard; the scheduler's small HTTP server (health, metrics) on a free loopback port, not
         # on 8787 (whose 'already in use' warning would otherwise print when another cluster runs)
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
-                               silence_logs=logging.CRITICAL + 1)
+        cluster = LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+            scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+            silence_logs=logging.CRITICAL + 1,
+        )
         return Client(cluster), cluster
 
 
-def sweep(spec: SweepSpec, out: str | os.PathLike, *, scheduler: str | None = None, workers: int | None = None,
-          progress: Progress | None = None, retries: int = 2) -> SweepResult:
+def sweep(
+    spec: SweepSpec,
+    out: PathLike,
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    progress: Progress | None = None,
+    retries: int = 2,
+) -> SweepResult:
     """Run every cell of ``spec`` not finished yet (see the module docstring); returns the table."""
     out = Path(out).resolve()
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
@@ -435,8 +484,11 @@ def sweep(spec: SweepSpec, out: str | os.PathLike, *, scheduler: str | None = No
                 except Exception as err:  # the cell's worker died on every attempt (KilledWorker), ...
                     task = by_key[fut.key]
                     shutil.rmtree(out / "cells" / task.name, ignore_errors=True)
-                    row = {"cell": task.name, **{f"param:{k}": v for k, v in task.params.items()},
-                           "error": f"no attempt finished ({retries + 1} tried): {one_line_error(err)}"}
+                    row = {
+                        "cell": task.name,
+                        **{f"param:{k}": v for k, v in task.params.items()},
+                        "error": f"no attempt finished ({retries + 1} tried): {one_line_error(err)}",
+                    }
                 rows[row["cell"]] = row
                 report(progress, "sweep cells", len(rows), len(tasks), "cells")
         finally:
@@ -473,8 +525,13 @@ def _write_outputs(spec: SweepSpec, out: Path, rows: list[dict[str, Any]], compu
     write_replacing(table, lambda tmp: df.to_parquet(tmp, index=False))
     write_replacing(out / "sweep.csv", lambda tmp: df.to_csv(tmp, index=False))
     failed = int(df["error"].notna().sum()) if "error" in df.columns else 0
-    md = [f"# Sweep `{spec.name}`", "", f"Base: `{spec.base}`; steps: {', '.join(spec.steps)}; "
-          f"{len(rows)} cells ({computed} run now, {failed} failed).", ""]
+    md = [
+        f"# Sweep `{spec.name}`",
+        "",
+        f"Base: `{spec.base}`; steps: {', '.join(spec.steps)}; "
+        f"{len(rows)} cells ({computed} run now, {failed} failed).",
+        "",
+    ]
     cols = [c for c in df.columns if c not in ("command",)]
     md += ["| " + " | ".join(cols) + " |", "|" + "|".join(["---"] * len(cols)) + "|"]
     for _, r in df.iterrows():
@@ -503,8 +560,21 @@ def _fmt(v: Any) -> str:
 
 
 #: Columns plotted against each swept parameter, when present.
-PLOTTED = ("cell_s", "make_s", "odometry", "intra_loop_closures", "inter_loop_closures", "ape_initial_none_m",
-           "ape_solved_se3_m", "ape_solved_none_m", "solve_s")
+PLOTTED = (
+    "cell_s",
+    "make_s",
+    "odometry",
+    "intra_loop_closures",
+    "inter_loop_closures",
+    "ape_initial_none_m",
+    "ape_solved_se3_m",
+    "ape_solved_none_m",
+    "solve_s",
+)
+
+
+def _save_png(fig: Any, tmp: Path) -> None:
+    fig.savefig(tmp, dpi=90, format="png")
 
 
 def _plots(spec: SweepSpec, out: Path, df: Any) -> list[Path]:
@@ -531,7 +601,7 @@ def _plots(spec: SweepSpec, out: Path, df: Any) -> list[Path]:
             ax.tick_params(labelsize=7)
         fig.tight_layout()
         path = out / "plots" / f"{p.removeprefix('param:').replace('.', '_')}.png"
-        write_replacing(path, lambda tmp: fig.savefig(tmp, dpi=90, format="png"))
+        write_replacing(path, functools.partial(_save_png, fig))
         plt.close(fig)
         paths.append(path)
     return paths

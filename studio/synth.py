@@ -3,29 +3,28 @@
 from __future__ import annotations
 
 import json
-import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
+from studio.core.checks import check_option
+from studio.core.errors import ConfigError
 from studio.core.model import PoseGraph
-
+from studio.core.parallel import parallel_map, run_team
+from studio.core.progress import Progress, report
+from studio.core.types import PathLike
+from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.generator.config import SynthConfig, estimate_resources
 from studio.generator.extended import STUDIO
 from studio.generator.kollagen import SingleG2oView
-from studio.generator.seam import Extra, GeneratedDataset, Generator
-from studio.core.parallel import parallel_map, run_team
+from studio.generator.outliers import PlantedOutliers
 from studio.generator.presets import PRESETS, preset, preset_names
-from studio.core.errors import ConfigError
-from studio.core.progress import Progress, report
-from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
-from studio.core.checks import check_option
+from studio.generator.seam import Extra, GeneratedDataset, Generator
 from studio.io.atomic import staged_outputs
 from studio.io.multig2o import Records, multi_g2o_parts
+from studio.io.outliers_txt import write_outliers_txt
 from studio.io.singleg2o import write_single_g2o, write_single_tum
 from studio.io.synth_config import read_synth_config, synth_config_to_json
-from studio.io.outliers_txt import write_outliers_txt
-from studio.generator.outliers import PlantedOutliers
 
 __all__ = ["EXTRA_WRITERS", "SynthResult", "load_synth_config", "synthesize", "write_outputs"]
 
@@ -46,7 +45,7 @@ class SynthResult:
     """The planted outliers (``OUT/<name>/outliers.txt``), when the config's studio block asks for them."""
 
 
-def load_synth_config(source: str | os.PathLike, *, warn: Callable[[str], None] | None = None) -> SynthConfig:
+def load_synth_config(source: PathLike, *, warn: Callable[[str], None] | None = None) -> SynthConfig:
     """A preset name (``multi3500x8``, ``multi10000x5``) or the path of a kollagen JSON file."""
     text = str(source)
     if text.lower() in PRESETS and not Path(text).exists():
@@ -57,18 +56,25 @@ def load_synth_config(source: str | os.PathLike, *, warn: Callable[[str], None] 
     return read_synth_config(path, warn=warn)
 
 
-def _single_g2o_view_parts(graph: PoseGraph, view: Extra, folder: Path, name: str,
-                           records: Records) -> list[Callable[[], None]]:
+def _single_g2o_view_parts(
+    graph: PoseGraph, view: Extra, folder: Path, name: str, records: Records
+) -> list[Callable[[], None]]:
     assert isinstance(view, SingleG2oView)
 
     def g2o_file() -> None:
-        write_single_g2o(graph, folder / f"{name}.g2o", records=records,
-                         connector_information=view.connector_information,
-                         odometry_information=view.exact_odometry_information)
+        write_single_g2o(
+            graph,
+            folder / f"{name}.g2o",
+            records=records,
+            connector_information=view.connector_information,
+            odometry_information=view.exact_odometry_information,
+        )
 
-    return [g2o_file,
-            lambda: write_single_tum(graph, folder / f"{name}_GT.tum", ground_truth=True),
-            lambda: write_single_tum(graph, folder / f"{name}.tum", ground_truth=False)]
+    return [
+        g2o_file,
+        lambda: write_single_tum(graph, folder / f"{name}_GT.tum", ground_truth=True),
+        lambda: write_single_tum(graph, folder / f"{name}.tum", ground_truth=False),
+    ]
 
 
 ExtraWriter = Callable[[PoseGraph, Extra, Path, str, Records], list[Callable[[], None]]]
@@ -79,9 +85,16 @@ generator offers, into that folder (which exists by then)."""
 EXTRA_WRITERS: dict[type, ExtraWriter] = {SingleG2oView: _single_g2o_view_parts}
 
 
-def write_outputs(out: GeneratedDataset, parent: Path, name: str, *, multi_records: Records = "3d",
-                  single_records: Records = "2d", jobs: int | None = None,
-                  progress: Progress | None = None) -> None:
+def write_outputs(
+    out: GeneratedDataset,
+    parent: Path,
+    name: str,
+    *,
+    multi_records: Records = "3d",
+    single_records: Records = "2d",
+    jobs: int | None = None,
+    progress: Progress | None = None,
+) -> None:
     """Write the multi-g2o folder of ``out`` and each extra it offers under ``parent`` (no staging;
     see :func:`synthesize`). ``single_records`` are the g2o records of the extras' files.
 
@@ -99,12 +112,17 @@ def write_outputs(out: GeneratedDataset, parent: Path, name: str, *, multi_recor
     multi = parent / name
     multi.mkdir(exist_ok=True)
     tasks += multi_g2o_parts(out.graph, multi, records=multi_records)
-    parallel_map(lambda k: tasks[k](), len(tasks), jobs,
-                 on_done=lambda d, n: report(progress, "synth: writing files", d, n, "files"))
+    parallel_map(
+        lambda k: tasks[k](),
+        len(tasks),
+        jobs,
+        on_done=lambda d, n: report(progress, "synth: writing files", d, n, "files"),
+    )
 
 
-def check_resources(config: SynthConfig, *, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
-                    max_output_gb: float = DEFAULT_MAX_OUTPUT_GB) -> None:
+def check_resources(
+    config: SynthConfig, *, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB, max_output_gb: float = DEFAULT_MAX_OUTPUT_GB
+) -> None:
     """Refuse, before any work, a config whose estimated memory or output size is over the limits."""
     memory, output = estimate_resources(config)
     poses = config.number_of_agents * config.poses_per_agent
@@ -120,11 +138,20 @@ def check_resources(config: SynthConfig, *, max_memory_gb: float = DEFAULT_MAX_M
         )
 
 
-def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool = False,
-               multi_records: Records = "3d", single_records: Records = "2d",
-               jobs: int | None = None, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
-               max_output_gb: float = DEFAULT_MAX_OUTPUT_GB, rrd: bool = True,
-               generator: Generator[SynthConfig] = STUDIO, progress: Progress | None = None) -> SynthResult:
+def synthesize(
+    config: SynthConfig,
+    out_dir: PathLike,
+    *,
+    force: bool = False,
+    multi_records: Records = "3d",
+    single_records: Records = "2d",
+    jobs: int | None = None,
+    max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
+    max_output_gb: float = DEFAULT_MAX_OUTPUT_GB,
+    rrd: bool = True,
+    generator: Generator[SynthConfig] = STUDIO,
+    progress: Progress | None = None,
+) -> SynthResult:
     """Generate ``config`` and write it as kollagen's ``generate CONFIG OUT`` does.
 
     Writes ``OUT/<name>/`` (multi-g2o), ``OUT/<name>_singleg2o/`` and ``OUT/<name>.config.json``,
@@ -149,13 +176,21 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
     config_name, rrd_name = f"{name}.config.json", f"{name}.rrd"
     names = [name, *extras, config_name] + ([rrd_name] if rrd else [])
     with staged_outputs(out_dir, names, force=force, inputs=()) as staging:
+
         def job(leader: bool) -> GeneratedDataset:
             # every process of the team generates the dataset (sharing the parallel steps) and shares
             # out the writes; only this one reports progress
             heard = progress if leader else None
             out = generator.generate(config, jobs=jobs, progress=heard)
-            write_outputs(out, staging, name, multi_records=multi_records,
-                          single_records=single_records, jobs=jobs, progress=heard)
+            write_outputs(
+                out,
+                staging,
+                name,
+                multi_records=multi_records,
+                single_records=single_records,
+                jobs=jobs,
+                progress=heard,
+            )
             return out
 
         output = run_team(job, jobs)
@@ -168,9 +203,21 @@ def synthesize(config: SynthConfig, out_dir: str | os.PathLike, *, force: bool =
         if rrd:
             from studio.recording.dataset import record_graph
 
-            record_graph(output.graph, staging / rrd_name, name=name,
-                         config_json=json.dumps(synth_config_to_json(config), sort_keys=True),
-                         outliers=None if outliers is None else outliers.rows, progress=progress)
+            record_graph(
+                output.graph,
+                staging / rrd_name,
+                name=name,
+                config_json=json.dumps(synth_config_to_json(config), sort_keys=True),
+                outliers=None if outliers is None else outliers.rows,
+                progress=progress,
+            )
     single = f"{name}_singleg2o"
-    return SynthResult(config, output, out_dir / name, out_dir / single if single in extras else None,
-                       out_dir / config_name, out_dir / rrd_name if rrd else None, outliers=outliers)
+    return SynthResult(
+        config,
+        output,
+        out_dir / name,
+        out_dir / single if single in extras else None,
+        out_dir / config_name,
+        out_dir / rrd_name if rrd else None,
+        outliers=outliers,
+    )

@@ -22,8 +22,8 @@ import shlex
 import shutil
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import pytest
 
@@ -34,9 +34,8 @@ DATA = REPO / "tests" / "data"
 #: Leading words of documented commands that are not run, and why. Keep it short.
 SKIP: dict[str, str] = {
     "studio view": "opens a viewer window or serves the web viewer until stopped "
-                   "(tests/studio/test_cli_newcomer.py checks `view` without a display)",
+    "(tests/studio/test_cli_newcomer.py checks `view` without a display)",
 }
-
 
 
 def _skip_reason(words: list[str]) -> str | None:
@@ -89,18 +88,28 @@ def _bags(work: Path) -> None:
     m = Msgs(typestore("ros1"))
     s, p, q = loop_trajectory(400)
     s2, p2, q2 = loop_trajectory(400, centre=(3.0, 0.0, 0.0), phase=1.0)
-    write_bag(work / "run", "ros1", {
-        "/alpha/odom": [(int(t), m.Odometry(int(t), pp, qq)) for t, pp, qq in zip(s, p, q)],
-        "/tf": [(int(t), m.TFMessage(int(t), pp, qq, parent="odom", child="bob/base_link"))
-                for t, pp, qq in zip(s2, p2, q2)],
-    })
+    write_bag(
+        work / "run",
+        "ros1",
+        {
+            "/alpha/odom": [(int(t), m.Odometry(int(t), pp, qq)) for t, pp, qq in zip(s, p, q)],
+            "/tf": [
+                (int(t), m.TFMessage(int(t), pp, qq, parent="odom", child="bob/base_link"))
+                for t, pp, qq in zip(s2, p2, q2)
+            ],
+        },
+    )
     m2 = Msgs(typestore("sqlite3"))
     s, p, q = loop_trajectory(400, centre=(UTM_EAST, UTM_NORTH, 80.0), t0_s=1_700_000_000.0)
     lat, lon = utm31_to_latlon(p[:, 0], p[:, 1])
-    write_bag(work / "s3e_bag", "sqlite3", {
-        "/alpha/fix": [(int(t), m2.NavSatFix(int(t), la, lo, pp[2])) for t, la, lo, pp in zip(s, lat, lon, p)],
-        "/alpha/heading": [(int(t), m2.QuaternionStamped(int(t), qq)) for t, qq in zip(s, q)],
-    })
+    write_bag(
+        work / "s3e_bag",
+        "sqlite3",
+        {
+            "/alpha/fix": [(int(t), m2.NavSatFix(int(t), la, lo, pp[2])) for t, la, lo, pp in zip(s, lat, lon, p)],
+            "/alpha/heading": [(int(t), m2.QuaternionStamped(int(t), qq)) for t, qq in zip(s, q)],
+        },
+    )
 
 
 def _euroc(work: Path) -> None:
@@ -119,8 +128,12 @@ def _kitti(work: Path) -> None:
     rows = []
     for i in range(n):
         c, s = np.cos(yaw[i]), np.sin(yaw[i])
-        rows.append(" ".join(f"{v:.9e}" for v in (c, 0, s, 5 * np.sin(yaw[i]), 0, 1, 0, 0, -s, 0, c,
-                                                     5 * (1 - np.cos(yaw[i])) + 0.5 * i)))
+        rows.append(
+            " ".join(
+                f"{v:.9e}"
+                for v in (c, 0, s, 5 * np.sin(yaw[i]), 0, 1, 0, 0, -s, 0, c, 5 * (1 - np.cos(yaw[i])) + 0.5 * i)
+            )
+        )
     (work / "poses" / "00.txt").write_text("\n".join(rows) + "\n")
 
 
@@ -133,7 +146,8 @@ def _kimera(work: Path) -> None:
         s, p, q = loop_trajectory(400, radius=5.0, phase=k)
         lines = ["#timestamp_kf,x,y,z,qw,qx,qy,qz"] + [
             ",".join([str(t), *map(repr, pp), repr(qq[3]), repr(qq[0]), repr(qq[1]), repr(qq[2])])
-            for t, pp, qq in zip(s.tolist(), p.tolist(), q.tolist())]
+            for t, pp, qq in zip(s.tolist(), p.tolist(), q.tolist())
+        ]
         (folder / f"{robot}_gt_odom.csv").write_text("\n".join(lines) + "\n")
 
 
@@ -152,7 +166,8 @@ INPUTS: dict[str, Callable[[Path], None]] = {
     # docs/sweep.md's spec, smaller: 2 cells of the multi3500x8 stand-in
     "radius.toml": lambda w: (w / "radius.toml").write_text(
         'name = "radius"\nbase = "multi3500x8"\nsteps = ["evaluate"]\n[grid]\n'
-        '"inter_agent_loop_closure_parameters.loop_closure_radius" = [1.0, 2.0]\n'),
+        '"inter_agent_loop_closure_parameters.loop_closure_radius" = [1.0, 2.0]\n'
+    ),
 }
 
 
@@ -171,8 +186,15 @@ def _env() -> dict[str, str]:
 
 
 def _run(words: list[str], work: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "studio.cli", *words[1:]], cwd=work, env=_env(),
-                          capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL)
+    return subprocess.run(
+        [sys.executable, "-m", "studio.cli", *words[1:]],
+        cwd=work,
+        env=_env(),
+        capture_output=True,
+        text=True,
+        timeout=300,
+        stdin=subprocess.DEVNULL,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -251,7 +273,8 @@ def test_documented_commands_run(doc: Path, commands: list[tuple[int, str]], wor
         if proc.returncode == 2 and "already exists (use --force" in proc.stderr and "--force" not in words:
             proc = _run(words + ["--force"], work)
         assert proc.returncode == 0, (
-            f"{doc.name}:{line}: `{command}` exited {proc.returncode}:\n{proc.stderr[-2000:]}{proc.stdout[-500:]}")
+            f"{doc.name}:{line}: `{command}` exited {proc.returncode}:\n{proc.stderr[-2000:]}{proc.stdout[-500:]}"
+        )
         assert "Traceback" not in proc.stderr, f"{doc.name}:{line}: {proc.stderr[-2000:]}"
         ran += 1
     assert ran, f"{doc.name}: every command was skipped"
@@ -259,8 +282,10 @@ def test_documented_commands_run(doc: Path, commands: list[tuple[int, str]], wor
 
 # ------------------------------------------------------------------------------------ paths, links
 
-_PATH = re.compile(r"(?<![\w/.-])((?:tests|benchmarks|docs|studio|recordings|converters|generator)"
-                   r"/[\w./-]*\w)(::\w+)?")
+_PATH = re.compile(
+    r"(?<![\w/.-])((?:tests|benchmarks|docs|studio|recordings|converters|generator)"
+    r"/[\w./-]*\w)(::\w+)?"
+)
 _LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
 
 

@@ -17,7 +17,6 @@ import struct
 import time
 from pathlib import Path
 
-import pytest
 from typer.testing import CliRunner
 
 from studio.cli import app
@@ -28,7 +27,8 @@ runner = CliRunner()
 
 _INFO = "100 0 0 0 0 0 100 0 0 0 0 100 0 0 0 400 0 0 400 0 400"
 VALID_G2O = "".join(f"VERTEX_SE3:QUAT {i} {float(i)} 0 0 0 0 0 1\n" for i in range(3)) + "".join(
-    f"EDGE_SE3:QUAT {i} {i + 1} 1 0 0 0 0 0 1 {_INFO}\n" for i in range(2))
+    f"EDGE_SE3:QUAT {i} {i + 1} 1 0 0 0 0 0 1 {_INFO}\n" for i in range(2)
+)
 VALID_GT = "".join(f"{i} {float(i)} 0 0 0 0 0 1\n" for i in range(3))
 VALID_DAT = f"1 0 2 1 1 0 0 0 0 0 1 {_INFO}\n"
 
@@ -91,6 +91,7 @@ def copy(tmp_path: Path, name: str) -> Path:
 
 # ------------------------------------------------------------------------------------------ g2o files
 
+
 def test_truncated_g2o(tmp_path):
     ds = dataset(tmp_path, g2o="g2o_truncated.g2o")
     record(tmp_path, ds, f"error: {ds}/agent1/posegraph.g2o:6: EDGE_SE3:QUAT needs 30 fields, found 12")
@@ -142,12 +143,16 @@ def test_g2o_2gb_sparse_file_is_refused_before_reading(tmp_path):
     with open(ds / "agent1" / "posegraph.g2o", "r+b") as f:
         f.truncate(size)
     t0 = time.perf_counter()
-    record(tmp_path, ds, f"error: {ds}/agent1/posegraph.g2o: {size} bytes is over the 1073741824 byte (1 GiB) "
-                         "limit of text inputs")
+    record(
+        tmp_path,
+        ds,
+        f"error: {ds}/agent1/posegraph.g2o: {size} bytes is over the 1073741824 byte (1 GiB) limit of text inputs",
+    )
     assert time.perf_counter() - t0 < 5.0
 
 
 # -------------------------------------------------------------- ground truth and inter-agent closures
+
 
 def test_ground_truth_unsorted_timestamps(tmp_path):
     ds = dataset(tmp_path, gt="gt_unsorted.tum")
@@ -161,11 +166,15 @@ def test_inter_agent_lc_wrong_column_count(tmp_path):
 
 def test_inter_agent_lc_unknown_vertex(tmp_path):
     ds = dataset(tmp_path, dat="dat_unknown_vertex.dat")
-    record(tmp_path, ds, f"error: {ds}/inter_agent_lc.dat: inter-agent edge 0 refers to vertex 9 of agent agent2, "
-                         "which has 3 poses")
+    record(
+        tmp_path,
+        ds,
+        f"error: {ds}/inter_agent_lc.dat: inter-agent edge 0 refers to vertex 9 of agent agent2, which has 3 poses",
+    )
 
 
 # ---------------------------------------------------------------------------- studio convert tum
+
 
 def test_tum_wrong_column_count(tmp_path):
     src = copy(tmp_path, "tum_wrong_columns.tum")
@@ -194,8 +203,9 @@ def test_tum_inf_timestamp(tmp_path):
 
 def test_tum_huge_coordinate(tmp_path):
     src = copy(tmp_path, "tum_huge_coordinate.tum")
-    convert_tum(tmp_path, src, f"error: {src}: pose 1 has a coordinate of 1e+308 m, beyond the 1e+09 m a "
-                               "trajectory may reach")
+    convert_tum(
+        tmp_path, src, f"error: {src}: pose 1 has a coordinate of 1e+308 m, beyond the 1e+09 m a trajectory may reach"
+    )
 
 
 def test_tum_latin1_bytes(tmp_path):
@@ -214,12 +224,14 @@ def test_tum_2gb_sparse_file_is_refused_before_reading(tmp_path):
         f.write(b"1600000000.0 0 0 0 0 0 0 1\n")
         f.truncate(2 * 10**9)  # "2 GB", sparse
     t0 = time.perf_counter()
-    convert_tum(tmp_path, src, f"error: {src}: 2000000000 bytes is over the 1073741824 byte (1 GiB) limit of "
-                               "text inputs")
+    convert_tum(
+        tmp_path, src, f"error: {src}: 2000000000 bytes is over the 1073741824 byte (1 GiB) limit of text inputs"
+    )
     assert time.perf_counter() - t0 < 5.0
 
 
 # ---------------------------------------------------------------------------------- studio synth
+
 
 def test_synth_deeply_nested_json(tmp_path):
     cfg = tmp_path / "nested.json"
@@ -229,7 +241,7 @@ def test_synth_deeply_nested_json(tmp_path):
 
 def test_synth_deeply_nested_value_inside_a_valid_config(tmp_path):
     doc = json.loads((DATA / "configs" / "tiny_single.json").read_text())
-    text = json.dumps(doc).replace('"align": true', '"align": ' + "{\"a\": " * 20_000 + "1" + "}" * 20_000)
+    text = json.dumps(doc).replace('"align": true', '"align": ' + '{"a": ' * 20_000 + "1" + "}" * 20_000)
     cfg = tmp_path / "nested_align.json"
     cfg.write_text(text)
     synth(tmp_path, cfg, f"error: {cfg}: invalid JSON: nested too deeply")
@@ -273,6 +285,7 @@ def test_synth_too_many_agents(tmp_path):
 
 
 # ------------------------------------------------------------------------------ studio convert bag
+
 
 def source_dir(tmp_path: Path) -> Path:
     (tmp_path / "src").mkdir(exist_ok=True)
@@ -319,8 +332,7 @@ def _mismatched_bag(path: Path, storage: str, data_type: str) -> Path:
 
 def convert_bag(tmp_path: Path, bag: Path, message: str) -> None:
     out = tmp_path / "out" / "ds"
-    refused(["convert", "bag", bag, "--agent", "a=/a/pose", "-o", out], message, outputs=[out.parent],
-            watch=tmp_path)
+    refused(["convert", "bag", bag, "--agent", "a=/a/pose", "-o", out], message, outputs=[out.parent], watch=tmp_path)
 
 
 def test_ros1_bag_cut_in_the_middle(tmp_path):
@@ -329,8 +341,12 @@ def test_ros1_bag_cut_in_the_middle(tmp_path):
     bag = write_bag(source_dir(tmp_path) / "run", "ros1", _pose_topics("ros1"))
     data = bag.read_bytes()
     bag.write_bytes(data[: len(data) // 2])
-    convert_bag(tmp_path, bag, f"error: {bag}: cannot read the bag, corrupt or truncated? (Bag index looks damaged: "
-                               "('Header could not be read from file.',))")
+    convert_bag(
+        tmp_path,
+        bag,
+        f"error: {bag}: cannot read the bag, corrupt or truncated? (Bag index looks damaged: "
+        "('Header could not be read from file.',))",
+    )
 
 
 def test_mcap_file_cut_in_the_middle(tmp_path):
@@ -351,8 +367,12 @@ def test_sqlite3_bag_cut_in_the_middle(tmp_path):
     db = next(bag.glob("*.db3"))
     data = db.read_bytes()
     db.write_bytes(data[: len(data) // 2])
-    convert_bag(tmp_path, bag, f"error: {bag}: cannot read the bag, corrupt or truncated? (Cannot open database "
-                               f"{db}: database disk image is malformed)")
+    convert_bag(
+        tmp_path,
+        bag,
+        f"error: {bag}: cannot read the bag, corrupt or truncated? (Cannot open database "
+        f"{db}: database disk image is malformed)",
+    )
 
 
 def test_ros1_bag_header_claiming_2gb(tmp_path):
@@ -365,29 +385,42 @@ def test_ros1_bag_header_claiming_2gb(tmp_path):
     struct.pack_into("<I", data, 13, 0x7FFFFFFF)
     bag.write_bytes(bytes(data))
     t0 = time.perf_counter()
-    convert_bag(tmp_path, bag, f"error: {bag}: cannot read the bag, corrupt or truncated? (Header could not be read "
-                               "from file.)")
+    convert_bag(
+        tmp_path, bag, f"error: {bag}: cannot read the bag, corrupt or truncated? (Header could not be read from file.)"
+    )
     assert time.perf_counter() - t0 < 5.0
 
 
 def test_ros1_bag_connection_type_differs_from_data(tmp_path):
     bag = _mismatched_bag(source_dir(tmp_path) / "run", "ros1", "String")
-    convert_bag(tmp_path, bag, f"error: {bag}: cannot read the bag, corrupt or truncated? (Could not deserialize "
-                               "'geometry_msgs/msg/PoseStamped': unpack_from requires a buffer of at least 12 bytes "
-                               "for unpacking 4 bytes at offset 8 (actual buffer size is 9))")
+    convert_bag(
+        tmp_path,
+        bag,
+        f"error: {bag}: cannot read the bag, corrupt or truncated? (Could not deserialize "
+        "'geometry_msgs/msg/PoseStamped': unpack_from requires a buffer of at least 12 bytes "
+        "for unpacking 4 bytes at offset 8 (actual buffer size is 9))",
+    )
 
 
 def test_mcap_bag_connection_type_differs_from_data(tmp_path):
     bag = _mismatched_bag(source_dir(tmp_path) / "run", "mcap", "Odometry")
-    convert_bag(tmp_path, bag, f"error: {bag}: cannot read the bag, corrupt or truncated? (CDR message size mismatch "
-                               "for 'geometry_msgs/msg/PoseStamped'.)")
+    convert_bag(
+        tmp_path,
+        bag,
+        f"error: {bag}: cannot read the bag, corrupt or truncated? (CDR message size mismatch "
+        "for 'geometry_msgs/msg/PoseStamped'.)",
+    )
 
 
 def test_sqlite3_bag_connection_type_differs_from_data(tmp_path):
     bag = _mismatched_bag(source_dir(tmp_path) / "run", "sqlite3", "String")
-    convert_bag(tmp_path, bag, f"error: {bag}: cannot read the bag, corrupt or truncated? (Could not deserialize "
-                               "'geometry_msgs/msg/PoseStamped': unpack_from requires a buffer of at least 12 bytes "
-                               "for unpacking 4 bytes at offset 8 (actual buffer size is 10))")
+    convert_bag(
+        tmp_path,
+        bag,
+        f"error: {bag}: cannot read the bag, corrupt or truncated? (Could not deserialize "
+        "'geometry_msgs/msg/PoseStamped': unpack_from requires a buffer of at least 12 bytes "
+        "for unpacking 4 bytes at offset 8 (actual buffer size is 10))",
+    )
 
 
 def test_every_committed_hostile_file_has_a_test():

@@ -23,6 +23,8 @@ def check_option(option: str, value: float, *, allow_zero: bool = True) -> float
     if value == 0 and allow_zero:
         return value
     if not SMALLEST <= value <= LARGEST:
-        raise ConfigError(f"{option}: {value!r} is outside {SMALLEST:g}..{LARGEST:g}"
-                          + (" (0 turns it off)" if allow_zero else ""), option=name)
+        raise ConfigError(
+            f"{option}: {value!r} is outside {SMALLEST:g}..{LARGEST:g}" + (" (0 turns it off)" if allow_zero else ""),
+            option=name,
+        )
     return value

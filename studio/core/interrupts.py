@@ -6,7 +6,8 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
-from typing import Any, Iterator
+from collections.abc import Iterator
+from typing import Any
 
 __all__ = ["interrupts_deferred"]
 
@@ -17,7 +18,9 @@ def interrupts_deferred() -> Iterator[None]:
     default handler raises KeyboardInterrupt). Only in the main thread, and only where SIGINT is
     handled at all: elsewhere (other threads, workers that ignore it) the block runs as it is."""
     if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) in (
-            signal.SIG_IGN, None):
+        signal.SIG_IGN,
+        None,
+    ):
         yield
         return
     received: list[int] = []

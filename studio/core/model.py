@@ -77,9 +77,7 @@ class Edges:
     def __post_init__(self) -> None:
         object.__setattr__(self, "from_index", _as_index(self.from_index, "from_index"))
         object.__setattr__(self, "to_index", _as_index(self.to_index, "to_index"))
-        object.__setattr__(
-            self, "measurements", _as_rows(self.measurements, self.kind.pose_width, "measurements")
-        )
+        object.__setattr__(self, "measurements", _as_rows(self.measurements, self.kind.pose_width, "measurements"))
         object.__setattr__(
             self,
             "information_upper",
@@ -94,11 +92,11 @@ class Edges:
         return len(self.from_index)
 
     @classmethod
-    def empty(cls, kind: PoseKind) -> "Edges":
+    def empty(cls, kind: PoseKind) -> Edges:
         z = np.zeros(0, dtype=np.int64)
         return cls(kind, z, z, np.zeros((0, kind.pose_width)), np.zeros((0, kind.information_width)))
 
-    def to_se3(self) -> "Edges":
+    def to_se3(self) -> Edges:
         if self.kind is PoseKind.SE3:
             return self
         return Edges(
@@ -125,9 +123,7 @@ class InterAgentEdges:
     def __post_init__(self) -> None:
         for name in ("from_agent", "from_index", "to_agent", "to_index"):
             object.__setattr__(self, name, _as_index(getattr(self, name), name))
-        object.__setattr__(
-            self, "measurements", _as_rows(self.measurements, self.kind.pose_width, "measurements")
-        )
+        object.__setattr__(self, "measurements", _as_rows(self.measurements, self.kind.pose_width, "measurements"))
         object.__setattr__(
             self,
             "information_upper",
@@ -144,11 +140,11 @@ class InterAgentEdges:
         return len(self.from_index)
 
     @classmethod
-    def empty(cls, kind: PoseKind) -> "InterAgentEdges":
+    def empty(cls, kind: PoseKind) -> InterAgentEdges:
         z = np.zeros(0, dtype=np.int64)
         return cls(kind, z, z, z, z, np.zeros((0, kind.pose_width)), np.zeros((0, kind.information_width)))
 
-    def to_se3(self) -> "InterAgentEdges":
+    def to_se3(self) -> InterAgentEdges:
         if self.kind is PoseKind.SE3:
             return self
         return InterAgentEdges(
@@ -238,7 +234,7 @@ class AgentGraph:
             object.__setattr__(self, key, lifted)
         return lifted
 
-    def to_se3(self) -> "AgentGraph":
+    def to_se3(self) -> AgentGraph:
         if self.kind is PoseKind.SE3:
             return self
         initial = self.se3_poses()
@@ -302,7 +298,7 @@ class PoseGraph:
             "inter_loop_closures": len(self.inter),
         }
 
-    def to_se3(self) -> "PoseGraph":
+    def to_se3(self) -> PoseGraph:
         """The same graph with SE(3) poses (planar poses lifted; computed once, then cached)."""
         if self.kind is PoseKind.SE3:
             return self

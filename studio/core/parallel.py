@@ -18,7 +18,8 @@ import signal
 import struct
 import sys
 import time
-from typing import Any, Callable, NoReturn, TypeVar
+from collections.abc import Callable
+from typing import Any, NoReturn, TypeVar
 
 __all__ = ["parallel_map", "run_team", "default_jobs", "available_cores", "tune_allocator", "release_free_heap"]
 
@@ -116,7 +117,7 @@ def _send(fd: int, obj: Any) -> None:
     data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
     view = memoryview(_HEADER.pack(len(data)) + data)
     while view:
-        view = view[os.write(fd, view):]
+        view = view[os.write(fd, view) :]
 
 
 def _send_outcome(fd: int, kind: str, value: Any) -> None:
@@ -216,8 +217,7 @@ class _Team:
             finally:
                 signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
-    def map(self, func: Callable[[int], T], n_items: int,
-            on_done: Callable[[int, int], None] | None) -> list[T]:
+    def map(self, func: Callable[[int], T], n_items: int, on_done: Callable[[int, int], None] | None) -> list[T]:
         """One :func:`parallel_map` shared by a running team: every process claims items, the workers
         send their results to the leader, and the leader sends each worker the results it lacks (so
         every process goes on with all of them, as one process would)."""
@@ -264,8 +264,10 @@ class _Team:
             if message is _EOF:
                 _, status = os.waitpid(pid, 0)
                 self.reaped.add(pid)
-                message = ("error", RuntimeError(
-                    f"a worker process ended ({_how_it_ended(status)}) without sending its results"))
+                message = (
+                    "error",
+                    RuntimeError(f"a worker process ended ({_how_it_ended(status)}) without sending its results"),
+                )
             kind, value = message
             if kind == "ok":
                 results.update(value)
@@ -324,8 +326,13 @@ def _shared_counters() -> tuple[Any, Any]:
     return ctx.Value("q", 0), ctx.Value("q", 0)
 
 
-def parallel_map(func: Callable[[int], T], n_items: int, jobs: int | None = None, *,
-                 on_done: Callable[[int, int], None] | None = None) -> list[T]:
+def parallel_map(
+    func: Callable[[int], T],
+    n_items: int,
+    jobs: int | None = None,
+    *,
+    on_done: Callable[[int, int], None] | None = None,
+) -> list[T]:
     """``[func(0), ..., func(n_items - 1)]``, computed by this process and up to ``jobs - 1`` forked ones.
 
     Every process claims the next item from a shared counter (items in order, so the long ones put

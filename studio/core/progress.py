@@ -12,7 +12,8 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
-from typing import Iterator, Protocol
+from collections.abc import Iterator
+from typing import Protocol
 
 __all__ = ["Progress", "report", "terminal_progress"]
 
@@ -57,10 +58,12 @@ def terminal_progress(enabled: bool = True) -> Iterator[Progress | None]:
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
-        Progress as RichProgress,
         TaskID,
         TextColumn,
         TimeElapsedColumn,
+    )
+    from rich.progress import (
+        Progress as RichProgress,
     )
 
     columns = (

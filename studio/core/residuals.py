@@ -17,7 +17,8 @@ chi2 is the sum over its edges (g2o's ``activeChi2``).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Literal, Sequence
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
@@ -57,8 +58,9 @@ def _errors_se3(xi: np.ndarray, xj: np.ndarray, z: np.ndarray, convention: Conve
     return np.column_stack([t_err, rot])
 
 
-def edge_errors(poses_from: np.ndarray, poses_to: np.ndarray, measurements: np.ndarray, *,
-                convention: Convention = "g2o") -> np.ndarray:
+def edge_errors(
+    poses_from: np.ndarray, poses_to: np.ndarray, measurements: np.ndarray, *, convention: Convention = "g2o"
+) -> np.ndarray:
     """Error vectors ``(m, 3)`` (planar rows ``x y theta``) or ``(m, 6)`` (rows ``x y z qx qy qz qw``)."""
     xi = np.asarray(poses_from, dtype=np.float64)
     xj = np.asarray(poses_to, dtype=np.float64)
@@ -84,12 +86,12 @@ def chi2_parts(errors: np.ndarray, information_upper: np.ndarray) -> tuple[np.nd
     k = 2 if d == 3 else 3
     omega = upper_to_matrix(information_upper, d)
     et, er = errors[:, :k], errors[:, k:]
-    return (np.einsum("ni,nij,nj->n", et, omega[:, :k, :k], et),
-            np.einsum("ni,nij,nj->n", er, omega[:, k:, k:], er))
+    return (np.einsum("ni,nij,nj->n", et, omega[:, :k, :k], et), np.einsum("ni,nij,nj->n", er, omega[:, k:, k:], er))
 
 
-def graph_chi2(graph: "PoseGraph", poses_per_agent: Sequence[np.ndarray] | None = None, *,
-               convention: Convention = "g2o") -> dict[str, float]:
+def graph_chi2(
+    graph: PoseGraph, poses_per_agent: Sequence[np.ndarray] | None = None, *, convention: Convention = "g2o"
+) -> dict[str, float]:
     """chi2 of a whole graph at the given poses (one ``(n_a, pose_width)`` array per agent, in the
     graph's pose kind; default: each agent's ground truth), per edge class:
     ``{"odometry", "intra", "inter", "total"}``. ``total`` is what g2o's ``activeChi2`` reports."""

@@ -6,8 +6,8 @@ Pure data: no I/O here.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -55,8 +55,9 @@ class Trajectory:
         return len(self.stamps_ns)
 
     @classmethod
-    def from_poses(cls, name: str, stamps_ns: np.ndarray, poses_xyz_quat_xyzw: np.ndarray,
-                   source: str = "") -> "Trajectory":
+    def from_poses(
+        cls, name: str, stamps_ns: np.ndarray, poses_xyz_quat_xyzw: np.ndarray, source: str = ""
+    ) -> Trajectory:
         """From ``(n, 7)`` rows ``x y z qx qy qz qw`` (the TUM and g2o column order)."""
         poses = np.asarray(poses_xyz_quat_xyzw, dtype=np.float64)
         if poses.ndim != 2 or poses.shape[1] != 7:
@@ -69,8 +70,14 @@ class Trajectory:
         return np.hstack([self.positions_xyz, self.quat_xyzw])
 
 
-def clean_trajectory(name: str, stamps_ns: np.ndarray, positions_xyz: np.ndarray, quat_xyzw: np.ndarray,
-                     source: str, warn: Warn | None = None) -> Trajectory:
+def clean_trajectory(
+    name: str,
+    stamps_ns: np.ndarray,
+    positions_xyz: np.ndarray,
+    quat_xyzw: np.ndarray,
+    source: str,
+    warn: Warn | None = None,
+) -> Trajectory:
     """Sort by time, drop duplicate stamps (keeping the first), normalise quaternions, reject NaN;
     a trajectory to convert needs at least 2 poses.
 
@@ -85,8 +92,10 @@ def clean_trajectory(name: str, stamps_ns: np.ndarray, positions_xyz: np.ndarray
     far = np.abs(positions_xyz).max(axis=1, initial=0.0) > MAX_COORDINATE_M
     if far.any():
         k = int(np.flatnonzero(far)[0])
-        raise FormatError(f"{source}: pose {k} has a coordinate of {np.abs(positions_xyz[k]).max():g} m, "
-                          f"beyond the {MAX_COORDINATE_M:g} m a trajectory may reach")
+        raise FormatError(
+            f"{source}: pose {k} has a coordinate of {np.abs(positions_xyz[k]).max():g} m, "
+            f"beyond the {MAX_COORDINATE_M:g} m a trajectory may reach"
+        )
     norms = np.linalg.norm(quat_xyzw, axis=1)
     if np.any(norms < 1e-9):
         raise FormatError(f"{source}: pose {int(np.flatnonzero(norms < 1e-9)[0])} has a zero quaternion")
@@ -100,10 +109,13 @@ def clean_trajectory(name: str, stamps_ns: np.ndarray, positions_xyz: np.ndarray
         dups = int(np.count_nonzero(~keep))
         stamps_ns, positions_xyz, quat_xyzw = stamps_ns[keep], positions_xyz[keep], quat_xyzw[keep]
         if warn is not None:
-            warn(f"{source}: {unsorted} out-of-order timestamp{'s' if unsorted != 1 else ''} sorted, "
-                 f"{dups} duplicate timestamp{'s' if dups != 1 else ''} dropped")
+            warn(
+                f"{source}: {unsorted} out-of-order timestamp{'s' if unsorted != 1 else ''} sorted, "
+                f"{dups} duplicate timestamp{'s' if dups != 1 else ''} dropped"
+            )
     n = len(stamps_ns)
     if n < 2:
-        raise FormatError(f"{source or name}: agent {name!r} has {n} pose{'s' if n != 1 else ''}; "
-                          "a trajectory needs at least 2")
+        raise FormatError(
+            f"{source or name}: agent {name!r} has {n} pose{'s' if n != 1 else ''}; a trajectory needs at least 2"
+        )
     return Trajectory(name, stamps_ns, positions_xyz, quat_xyzw, source)

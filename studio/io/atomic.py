@@ -30,14 +30,24 @@ import errno
 import json
 import os
 import shutil
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import Callable, Iterable, Iterator
 
 from studio.core.errors import OutputError
 from studio.core.interrupts import interrupts_deferred
+from studio.core.types import PathLike
 
-__all__ = ["staged_outputs", "write_replacing", "check_not_overlapping", "verify_rrd", "os_error_message",
-           "start_writeback", "STAGING_PREFIX", "MARKER_NAME", "LOCK_PREFIX"]
+__all__ = [
+    "staged_outputs",
+    "write_replacing",
+    "check_not_overlapping",
+    "verify_rrd",
+    "os_error_message",
+    "start_writeback",
+    "STAGING_PREFIX",
+    "MARKER_NAME",
+    "LOCK_PREFIX",
+]
 
 STAGING_PREFIX = ".studio-staging-"
 MARKER_NAME = ".studio-output"
@@ -47,7 +57,7 @@ _JOURNAL = ".journal.json"
 _REPLACED = ".replaced"
 
 
-def os_error_message(err: OSError, path: str | os.PathLike | None = None) -> str:
+def os_error_message(err: OSError, path: PathLike | None = None) -> str:
     """``'<path>: <cause>'`` for an OSError, e.g. ``out/x.rrd: No space left on device``."""
     where = err.filename if err.filename is not None else path
     cause = err.strerror or (errno.errorcode.get(err.errno, "") if err.errno else "") or str(err) or type(err).__name__
@@ -64,7 +74,7 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
-def _resolve(p: str | os.PathLike) -> Path:
+def _resolve(p: PathLike) -> Path:
     return Path(os.path.realpath(os.path.abspath(p)))
 
 
@@ -73,7 +83,7 @@ def _inside(a: Path, b: Path) -> bool:
     return a == b or b in a.parents
 
 
-def check_not_overlapping(outputs: Iterable[str | os.PathLike], inputs: Iterable[str | os.PathLike]) -> None:
+def check_not_overlapping(outputs: Iterable[PathLike], inputs: Iterable[PathLike]) -> None:
     """Refuse an output that is, contains or sits inside an input, or is the current folder or one
     of its parents. Paths are resolved, symlinks included."""
     cwd = _resolve(os.getcwd())
@@ -88,7 +98,7 @@ def check_not_overlapping(outputs: Iterable[str | os.PathLike], inputs: Iterable
                 raise OutputError(f"{out}: the output {what} the input {given}; choose another output path")
 
 
-def verify_rrd(path: str | os.PathLike) -> None:
+def verify_rrd(path: PathLike) -> None:
     """Raise :class:`OutputError` unless ``path`` is a complete Rerun recording: the ``RRF2`` header,
     the ``RRF2FOOT`` footer and a manifest Rerun can read (~3 ms for a few MB)."""
     import warnings
@@ -109,8 +119,10 @@ def verify_rrd(path: str | os.PathLike) -> None:
             full = st.f_bavail * st.f_frsize < (1 << 20)
         except OSError:
             full = False
-        raise OutputError(f"{path}: the recording is incomplete (no Rerun {'header' if head != b'RRF2' else 'footer'}; "
-                          f"{size} bytes)" + ("; No space left on device" if full else ""))
+        raise OutputError(
+            f"{path}: the recording is incomplete (no Rerun {'header' if head != b'RRF2' else 'footer'}; "
+            f"{size} bytes)" + ("; No space left on device" if full else "")
+        )
     try:
         import rerun.chunk as rc
 
@@ -220,7 +232,7 @@ def _clean_stale(parent: Path) -> None:
     for p in parent.glob(STAGING_PREFIX + "*"):
         if p.name.startswith(LOCK_PREFIX):
             continue
-        pid_text = p.name[len(STAGING_PREFIX):].split("-", 1)[0]
+        pid_text = p.name[len(STAGING_PREFIX) :].split("-", 1)[0]
         if pid_text.isdigit() and int(pid_text) != os.getpid() and not _pid_alive(int(pid_text)):
             with contextlib.suppress(OSError):
                 _rollback(p, parent)
@@ -253,8 +265,7 @@ def _target_lock(parent: Path, name: str) -> Iterator[None]:
             except (BlockingIOError, FileNotFoundError):
                 held = False
         if not held:
-            raise OutputError(f"{parent / name}: another studio run is writing this output now; "
-                              "wait for it to finish")
+            raise OutputError(f"{parent / name}: another studio run is writing this output now; wait for it to finish")
         yield
     finally:
         if held:
@@ -270,8 +281,9 @@ def _mark(folder: Path) -> None:
     try:
         os.setxattr(folder, MARKER_XATTR, b"output")
     except (OSError, AttributeError):
-        (folder / MARKER_NAME).write_text("written by cslam-studio; `--force` may replace this folder\n",
-                                          encoding="utf-8")
+        (folder / MARKER_NAME).write_text(
+            "written by cslam-studio; `--force` may replace this folder\n", encoding="utf-8"
+        )
 
 
 def _is_marked(folder: Path) -> bool:
@@ -290,8 +302,10 @@ def _check_replaceable(dst: Path, staged: Path | None) -> None:
         raise OutputError(f"{dst} is a symbolic link; --force replaces only outputs studio wrote, remove it yourself")
     if dst.is_dir():
         if not _is_marked(dst):
-            raise OutputError(f"{dst} is a folder studio did not write (no {MARKER_NAME} inside); "
-                              "--force will not replace it, remove it yourself or choose another output")
+            raise OutputError(
+                f"{dst} is a folder studio did not write (no {MARKER_NAME} inside); "
+                "--force will not replace it, remove it yourself or choose another output"
+            )
         if staged is not None and not staged.is_dir():
             raise OutputError(f"{dst} is a folder, the output is a file; remove it yourself")
     elif not dst.is_file():
@@ -301,8 +315,9 @@ def _check_replaceable(dst: Path, staged: Path | None) -> None:
 
 
 @contextlib.contextmanager
-def staged_outputs(parent: str | os.PathLike, names: list[str], *, force: bool = False,
-                   inputs: Iterable[str | os.PathLike] = ()) -> Iterator[Path]:
+def staged_outputs(
+    parent: PathLike, names: list[str], *, force: bool = False, inputs: Iterable[PathLike] = ()
+) -> Iterator[Path]:
     """Yield a staging folder; on success move ``staging/<name>`` to ``parent/<name>`` for each name.
 
     Raises :class:`OutputError` before anything is written when a target exists and ``force`` is
@@ -358,8 +373,9 @@ def staged_outputs(parent: str | os.PathLike, names: list[str], *, force: bool =
                 finished = True
             except OSError as err:
                 msg = os_error_message(err)
-                raise OutputError(msg.replace(str(staging) + os.sep, str(parent) + os.sep)
-                                  .replace(str(staging), str(parent))) from None
+                raise OutputError(
+                    msg.replace(str(staging) + os.sep, str(parent) + os.sep).replace(str(staging), str(parent))
+                ) from None
         finally:
             if made:
                 if not finished:
@@ -386,7 +402,7 @@ def _replace_all(staging: Path, parent: Path, made: list[str]) -> None:
     journal.write_text(json.dumps(state), encoding="utf-8")
 
 
-def write_replacing(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
+def write_replacing(path: PathLike, write: Callable[[Path], object]) -> Path:
     """Write one file through ``write(tmp)`` into a temporary file beside ``path``, then rename it
     into place: readers see the old file or the new one, never a half-written one."""
     path = Path(path)

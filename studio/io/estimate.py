@@ -16,7 +16,6 @@ pose k is the estimate of vertex k); a vertex count or id that does not match th
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -25,12 +24,13 @@ import numpy as np
 
 from studio.core.errors import EvaluationError, FormatError
 from studio.core.geometry import planar_poses_to_se3
+from studio.core.model import PoseGraph, PoseKind
+from studio.core.trajectory import Trajectory
+from studio.core.types import PathLike
 from studio.io.g2o import G2oDocument, read_g2o
 from studio.io.multig2o import agent_folders
 from studio.io.singleg2o import agent_offsets
 from studio.io.tum import read_tum
-from studio.core.model import PoseGraph, PoseKind
-from studio.core.trajectory import Trajectory
 
 __all__ = ["Estimate", "EstimateLayout", "read_estimate", "estimate_layout"]
 
@@ -139,7 +139,7 @@ def _read_tum_folder(folder: Path, graph: PoseGraph) -> tuple[Trajectory, ...]:
     return tuple(read_tum(path, name=name) for name, path in _tum_files(folder, graph).items())
 
 
-def estimate_layout(path: str | os.PathLike) -> EstimateLayout:
+def estimate_layout(path: PathLike) -> EstimateLayout:
     """Guess the layout from the path: a file is a single g2o; a folder holds agent folders or TUM files."""
     path = Path(path)
     if path.is_file():
@@ -156,7 +156,7 @@ def estimate_layout(path: str | os.PathLike) -> EstimateLayout:
     )
 
 
-def read_estimate(path: str | os.PathLike, graph: PoseGraph) -> Estimate:
+def read_estimate(path: PathLike, graph: PoseGraph) -> Estimate:
     """Read an estimate of ``graph`` (layout guessed by :func:`estimate_layout`), split per agent."""
     path = Path(path)
     layout = estimate_layout(path)

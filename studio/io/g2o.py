@@ -14,26 +14,48 @@ skipped) of at most :data:`MAX_TEXT_BYTES` (1 GiB), checked before reading; the 
 from __future__ import annotations
 
 import io
-import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Iterator
+from typing import IO
 
 import numpy as np
 
 from studio.core.errors import FormatError
-from studio.io.textfmt import TextColumn, float_columns, float_rows, int_column, join_array, literal, row_blocks, write_text
 from studio.core.model import PoseKind
+from studio.core.types import PathLike
+from studio.io.textfmt import (
+    TextColumn,
+    float_columns,
+    float_rows,
+    int_column,
+    join_array,
+    literal,
+    row_blocks,
+    write_text,
+)
 
-__all__ = ["G2oDocument", "write_g2o", "read_g2o", "g2o_text", "g2o_pieces", "SE3_INFO_ZERO_LITERAL", "SE3_POSE_ZERO_LITERAL",
-           "MAX_TEXT_BYTES"]
+__all__ = [
+    "G2oDocument",
+    "write_g2o",
+    "read_g2o",
+    "g2o_text",
+    "g2o_pieces",
+    "SE3_INFO_ZERO_LITERAL",
+    "SE3_POSE_ZERO_LITERAL",
+    "MAX_TEXT_BYTES",
+]
 
 _TAGS = {
     PoseKind.SE2: ("VERTEX_SE2", "EDGE_SE2"),
     PoseKind.SE3: ("VERTEX_SE3:QUAT", "EDGE_SE3:QUAT"),
 }
-_TAG_KIND = {"VERTEX_SE2": PoseKind.SE2, "EDGE_SE2": PoseKind.SE2,
-             "VERTEX_SE3:QUAT": PoseKind.SE3, "EDGE_SE3:QUAT": PoseKind.SE3}
+_TAG_KIND = {
+    "VERTEX_SE2": PoseKind.SE2,
+    "EDGE_SE2": PoseKind.SE2,
+    "VERTEX_SE3:QUAT": PoseKind.SE3,
+    "EDGE_SE3:QUAT": PoseKind.SE3,
+}
 _DIAG6 = set(np.cumsum([0, 6, 5, 4, 3, 2]).tolist())  # positions of diagonal entries in a 6x6 upper triangle
 #: For each of the 21 SE(3) information entries, the text of a positive zero.
 SE3_INFO_ZERO_LITERAL = [None if k in _DIAG6 else "0.0" for k in range(21)]
@@ -71,12 +93,19 @@ def g2o_pieces(doc: G2oDocument) -> Iterator[np.ndarray]:
     :func:`join_array` gives them; each piece is made when it is asked for."""
     vtag, etag = _TAGS[doc.kind]
     for rows in row_blocks(len(doc.vertex_ids)):
-        yield join_array([literal(vtag), int_column(doc.vertex_ids[rows]),
-                          *_pose_texts(doc.vertex_poses[rows], doc.kind)])
+        yield join_array(
+            [literal(vtag), int_column(doc.vertex_ids[rows]), *_pose_texts(doc.vertex_poses[rows], doc.kind)]
+        )
     for rows in row_blocks(len(doc.edge_from)):
-        yield join_array([literal(etag), int_column(doc.edge_from[rows]), int_column(doc.edge_to[rows]),
-                          *_pose_texts(doc.edge_measurements[rows], doc.kind),
-                          *_info_texts(doc.edge_information_upper[rows], doc.kind)])
+        yield join_array(
+            [
+                literal(etag),
+                int_column(doc.edge_from[rows]),
+                int_column(doc.edge_to[rows]),
+                *_pose_texts(doc.edge_measurements[rows], doc.kind),
+                *_info_texts(doc.edge_information_upper[rows], doc.kind),
+            ]
+        )
 
 
 def g2o_text(doc: G2oDocument) -> bytes:
@@ -84,7 +113,7 @@ def g2o_text(doc: G2oDocument) -> bytes:
     return b"".join(piece.tobytes() for piece in g2o_pieces(doc))
 
 
-def write_g2o(target: str | os.PathLike | IO[str], doc: G2oDocument) -> None:
+def write_g2o(target: PathLike | IO[str], doc: G2oDocument) -> None:
     write_text(target, g2o_pieces(doc))
 
 
@@ -93,8 +122,12 @@ def write_g2o(target: str | os.PathLike | IO[str], doc: G2oDocument) -> None:
 #: other commands; it is ten times the largest real input benchmarked (a 1,000,000-pose TUM file).
 MAX_TEXT_BYTES = 1 << 30
 
-_BOMS = ((b"\xff\xfe\x00\x00", "UTF-32"), (b"\x00\x00\xfe\xff", "UTF-32"), (b"\xff\xfe", "UTF-16"),
-         (b"\xfe\xff", "UTF-16"))
+_BOMS = (
+    (b"\xff\xfe\x00\x00", "UTF-32"),
+    (b"\x00\x00\xfe\xff", "UTF-32"),
+    (b"\xff\xfe", "UTF-16"),
+    (b"\xfe\xff", "UTF-16"),
+)
 
 
 def _open_text(source) -> tuple[str, str]:
@@ -147,12 +180,14 @@ def _row_norms(values: np.ndarray) -> np.ndarray:
 
 
 _WIDTH = {  # tokens after the tag
-    "VERTEX_SE2": 4, "EDGE_SE2": 2 + 3 + 6,
-    "VERTEX_SE3:QUAT": 8, "EDGE_SE3:QUAT": 2 + 7 + 21,
+    "VERTEX_SE2": 4,
+    "EDGE_SE2": 2 + 3 + 6,
+    "VERTEX_SE3:QUAT": 8,
+    "EDGE_SE3:QUAT": 2 + 7 + 21,
 }
 
 
-def read_g2o(source: str | os.PathLike | IO[str], *, edges: bool = True) -> G2oDocument:
+def read_g2o(source: PathLike | IO[str], *, edges: bool = True) -> G2oDocument:
     """Parse a g2o file; errors name ``file:line``.
 
     ``edges=False`` skips edge records unparsed (the document then has no edges): reading only the

@@ -11,15 +11,16 @@ instead so that reading gives back every bit.
 from __future__ import annotations
 
 import io
-import os
-from typing import IO, Iterator, Literal
+from collections.abc import Iterator
+from typing import IO, Literal
 
 import numpy as np
 
 from studio.core.errors import FormatError
+from studio.core.model import InterAgentEdges, PoseKind
+from studio.core.types import PathLike
 from studio.io.g2o import SE3_INFO_ZERO_LITERAL, SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
 from studio.io.textfmt import float_columns, float_rows, int_column, join_array, row_blocks, write_text
-from studio.core.model import InterAgentEdges, PoseKind
 
 __all__ = ["write_inter_lc_dat", "read_inter_lc_dat", "inter_lc_text", "Precision"]
 
@@ -36,8 +37,12 @@ def _inter_lc_pieces(inter: InterAgentEdges, precision: Precision) -> Iterator[n
         else:
             meas = float_columns(inter.measurements[rows], [fmt] * 3)
             info = float_rows(inter.information_upper[rows], [fmt] * 6, [None, "0.0", "0.0", None, "0.0", None])
-        ids = [int_column(inter.from_agent[rows] + 1), int_column(inter.from_index[rows]),
-               int_column(inter.to_agent[rows] + 1), int_column(inter.to_index[rows])]
+        ids = [
+            int_column(inter.from_agent[rows] + 1),
+            int_column(inter.from_index[rows]),
+            int_column(inter.to_agent[rows] + 1),
+            int_column(inter.to_index[rows]),
+        ]
         yield join_array([*ids, *meas, *info])
 
 
@@ -46,12 +51,11 @@ def inter_lc_text(inter: InterAgentEdges, precision: Precision = "kollagen") -> 
     return b"".join(piece.tobytes() for piece in _inter_lc_pieces(inter, precision))
 
 
-def write_inter_lc_dat(target: str | os.PathLike | IO[str], inter: InterAgentEdges,
-                       precision: Precision = "kollagen") -> None:
+def write_inter_lc_dat(target: PathLike | IO[str], inter: InterAgentEdges, precision: Precision = "kollagen") -> None:
     write_text(target, _inter_lc_pieces(inter, precision))
 
 
-def read_inter_lc_dat(source: str | os.PathLike | IO[str], kind: PoseKind | None = None) -> InterAgentEdges:
+def read_inter_lc_dat(source: PathLike | IO[str], kind: PoseKind | None = None) -> InterAgentEdges:
     """Parse the file; ``kind`` (if given) is the pose kind the rows must have."""
     text, name = _open_text(source)
     rows, lines = [], []

@@ -32,22 +32,32 @@ from __future__ import annotations
 import json
 import os
 import re
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Literal
+from typing import Literal
 
 import numpy as np
 
 from studio.core.errors import FormatError, GraphError
 from studio.core.geometry import se3_poses_to_planar
+from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
+from studio.core.trajectory import Trajectory
+from studio.core.types import PathLike
+from studio.core.units import NS_PER_S
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.io.inter_lc_dat import Precision, read_inter_lc_dat, write_inter_lc_dat
 from studio.io.tum import read_tum, write_tum
-from studio.core.trajectory import Trajectory
-from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
-from studio.core.units import NS_PER_S
 
-__all__ = ["write_multi_g2o", "multi_g2o_parts", "read_multi_g2o", "agent_g2o_document", "agent_folders", "Records", "FolderNames",
-           "AGENTS_FILE"]
+__all__ = [
+    "write_multi_g2o",
+    "multi_g2o_parts",
+    "read_multi_g2o",
+    "agent_g2o_document",
+    "agent_folders",
+    "Records",
+    "FolderNames",
+    "AGENTS_FILE",
+]
 
 Records = Literal["2d", "3d"]
 FolderNames = Literal["agents", "robots"]
@@ -60,7 +70,9 @@ def _natural_key(name: str):
     return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", name)]
 
 
-def agent_g2o_document(agent: AgentGraph, offset: int = 0, odometry_information: np.ndarray | None = None) -> G2oDocument:
+def agent_g2o_document(
+    agent: AgentGraph, offset: int = 0, odometry_information: np.ndarray | None = None
+) -> G2oDocument:
     """An agent's vertices, odometry and loop closures as g2o records (ids shifted by ``offset``)."""
     odo, lc = agent.odometry, agent.loop_closures
     odo_info = odo.information_upper if odometry_information is None else odometry_information
@@ -75,20 +87,33 @@ def agent_g2o_document(agent: AgentGraph, offset: int = 0, odometry_information:
     )
 
 
-def write_multi_g2o(graph: PoseGraph, folder: str | os.PathLike, *, records: Records = "3d",
-                    precision: Precision = "kollagen", folder_names: FolderNames = "agents",
-                    sources: dict[str, str] | None = None) -> None:
+def write_multi_g2o(
+    graph: PoseGraph,
+    folder: PathLike,
+    *,
+    records: Records = "3d",
+    precision: Precision = "kollagen",
+    folder_names: FolderNames = "agents",
+    sources: dict[str, str] | None = None,
+) -> None:
     """Write ``graph`` into ``folder`` (which must exist). ``records`` picks 2D or 3D g2o records;
     ``folder_names`` names the agent folders ``agent1..agentN`` (``agents.json`` keeps the agents'
     names where they differ, with ``sources``) or after the agents."""
-    for part in multi_g2o_parts(graph, folder, records=records, precision=precision,
-                                folder_names=folder_names, sources=sources):
+    for part in multi_g2o_parts(
+        graph, folder, records=records, precision=precision, folder_names=folder_names, sources=sources
+    ):
         part()
 
 
-def multi_g2o_parts(graph: PoseGraph, folder: str | os.PathLike, *, records: Records = "3d",
-                    precision: Precision = "kollagen", folder_names: FolderNames = "agents",
-                    sources: dict[str, str] | None = None) -> list[Callable[[], None]]:
+def multi_g2o_parts(
+    graph: PoseGraph,
+    folder: PathLike,
+    *,
+    records: Records = "3d",
+    precision: Precision = "kollagen",
+    folder_names: FolderNames = "agents",
+    sources: dict[str, str] | None = None,
+) -> list[Callable[[], None]]:
     """:func:`write_multi_g2o` as independent writes, which may run in any order, in any process that
     has ``graph``: the inter-agent file, each agent's ``posegraph.g2o``, each agent's ground truth,
     then ``agents.json`` (the longer writes first, so that processes sharing them out end together)."""
@@ -105,6 +130,7 @@ def multi_g2o_parts(graph: PoseGraph, folder: str | os.PathLike, *, records: Rec
             sub = folder / dirs[k]
             sub.mkdir(exist_ok=True)  # the agent's other part may come first to it
             write_g2o(sub / "posegraph.g2o", agent_g2o_document(agent.to_se3() if records == "3d" else agent))
+
         return write
 
     def truth_part(k: int) -> Callable[[], None]:
@@ -115,6 +141,7 @@ def multi_g2o_parts(graph: PoseGraph, folder: str | os.PathLike, *, records: Rec
                 sub = folder / dirs[k]
                 sub.mkdir(exist_ok=True)
                 write_tum(sub / f"{dirs[k]}_GT.tum", Trajectory.from_poses(agent.name, agent.stamps_ns, truth))
+
         return write
 
     def inter_part() -> None:
@@ -122,10 +149,13 @@ def multi_g2o_parts(graph: PoseGraph, folder: str | os.PathLike, *, records: Rec
         write_inter_lc_dat(folder / "inter_agent_lc.dat", inter, precision)
 
     def agents_file_part() -> None:
-        entries = [{"folder": d, "name": a.name, **({"source": sources[a.name]} if sources and a.name in sources else {})}
-                   for d, a in zip(dirs, graph.agents)]
-        (folder / AGENTS_FILE).write_text(json.dumps({"format": _AGENTS_FORMAT, "agents": entries}, indent=2) + "\n",
-                                          encoding="utf-8")
+        entries = [
+            {"folder": d, "name": a.name, **({"source": sources[a.name]} if sources and a.name in sources else {})}
+            for d, a in zip(dirs, graph.agents)
+        ]
+        (folder / AGENTS_FILE).write_text(
+            json.dumps({"format": _AGENTS_FORMAT, "agents": entries}, indent=2) + "\n", encoding="utf-8"
+        )
 
     n = len(graph.agents)
     parts = [inter_part] + [graph_part(k) for k in range(n)] + [truth_part(k) for k in range(n)]
@@ -145,17 +175,23 @@ def _read_agents_file(folder: Path) -> list[tuple[str, str]] | None:
         raise FormatError(f"{path}: not a readable agents file ({err})") from None
     entries = data.get("agents") if isinstance(data, dict) else None
     if data.get("format") != _AGENTS_FORMAT or not isinstance(entries, list) or not entries:  # type: ignore[union-attr]
-        raise FormatError(f"{path}: expected {{\"format\": \"{_AGENTS_FORMAT}\", \"agents\": [...]}}")
+        raise FormatError(f'{path}: expected {{"format": "{_AGENTS_FORMAT}", "agents": [...]}}')
     out = []
     for k, e in enumerate(entries):
-        if not (isinstance(e, dict) and isinstance(e.get("folder"), str) and isinstance(e.get("name"), str)
-                and e["name"] and Path(e["folder"]).name == e["folder"] and e["folder"] not in ("", ".", "..")):
+        if not (
+            isinstance(e, dict)
+            and isinstance(e.get("folder"), str)
+            and isinstance(e.get("name"), str)
+            and e["name"]
+            and Path(e["folder"]).name == e["folder"]
+            and e["folder"] not in ("", ".", "..")
+        ):
             raise FormatError(f"{path}: agents[{k}]: expected a plain folder and a non-empty name")
         out.append((e["folder"], e["name"]))
     return out
 
 
-def check_dataset_links(folder: str | os.PathLike) -> None:
+def check_dataset_links(folder: PathLike) -> None:
     """Refuse, naming it, a symbolic link or special file inside a dataset folder (one level of agent
     folders deep) that is dangling, loops, points outside the folder or to anything but a regular
     file or folder (``/dev/zero``, a FIFO): read silently, it would drop or renumber an agent."""
@@ -183,7 +219,7 @@ def check_dataset_links(folder: str | os.PathLike) -> None:
             raise FormatError(f"{p}: not a regular file (a device, FIFO or socket)")
 
 
-def agent_folders(folder: str | os.PathLike) -> list[tuple[str, Path]]:
+def agent_folders(folder: PathLike) -> list[tuple[str, Path]]:
     """``[(agent name, folder), ...]`` of a multi-g2o folder, in agent order (see the module doc)."""
     folder = Path(folder)
     if not folder.is_dir():
@@ -202,7 +238,7 @@ def agent_folders(folder: str | os.PathLike) -> list[tuple[str, Path]]:
     return [(p.name, p) for p in sorted(subs, key=lambda p: _natural_key(p.name))]
 
 
-def read_multi_g2o(folder: str | os.PathLike, *, edges: bool = True) -> PoseGraph:
+def read_multi_g2o(folder: PathLike, *, edges: bool = True) -> PoseGraph:
     """Read a multi-g2o folder (ours or kollagen's) into a :class:`PoseGraph`.
 
     The graph is SE3 when the files hold 3D records (kollagen's default), SE2 for 2D records. A
@@ -232,7 +268,7 @@ def read_multi_g2o(folder: str | os.PathLike, *, edges: bool = True) -> PoseGrap
         chain = (fr == np.arange(len(fr))) & (to == np.arange(len(fr)) + 1)
         n_odo = int(np.argmin(chain)) if not chain.all() else len(fr)
 
-        def edge_slice(sl):
+        def edge_slice(sl, kind=kind, fr=fr, to=to, doc=doc):
             return Edges(kind, fr[sl], to[sl], doc.edge_measurements[sl], doc.edge_information_upper[sl])
 
         gt_path = sub / f"{sub.name}_GT.tum"
@@ -246,9 +282,18 @@ def read_multi_g2o(folder: str | os.PathLike, *, edges: bool = True) -> PoseGrap
             gt3 = traj.poses_xyz_quat_xyzw
             gt = gt3 if kind is PoseKind.SE3 else se3_poses_to_planar(gt3)
         try:
-            agents.append(AgentGraph(name, kind, stamps, initial, gt, edge_slice(slice(0, n_odo)),
-                                     edge_slice(slice(n_odo, None)),
-                                     ground_truth_se3=gt3 if kind is PoseKind.SE2 else None))
+            agents.append(
+                AgentGraph(
+                    name,
+                    kind,
+                    stamps,
+                    initial,
+                    gt,
+                    edge_slice(slice(0, n_odo)),
+                    edge_slice(slice(n_odo, None)),
+                    ground_truth_se3=gt3 if kind is PoseKind.SE2 else None,
+                )
+            )
         except GraphError as err:
             raise FormatError(f"{sub}: {err}") from None
     dat = folder / "inter_agent_lc.dat"

@@ -9,22 +9,21 @@ the concatenated ids as timestamps.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
-from studio.core.geometry import planar_poses_to_se3, relative_planar_pose, se2_information_to_se3
 from studio.core.errors import GraphError
+from studio.core.geometry import planar_poses_to_se3, relative_planar_pose, se2_information_to_se3
+from studio.core.model import AgentGraph, PoseGraph, PoseKind
+from studio.core.trajectory import Trajectory
+from studio.core.types import PathLike
+from studio.core.units import NS_PER_S
 from studio.io.g2o import G2oDocument, write_g2o
 from studio.io.multig2o import Records
 from studio.io.tum import write_tum
-from studio.core.trajectory import Trajectory
-from studio.core.model import AgentGraph, PoseGraph, PoseKind
-from studio.core.units import NS_PER_S
 
 __all__ = ["write_single_g2o", "write_single_tum", "agent_offsets", "connector_measurements"]
-
 
 
 def agent_offsets(graph: PoseGraph) -> np.ndarray:
@@ -43,8 +42,14 @@ def connector_measurements(graph: PoseGraph) -> np.ndarray:
     return np.column_stack([dx, dy, dt])
 
 
-def write_single_g2o(graph: PoseGraph, path: str | os.PathLike, *, records: Records = "2d",
-                     connector_information: np.ndarray, odometry_information=None) -> None:
+def write_single_g2o(
+    graph: PoseGraph,
+    path: PathLike,
+    *,
+    records: Records = "2d",
+    connector_information: np.ndarray,
+    odometry_information=None,
+) -> None:
     """Write the single g2o file. ``graph`` must be planar with ground truth (kollagen's data).
 
     ``odometry_information`` optionally replaces each agent's odometry information (kollagen's exact
@@ -80,12 +85,25 @@ def write_single_g2o(graph: PoseGraph, path: str | os.PathLike, *, records: Reco
     to.append(inter.to_index + offsets[inter.to_agent])
     meas.append(inter.measurements)
     info.append(inter.information_upper)
-    doc = G2oDocument(kind, vid, vposes, np.concatenate(fr).astype(np.int64), np.concatenate(to).astype(np.int64),
-                      np.concatenate(meas), np.concatenate(info))
+    doc = G2oDocument(
+        kind,
+        vid,
+        vposes,
+        np.concatenate(fr).astype(np.int64),
+        np.concatenate(to).astype(np.int64),
+        np.concatenate(meas),
+        np.concatenate(info),
+    )
     if records == "3d":
-        doc = G2oDocument(PoseKind.SE3, doc.vertex_ids, planar_poses_to_se3(doc.vertex_poses), doc.edge_from,
-                          doc.edge_to, planar_poses_to_se3(doc.edge_measurements),
-                          se2_information_to_se3(doc.edge_information_upper))
+        doc = G2oDocument(
+            PoseKind.SE3,
+            doc.vertex_ids,
+            planar_poses_to_se3(doc.vertex_poses),
+            doc.edge_from,
+            doc.edge_to,
+            planar_poses_to_se3(doc.edge_measurements),
+            se2_information_to_se3(doc.edge_information_upper),
+        )
     write_g2o(path, doc)
 
 
@@ -96,7 +114,7 @@ def _se3_poses(agent: AgentGraph, ground_truth: bool) -> np.ndarray:
     return poses
 
 
-def write_single_tum(graph: PoseGraph, path: str | os.PathLike, *, ground_truth: bool) -> None:
+def write_single_tum(graph: PoseGraph, path: PathLike, *, ground_truth: bool) -> None:
     """Concatenated ground truth (or initial estimate), timestamps = concatenated vertex ids."""
     poses = np.concatenate([_se3_poses(a, ground_truth) for a in graph.agents])
     stamps = np.arange(len(poses), dtype=np.int64) * NS_PER_S

@@ -4,12 +4,12 @@ plain mapping with one-line errors naming the file (and line, where the parser g
 from __future__ import annotations
 
 import json
-import os
 import sys
 from pathlib import Path
 from typing import Any
 
 from studio.core.errors import ConfigError
+from studio.core.types import PathLike
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -22,7 +22,7 @@ __all__ = ["read_spec_file", "check_spec_keys"]
 MAX_SPEC_BYTES = 4 * 1024 * 1024
 
 
-def read_spec_file(path: str | os.PathLike, *, what: str = "spec") -> Any:
+def read_spec_file(path: PathLike, *, what: str = "spec") -> Any:
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"{path}: no such {what} file")
@@ -52,5 +52,8 @@ def check_spec_keys(data: Any, known: set[str], source: str, what: str) -> None:
     for key in data:
         if key not in known:
             hint = difflib.get_close_matches(str(key), sorted(known), n=1)
-            raise ConfigError(f"{source}: {key}: unknown key" + (f" (did you mean {hint[0]!r}?)" if hint else "")
-                              + f"; known: {', '.join(sorted(known))}")
+            raise ConfigError(
+                f"{source}: {key}: unknown key"
+                + (f" (did you mean {hint[0]!r}?)" if hint else "")
+                + f"; known: {', '.join(sorted(known))}"
+            )

@@ -20,8 +20,9 @@ from __future__ import annotations
 
 import difflib
 import math
+from collections.abc import Callable
 from dataclasses import fields
-from typing import Any, Callable
+from typing import Any
 
 from studio.core.errors import ConfigError
 from studio.generator.extensions import (
@@ -41,8 +42,12 @@ __all__ = ["parse_studio_block", "studio_block_to_json"]
 
 Fail = Callable[[str, str], ConfigError]
 _TOP = ("version", "walk", "grid3d", "noise", "outliers", "information_frame")
-_MODEL_KEYS = {"gaussian": ("model",), "student_t": ("model", "dof"), "laplace": ("model",),
-               "mixture": ("model", "weights", "scales")}
+_MODEL_KEYS = {
+    "gaussian": ("model",),
+    "student_t": ("model", "dof"),
+    "laplace": ("model",),
+    "mixture": ("model", "weights", "scales"),
+}
 _LIMIT = 1e9
 
 
@@ -57,8 +62,9 @@ def _check_keys(obj: Any, path: str, known: tuple[str, ...], fail: Fail) -> dict
     return obj
 
 
-def _number(obj: dict, key: str, path: str, fail: Fail, default: float, lo: float, hi: float,
-            *, open_lo: bool = False) -> float:
+def _number(
+    obj: dict, key: str, path: str, fail: Fail, default: float, lo: float, hi: float, *, open_lo: bool = False
+) -> float:
     if key not in obj:
         return default
     v = obj[key]
@@ -82,7 +88,7 @@ def _choice(obj: dict, key: str, path: str, fail: Fail, default: str, choices: t
 
 def _noise_model(obj: Any, path: str, fail: Fail) -> NoiseModel:
     if not isinstance(obj, dict):
-        raise fail(path, "must be a JSON object such as {\"model\": \"laplace\"}")
+        raise fail(path, 'must be a JSON object such as {"model": "laplace"}')
     if "model" not in obj:
         raise fail(f"{path}.model", f"missing key (one of {', '.join(NOISE_MODELS)})")
     model = _choice(obj, "model", path, fail, "gaussian", NOISE_MODELS)
@@ -96,9 +102,17 @@ def _noise_model(obj: Any, path: str, fail: Fail) -> NoiseModel:
         lists = []
         for key in ("weights", "scales"):
             v = obj.get(key)
-            if not isinstance(v, list) or not v or any(
-                    isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) or not 0 < x <= _LIMIT
-                    for x in v):
+            if (
+                not isinstance(v, list)
+                or not v
+                or any(
+                    isinstance(x, bool)
+                    or not isinstance(x, (int, float))
+                    or not math.isfinite(x)
+                    or not 0 < x <= _LIMIT
+                    for x in v
+                )
+            ):
                 raise fail(f"{path}.{key}", "must be a non-empty array of positive numbers")
             lists.append(tuple(float(x) for x in v))
         if len(lists[0]) != len(lists[1]):
@@ -118,7 +132,7 @@ def parse_studio_block(obj: Any, *, fail: Fail, exact: bool) -> StudioExtensions
     walk = _choice(obj, "walk", "studio", fail, "kollagen", WALKS)
     g = _check_keys(obj.get("grid3d", {}), "studio.grid3d", tuple(f.name for f in fields(Grid3dConfig)), fail)
     if g and walk != "grid3d":
-        raise fail("studio.grid3d", "applies to walk \"grid3d\" only")
+        raise fail("studio.grid3d", 'applies to walk "grid3d" only')
     d = Grid3dConfig()
     seed_offset = g.get("seed_offset", 0)
     if isinstance(seed_offset, bool) or not isinstance(seed_offset, int) or abs(seed_offset) > 2**31:
@@ -130,8 +144,11 @@ def parse_studio_block(obj: Any, *, fail: Fail, exact: bool) -> StudioExtensions
         seed_offset=seed_offset,
     )
     if walk == "grid3d" and exact:
-        raise fail("exact_information_matrix", "kollagen's Exact information is planar; walk \"grid3d\" writes "
-                   "its own consistent 6x6 information (set it to false)")
+        raise fail(
+            "exact_information_matrix",
+            'kollagen\'s Exact information is planar; walk "grid3d" writes '
+            "its own consistent 6x6 information (set it to false)",
+        )
     n = _check_keys(obj.get("noise", {}), "studio.noise", NOISE_CLASSES, fail)
     noise = tuple((c, _noise_model(n[c], f"studio.noise.{c}", fail)) for c in NOISE_CLASSES if c in n)
     outliers = None
@@ -142,8 +159,9 @@ def parse_studio_block(obj: Any, *, fail: Fail, exact: bool) -> StudioExtensions
         kinds = od.kinds
         if "kinds" in o:
             k = _check_keys(o["kinds"], f"{p}.kinds", OUTLIER_KINDS, fail)
-            kinds = tuple((name, _number(k, name, f"{p}.kinds", fail, 0.0, 0, _LIMIT)) for name in OUTLIER_KINDS
-                          if name in k)
+            kinds = tuple(
+                (name, _number(k, name, f"{p}.kinds", fail, 0.0, 0, _LIMIT)) for name in OUTLIER_KINDS if name in k
+            )
             if not any(w > 0 for _, w in kinds):
                 raise fail(f"{p}.kinds", "needs a positive weight for random or aliasing")
         seed = o.get("seed", 0)
@@ -159,16 +177,22 @@ def parse_studio_block(obj: Any, *, fail: Fail, exact: bool) -> StudioExtensions
         outliers = OutlierConfig(
             intra_fraction=_number(o, "intra_fraction", p, fail, 0.0, 0, 1),
             inter_fraction=_number(o, "inter_fraction", p, fail, 0.0, 0, 1),
-            kinds=kinds, random_radius=rmax, random_min_radius=rmin,
+            kinds=kinds,
+            random_radius=rmax,
+            random_min_radius=rmin,
             aliasing_min_distance=_number(o, "aliasing_min_distance", p, fail, od.aliasing_min_distance, 0, _LIMIT),
-            aliasing_window=window, seed=seed,
+            aliasing_window=window,
+            seed=seed,
         )
     frame = _choice(obj, "information_frame", "studio", fail, "kollagen", INFORMATION_FRAMES)
     if frame == "measurement" and not exact:
-        raise fail("studio.information_frame", "\"measurement\" rotates kollagen's Exact odometry information: "
-                   "it needs \"exact_information_matrix\": true")
-    return StudioExtensions(version=EXTENSIONS_VERSION, walk=walk, grid3d=grid3d, noise=noise, outliers=outliers,
-                            information_frame=frame)
+        raise fail(
+            "studio.information_frame",
+            '"measurement" rotates kollagen\'s Exact odometry information: it needs "exact_information_matrix": true',
+        )
+    return StudioExtensions(
+        version=EXTENSIONS_VERSION, walk=walk, grid3d=grid3d, noise=noise, outliers=outliers, information_frame=frame
+    )
 
 
 def studio_block_to_json(ext: StudioExtensions) -> dict:

@@ -15,16 +15,24 @@ from __future__ import annotations
 import difflib
 import json
 import math
-import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
-from studio.generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
 from studio.core.errors import ConfigError
+from studio.core.types import PathLike
+from studio.generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
 from studio.io.studio_block import studio_block_to_json
 
-__all__ = ["read_synth_config", "parse_synth_config", "synth_config_to_json", "MAX_CONFIG_BYTES", "MAX_MAGNITUDE",
-           "MIN_LENGTH", "MAX_AGENTS"]
+__all__ = [
+    "read_synth_config",
+    "parse_synth_config",
+    "synth_config_to_json",
+    "MAX_CONFIG_BYTES",
+    "MAX_MAGNITUDE",
+    "MIN_LENGTH",
+    "MAX_AGENTS",
+]
 
 #: Larger files are refused before parsing (kollagen configs are a few kB).
 MAX_CONFIG_BYTES = 16 * 1024 * 1024
@@ -37,14 +45,27 @@ MIN_LENGTH = 1e-9
 #: entry is repeated for each, so a huge count would exhaust memory while parsing.
 MAX_AGENTS = 10_000
 
-_TOP = ("number_of_steps", "align", "number_of_agents", "exact_information_matrix", "agent_parameters",
-        "inter_agent_loop_closure_parameters", "studio")
+_TOP = (
+    "number_of_steps",
+    "align",
+    "number_of_agents",
+    "exact_information_matrix",
+    "agent_parameters",
+    "inter_agent_loop_closure_parameters",
+    "studio",
+)
 _AGENT_PARAMS = ("stepsize", "step_fragment", "allow_retrocession", "agent_specific")
 _AGENT = tuple(f.name for f in AgentConfig.__dataclass_fields__.values())
 _INTER = tuple(f.name for f in InterLoopClosureConfig.__dataclass_fields__.values())
 _SEEDS = {"random_number_generator_seed"}
-_STD_DEVS = {"std_dev_position", "std_dev_angle", "std_dev_intra_loop_closure_position",
-             "std_dev_intra_loop_closure_angle", "std_dev_loop_closure_position", "std_dev_loop_closure_angle"}
+_STD_DEVS = {
+    "std_dev_position",
+    "std_dev_angle",
+    "std_dev_intra_loop_closure_position",
+    "std_dev_intra_loop_closure_angle",
+    "std_dev_loop_closure_position",
+    "std_dev_loop_closure_angle",
+}
 _PROBABILITIES = {"same_position_intra_loop_closure_probability", "same_position_loop_closure_probability"}
 _RADII = {"intra_loop_closure_radius", "loop_closure_radius"}
 _INT32 = 2**31 - 1
@@ -141,8 +162,9 @@ def _section(r: _Reader, obj: dict, path: str, names: tuple[str, ...]) -> dict:
             raise r.fail(p, f"must be positive, got {v!r}")
         if name in _RADII and v < MIN_LENGTH:
             raise r.fail(p, f"{v!r} is under the smallest radius, {MIN_LENGTH!r} m")
-        if (name in _STD_DEVS or name in _RADII or name in _PROBABILITIES or name.endswith("probability_scaling")) \
-                and v > MAX_MAGNITUDE:
+        if (
+            name in _STD_DEVS or name in _RADII or name in _PROBABILITIES or name.endswith("probability_scaling")
+        ) and v > MAX_MAGNITUDE:
             raise r.fail(p, f"{v!r} is over the largest value allowed, {MAX_MAGNITUDE!r}")
         if name.startswith("estimated_information") and v < 0:
             raise r.fail(p, f"information cannot be negative, got {v!r}")
@@ -152,8 +174,9 @@ def _section(r: _Reader, obj: dict, path: str, names: tuple[str, ...]) -> dict:
     return out
 
 
-def parse_synth_config(data: Any, *, source: str = "<config>", name: str = "dataset",
-                       warn: Callable[[str], None] | None = None) -> SynthConfig:
+def parse_synth_config(
+    data: Any, *, source: str = "<config>", name: str = "dataset", warn: Callable[[str], None] | None = None
+) -> SynthConfig:
     """Validate a decoded JSON document and build the config."""
     r = _Reader(source, warn)
     top = r.obj(data, "", _TOP)
@@ -208,13 +231,21 @@ def parse_synth_config(data: Any, *, source: str = "<config>", name: str = "data
 
         studio = parse_studio_block(top["studio"], fail=r.fail, exact=exact)
     return SynthConfig(
-        number_of_steps=n_steps, align=align, number_of_agents=n_agents, exact_information_matrix=exact,
-        stepsize=stepsize, step_fragment=frag, allow_retrocession=retro, agents=tuple(agents), inter=inter,
-        name=name, studio=studio,
+        number_of_steps=n_steps,
+        align=align,
+        number_of_agents=n_agents,
+        exact_information_matrix=exact,
+        stepsize=stepsize,
+        step_fragment=frag,
+        allow_retrocession=retro,
+        agents=tuple(agents),
+        inter=inter,
+        name=name,
+        studio=studio,
     )
 
 
-def read_synth_config(path: str | os.PathLike, *, warn: Callable[[str], None] | None = None) -> SynthConfig:
+def read_synth_config(path: PathLike, *, warn: Callable[[str], None] | None = None) -> SynthConfig:
     """Read a kollagen JSON file; the dataset is named after the file's stem (as kollagen does), less a
     ``.config`` suffix, so the effective config ``OUT/<name>.config.json`` written by ``studio synth``
     makes ``<name>`` again."""
@@ -261,6 +292,7 @@ def _parse_int(text: str) -> int:
 
 def synth_config_to_json(cfg: SynthConfig) -> dict:
     """The config as kollagen's JSON document (one ``agent_specific`` entry per agent)."""
+
     def fields(obj) -> dict:
         return {k: getattr(obj, k) for k in obj.__dataclass_fields__}
 

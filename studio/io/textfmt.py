@@ -26,17 +26,31 @@ data) pass ``zero="0.0"``: a positive zero is then written that way.
 
 from __future__ import annotations
 
-import os
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import IO, Iterable, Sequence
+from typing import IO
 
 import numpy as np
 
 from studio.core.repeats import distinct_if_repeated
+from studio.core.types import PathLike
 from studio.io.atomic import start_writeback
 
-__all__ = ["TextColumn", "BLOCK_ROWS", "row_blocks", "literal", "int_column", "digit_matrix", "float_columns", "float_rows", "concat",
-           "join_columns", "join_array", "write_text", "format_float"]
+__all__ = [
+    "TextColumn",
+    "BLOCK_ROWS",
+    "row_blocks",
+    "literal",
+    "int_column",
+    "digit_matrix",
+    "float_columns",
+    "float_rows",
+    "concat",
+    "join_columns",
+    "join_array",
+    "write_text",
+    "format_float",
+]
 
 BLOCK_ROWS = 16384
 """Lines the writers format at a time. A block's text and its intermediates take a few MB, so a
@@ -72,7 +86,7 @@ class TextColumn:
     def __len__(self) -> int:
         return len(self.lengths)
 
-    def take(self, index: np.ndarray) -> "TextColumn":
+    def take(self, index: np.ndarray) -> TextColumn:
         """The texts of rows ``index`` (a column of one row stays one row: it repeats anyway)."""
         if len(self) == 1:
             return self
@@ -260,9 +274,15 @@ def _g17_text(digits: np.ndarray, x: np.ndarray, neg: np.ndarray, ok: np.ndarray
     nd = 1 + ((rows_[1:] != ord("0")) * place).max(axis=0).astype(np.int64)
     cols = np.ascontiguousarray(rows_.T)
     xs, fx = x[order], fixed[order]
-    lengths_s = np.where(xs >= 0, xs + 1 + np.where(nd > xs + 1, nd - xs, 0),  # ddd[.ddd]
-                         np.where(fx, 1 - xs + nd,  # 0.000ddd
-                                  nd + (nd > 1) + 4))  # d[.ddd]e-XX
+    lengths_s = np.where(
+        xs >= 0,
+        xs + 1 + np.where(nd > xs + 1, nd - xs, 0),  # ddd[.ddd]
+        np.where(
+            fx,
+            1 - xs + nd,  # 0.000ddd
+            nd + (nd > 1) + 4,
+        ),
+    )  # d[.ddd]e-XX
     lengths_s = np.where(skey >= 0, lengths_s + (skey & 1), 0)
     chars_s = np.zeros((n, _WIDTH + 1), dtype=np.uint8)
     bounds = np.flatnonzero(np.diff(skey)) + 1
@@ -340,7 +360,9 @@ def format_float(value: float, fmt: str = "%.17g") -> str:
     return float_columns(np.array([[value]]), [fmt])[0].tolist()[0]
 
 
-def float_columns(values: np.ndarray, fmts: Sequence[str], zeros: Sequence[str | None] | None = None) -> list[TextColumn]:
+def float_columns(
+    values: np.ndarray, fmts: Sequence[str], zeros: Sequence[str | None] | None = None
+) -> list[TextColumn]:
     """Each column of ``values`` (``(n, k)``) as text: ``fmts[c]`` is ``"%.17g"`` or ``"%f"``;
     ``zeros[c]``, if given, replaces the text of a positive zero.
 
@@ -509,7 +531,7 @@ def join_columns(columns: Sequence[TextColumn], *, sep: str = " ", end: str = "\
     return join_array(columns, sep=sep, end=end).tobytes()
 
 
-def write_text(target: str | os.PathLike | IO[str], data: bytes | np.ndarray | Iterable[bytes | np.ndarray]) -> None:
+def write_text(target: PathLike | IO[str], data: bytes | np.ndarray | Iterable[bytes | np.ndarray]) -> None:
     """Write ASCII text (:func:`join_columns` or :func:`join_array` output, or pieces, one after the
     other, each made only when the previous one is written) to an open text stream or to a new file."""
     pieces: Iterable[bytes | np.ndarray] = (data,) if isinstance(data, (bytes, np.ndarray)) else data

@@ -15,17 +15,28 @@ import io
 import math
 import os
 import re
+from collections.abc import Iterator
 from pathlib import Path
-from typing import IO, Iterator
+from typing import IO
 
 import numpy as np
 
 from studio.core.errors import FormatError
 from studio.core.trajectory import Trajectory
-from studio.io.g2o import SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
-from studio.io.textfmt import (TextColumn, concat, digit_matrix, float_columns, int_column, join_array, literal,
-                               row_blocks, write_text)
+from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
+from studio.io.g2o import SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
+from studio.io.textfmt import (
+    TextColumn,
+    concat,
+    digit_matrix,
+    float_columns,
+    int_column,
+    join_array,
+    literal,
+    row_blocks,
+    write_text,
+)
 
 __all__ = ["write_tum", "read_tum", "read_tum_rows", "tum_text", "format_stamps"]
 
@@ -57,7 +68,7 @@ def tum_text(traj: Trajectory) -> bytes:
     return b"".join(piece.tobytes() for piece in _tum_pieces(traj))
 
 
-def write_tum(target: str | os.PathLike | IO[str], traj: Trajectory) -> None:
+def write_tum(target: PathLike | IO[str], traj: Trajectory) -> None:
     write_text(target, _tum_pieces(traj))
 
 
@@ -76,7 +87,7 @@ def _stamp_ns(token: str) -> int:
     return int(round(value * NS_PER_S))
 
 
-def read_tum(source: str | os.PathLike | IO[str], *, name: str | None = None) -> Trajectory:
+def read_tum(source: PathLike | IO[str], *, name: str | None = None) -> Trajectory:
     """Parse a TUM file whose stamps increase; errors name ``file:line``.
 
     The trajectory is named ``name``, or after the file (its stem), or ``trajectory`` for a stream.
@@ -87,14 +98,14 @@ def read_tum(source: str | os.PathLike | IO[str], *, name: str | None = None) ->
     return Trajectory.from_poses(name, stamps, poses, where)
 
 
-def read_tum_rows(source: str | os.PathLike | IO[str]) -> tuple[np.ndarray, np.ndarray]:
+def read_tum_rows(source: PathLike | IO[str]) -> tuple[np.ndarray, np.ndarray]:
     """``(stamps_ns, poses)`` of a TUM file in file order, even where the stamps do not increase (the
     caller sorts and de-duplicates them, see :func:`studio.core.trajectory.clean_trajectory`)."""
     stamps, poses, _ = _parse(source, require_increasing=False)
     return stamps, poses
 
 
-def _parse(source: str | os.PathLike | IO[str], *, require_increasing: bool) -> tuple[np.ndarray, np.ndarray, str]:
+def _parse(source: PathLike | IO[str], *, require_increasing: bool) -> tuple[np.ndarray, np.ndarray, str]:
     text, name = _open_text(source)
     fast = _read_tum_fast(text, require_increasing)
     if fast is not None:
@@ -192,8 +203,16 @@ def _read_tum_fast(text: str, require_increasing: bool) -> tuple[np.ndarray, np.
     # pandas 3 parses floats exactly by default (and deprecates the option); pandas 2 needs round_trip
     exact = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
     try:
-        df = pd.read_csv(io.BytesIO(text.encode("utf-8")), sep=sep, header=None, comment="#", skiprows=skip,
-                         dtype={0: str}, engine="c", **exact)
+        df = pd.read_csv(
+            io.BytesIO(text.encode("utf-8")),
+            sep=sep,
+            header=None,
+            comment="#",
+            skiprows=skip,
+            dtype={0: str},
+            engine="c",
+            **exact,
+        )
     except (ValueError, pd.errors.ParserError):
         return None
     if df.shape[1] != 8 or len(df) == 0:

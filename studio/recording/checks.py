@@ -16,9 +16,9 @@ import sys
 from pathlib import Path
 
 from studio.core.errors import FormatError
+from studio.core.types import PathLike
 
 __all__ = ["fingerprint_rrd", "read_fingerprint", "write_fingerprint", "rrd_verify", "rrd_compare"]
-
 
 
 #: Columns that differ between runs by design: row ids are time-based, and the blueprint's rows carry
@@ -43,8 +43,7 @@ def _value_bytes(col) -> list[bytes | None]:
     """Exact text per row: JSON of the Python values (floats print with ``repr``, which round-trips,
     so one ulp changes the text), with the arrow type in front; None for a null row."""
     typ = str(col.type).encode() + b"|"
-    return [None if v is None else typ + json.dumps(v, sort_keys=True, default=repr).encode()
-            for v in col.to_pylist()]
+    return [None if v is None else typ + json.dumps(v, sort_keys=True, default=repr).encode() for v in col.to_pylist()]
 
 
 def _store_digests(chunks, prefix: str) -> dict[str, str]:
@@ -56,9 +55,9 @@ def _store_digests(chunks, prefix: str) -> dict[str, str]:
         index_names = sorted(n for n in names if _is_index(batch.schema.field(n)) and n not in _VOLATILE_COLUMNS)
         index_cols = [batch.column(n) for n in index_names]
         if index_cols:
-            idx = list(zip(*[
-                [(name, v) for v in col.cast("int64").to_pylist()] for name, col in zip(index_names, index_cols)
-            ]))
+            idx = list(
+                zip(*[[(name, v) for v in col.cast("int64").to_pylist()] for name, col in zip(index_names, index_cols)])
+            )
         else:
             idx = [(("static", 0),)] * batch.num_rows
         for n in names:
@@ -84,7 +83,7 @@ def _is_volatile(field) -> bool:
     return _field_kind(field) == "control"
 
 
-def fingerprint_rrd(path: str | os.PathLike) -> dict[str, str]:
+def fingerprint_rrd(path: PathLike) -> dict[str, str]:
     """An exact fingerprint of a recording's content, robust to chunking and row order.
 
     Keys are ``store entity component`` (plus ``store id``); values are SHA-256 digests of that
@@ -103,20 +102,21 @@ def fingerprint_rrd(path: str | os.PathLike) -> dict[str, str]:
             prefix = f"{label}{n}"
             if label == "recording":
                 out[f"{prefix} id"] = hashlib.sha256(
-                    f"{store.application_id}/{store.recording_id}".encode()).hexdigest()
+                    f"{store.application_id}/{store.recording_id}".encode()
+                ).hexdigest()
             else:
                 out[f"{prefix} id"] = hashlib.sha256(store.application_id.encode()).hexdigest()
             out.update(_store_digests(reader.stream(store=store), prefix))
     return out
 
 
-def write_fingerprint(fp: dict[str, str], path: str | os.PathLike) -> None:
+def write_fingerprint(fp: dict[str, str], path: PathLike) -> None:
     """One line per key: ``<sha256>  <key>``, sorted, so a diff names what changed."""
     text = "".join(f"{v}  {k}\n" for k, v in sorted(fp.items()))
     Path(path).write_text(text, encoding="utf-8")
 
 
-def read_fingerprint(path: str | os.PathLike) -> dict[str, str]:
+def read_fingerprint(path: PathLike) -> dict[str, str]:
     out = {}
     for lineno, line in enumerate(Path(path).read_text(encoding="utf-8").splitlines(), start=1):
         if not line.strip():
@@ -135,15 +135,16 @@ def read_fingerprint(path: str | os.PathLike) -> dict[str, str]:
 def _rerun_cli(*args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
     env = dict(os.environ, RERUN_ANALYTICS="0")
     env.setdefault("CI", "true")
-    return subprocess.run([sys.executable, "-m", "rerun", *args], capture_output=True, text=True,
-                          env=env, timeout=timeout, check=False)
+    return subprocess.run(
+        [sys.executable, "-m", "rerun", *args], capture_output=True, text=True, env=env, timeout=timeout, check=False
+    )
 
 
 def _tail(text: str, lines: int = 30, chars: int = 4000) -> str:
     return "\n".join(text.splitlines()[-lines:])[-chars:]
 
 
-def rrd_verify(path: str | os.PathLike) -> None:
+def rrd_verify(path: PathLike) -> None:
     """``rerun rrd verify PATH``; raises :class:`FormatError` (with the tail of Rerun's output) when
     the file does not verify."""
     p = _rerun_cli("rrd", "verify", str(path))
@@ -151,7 +152,7 @@ def rrd_verify(path: str | os.PathLike) -> None:
         raise FormatError(f"{path}: rerun rrd verify failed:\n{_tail(p.stdout + p.stderr)}")
 
 
-def rrd_compare(a: str | os.PathLike, b: str | os.PathLike) -> None:
+def rrd_compare(a: PathLike, b: PathLike) -> None:
     """``rerun rrd compare --unordered A B``; raises :class:`FormatError` (with the tail of Rerun's
     output, which can be huge) when the recordings differ."""
     p = _rerun_cli("rrd", "compare", "--unordered", str(a), str(b))

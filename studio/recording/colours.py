@@ -19,10 +19,26 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
-    "AGENT_PALETTE_RGB", "INITIAL_ALPHA", "INTER_RGB", "INTER_ALPHA", "INTER_FAINT_RGB", "INTER_FAINT_ALPHA",
-    "OUTLIER_COLOUR", "GROUND_TRUTH_GREY", "ERROR_SCALE_RGB", "SOLVE_ESTIMATE_LINE", "SOLVE_ERROR_LOW_RGB",
-    "SOLVE_ERROR_HIGH_RGB", "DARK_BACKGROUND_RGB", "LIGHT_BACKGROUND_RGB", "MIN_CONTRAST_OPAQUE",
-    "MIN_CONTRAST_TRANSLUCENT", "relative_luminance", "contrast_ratio", "drawn_over", "recording_colours",
+    "AGENT_PALETTE_RGB",
+    "INITIAL_ALPHA",
+    "INTER_RGB",
+    "INTER_ALPHA",
+    "INTER_FAINT_RGB",
+    "INTER_FAINT_ALPHA",
+    "OUTLIER_COLOUR",
+    "GROUND_TRUTH_GREY",
+    "ERROR_SCALE_RGB",
+    "SOLVE_ESTIMATE_LINE",
+    "SOLVE_ERROR_LOW_RGB",
+    "SOLVE_ERROR_HIGH_RGB",
+    "DARK_BACKGROUND_RGB",
+    "LIGHT_BACKGROUND_RGB",
+    "MIN_CONTRAST_OPAQUE",
+    "MIN_CONTRAST_TRANSLUCENT",
+    "relative_luminance",
+    "contrast_ratio",
+    "drawn_over",
+    "recording_colours",
 ]
 
 RGB = tuple[int, int, int]
@@ -31,8 +47,16 @@ RGBA = tuple[int, int, int, int]
 #: Agent colours: Tableau 10 with its grey replaced by a gold (grey is the inter-agent closures'),
 #: and its three lightest hues (gold, olive, cyan) darkened to show on the light theme's white.
 AGENT_PALETTE_RGB: tuple[RGB, ...] = (
-    (31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189),
-    (140, 86, 75), (227, 119, 194), (195, 155, 0), (160, 160, 20), (20, 175, 190),
+    (31, 119, 180),
+    (255, 127, 14),
+    (44, 160, 44),
+    (214, 39, 40),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (195, 155, 0),
+    (160, 160, 20),
+    (20, 175, 190),
 )
 #: The initial estimate (dead reckoning): the agent's hue at this alpha (the ground truth is opaque).
 INITIAL_ALPHA = 120

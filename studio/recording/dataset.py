@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,9 +30,10 @@ import numpy as np
 
 from studio.core.errors import FormatError, OutputError
 from studio.core.geometry import is_planar_se3
+from studio.core.interrupts import interrupts_deferred
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
 from studio.core.progress import Progress, report
-from studio.core.interrupts import interrupts_deferred
+from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.recording.colours import (
@@ -187,8 +187,12 @@ def _is_planar(graph: PoseGraph) -> bool:
     """SE2 graphs, and SE3 graphs whose poses all lie in z = 0 and turn about z only."""
     if graph.kind is PoseKind.SE2:
         return True
-    return all(is_planar_se3(poses, tolerance=0.0) for a in graph.agents for poses in (a.initial, a.ground_truth)
-               if poses is not None)
+    return all(
+        is_planar_se3(poses, tolerance=0.0)
+        for a in graph.agents
+        for poses in (a.initial, a.ground_truth)
+        if poses is not None
+    )
 
 
 def pose_kind_of(graph: PoseGraph) -> PoseKind:
@@ -197,8 +201,9 @@ def pose_kind_of(graph: PoseGraph) -> PoseKind:
     return PoseKind.SE2 if _is_planar(graph) else PoseKind.SE3
 
 
-def _edge_keys(a_from: np.ndarray, v_from: np.ndarray, a_to: np.ndarray, v_to: np.ndarray,
-               n_agents: int, n_nodes: int) -> np.ndarray:
+def _edge_keys(
+    a_from: np.ndarray, v_from: np.ndarray, a_to: np.ndarray, v_to: np.ndarray, n_agents: int, n_nodes: int
+) -> np.ndarray:
     """One int64 per edge, the same whichever way round the edge is written."""
     f = a_from.astype(np.int64) * n_nodes + v_from
     t = a_to.astype(np.int64) * n_nodes + v_to
@@ -279,16 +284,19 @@ def log_paths(rec: rr.RecordingStream, agent: AgentGraph, k: int) -> None:
     import rerun as rr
 
     if agent.ground_truth is not None:
-        rec.log(_path(PATH_GROUND_TRUTH, agent),
-                rr.LineStrips3D([agent.ground_truth[:, 0:3]], colors=[agent_colour(k)], radii=_PATH_RADIUS),
-                static=True)
-    rec.log(_path(PATH_INITIAL, agent),
-            rr.LineStrips3D([agent.initial[:, 0:3]], colors=[_initial_colour(k)], radii=_INITIAL_RADIUS),
-            static=True)
+        rec.log(
+            _path(PATH_GROUND_TRUTH, agent),
+            rr.LineStrips3D([agent.ground_truth[:, 0:3]], colors=[agent_colour(k)], radii=_PATH_RADIUS),
+            static=True,
+        )
+    rec.log(
+        _path(PATH_INITIAL, agent),
+        rr.LineStrips3D([agent.initial[:, 0:3]], colors=[_initial_colour(k)], radii=_INITIAL_RADIUS),
+        static=True,
+    )
 
 
-def log_current_pose(rec: rr.RecordingStream, agent: AgentGraph, k: int, real_time: bool,
-                     axis_length: float) -> None:
+def log_current_pose(rec: rr.RecordingStream, agent: AgentGraph, k: int, real_time: bool, axis_length: float) -> None:
     """A marker with axes at the current ground-truth pose and a dot at the current initial estimate."""
     import rerun as rr
 
@@ -303,13 +311,15 @@ def log_current_pose(rec: rr.RecordingStream, agent: AgentGraph, k: int, real_ti
         if axes:
             rec.log(entity, rr.TransformAxes3D(axis_length), static=True)
         rec.send_columns(
-            entity, index,
+            entity,
+            index,
             rr.Transform3D.columns(translation=poses[:, 0:3], quaternion=poses[:, 3:7]),
         )
 
 
-def _send_segments(rec: rr.RecordingStream, entity: str, segments: np.ndarray, nodes: np.ndarray,
-                   stamps_ns: np.ndarray | None) -> None:
+def _send_segments(
+    rec: rr.RecordingStream, entity: str, segments: np.ndarray, nodes: np.ndarray, stamps_ns: np.ndarray | None
+) -> None:
     """Time-indexed segments, one per row, in chunks of :data:`STRIP_CHUNK_ROWS` rows."""
     import rerun as rr
 
@@ -321,8 +331,9 @@ def _send_segments(rec: rr.RecordingStream, entity: str, segments: np.ndarray, n
         rec.send_columns(entity, index, rr.LineStrips3D.columns(strips=segments[sl]))
 
 
-def log_intra_loop_closures(rec: rr.RecordingStream, agent: AgentGraph, k: int, real_time: bool,
-                            outlier: np.ndarray | None = None) -> None:
+def log_intra_loop_closures(
+    rec: rr.RecordingStream, agent: AgentGraph, k: int, real_time: bool, outlier: np.ndarray | None = None
+) -> None:
     """Intra-agent loop closures (inliers: ``outlier`` marks the others) as segments on the reference
     poses, at the later of their two nodes."""
     import rerun as rr
@@ -356,8 +367,9 @@ def _global_rows(graph: PoseGraph) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return ref_all, stamps_all, offsets
 
 
-def log_inter_loop_closures(rec: rr.RecordingStream, graph: PoseGraph, real_time: bool,
-                            outlier: np.ndarray | None = None) -> None:
+def log_inter_loop_closures(
+    rec: rr.RecordingStream, graph: PoseGraph, real_time: bool, outlier: np.ndarray | None = None
+) -> None:
     """Inter-agent loop closures (inliers), one entity per agent pair so each pair can be hidden, at
     the later of their two nodes; grey, and thin and faint when there are many."""
     import rerun as rr
@@ -384,8 +396,9 @@ def log_inter_loop_closures(rec: rr.RecordingStream, graph: PoseGraph, real_time
         _send_segments(rec, entity, segments, created[order], stamps)
 
 
-def log_outlier_loop_closures(rec: rr.RecordingStream, graph: PoseGraph, real_time: bool,
-                              intra: list[np.ndarray], inter: np.ndarray) -> None:
+def log_outlier_loop_closures(
+    rec: rr.RecordingStream, graph: PoseGraph, real_time: bool, intra: list[np.ndarray], inter: np.ndarray
+) -> None:
     """The loop closures ``outliers.txt`` lists, intra- and inter-agent, in magenta in one entity."""
     import rerun as rr
 
@@ -406,8 +419,9 @@ def log_outlier_loop_closures(rec: rr.RecordingStream, graph: PoseGraph, real_ti
     order = np.argsort(c, kind="stable")
     segments = np.stack([ref_all[f[order]], ref_all[t[order]]], axis=1)
     stamps = np.maximum(stamps_all[f], stamps_all[t])[order] if real_time else None
-    rec.log(LOOP_CLOSURES_OUTLIERS, rr.LineStrips3D.from_fields(colors=[OUTLIER_COLOUR], radii=_OUTLIER_RADIUS),
-            static=True)
+    rec.log(
+        LOOP_CLOSURES_OUTLIERS, rr.LineStrips3D.from_fields(colors=[OUTLIER_COLOUR], radii=_OUTLIER_RADIUS), static=True
+    )
     _send_segments(rec, LOOP_CLOSURES_OUTLIERS, segments, c[order], stamps)
 
 
@@ -420,8 +434,9 @@ def log_position_error(rec: rr.RecordingStream, agent: AgentGraph, k: int, real_
     entity = _path(SERIES_POSITION_ERROR, agent)
     error = np.linalg.norm(agent.initial[:, 0:3] - agent.ground_truth[:, 0:3], axis=1)
     rec.log(entity, rr.SeriesLines(colors=[agent_colour(k)], names=[agent.name]), static=True)
-    rec.send_columns(entity, _index_columns(agent, np.arange(agent.num_poses), real_time),
-                     rr.Scalars.columns(scalars=error))
+    rec.send_columns(
+        entity, _index_columns(agent, np.arange(agent.num_poses), real_time), rr.Scalars.columns(scalars=error)
+    )
 
 
 def _count_so_far(created: np.ndarray, n: int) -> np.ndarray:
@@ -437,16 +452,23 @@ def log_loop_closure_counts(rec: rr.RecordingStream, graph: PoseGraph, real_time
         entity = _path(SERIES_LOOP_CLOSURES, agent)
         counts = _count_so_far(np.maximum(lc.from_index, lc.to_index), agent.num_poses)
         rec.log(entity, rr.SeriesLines(colors=[agent_colour(k)], names=[agent.name]), static=True)
-        rec.send_columns(entity, _index_columns(agent, np.arange(agent.num_poses), real_time),
-                         rr.Scalars.columns(scalars=counts))
+        rec.send_columns(
+            entity, _index_columns(agent, np.arange(agent.num_poses), real_time), rr.Scalars.columns(scalars=counts)
+        )
     if len(graph.inter):
         n = max(a.num_poses for a in graph.agents)
         counts = _count_so_far(np.maximum(graph.inter.from_index, graph.inter.to_index), n)
-        rec.log(SERIES_INTER_LOOP_CLOSURES,
-                rr.SeriesLines(colors=[(*INTER_RGB, 255)], names=["inter-agent, all agents"]), static=True)
+        rec.log(
+            SERIES_INTER_LOOP_CLOSURES,
+            rr.SeriesLines(colors=[(*INTER_RGB, 255)], names=["inter-agent, all agents"]),
+            static=True,
+        )
         # The node timeline only: nodes of different agents have different stamps.
-        rec.send_columns(SERIES_INTER_LOOP_CLOSURES, [rr.TimeColumn(TIMELINE_NODE, sequence=np.arange(n))],
-                         rr.Scalars.columns(scalars=counts))
+        rec.send_columns(
+            SERIES_INTER_LOOP_CLOSURES,
+            [rr.TimeColumn(TIMELINE_NODE, sequence=np.arange(n))],
+            rr.Scalars.columns(scalars=counts),
+        )
 
 
 # --------------------------------------------------------------------------------------------------
@@ -458,8 +480,11 @@ def _scene(graph: PoseGraph, real_time: bool) -> _Scene:
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     centre = (lo + hi) / 2.0
     extent = float(max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1.0))
-    errors = [float(np.max(np.linalg.norm(a.initial[:, 0:3] - a.ground_truth[:, 0:3], axis=1)))
-              for a in graph.agents if a.ground_truth is not None]
+    errors = [
+        float(np.max(np.linalg.norm(a.initial[:, 0:3] - a.ground_truth[:, 0:3], axis=1)))
+        for a in graph.agents
+        if a.ground_truth is not None
+    ]
     most_lcs = max([len(a.loop_closures) for a in graph.agents] + [1])
     return _Scene(
         names=tuple(a.name for a in graph.agents),
@@ -495,30 +520,44 @@ def default_blueprint(scene: _Scene) -> rrb.Blueprint:
     ]
     cx, cy, cz = scene.centre_xyz
     if scene.planar:
-        eye = rrb.EyeControls3D(position=(cx, cy, cz + 1.1 * scene.extent_m), look_target=(cx, cy, cz),
-                                eye_up=(0.0, 1.0, 0.0))
+        eye = rrb.EyeControls3D(
+            position=(cx, cy, cz + 1.1 * scene.extent_m), look_target=(cx, cy, cz), eye_up=(0.0, 1.0, 0.0)
+        )
     else:
         d = 0.9 * scene.extent_m
         eye = rrb.EyeControls3D(position=(cx - d, cy - d, cz + d), look_target=(cx, cy, cz), eye_up=(0.0, 0.0, 1.0))
     # Everything up to the cursor: loop closures accumulate (paths are static, and transforms are
     # always resolved at the cursor, so the pose markers do not leave a trail).
-    space = rrb.Spatial3DView(origin=f"/{WORLD}", name="agents", eye_controls=eye, time_ranges=upto_cursor,
-                              line_grid=rrb.LineGrid3D(visible=False))
+    space = rrb.Spatial3DView(
+        origin=f"/{WORLD}",
+        name="agents",
+        eye_controls=eye,
+        time_ranges=upto_cursor,
+        line_grid=rrb.LineGrid3D(visible=False),
+    )
     whole = rr.TimeRange(start=rr.TimeRangeBoundary.infinite(), end=rr.TimeRangeBoundary.infinite())
     # Fixed y ranges: the whole series is visible whatever the cursor (auto-fit follows the view).
-    err = rrb.TimeSeriesView(origin=f"/{METRICS}/position_error", name="initial-estimate position error [m]",
-                             axis_x=rrb.TimeAxis(view_range=whole),
-                             axis_y=rrb.ScalarAxis(range=(0.0, 1.05 * scene.max_position_error_m)))
-    lcs = rrb.TimeSeriesView(origin=f"/{METRICS}/intra_loop_closures", name="intra-agent loop closures so far",
-                             axis_x=rrb.TimeAxis(view_range=whole),
-                             axis_y=rrb.ScalarAxis(range=(0.0, 1.05 * scene.max_loop_closures)))
+    err = rrb.TimeSeriesView(
+        origin=f"/{METRICS}/position_error",
+        name="initial-estimate position error [m]",
+        axis_x=rrb.TimeAxis(view_range=whole),
+        axis_y=rrb.ScalarAxis(range=(0.0, 1.05 * scene.max_position_error_m)),
+    )
+    lcs = rrb.TimeSeriesView(
+        origin=f"/{METRICS}/intra_loop_closures",
+        name="intra-agent loop closures so far",
+        axis_x=rrb.TimeAxis(view_range=whole),
+        axis_y=rrb.ScalarAxis(range=(0.0, 1.05 * scene.max_loop_closures)),
+    )
     parts = [(space, "agents"), (err, "position_error"), (lcs, "loop_closures")]
     plots = [err, lcs]
     if scene.inter:
-        inter = rrb.TimeSeriesView(origin=f"/{METRICS}/inter_loop_closures",
-                                   name="inter-agent loop closures so far (all agents)",
-                                   axis_x=rrb.TimeAxis(view_range=whole),
-                                   axis_y=rrb.ScalarAxis(range=(0.0, 1.05 * scene.max_inter_loop_closures)))
+        inter = rrb.TimeSeriesView(
+            origin=f"/{METRICS}/inter_loop_closures",
+            name="inter-agent loop closures so far (all agents)",
+            axis_x=rrb.TimeAxis(view_range=whole),
+            axis_y=rrb.ScalarAxis(range=(0.0, 1.05 * scene.max_inter_loop_closures)),
+        )
         plots.append(inter)
         parts.append((inter, "inter_loop_closures"))
     series = rrb.Vertical(*plots)
@@ -538,9 +577,15 @@ def default_blueprint(scene: _Scene) -> rrb.Blueprint:
 # Library entry points
 
 
-def record_graph(graph: PoseGraph, path: str | os.PathLike, *, name: str,
-                 config_json: str | None = None, outliers: np.ndarray | None = None,
-                 progress: Progress | None = None) -> RecordResult:
+def record_graph(
+    graph: PoseGraph,
+    path: PathLike,
+    *,
+    name: str,
+    config_json: str | None = None,
+    outliers: np.ndarray | None = None,
+    progress: Progress | None = None,
+) -> RecordResult:
     """Log ``graph`` to a new ``.rrd`` at ``path`` (written in place; see :func:`record_dataset`).
 
     ``outliers``: (k, 4) rows ``agent_from vertex_from agent_to vertex_to`` (0-based) of the loop
@@ -588,7 +633,7 @@ def _sibling_config(dataset: Path) -> str | None:
         raise FormatError(f"{cfg}: not a readable JSON config ({err})") from None
 
 
-def read_outliers(path: str | os.PathLike, graph: PoseGraph) -> np.ndarray:
+def read_outliers(path: PathLike, graph: PoseGraph) -> np.ndarray:
     """``outliers.txt`` as ``studio convert`` writes it: ``agent_from vertex_from agent_to vertex_to``
     per line, agents 1-based, ``#`` comments. Returns (k, 4) int64 rows with 0-based agents."""
     path = Path(path)
@@ -602,8 +647,9 @@ def read_outliers(path: str | os.PathLike, graph: PoseGraph) -> np.ndarray:
             try:
                 a, v, b, w = (int(x) for x in parts)
             except ValueError:
-                raise FormatError(f"{path}:{n}: expected four integers `agent_from vertex_from agent_to "
-                                  f"vertex_to`, got {text[:60]!r}") from None
+                raise FormatError(
+                    f"{path}:{n}: expected four integers `agent_from vertex_from agent_to vertex_to`, got {text[:60]!r}"
+                ) from None
             for agent, vertex in ((a, v), (b, w)):
                 if not 1 <= agent <= len(graph.agents):
                     raise FormatError(f"{path}:{n}: agent {agent} is not in 1..{len(graph.agents)}")
@@ -620,18 +666,23 @@ MAX_COORDINATE_M = 1e12
 def check_extent(graph: PoseGraph, dataset: Path) -> None:
     """Refuse, naming the file and vertex, a pose whose position leaves ±MAX_COORDINATE_M."""
     for a in graph.agents:
-        for what, poses, rel in (("vertex", a.initial, "posegraph.g2o"), ("ground-truth pose", a.ground_truth, "GT.tum")):
+        for what, poses, rel in (
+            ("vertex", a.initial, "posegraph.g2o"),
+            ("ground-truth pose", a.ground_truth, "GT.tum"),
+        ):
             if poses is None or not len(poses):
                 continue
             xyz = np.asarray(poses)[:, : (2 if poses.shape[1] == 3 else 3)]
             bad = np.flatnonzero(~(np.abs(xyz) <= MAX_COORDINATE_M).all(axis=1))
             if len(bad):
-                raise FormatError(f"{dataset}: agent {a.name}: {what} {int(bad[0])} ({rel}) lies beyond "
-                                  f"{MAX_COORDINATE_M:g} m")
+                raise FormatError(
+                    f"{dataset}: agent {a.name}: {what} {int(bad[0])} ({rel}) lies beyond {MAX_COORDINATE_M:g} m"
+                )
 
 
-def record_dataset(dataset: str | os.PathLike, out: str | os.PathLike, *, force: bool = False,
-                   progress: Progress | None = None) -> RecordResult:
+def record_dataset(
+    dataset: PathLike, out: PathLike, *, force: bool = False, progress: Progress | None = None
+) -> RecordResult:
     """Read a multi-g2o folder (ours or kollagen's) and write its recording to ``out`` atomically.
 
     The config beside the dataset (``<dataset>.config.json``, as ``studio synth`` writes it) becomes
@@ -651,6 +702,7 @@ def record_dataset(dataset: str | os.PathLike, out: str | os.PathLike, *, force:
     outliers = read_outliers(dataset / "outliers.txt", graph) if (dataset / "outliers.txt").is_file() else None
     name = dataset.resolve().name
     with staged_outputs(out.parent, [out.name], force=force, inputs=[dataset]) as staging:
-        res = record_graph(graph, staging / out.name, name=name, config_json=config_json, outliers=outliers,
-                           progress=progress)
+        res = record_graph(
+            graph, staging / out.name, name=name, config_json=config_json, outliers=outliers, progress=progress
+        )
     return RecordResult(out, res.recording_id, res.num_poses, res.edge_counts, res.real_time)

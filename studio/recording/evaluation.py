@@ -26,14 +26,15 @@ chunk and row ids (see docs/recordings.md).
 from __future__ import annotations
 
 import hashlib
-import os
 import uuid
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
+from studio.core.types import PathLike
 from studio.recording.colours import ERROR_SCALE_RGB, GROUND_TRUTH_GREY
 from studio.recording.dataset import agent_colour, fixed_id, hash_columns
 from studio.recording.entities import (
@@ -47,8 +48,15 @@ from studio.recording.entities import (
     TIMELINE_TIME,
 )
 
-__all__ = ["ErrorSeries", "METRIC_LABELS", "error_colours", "evaluation_blueprint", "evaluation_recording_id",
-           "log_evaluation", "save_evaluation_recording"]
+__all__ = [
+    "ErrorSeries",
+    "METRIC_LABELS",
+    "error_colours",
+    "evaluation_blueprint",
+    "evaluation_recording_id",
+    "log_evaluation",
+    "save_evaluation_recording",
+]
 
 _BLUEPRINT_NAMESPACE = uuid.UUID("9f0c2f52-8d2e-4b0e-a7f3-3c1e6c1d4b90")
 
@@ -101,8 +109,9 @@ def evaluation_recording_id(summary_markdown: str, series: Sequence[ErrorSeries]
 
 
 def _largest_error(series: Sequence[ErrorSeries]) -> float:
-    values = [float(np.max(s.values["ape_translation_m"])) for s in series
-              if len(s.values.get("ape_translation_m", ())) > 0]
+    values = [
+        float(np.max(s.values["ape_translation_m"])) for s in series if len(s.values.get("ape_translation_m", ())) > 0
+    ]
     return max(values + [0.0])
 
 
@@ -112,10 +121,11 @@ def log_evaluation(rec: Any, summary_markdown: str, series: Sequence[ErrorSeries
     import rerun as rr
 
     largest = _largest_error(series)
-    legend = (f"\n\nIn the 3D view each estimate is coloured by its APE translation: blue 0 m, green, "
-              f"amber, red {largest:.3g} m (the largest). Ground truth: solid grey lines.")
-    rec.log(EVALUATION_SUMMARY, rr.TextDocument(summary_markdown + legend, media_type="text/markdown"),
-            static=True)
+    legend = (
+        f"\n\nIn the 3D view each estimate is coloured by its APE translation: blue 0 m, green, "
+        f"amber, red {largest:.3g} m (the largest). Ground truth: solid grey lines."
+    )
+    rec.log(EVALUATION_SUMMARY, rr.TextDocument(summary_markdown + legend, media_type="text/markdown"), static=True)
     for k, s in enumerate(series):
         part = rr.escape_entity_path_part(s.agent)
         colour = agent_colour(k)
@@ -128,15 +138,20 @@ def log_evaluation(rec: Any, summary_markdown: str, series: Sequence[ErrorSeries
             rec.log(path, rr.SeriesLines(names=s.agent, colors=[colour]), static=True)
             rec.send_columns(path, indexes=indexes, columns=rr.Scalars.columns(scalars=values))
         if s.ground_truth_xyz is not None and len(s.ground_truth_xyz):
-            rec.log(EVALUATION_GROUND_TRUTH.format(agent=part),
-                    rr.LineStrips3D([s.ground_truth_xyz], colors=[GROUND_TRUTH_GREY], radii=-2.0), static=True)
+            rec.log(
+                EVALUATION_GROUND_TRUTH.format(agent=part),
+                rr.LineStrips3D([s.ground_truth_xyz], colors=[GROUND_TRUTH_GREY], radii=-2.0),
+                static=True,
+            )
         if s.estimate_xyz is not None and len(s.estimate_xyz) > 1:
             est = s.estimate_xyz
             err = s.values["ape_translation_m"]
             segments = np.stack([est[:-1], est[1:]], axis=1)
-            rec.log(EVALUATION_ESTIMATE.format(agent=part),
-                    rr.LineStrips3D(segments, colors=error_colours(0.5 * (err[:-1] + err[1:]), largest),
-                                    radii=-1.0), static=True)
+            rec.log(
+                EVALUATION_ESTIMATE.format(agent=part),
+                rr.LineStrips3D(segments, colors=error_colours(0.5 * (err[:-1] + err[1:]), largest), radii=-1.0),
+                static=True,
+            )
 
 
 def _fixed(part: Any, label: str) -> Any:
@@ -157,19 +172,38 @@ def evaluation_blueprint(series: Sequence[ErrorSeries]) -> Any:
         c = (lo + hi) / 2.0
         extent = float(max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1.0))
         if float(hi[2] - lo[2]) < 1e-9:  # planar: from straight above
-            eye = rrb.EyeControls3D(position=(c[0], c[1], c[2] + 1.1 * extent), look_target=tuple(c),
-                                    eye_up=(0.0, 1.0, 0.0))
+            eye = rrb.EyeControls3D(
+                position=(c[0], c[1], c[2] + 1.1 * extent), look_target=tuple(c), eye_up=(0.0, 1.0, 0.0)
+            )
         else:
             d = 0.9 * extent
-            eye = rrb.EyeControls3D(position=(c[0] - d, c[1] - d, c[2] + d), look_target=tuple(c),
-                                    eye_up=(0.0, 0.0, 1.0))
-        views.append(_fixed(rrb.Spatial3DView(origin=f"/{EVALUATION_WORLD}", name="estimate vs ground truth",
-                                              eye_controls=eye, line_grid=rrb.LineGrid3D(visible=False)), "world"))
+            eye = rrb.EyeControls3D(
+                position=(c[0] - d, c[1] - d, c[2] + d), look_target=tuple(c), eye_up=(0.0, 0.0, 1.0)
+            )
+        views.append(
+            _fixed(
+                rrb.Spatial3DView(
+                    origin=f"/{EVALUATION_WORLD}",
+                    name="estimate vs ground truth",
+                    eye_controls=eye,
+                    line_grid=rrb.LineGrid3D(visible=False),
+                ),
+                "world",
+            )
+        )
     whole = rr.TimeRange(start=rr.TimeRangeBoundary.infinite(), end=rr.TimeRangeBoundary.infinite())
     metrics = sorted({m for s in series for m in s.values})
-    plots = [_fixed(rrb.TimeSeriesView(origin="/" + EVALUATION_SERIES.split("{metric}")[0] + m,
-                                       name=METRIC_LABELS.get(m, m), axis_x=rrb.TimeAxis(view_range=whole)),
-                    f"metric/{m}") for m in metrics]
+    plots = [
+        _fixed(
+            rrb.TimeSeriesView(
+                origin="/" + EVALUATION_SERIES.split("{metric}")[0] + m,
+                name=METRIC_LABELS.get(m, m),
+                axis_x=rrb.TimeAxis(view_range=whole),
+            ),
+            f"metric/{m}",
+        )
+        for m in metrics
+    ]
     summary = _fixed(rrb.TextDocumentView(origin=f"/{EVALUATION_SUMMARY}", name="statistics"), "summary")
     right = _fixed(rrb.Vertical(*plots, summary), "right")
     root = _fixed(rrb.Horizontal(*views, right, column_shares=[3, 2] if views else None), "root")
@@ -182,8 +216,9 @@ def evaluation_blueprint(series: Sequence[ErrorSeries]) -> Any:
     )
 
 
-def save_evaluation_recording(path: str | os.PathLike, summary_markdown: str, series: Sequence[ErrorSeries],
-                              *, recording_id: str | None = None) -> Path:
+def save_evaluation_recording(
+    path: PathLike, summary_markdown: str, series: Sequence[ErrorSeries], *, recording_id: str | None = None
+) -> Path:
     """Write a new ``.rrd`` holding only the evaluation, with its layout. The recording id is
     :func:`evaluation_recording_id` unless ``recording_id`` is given: pass the dataset recording's
     id to have the viewer merge both files into one recording."""

@@ -10,15 +10,16 @@ is logged (``log_time`` is off), so the same run gives the same fingerprint.
 from __future__ import annotations
 
 import hashlib
-import os
 import uuid
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from studio.core.geometry import planar_poses_to_se3
 from studio.core.model import PoseGraph, PoseKind
+from studio.core.types import PathLike
 from studio.recording.colours import GROUND_TRUTH_GREY, SOLVE_ERROR_HIGH_RGB, SOLVE_ERROR_LOW_RGB, SOLVE_ESTIMATE_LINE
 from studio.recording.entities import (
     APPLICATION_ID,
@@ -42,14 +43,16 @@ def _error_colours(err: np.ndarray, scale: float) -> np.ndarray:
     return (green + t * (red - green)).astype(np.uint8)
 
 
-def solve_recording_id(offsets: np.ndarray, kind: PoseKind, iterates: Sequence[tuple[int, np.ndarray]],
-                       chi2_history: Sequence[float]) -> str:
+def solve_recording_id(
+    offsets: np.ndarray, kind: PoseKind, iterates: Sequence[tuple[int, np.ndarray]], chi2_history: Sequence[float]
+) -> str:
     """A UUID derived from the run's columns (for a graph without a dataset recording to join)."""
     from studio.recording.dataset import hash_columns
 
     h = hashlib.sha256(f"cslam-studio solve {kind.value}".encode())
-    hash_columns(h, np.asarray(offsets, dtype=np.int64), np.asarray(chi2_history, dtype=np.float64),
-                 *(p for _, p in iterates))
+    hash_columns(
+        h, np.asarray(offsets, dtype=np.int64), np.asarray(chi2_history, dtype=np.float64), *(p for _, p in iterates)
+    )
     h.update(repr([k for k, _ in iterates]).encode())
     return str(uuid.uuid5(_NAMESPACE, h.hexdigest()))
 
@@ -63,21 +66,33 @@ def solve_blueprint(names: Sequence[str]) -> Any:
         return fixed_id(part, _NAMESPACE, f"blueprint/{label}")
 
     return rrb.Blueprint(
-        fixed(rrb.Horizontal(
-            fixed(rrb.Spatial3DView(name="estimate vs ground truth", origin=SOLVE), "space"),
-            fixed(rrb.Vertical(
-                fixed(rrb.TimeSeriesView(name="chi2 (g2o convention)", origin=SOLVE_CHI2), "chi2"),
-                fixed(rrb.TimeSeriesView(name="mean position error [m]", origin=SOLVE_ERROR), "error"),
-            ), "plots"),
-            column_shares=[3, 1],
-        ), "root"),
+        fixed(
+            rrb.Horizontal(
+                fixed(rrb.Spatial3DView(name="estimate vs ground truth", origin=SOLVE), "space"),
+                fixed(
+                    rrb.Vertical(
+                        fixed(rrb.TimeSeriesView(name="chi2 (g2o convention)", origin=SOLVE_CHI2), "chi2"),
+                        fixed(rrb.TimeSeriesView(name="mean position error [m]", origin=SOLVE_ERROR), "error"),
+                    ),
+                    "plots",
+                ),
+                column_shares=[3, 1],
+            ),
+            "root",
+        ),
         rrb.TimePanel(timeline=TIMELINE_ITERATION),
         collapse_panels=True,
     )
 
 
-def log_solve(rec: Any, graph: PoseGraph | None, offsets: np.ndarray, kind: PoseKind,
-              iterates: Sequence[tuple[int, np.ndarray]], chi2_history: Sequence[float]) -> None:
+def log_solve(
+    rec: Any,
+    graph: PoseGraph | None,
+    offsets: np.ndarray,
+    kind: PoseKind,
+    iterates: Sequence[tuple[int, np.ndarray]],
+    chi2_history: Sequence[float],
+) -> None:
     """Log the iterates (global-id poses, ``kind`` rows) split per agent by ``offsets``."""
     import rerun as rr
 
@@ -87,10 +102,12 @@ def log_solve(rec: Any, graph: PoseGraph | None, offsets: np.ndarray, kind: Pose
     if graph is not None and all(a.ground_truth is not None for a in graph.agents):
         g3 = graph.to_se3()
         truth = np.concatenate([a.ground_truth for a in g3.agents])  # type: ignore[misc]
-        for j, a in enumerate(g3.agents):
-            rec.log(SOLVE_GROUND_TRUTH.format(agent=rr.escape_entity_path_part(a.name)),
-                    rr.LineStrips3D([a.ground_truth[:, 0:3]], colors=[GROUND_TRUTH_GREY], radii=-1.0),  # type: ignore[index]
-                    static=True)
+        for a in g3.agents:
+            rec.log(
+                SOLVE_GROUND_TRUTH.format(agent=rr.escape_entity_path_part(a.name)),
+                rr.LineStrips3D([a.ground_truth[:, 0:3]], colors=[GROUND_TRUTH_GREY], radii=-1.0),  # type: ignore[index]
+                static=True,
+            )
     scale = 1.0
     if truth is not None and lifted:
         scale = float(np.percentile(np.linalg.norm(lifted[0][1][:, 0:3] - truth[:, 0:3], axis=1), 95))
@@ -104,17 +121,28 @@ def log_solve(rec: Any, graph: PoseGraph | None, offsets: np.ndarray, kind: Pose
             pts = poses[lo:hi, 0:3]
             colours = None if err is None else _error_colours(err[lo:hi], scale)
             path = SOLVE_ESTIMATE.format(agent=rr.escape_entity_path_part(name))
-            rec.log(path, rr.Points3D(pts, colors=colours, radii=-2.0),
-                    rr.LineStrips3D([pts], colors=[SOLVE_ESTIMATE_LINE], radii=-0.75))
+            rec.log(
+                path,
+                rr.Points3D(pts, colors=colours, radii=-2.0),
+                rr.LineStrips3D([pts], colors=[SOLVE_ESTIMATE_LINE], radii=-0.75),
+            )
         if k < len(chi2_history):
             rec.log(SOLVE_CHI2, rr.Scalars(chi2_history[k]))
         if err is not None:
             rec.log(SOLVE_ERROR, rr.Scalars(float(err.mean())))
 
 
-def write_solve_recording(path: str | os.PathLike, graph: PoseGraph | None, offsets: np.ndarray, kind: PoseKind,
-                          iterates: Sequence[tuple[int, np.ndarray]], chi2_history: Sequence[float], *,
-                          name: str, force: bool = False) -> Path:
+def write_solve_recording(
+    path: PathLike,
+    graph: PoseGraph | None,
+    offsets: np.ndarray,
+    kind: PoseKind,
+    iterates: Sequence[tuple[int, np.ndarray]],
+    chi2_history: Sequence[float],
+    *,
+    name: str,
+    force: bool = False,
+) -> Path:
     """Write the run to a new ``.rrd`` (staged, renamed into place)."""
     import rerun as rr
 

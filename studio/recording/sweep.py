@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from studio.core.types import PathLike
 from studio.recording.entities import APPLICATION_ID, SWEEP_SERIES, SWEEP_TABLE, TIMELINE_CELL
 
 __all__ = ["log_sweep", "write_sweep_recording"]
@@ -28,7 +29,7 @@ def log_sweep(rec: Any, table: Any) -> None:
         rec.send_columns(path, indexes=index, columns=rr.Scalars.columns(scalars=values))
 
 
-def write_sweep_recording(path: str | os.PathLike, name: str, table: Any) -> Path:
+def write_sweep_recording(path: PathLike, name: str, table: Any) -> Path:
     import rerun as rr
 
     path = Path(path)

@@ -21,11 +21,21 @@ from pathlib import Path
 
 from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.progress import Progress, report
+from studio.core.types import PathLike
 from studio.recording.colours import LIGHT_BACKGROUND_RGB
 from studio.recording.entities import TIMELINE_CELL, TIMELINE_ITERATION, TIMELINE_NODE
 
-__all__ = ["SnapshotResult", "THEMES", "has_display", "rerun_executable", "vulkan_drivers", "snapshot", "view_command",
-           "view_web_command", "web_viewer_address"]
+__all__ = [
+    "SnapshotResult",
+    "THEMES",
+    "has_display",
+    "rerun_executable",
+    "vulkan_drivers",
+    "snapshot",
+    "view_command",
+    "view_web_command",
+    "web_viewer_address",
+]
 
 #: Where the Vulkan loader looks for installed drivers (ICD manifests).
 _ICD_GLOBS = ("/usr/share/vulkan/icd.d/*.json", "/etc/vulkan/icd.d/*.json", "/usr/local/share/vulkan/icd.d/*.json")
@@ -96,12 +106,14 @@ def has_display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
-def view_command(rrd: str | os.PathLike) -> list[str]:
+def view_command(rrd: PathLike) -> list[str]:
     """The command that opens ``rrd`` in the native viewer (refused without a display)."""
     path = _check_rrd(Path(rrd))
     if not has_display():
-        raise ConfigError(f"{rrd}: no display (DISPLAY and WAYLAND_DISPLAY are unset): use "
-                          f"`studio view {rrd} --web` for the web viewer, or `studio snapshot {rrd} -o FILE.png`")
+        raise ConfigError(
+            f"{rrd}: no display (DISPLAY and WAYLAND_DISPLAY are unset): use "
+            f"`studio view {rrd} --web` for the web viewer, or `studio snapshot {rrd} -o FILE.png`"
+        )
     return [rerun_executable(), "--bind", "127.0.0.1", str(path)]
 
 
@@ -114,12 +126,21 @@ def web_viewer_address(port: int) -> str:
     return f"http://127.0.0.1:{port}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{GRPC_PORT}%2Fproxy"
 
 
-def view_web_command(rrd: str | os.PathLike, *, port: int = 9090) -> list[str]:
+def view_web_command(rrd: PathLike, *, port: int = 9090) -> list[str]:
     """The command that serves ``rrd`` with the web viewer on 127.0.0.1 only."""
     if not 0 < port < 65536:
         raise ConfigError(f"--port {port}: not a TCP port")
-    return [rerun_executable(), "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(port),
-            "--port", str(GRPC_PORT), str(_check_rrd(Path(rrd)))]
+    return [
+        rerun_executable(),
+        "--serve-web",
+        "--bind",
+        "127.0.0.1",
+        "--web-viewer-port",
+        str(port),
+        "--port",
+        str(GRPC_PORT),
+        str(_check_rrd(Path(rrd))),
+    ]
 
 
 def run_viewer(command: list[str]) -> int:
@@ -140,9 +161,18 @@ def _parse_size(window_size: str) -> str:
     return f"{int(w)}x{int(h)}"
 
 
-def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None = None,
-             window_size: str = "1400x900", timeout_s: float = 60.0, settle_s: float = 3.0,
-             progress: Progress | None = None, force: bool = False, theme: str = "dark") -> SnapshotResult:
+def snapshot(
+    rrd: PathLike,
+    png: PathLike,
+    *,
+    node: int | None = None,
+    window_size: str = "1400x900",
+    timeout_s: float = 60.0,
+    settle_s: float = 3.0,
+    progress: Progress | None = None,
+    force: bool = False,
+    theme: str = "dark",
+) -> SnapshotResult:
     """Render ``rrd`` to ``png`` with the cursor at ``node`` (default: the last node), no display needed.
 
     ``theme="light"`` gives every view the light theme's background (Rerun's ``viewport_background``
@@ -154,7 +184,6 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
     picture is written atomically (a partial file is never left at ``png``). ``progress`` hears of
     the four stages: viewer started, recording loaded, cursor moved, picture saved.
     """
-    from rerun.experimental import ViewerClient
 
     rrd = _check_rrd(Path(rrd))
     png = Path(png)
@@ -174,8 +203,17 @@ def snapshot(rrd: str | os.PathLike, png: str | os.PathLike, *, node: int | None
     from studio.io.atomic import staged_outputs
 
     with staged_outputs(png.parent, [png.name], force=force, inputs=[rrd]) as staging:
-        return _snapshot_into(rrd, png, staging / png.name, node=node, size=size,
-                              timeout_s=timeout_s, settle_s=settle_s, progress=progress, theme=theme)
+        return _snapshot_into(
+            rrd,
+            png,
+            staging / png.name,
+            node=node,
+            size=size,
+            timeout_s=timeout_s,
+            settle_s=settle_s,
+            progress=progress,
+            theme=theme,
+        )
 
 
 def _light_backgrounds(client) -> None:
@@ -191,19 +229,37 @@ def _light_backgrounds(client) -> None:
     client.set_blueprint(blueprint, of="recording")
 
 
-def _snapshot_into(rrd: Path, png: Path, tmp: Path, *, node: int | None, size: str, timeout_s: float,
-                   settle_s: float, progress: Progress | None, theme: str = "dark") -> SnapshotResult:
+def _snapshot_into(
+    rrd: Path,
+    png: Path,
+    tmp: Path,
+    *,
+    node: int | None,
+    size: str,
+    timeout_s: float,
+    settle_s: float,
+    progress: Progress | None,
+    theme: str = "dark",
+) -> SnapshotResult:
     from rerun.experimental import ViewerClient
 
     step = "snapshot"
     report(progress, step, 0, 4, "stages")
     port = _free_port()
-    cmd = [rerun_executable(), "--headless", "--hide-welcome-screen", "--bind", "127.0.0.1", "--port", str(port),
-           "--window-size", size]
+    cmd = [
+        rerun_executable(),
+        "--headless",
+        "--hide-welcome-screen",
+        "--bind",
+        "127.0.0.1",
+        "--port",
+        str(port),
+        "--window-size",
+        size,
+    ]
     log = tempfile.TemporaryFile(mode="w+", encoding="utf-8", errors="replace")  # never a full pipe
     # its own process group: the viewer starts helper processes that must end with it
-    proc = subprocess.Popen(cmd, env=_env(), stdin=subprocess.DEVNULL, stdout=log, stderr=log,
-                            start_new_session=True)
+    proc = subprocess.Popen(cmd, env=_env(), stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True)
     try:
         client = _connect(ViewerClient, proc, log, port, timeout_s)
         report(progress, step, 1, 4, "stages")

@@ -25,15 +25,23 @@ __all__ = ["solve_command"]
 def solve_command(problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution:
     template = options.command.strip()
     if not template:
-        raise ConfigError("command: method command needs the program to run, e.g. "
-                          "command = 'se-sync {input} {output}'")
+        raise ConfigError("command: method command needs the program to run, e.g. command = 'se-sync {input} {output}'")
     if "{input}" not in template or "{output}" not in template:
         raise ConfigError(f"command: {template!r} must contain {{input}} and {{output}}")
     with tempfile.TemporaryDirectory(prefix="studio-solve-") as tmp:
         src, dst = Path(tmp) / "problem.g2o", Path(tmp) / "solution.g2o"
-        write_g2o(src, G2oDocument(problem.kind, np.arange(problem.num_vertices), problem.initial,
-                                   problem.edge_from, problem.edge_to, problem.measurements,
-                                   problem.information_upper))
+        write_g2o(
+            src,
+            G2oDocument(
+                problem.kind,
+                np.arange(problem.num_vertices),
+                problem.initial,
+                problem.edge_from,
+                problem.edge_to,
+                problem.measurements,
+                problem.information_upper,
+            ),
+        )
         argv = [part.replace("{input}", str(src)).replace("{output}", str(dst)) for part in shlex.split(template)]
         try:
             proc = subprocess.run(argv, capture_output=True, text=True, check=False)
@@ -55,5 +63,6 @@ def solve_command(problem: Problem, options: SolveOptions, on_iteration: Iterati
     if on_iteration is not None:
         on_iteration(0, problem.initial)
         on_iteration(1, poses)
-    return Solution(poses, 1, (graph_chi2(problem, problem.initial), graph_chi2(problem, poses)),
-                    notes={"command": template})
+    return Solution(
+        poses, 1, (graph_chi2(problem, problem.initial), graph_chi2(problem, poses)), notes={"command": template}
+    )

@@ -50,13 +50,24 @@ def solve_g2o(problem: Problem, options: SolveOptions, on_iteration: Iteration |
     # g2o's own reader builds the graph far faster than one Python call per vertex and edge
     with tempfile.TemporaryDirectory(prefix="studio-g2o-") as tmp:
         path = Path(tmp) / "problem.g2o"
-        write_g2o(path, G2oDocument(kind, np.arange(n), problem.initial, problem.edge_from, problem.edge_to,
-                                    problem.measurements, problem.information_upper))
+        write_g2o(
+            path,
+            G2oDocument(
+                kind,
+                np.arange(n),
+                problem.initial,
+                problem.edge_from,
+                problem.edge_to,
+                problem.measurements,
+                problem.information_upper,
+            ),
+        )
         if not opt.load(str(path)):
             raise FormatError("g2o could not load the problem it was given")
     if len(opt.vertices()) != n or len(opt.edges()) != problem.num_edges:
-        raise FormatError(f"g2o loaded {len(opt.vertices())} vertices and {len(opt.edges())} edges "
-                          f"of {n} and {problem.num_edges}")
+        raise FormatError(
+            f"g2o loaded {len(opt.vertices())} vertices and {len(opt.edges())} edges of {n} and {problem.num_edges}"
+        )
     opt.vertex(problem.anchor).set_fixed(True)
     opt.initialize_optimization()
     if options.init == "spanning-tree" or options.init == "chordal":

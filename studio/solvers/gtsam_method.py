@@ -47,8 +47,10 @@ def _pose(gtsam: Any, kind: PoseKind, row: np.ndarray) -> Any:
     if kind is PoseKind.SE2:
         return gtsam.Pose2(float(row[0]), float(row[1]), float(row[2]))
     q = row[3:7]
-    return gtsam.Pose3(gtsam.Rot3.Quaternion(float(q[3]), float(q[0]), float(q[1]), float(q[2])),
-                       gtsam.Point3(float(row[0]), float(row[1]), float(row[2])))
+    return gtsam.Pose3(
+        gtsam.Rot3.Quaternion(float(q[3]), float(q[0]), float(q[1]), float(q[2])),
+        gtsam.Point3(float(row[0]), float(row[1]), float(row[2])),
+    )
 
 
 def _values(gtsam: Any, kind: PoseKind, poses: np.ndarray) -> Any:
@@ -84,8 +86,9 @@ def _graph(gtsam: Any, problem: Problem) -> tuple[Any, int]:
     for k in range(problem.num_edges):
         graph.add(factor(fr[k], to[k], _pose(gtsam, kind, z[k]), gaussian(omega[k])))
     prior = gtsam.PriorFactorPose2 if kind is PoseKind.SE2 else gtsam.PriorFactorPose3
-    graph.add(prior(problem.anchor, _pose(gtsam, kind, problem.initial[problem.anchor]),
-                    gtsam.noiseModel.Constrained.All(d)))
+    graph.add(
+        prior(problem.anchor, _pose(gtsam, kind, problem.initial[problem.anchor]), gtsam.noiseModel.Constrained.All(d))
+    )
     return graph, problem.num_edges
 
 
@@ -130,8 +133,9 @@ def _reanchor(problem: Problem, poses: np.ndarray) -> np.ndarray:
     else:
         dq = np.repeat(quat_mul(target[None, 3:7], quat_conj(a[None, 3:7])), len(poses), axis=0)
         q = quat_mul(dq, poses[:, 3:7])
-        out = np.column_stack([quat_rotate(dq, poses[:, 0:3] - a[0:3]) + target[0:3],
-                               q / np.linalg.norm(q, axis=1, keepdims=True)])
+        out = np.column_stack(
+            [quat_rotate(dq, poses[:, 0:3] - a[0:3]) + target[0:3], q / np.linalg.norm(q, axis=1, keepdims=True)]
+        )
     out[problem.anchor] = target
     return out
 
@@ -170,9 +174,17 @@ def solve_gtsam(problem: Problem, options: SolveOptions, on_iteration: Iteration
         if abs(error - new_error) <= options.relative_tolerance * max(error, 1e-300) or new_error > error:
             break
         error = new_error
-    return Solution(poses, iterations, tuple(history),
-                    notes={"build_s": t_build, "init_s": t_init, "init": options.init,
-                           "optimizer": options.optimizer + (" then lm (a gn step raised the cost)" if switched else "")})
+    return Solution(
+        poses,
+        iterations,
+        tuple(history),
+        notes={
+            "build_s": t_build,
+            "init_s": t_init,
+            "init": options.init,
+            "optimizer": options.optimizer + (" then lm (a gn step raised the cost)" if switched else ""),
+        },
+    )
 
 
 def solve_gnc(problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution:
@@ -199,5 +211,10 @@ def solve_gnc(problem: Problem, options: SolveOptions, on_iteration: Iteration |
     poses = _reanchor(problem, _poses(gtsam, problem.kind, refine.optimize()))
     if on_iteration is not None:
         on_iteration(1, poses)
-    return Solution(poses, 1, (graph_chi2(problem, guess), graph_chi2(problem, poses)), rejected,
-                    notes={"init": options.init, "rejected": int(rejected.sum())})
+    return Solution(
+        poses,
+        1,
+        (graph_chi2(problem, guess), graph_chi2(problem, poses)),
+        rejected,
+        notes={"init": options.init, "rejected": int(rejected.sum())},
+    )

@@ -58,8 +58,9 @@ def chordal_se2(problem: Problem) -> np.ndarray:
     ci, si = np.cos(theta[fr]), np.sin(theta[fr])
     bx = wt * (ci * z[:, 0] - si * z[:, 1])
     by = wt * (si * z[:, 0] + ci * z[:, 1])
-    bmat = sp.csr_matrix((np.concatenate([wt, -wt]), (np.concatenate([rows, rows]), np.concatenate([to, fr]))),
-                         shape=(m, n))
+    bmat = sp.csr_matrix(
+        (np.concatenate([wt, -wt]), (np.concatenate([rows, rows]), np.concatenate([to, fr]))), shape=(m, n)
+    )
     others = np.setdiff1d(np.arange(n), [anchor])
     col = bmat[:, [anchor]].toarray().ravel()
     reduced = bmat[:, others]
@@ -81,8 +82,9 @@ def _compose(kind: PoseKind, parent: np.ndarray, z: np.ndarray, forward: np.ndar
         zx = np.where(forward, z[:, 0], -(cz * z[:, 0] + sz * z[:, 1]))
         zy = np.where(forward, z[:, 1], -(-sz * z[:, 0] + cz * z[:, 1]))
         c, s = np.cos(parent[:, 2]), np.sin(parent[:, 2])
-        return np.column_stack([parent[:, 0] + c * zx - s * zy, parent[:, 1] + s * zx + c * zy,
-                                normalize_angle(parent[:, 2] + th)])
+        return np.column_stack(
+            [parent[:, 0] + c * zx - s * zy, parent[:, 1] + s * zx + c * zy, normalize_angle(parent[:, 2] + th)]
+        )
     qz = np.where(forward[:, None], z[:, 3:7], quat_conj(z[:, 3:7]))
     tz = np.where(forward[:, None], z[:, 0:3], -quat_rotate(quat_conj(z[:, 3:7]), z[:, 0:3]))
     q = quat_mul(parent[:, 3:7], qz)

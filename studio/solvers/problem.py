@@ -3,8 +3,9 @@ columns, and the optimized poses with their history."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, Literal, Protocol
+from typing import Literal, Protocol
 
 import numpy as np
 
@@ -76,8 +77,7 @@ class Solution:
 class Method(Protocol):
     """An optimizer back-end: solve ``problem``; call ``on_iteration`` with each iterate if given."""
 
-    def __call__(self, problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution:
-        ...
+    def __call__(self, problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution: ...
 
 
 def graph_chi2(problem: Problem, poses: np.ndarray) -> float:

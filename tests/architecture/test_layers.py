@@ -78,8 +78,7 @@ def _imports(path: Path, module: str) -> list[tuple[int, str]]:
             else:
                 name = node.module or ""
             found.append((node.lineno, name))
-    return [(line, name) for line, name in found
-            if name.split(".")[0] in ("studio", "generator", "converters")]
+    return [(line, name) for line, name in found if name.split(".")[0] in ("studio", "generator", "converters")]
 
 
 MODULES = _modules()
@@ -104,8 +103,9 @@ def test_imports_go_down(module):
         sideways_pipelines = rank == PIPELINE_RANK and target_rank == PIPELINE_RANK
         if target_rank < rank or sideways_pipelines:
             continue
-        bad.append(f"{MODULES[module].relative_to(REPO)}:{line}: {module} (layer {rank}) imports "
-                   f"{name} (layer {target_rank})")
+        bad.append(
+            f"{MODULES[module].relative_to(REPO)}:{line}: {module} (layer {rank}) imports {name} (layer {target_rank})"
+        )
     assert not bad, "\n".join(bad)
 
 
@@ -117,8 +117,13 @@ def test_the_core_imports_no_heavy_library():
             continue
         tree = ast.parse(path.read_text(encoding="utf-8"))
         for node in ast.walk(tree):
-            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
-                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            names = (
+                [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else [node.module or ""]
+                if isinstance(node, ast.ImportFrom)
+                else []
+            )
             bad += [f"{module}: {n}" for n in names if n.split(".")[0] in heavy]
     assert not bad, bad
 

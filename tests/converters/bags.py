@@ -30,8 +30,9 @@ class Msgs:
 
     def pose(self, p, q):
         T = self.T
-        return T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2]),
-                                            orientation=self.quat(q))
+        return T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2]), orientation=self.quat(q)
+        )
 
     def quat(self, q):
         return self.T["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3])
@@ -48,19 +49,24 @@ class Msgs:
     def Odometry(self, ns, p, q):
         T = self.T
         v = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
-        twist = T["geometry_msgs/msg/TwistWithCovariance"](twist=T["geometry_msgs/msg/Twist"](linear=v, angular=v),
-                                                          covariance=np.zeros(36))
-        return T["nav_msgs/msg/Odometry"](header=self.header(ns, "odom"), child_frame_id="base_link",
-                                          pose=self.pose_cov(p, q), twist=twist)
+        twist = T["geometry_msgs/msg/TwistWithCovariance"](
+            twist=T["geometry_msgs/msg/Twist"](linear=v, angular=v), covariance=np.zeros(36)
+        )
+        return T["nav_msgs/msg/Odometry"](
+            header=self.header(ns, "odom"), child_frame_id="base_link", pose=self.pose_cov(p, q), twist=twist
+        )
 
     def TFMessage(self, ns, p, q, parent="odom", child="base_link"):
         T = self.T
 
         def tr(par, ch, pp, qq):
             return T["geometry_msgs/msg/TransformStamped"](
-                header=self.header(ns, par), child_frame_id=ch,
+                header=self.header(ns, par),
+                child_frame_id=ch,
                 transform=T["geometry_msgs/msg/Transform"](
-                    translation=T["geometry_msgs/msg/Vector3"](x=pp[0], y=pp[1], z=pp[2]), rotation=self.quat(qq)))
+                    translation=T["geometry_msgs/msg/Vector3"](x=pp[0], y=pp[1], z=pp[2]), rotation=self.quat(qq)
+                ),
+            )
 
         other = tr("base_link", "camera", (0.1, 0.0, 0.3), (0.0, 0.0, 0.0, 1.0))
         return T["tf2_msgs/msg/TFMessage"](transforms=[other, tr(parent, child, p, q)])
@@ -68,9 +74,15 @@ class Msgs:
     def NavSatFix(self, ns, lat, lon, alt, status=0):
         T = self.T
         st = T["sensor_msgs/msg/NavSatStatus"](status=status, service=1)
-        return T["sensor_msgs/msg/NavSatFix"](header=self.header(ns, "gps"), status=st, latitude=lat,
-                                              longitude=lon, altitude=alt, position_covariance=np.zeros(9),
-                                              position_covariance_type=0)
+        return T["sensor_msgs/msg/NavSatFix"](
+            header=self.header(ns, "gps"),
+            status=st,
+            latitude=lat,
+            longitude=lon,
+            altitude=alt,
+            position_covariance=np.zeros(9),
+            position_covariance_type=0,
+        )
 
     def QuaternionStamped(self, ns, q):
         return self.T["geometry_msgs/msg/QuaternionStamped"](header=self.header(ns), quaternion=self.quat(q))
@@ -78,10 +90,15 @@ class Msgs:
     def Imu(self, ns, q):
         T = self.T
         v = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
-        return T["sensor_msgs/msg/Imu"](header=self.header(ns, "imu"), orientation=self.quat(q),
-                                        orientation_covariance=np.zeros(9), angular_velocity=v,
-                                        angular_velocity_covariance=np.zeros(9), linear_acceleration=v,
-                                        linear_acceleration_covariance=np.zeros(9))
+        return T["sensor_msgs/msg/Imu"](
+            header=self.header(ns, "imu"),
+            orientation=self.quat(q),
+            orientation_covariance=np.zeros(9),
+            angular_velocity=v,
+            angular_velocity_covariance=np.zeros(9),
+            linear_acceleration=v,
+            linear_acceleration_covariance=np.zeros(9),
+        )
 
     def String(self, ns):
         return self.T["std_msgs/msg/String"](data="hello")

@@ -9,14 +9,23 @@ import numpy as np
 UTM_EAST, UTM_NORTH = 500_000.0, 4_649_776.0  # a UTM-sized origin (zone 31 around 42 N)
 
 
-def loop_trajectory(n: int = 400, *, rate_hz: float = 10.0, radius: float = 10.0, laps: float = 2.0,
-                    centre=(0.0, 0.0, 0.0), phase: float = 0.0, t0_s: float = 1_600_000_000.0,
-                    climb: float = 0.0):
+def loop_trajectory(
+    n: int = 400,
+    *,
+    rate_hz: float = 10.0,
+    radius: float = 10.0,
+    laps: float = 2.0,
+    centre=(0.0, 0.0, 0.0),
+    phase: float = 0.0,
+    t0_s: float = 1_600_000_000.0,
+    climb: float = 0.0,
+):
     """``n`` poses on a circle driven ``laps`` times, heading along the motion."""
     k = np.arange(n)
     ang = phase + 2 * np.pi * laps * k / (n - 1)
-    pos = np.column_stack([centre[0] + radius * np.cos(ang), centre[1] + radius * np.sin(ang),
-                           centre[2] + climb * k / n])
+    pos = np.column_stack(
+        [centre[0] + radius * np.cos(ang), centre[1] + radius * np.sin(ang), centre[2] + climb * k / n]
+    )
     yaw = ang + np.pi / 2
     quat = np.column_stack([np.zeros(n), np.zeros(n), np.sin(yaw / 2), np.cos(yaw / 2)])
     stamps_ns = np.int64(round(t0_s * 1e9)) + (k * (1e9 / rate_hz)).astype(np.int64)

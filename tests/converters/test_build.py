@@ -2,19 +2,25 @@
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
 from studio.converters.build import GraphOptions, build_graph, pairs_within, select_keyframes, step_turns_rad
+from studio.core.errors import ConfigError
 from studio.core.geometry import quat_conj, quat_mul, quat_rotate, se3_poses_to_planar
 from studio.core.model import PoseKind
 from studio.core.trajectory import Trajectory
-from studio.core.errors import ConfigError
 from tests.converters.synthetic import UTM_EAST, UTM_NORTH, loop_trajectory
 
-NOISELESS = dict(odo_sigma_m_per_m=0.0, odo_sigma_rad_per_rad=0.0, odo_sigma_rad_per_m=0.0,
-                 odo_sigma_min_m=0.0, odo_sigma_min_rad=0.0, lc_sigma_m=0.0, lc_sigma_rad=0.0)
+NOISELESS = dict(
+    odo_sigma_m_per_m=0.0,
+    odo_sigma_rad_per_rad=0.0,
+    odo_sigma_rad_per_m=0.0,
+    odo_sigma_min_m=0.0,
+    odo_sigma_min_rad=0.0,
+    lc_sigma_m=0.0,
+    lc_sigma_rad=0.0,
+)
 
 
 def traj(name, n=600, **kw):
@@ -41,7 +47,9 @@ def test_keyframes_every_distance_and_angle():
     assert len(kf) == 32 + 1  # floor(62.8 / 2) = 31 crossings + first + last
     kf2, _ = select_keyframes(s, p, step_turns_rad(q), GraphOptions(keyframe_distance=0.0, keyframe_angle=30.0))
     assert len(kf2) == 12 + 1  # 11 crossings of 30 degrees before 360 (reached at the last pose) + first + last
-    kf3, _ = select_keyframes(s, p, step_turns_rad(q), GraphOptions(keyframe_distance=0.0, keyframe_angle=0.0, keyframe_time=10.0))
+    kf3, _ = select_keyframes(
+        s, p, step_turns_rad(q), GraphOptions(keyframe_distance=0.0, keyframe_angle=0.0, keyframe_time=10.0)
+    )
     assert np.all(np.diff(s[kf3][:-1]) == 10_000_000_000)
 
 
@@ -69,8 +77,14 @@ def test_noiseless_odometry_is_the_true_relative_pose_and_dead_reckoning_the_tru
 
 
 def test_odometry_information_matches_the_noise_model_and_initial_is_dead_reckoning():
-    o = GraphOptions(odo_sigma_m_per_m=0.1, odo_sigma_rad_per_rad=0.05, odo_sigma_rad_per_m=0.01,
-                     odo_sigma_min_m=0.01, odo_sigma_min_rad=0.002, seed=5)
+    o = GraphOptions(
+        odo_sigma_m_per_m=0.1,
+        odo_sigma_rad_per_rad=0.05,
+        odo_sigma_rad_per_m=0.01,
+        odo_sigma_min_m=0.01,
+        odo_sigma_min_rad=0.002,
+        seed=5,
+    )
     ag = build_graph([traj("a", n=2000)], o).graph.agents[0]
     gt = ag.ground_truth
     t_rel = quat_rotate(quat_conj(gt[:-1, 3:]), gt[1:, :3] - gt[:-1, :3])
@@ -196,14 +210,17 @@ def test_planar_projection_gives_se2():
     assert ag.odometry.information_upper.shape[1] == 6
 
 
-@pytest.mark.parametrize("kw, match", [
-    (dict(lc_radius=0.0), "^lc_radius: must be > 0"),
-    (dict(lc_prob_inter=1.5), "^lc_prob_inter: a probability"),
-    (dict(outlier_fraction=1.0), "^outlier_fraction"),
-    (dict(keyframe_distance=-1.0), "^keyframe_distance"),
-    (dict(seed=-1), "^seed"),
-    (dict(max_gap=float("nan")), "^max_gap"),
-])
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (dict(lc_radius=0.0), "^lc_radius: must be > 0"),
+        (dict(lc_prob_inter=1.5), "^lc_prob_inter: a probability"),
+        (dict(outlier_fraction=1.0), "^outlier_fraction"),
+        (dict(keyframe_distance=-1.0), "^keyframe_distance"),
+        (dict(seed=-1), "^seed"),
+        (dict(max_gap=float("nan")), "^max_gap"),
+    ],
+)
 def test_bad_options_raise_config_errors_naming_the_option(kw, match):
     """The library names the option; the command line maps it to its flag (test_convert_cli)."""
     with pytest.raises(ConfigError, match=match) as err:
@@ -237,13 +254,17 @@ def test_planar_build_agrees_with_the_spatial_one_on_a_flat_path():
         np.testing.assert_array_equal(a2.loop_closures.to_index, a3.loop_closures.to_index)
         # the planar information is the x, y, yaw block of the spatial one, whose rotation
         # information is on the quaternion's vector part (4 times the angle's)
-        np.testing.assert_allclose(a2.odometry.information_upper[:, [0, 3, 5]],
-                                   a3.odometry.information_upper[:, [0, 6, 20]] / [1, 1, 4], rtol=1e-12)
+        np.testing.assert_allclose(
+            a2.odometry.information_upper[:, [0, 3, 5]],
+            a3.odometry.information_upper[:, [0, 6, 20]] / [1, 1, 4],
+            rtol=1e-12,
+        )
         assert not a2.odometry.information_upper[:, [1, 2, 4]].any()
     assert len(flat.inter) == len(full.inter) > 0
     # dead reckoning composes the noisy planar steps
     a = flat.agents[0]
     step = a.odometry.measurements[0]
     c, s = np.cos(a.ground_truth[0, 2]), np.sin(a.ground_truth[0, 2])
-    np.testing.assert_allclose(a.initial[1, 0:2], a.ground_truth[0, 0:2] + [c * step[0] - s * step[1],
-                                                                            s * step[0] + c * step[1]])
+    np.testing.assert_allclose(
+        a.initial[1, 0:2], a.ground_truth[0, 0:2] + [c * step[0] - s * step[1], s * step[0] + c * step[1]]
+    )

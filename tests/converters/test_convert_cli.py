@@ -25,15 +25,20 @@ def folder_bytes(root: Path) -> dict[str, bytes]:
     """Every dataset file's bytes. The recording is left out: it is named after the folder and never
     byte-identical (chunk ids); its content is compared by fingerprint below and in
     tests/studio/test_committed_recordings.py."""
-    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
-            if p.is_file() and p.suffix != ".rrd"}
+    return {
+        str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file() and p.suffix != ".rrd"
+    }
 
 
 def rrd_fingerprint(root: Path) -> dict[str, str]:
     from studio.recording.checks import fingerprint_rrd
 
     # the recording's name property is the folder's name; everything else must match
-    return {k: v for k, v in fingerprint_rrd(root / f"{root.name}.rrd").items() if not k.endswith(("RecordingInfo:name", "dataset name"))}
+    return {
+        k: v
+        for k, v in fingerprint_rrd(root / f"{root.name}.rrd").items()
+        if not k.endswith(("RecordingInfo:name", "dataset name"))
+    }
 
 
 @pytest.fixture
@@ -60,7 +65,10 @@ def test_tum_end_to_end_reads_back_and_keeps_real_stamps(tmp_path, tum_files):
     assert (out / "agent1" / "posegraph.g2o").read_text().startswith("VERTEX_SE3:QUAT 0 ")
     agents = json.loads((out / "agents.json").read_text())["agents"]
     assert [(a["folder"], a["name"], a["source"]) for a in agents] == [
-        ("agent1", "alpha", "alpha.txt"), ("agent2", "bob", "bob.txt"), ("agent3", "carol", "carol.txt")]
+        ("agent1", "alpha", "alpha.txt"),
+        ("agent2", "bob", "bob.txt"),
+        ("agent3", "carol", "carol.txt"),
+    ]
     # the ground truth of every keyframe carries its real (UTM-run) timestamp
     gt = read_tum(out / "agent1" / "agent1_GT.tum")
     src = read_tum(tum_files[0])
@@ -123,12 +131,15 @@ def bad(tmp_path: Path, body: str) -> Path:
     return f
 
 
-@pytest.mark.parametrize("body, message", [
-    ("1 0 0 0 0 0 0 1\n2 0 0 nan 0 0 0 1\n", "bad.txt:2: value is not finite"),
-    ("1 0 0 0 0 0 0 1\n2 0 0 0 0 0 1\n", "bad.txt:2: expected 8 columns"),
-    ("", "bad.txt: no poses"),
-    ("1 0 0 0 0 0 0 1\n", "a trajectory needs at least 2"),
-])
+@pytest.mark.parametrize(
+    "body, message",
+    [
+        ("1 0 0 0 0 0 0 1\n2 0 0 nan 0 0 0 1\n", "bad.txt:2: value is not finite"),
+        ("1 0 0 0 0 0 0 1\n2 0 0 0 0 0 1\n", "bad.txt:2: expected 8 columns"),
+        ("", "bad.txt: no poses"),
+        ("1 0 0 0 0 0 0 1\n", "a trajectory needs at least 2"),
+    ],
+)
 def test_bad_tum_input_is_one_line_exit_2_and_writes_nothing(tmp_path, tum_files, body, message):
     out = tmp_path / "new" / "ds"
     r = run("tum", tum_files[0], bad(tmp_path, body), "-o", out)
@@ -145,13 +156,19 @@ def test_unsorted_stamps_warn_with_counts(tmp_path, tum_files):
     assert "warning: " in r.output and "1 out-of-order timestamp sorted, 1 duplicate timestamp dropped" in r.output
 
 
-@pytest.mark.parametrize("args, message", [
-    (["nope", "x"], "cannot tell the source of nope: name it (studio convert SOURCE INPUT..., SOURCE one of "
-                    "tum, s3e, airmuseum, bag, euroc, kitti, kimera-multi)"),
-    (["tum", "missing.txt"], "missing.txt: no such file or folder"),
-    (["tum", "{f}", "--lc-radius", "0"], "--lc-radius: must be > 0"),
-    ([], "give a FORMAT"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (
+            ["nope", "x"],
+            "cannot tell the source of nope: name it (studio convert SOURCE INPUT..., SOURCE one of "
+            "tum, s3e, airmuseum, bag, euroc, kitti, kimera-multi)",
+        ),
+        (["tum", "missing.txt"], "missing.txt: no such file or folder"),
+        (["tum", "{f}", "--lc-radius", "0"], "--lc-radius: must be > 0"),
+        ([], "give a FORMAT"),
+    ],
+)
 def test_bad_arguments_exit_2(tmp_path, tum_files, args, message):
     args = [a.replace("{f}", str(tum_files[0])) for a in args]
     r = run(*args, "-o", tmp_path / "ds")

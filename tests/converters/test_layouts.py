@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from studio.cli import app
 from studio.converters.airmuseum import read_airmuseum
 from studio.converters.s3e import read_s3e
-from studio.cli import app
 from studio.core.errors import ConfigError, FormatError
 from studio.io.multig2o import read_multi_g2o
 from tests.converters.synthetic import UTM_EAST, UTM_NORTH, loop_trajectory, write_tum_file
@@ -19,10 +19,11 @@ runner = CliRunner()
 def s3e_folder(root, names=("Alpha_gt.txt", "BOB_GT.TXT", "carol_gt.txt")):
     root.mkdir(parents=True)
     for k, fname in enumerate(names):
-        s, p, q = loop_trajectory(500, centre=(UTM_EAST + 3 * k, UTM_NORTH + 1, 30.0), phase=0.7 * k,
-                                  t0_s=1_681_000_000.0 + 0.5 * k)
+        s, p, q = loop_trajectory(
+            500, centre=(UTM_EAST + 3 * k, UTM_NORTH + 1, 30.0), phase=0.7 * k, t0_s=1_681_000_000.0 + 0.5 * k
+        )
         keep = np.ones(500, bool)
-        keep[100 + 50 * k:130 + 50 * k] = False  # RTK lost its fix: 3 s without ground truth
+        keep[100 + 50 * k : 130 + 50 * k] = False  # RTK lost its fix: 3 s without ground truth
         write_tum_file(root / fname, s[keep], p[keep], q[keep], header=None)
     return root
 
@@ -80,8 +81,10 @@ def test_airmuseum_one_file_per_robot(tmp_path):
     assert r.exit_code == 0, r.output
     g = read_multi_g2o(out)
     assert [a.name for a in g.agents] == ["drone", "robot_1", "robot_2", "robot_3"]
-    dt = np.abs(np.array([g.agents[a].stamps_ns[v] for a, v in zip(g.inter.from_agent, g.inter.from_index)])
-                - np.array([g.agents[a].stamps_ns[v] for a, v in zip(g.inter.to_agent, g.inter.to_index)]))
+    dt = np.abs(
+        np.array([g.agents[a].stamps_ns[v] for a, v in zip(g.inter.from_agent, g.inter.from_index)])
+        - np.array([g.agents[a].stamps_ns[v] for a, v in zip(g.inter.to_agent, g.inter.to_index)])
+    )
     assert len(dt) > 0 and dt.max() <= 2e9
 
 

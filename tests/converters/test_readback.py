@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from studio.converters.build import GraphOptions
-from studio.convert import ConvertConfig, convert
 from studio.cli import app
+from studio.convert import ConvertConfig, convert
+from studio.converters.build import GraphOptions
 from tests.converters.synthetic import UTM_EAST, UTM_NORTH, loop_trajectory, write_tum_file
 
 

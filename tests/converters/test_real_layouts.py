@@ -67,8 +67,11 @@ def test_s3e_as_shipped_derives_headings_that_follow_the_real_turns(tmp_path):
         # and the written ground truth carries the derived heading
         assert np.corrcoef(normalize_angle(np.diff(a.ground_truth[:, 2])), true_inc)[0, 1] >= 0.8
     # keeping the identity quaternions instead, the odometry says the robot never turned
-    kept = convert(ConvertConfig("s3e", (str(seq),), orientation="keep", options=GraphOptions(planar=True)),
-                   tmp_path / "kept", rrd=False)
+    kept = convert(
+        ConvertConfig("s3e", (str(seq),), orientation="keep", options=GraphOptions(planar=True)),
+        tmp_path / "kept",
+        rrd=False,
+    )
     a = kept.build.graph.agents[0]
     stamps, yaw = truth["alpha"]
     true_inc = normalize_angle(np.diff(np.interp(a.stamps_ns.astype(float), stamps.astype(float), np.unwrap(yaw))))
@@ -84,8 +87,10 @@ def test_s3e_laboratory_ground_truth_of_two_poses_is_left_out_or_refused(tmp_pat
     write_tum_file(seq / "Bob_gt.txt", stamps[[0, -1]], pos[[0, -1]], ident[:2], header=None)
     r = run("s3e", seq, "-o", tmp_path / "ds")
     assert r.exit_code == 0, r.output
-    assert f"warning: {seq / 'Bob_gt.txt'}: only 2 poses (an indoor S3E sequence has just its start and end); " \
-           "agent bob left out" in r.output
+    assert (
+        f"warning: {seq / 'Bob_gt.txt'}: only 2 poses (an indoor S3E sequence has just its start and end); "
+        "agent bob left out" in r.output
+    )
     (seq / "Alpha_gt.txt").write_text((seq / "Bob_gt.txt").read_text())
     r = run("s3e", seq, "-o", tmp_path / "ds2")
     assert r.exit_code == 2
@@ -107,8 +112,7 @@ def test_airmuseum_scenario_folder_and_body_frames(tmp_path):
         headings[robot] = Rotation.from_quat(q_flu).as_euler("ZYX")[:, 0]
         # the file holds the orientation of the robot's own body axes: R_world_body = R_world_flu R_flu_body
         q_body = (Rotation.from_quat(q_flu) * Rotation.from_matrix(body_frame_rotation(code))).as_quat()
-        write_tum_file(folder / "body_stamped_groundtruth.txt", s, p, q_body,
-                       header="# timestamp tx ty tz qx qy qz qw")
+        write_tum_file(folder / "body_stamped_groundtruth.txt", s, p, q_body, header="# timestamp tx ty tz qx qy qz qw")
     out = tmp_path / "ds"
     r = run("airmuseum", scenario, "-o", out, "--planar", "--lc-prob-inter", "1.0")
     assert r.exit_code == 0, r.output
@@ -140,12 +144,15 @@ def _euroc_sequence(root: Path, name: str, k: int):
     folder.mkdir(parents=True)
     s, p, q = loop_trajectory(400, rate_hz=200.0, radius=3.0, phase=k, climb=1.0)
     q = (Rotation.from_quat(q) * Rotation.from_euler("x", 0.3)).as_quat()  # roll: w x y z order matters
-    rows = ["#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z [], "
-            "v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad s^-1], "
-            "b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]"]
+    rows = [
+        "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z [], "
+        "v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad s^-1], "
+        "b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]"
+    ]
     for t, pp, qq in zip(s.tolist(), p.tolist(), q.tolist()):
-        rows.append(",".join([str(t), *map(repr, pp), repr(qq[3]), repr(qq[0]), repr(qq[1]), repr(qq[2])]
-                             + ["0.1"] * 9))
+        rows.append(
+            ",".join([str(t), *map(repr, pp), repr(qq[3]), repr(qq[0]), repr(qq[1]), repr(qq[2])] + ["0.1"] * 9)
+        )
     (folder / "data.csv").write_text("\n".join(rows) + "\n")
     return s, p, q
 
@@ -179,8 +186,17 @@ def test_kitti_poses_become_z_up_and_take_times_txt(tmp_path):
     (tmp_path / "poses" / "00.txt").write_text("\n".join(lines) + "\n")
     (tmp_path / "sequences" / "00").mkdir(parents=True)
     (tmp_path / "sequences" / "00" / "times.txt").write_text("\n".join(f"{v:.6e}" for v in t) + "\n")
-    r = run(tmp_path / "poses" / "00.txt", "-o", tmp_path / "ds", "--split", "3", "--overlap", "2",
-            "--keyframe-distance", "0.5")
+    r = run(
+        tmp_path / "poses" / "00.txt",
+        "-o",
+        tmp_path / "ds",
+        "--split",
+        "3",
+        "--overlap",
+        "2",
+        "--keyframe-distance",
+        "0.5",
+    )
     assert r.exit_code == 0, r.output
     g = read_multi_g2o(tmp_path / "ds")
     assert [a.name for a in g.agents] == ["00_1", "00_2", "00_3"]
@@ -209,7 +225,8 @@ def test_kimera_multi_folder_with_w_x_y_z_quaternions(tmp_path):
         truth[robot] = q
         rows = ["#timestamp_kf,x,y,z,qw,qx,qy,qz"] + [
             ",".join([str(t), *map(repr, pp), repr(qq[3]), repr(qq[0]), repr(qq[1]), repr(qq[2])])
-            for t, pp, qq in zip(s.tolist(), p.tolist(), q.tolist())]
+            for t, pp, qq in zip(s.tolist(), p.tolist(), q.tolist())
+        ]
         (gt / f"{robot}_gt_odom.csv").write_text("\n".join(rows) + "\n")
     r = run(gt, "-o", tmp_path / "ds")  # guessed: kimera-multi
     assert r.exit_code == 0, r.output
@@ -219,21 +236,45 @@ def test_kimera_multi_folder_with_w_x_y_z_quaternions(tmp_path):
     assert (Rotation.from_quat(truth["acl_jackal"][0]).inv() * Rotation.from_quat(q0)).magnitude() < 1e-9
 
 
-@pytest.mark.parametrize("source, name, text, message", [
-    ("euroc", "MH_01_easy/mav0/state_groundtruth_estimate0/data.csv", "#t\n1,2,3\n", "data.csv:2: expected 17 columns"),
-    ("euroc", "MH_01_easy/mav0/state_groundtruth_estimate0/data.csv", "#t\n1.5" + ",0" * 16 + "\n",
-     "data.csv:2: timestamp '1.5' is not an integer of nanoseconds"),
-    ("kitti", "00.txt", "1 0 0 0 0 1 0 0 0 0 1 x\n", "00.txt:1: 'x' is not a number"),
-    ("kitti", "00.txt", "2 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1 1\n", "pose 0 is not a rotation"),
-    ("kimera-multi", "r_gt_odom.csv", "#timestamp_kf,x,y,z,qw,qx,qy,qz\n1,0,0,0,1,0,0\n", "r_gt_odom.csv:2: expected 8 columns"),
-    # a file whose header names the quaternion x y z w (a TUM-ordered export under the dataset's name)
-    # is refused: read by position, its rotations would be scrambled
-    ("kimera-multi", "r_gt_odom.csv", "#timestamp_kf,x,y,z,qx,qy,qz,qw\n1,0,0,0,0,0,0,1\n2,1,0,0,0,0,0,1\n",
-     "r_gt_odom.csv:1: the header orders the quaternion x y z w"),
-    ("euroc", "MH_01_easy/mav0/state_groundtruth_estimate0/data.csv",
-     "#timestamp,p_x,p_y,p_z,q_x,q_y,q_z,q_w" + ",v" * 9 + "\n1" + ",0" * 6 + ",1" + ",0" * 9 + "\n",
-     "data.csv:1: the header orders the quaternion x y z w"),
-])
+@pytest.mark.parametrize(
+    "source, name, text, message",
+    [
+        (
+            "euroc",
+            "MH_01_easy/mav0/state_groundtruth_estimate0/data.csv",
+            "#t\n1,2,3\n",
+            "data.csv:2: expected 17 columns",
+        ),
+        (
+            "euroc",
+            "MH_01_easy/mav0/state_groundtruth_estimate0/data.csv",
+            "#t\n1.5" + ",0" * 16 + "\n",
+            "data.csv:2: timestamp '1.5' is not an integer of nanoseconds",
+        ),
+        ("kitti", "00.txt", "1 0 0 0 0 1 0 0 0 0 1 x\n", "00.txt:1: 'x' is not a number"),
+        ("kitti", "00.txt", "2 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1 1\n", "pose 0 is not a rotation"),
+        (
+            "kimera-multi",
+            "r_gt_odom.csv",
+            "#timestamp_kf,x,y,z,qw,qx,qy,qz\n1,0,0,0,1,0,0\n",
+            "r_gt_odom.csv:2: expected 8 columns",
+        ),
+        # a file whose header names the quaternion x y z w (a TUM-ordered export under the dataset's name)
+        # is refused: read by position, its rotations would be scrambled
+        (
+            "kimera-multi",
+            "r_gt_odom.csv",
+            "#timestamp_kf,x,y,z,qx,qy,qz,qw\n1,0,0,0,0,0,0,1\n2,1,0,0,0,0,0,1\n",
+            "r_gt_odom.csv:1: the header orders the quaternion x y z w",
+        ),
+        (
+            "euroc",
+            "MH_01_easy/mav0/state_groundtruth_estimate0/data.csv",
+            "#timestamp,p_x,p_y,p_z,q_x,q_y,q_z,q_w" + ",v" * 9 + "\n1" + ",0" * 6 + ",1" + ",0" * 9 + "\n",
+            "data.csv:1: the header orders the quaternion x y z w",
+        ),
+    ],
+)
 def test_bad_files_are_one_line(tmp_path, source, name, text, message):
     path = tmp_path / name
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -271,8 +312,14 @@ def kollagen_open(folder: Path, three_d: bool = True) -> dict:
     vlen, elen = (1 + 7, 2 + 7 + 21) if three_d else (1 + 3, 2 + 3 + 6)
     if not (folder / "inter_agent_lc.dat").exists():
         raise ValueError("multig2o is missing an inter_agent_lc.dat")
-    dirs = sorted((p for p in folder.iterdir() if p.name.startswith("agent") and (p / "posegraph.g2o").exists()
-                   and (p / f"{p.name}_GT.tum").exists()), key=lambda p: str(p))
+    dirs = sorted(
+        (
+            p
+            for p in folder.iterdir()
+            if p.name.startswith("agent") and (p / "posegraph.g2o").exists() and (p / f"{p.name}_GT.tum").exists()
+        ),
+        key=lambda p: str(p),
+    )
     if not dirs:
         raise ValueError("Unable to find agent folders in provided multig2o")
     agents = []
@@ -284,7 +331,7 @@ def kollagen_open(folder: Path, three_d: bool = True) -> dict:
         while k < len(tokens) and tokens[k] != etag:
             if tokens[k] != vtag:  # kollagen would read this tag's numbers as a vertex; we refuse it
                 raise ValueError(f"unexpected {tokens[k]} among the vertices of {d.name}")
-            int(tokens[k + 1]), [float(t) for t in tokens[k + 2:k + 1 + vlen]]
+            int(tokens[k + 1]), [float(t) for t in tokens[k + 2 : k + 1 + vlen]]
             vertices += 1
             k += 1 + vlen
         if k >= len(tokens):
@@ -293,7 +340,7 @@ def kollagen_open(folder: Path, three_d: bool = True) -> dict:
             if tokens[k] != etag:
                 raise ValueError(f"unexpected {tokens[k]}")
             fr, to = int(tokens[k + 1]), int(tokens[k + 2])
-            [float(t) for t in tokens[k + 3:k + 1 + elen]]
+            [float(t) for t in tokens[k + 3 : k + 1 + elen]]
             if seen_lc or to - fr != 1:
                 seen_lc = True
                 loops += 1
@@ -306,13 +353,21 @@ def kollagen_open(folder: Path, three_d: bool = True) -> dict:
                 gt.append(float(tok))
             except ValueError:
                 break
-        agents.append({"folder": d.name, "vertices": vertices, "odometry": odometry, "loop_closures": loops,
-                       "gt": len(gt) // 8, "t0": gt[0] if gt else None})
+        agents.append(
+            {
+                "folder": d.name,
+                "vertices": vertices,
+                "odometry": odometry,
+                "loop_closures": loops,
+                "gt": len(gt) // 8,
+                "t0": gt[0] if gt else None,
+            }
+        )
     row = 4 + (28 if three_d else 9)
     dat = (folder / "inter_agent_lc.dat").read_text().split()
     rows = 0
     for r in range(len(dat) // row):
-        cells = dat[r * row:(r + 1) * row]
+        cells = dat[r * row : (r + 1) * row]
         try:
             [int(c) for c in cells[:4]], [float(c) for c in cells[4:]]
         except ValueError:
@@ -339,8 +394,10 @@ def test_a_converted_dataset_is_read_whole_by_kollagens_reader(tmp_path):
     with pytest.raises(ValueError, match="Unable to find agent folders"):
         kollagen_open(tmp_path / "robots")
     assert [a.name for a in read_multi_g2o(tmp_path / "robots").agents] == ["robot0", "robot1", "robot2"]
-    assert np.allclose(se3_poses_to_planar(g.agents[0].ground_truth)[:, 0:2],
-                       se3_poses_to_planar(read_multi_g2o(tmp_path / "ds").agents[0].ground_truth)[:, 0:2])
+    assert np.allclose(
+        se3_poses_to_planar(g.agents[0].ground_truth)[:, 0:2],
+        se3_poses_to_planar(read_multi_g2o(tmp_path / "ds").agents[0].ground_truth)[:, 0:2],
+    )
 
 
 def _assert_kollagen_reads_all(seen: dict, g) -> None:
@@ -378,8 +435,10 @@ def test_kollagens_reader_takes_ten_split_agents_in_string_order(tmp_path):
     seen = kollagen_open(tmp_path / "ds")
     folders = [a["folder"] for a in seen["agents"]]
     assert folders == sorted(f"agent{k}" for k in range(1, 11)) and folders[1] == "agent10"
-    natural = sorted(range(10), key=lambda i: int(folders[i][len('agent'):]))
-    reordered = {key: [seen["agents"][i][key] for i in natural] for key in ("vertices", "odometry", "loop_closures", "gt")}
+    natural = sorted(range(10), key=lambda i: int(folders[i][len("agent") :]))
+    reordered = {
+        key: [seen["agents"][i][key] for i in natural] for key in ("vertices", "odometry", "loop_closures", "gt")
+    }
     assert reordered["vertices"] == [a.num_poses for a in g.agents]
     assert reordered["gt"] == [a.num_poses for a in g.agents]
     assert reordered["odometry"] == [len(a.odometry) for a in g.agents]
@@ -393,11 +452,14 @@ def test_kollagens_reader_takes_ten_split_agents_in_string_order(tmp_path):
 def test_the_shipped_headers_are_read(tmp_path):
     """The exact header lines of EuRoC and Kimera-Multi pass the quaternion-order check."""
     from studio.converters.text import read_table
+
     euroc = tmp_path / "data.csv"
-    euroc.write_text("#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], "
-                     "q_RS_z [], v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], "
-                     "b_w_RS_S_y [rad s^-1], b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], "
-                     "b_a_RS_S_z [m s^-2]\r\n1403636580838555648," + ",".join(["0.5"] * 16) + "\r\n")
+    euroc.write_text(
+        "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], "
+        "q_RS_z [], v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], "
+        "b_w_RS_S_y [rad s^-1], b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], "
+        "b_a_RS_S_z [m s^-2]\r\n1403636580838555648," + ",".join(["0.5"] * 16) + "\r\n"
+    )
     table, stamps = read_table(euroc, 17, what="EuRoC", int_first=True, quaternion="wxyz")
     assert stamps.tolist() == [1403636580838555648] and table.shape == (1, 17)
     kimera = tmp_path / "acl_jackal_gt_odom.csv"

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from studio.converters.rosbag import parse_agent_spec, read_bag, read_bag_sources
 from studio.cli import app
+from studio.converters.rosbag import parse_agent_spec, read_bag, read_bag_sources
 from studio.core.errors import ConfigError, FormatError
 from studio.io.multig2o import read_multi_g2o
 from tests.converters.bags import STORAGES, Msgs, typestore, utm31_to_latlon, write_bag
@@ -23,20 +23,28 @@ def every_type_topics(storage: str):
     """One topic per supported message type, each carrying its own loop."""
     m = Msgs(typestore(storage))
     out, truth = {}, {}
-    for k, (topic, kind) in enumerate([("/a/pose", "PoseStamped"), ("/b/pose_cov", "PoseWithCovarianceStamped"),
-                                       ("/c/odom", "Odometry"), ("/tf", "TFMessage")]):
+    for k, (topic, kind) in enumerate(
+        [
+            ("/a/pose", "PoseStamped"),
+            ("/b/pose_cov", "PoseWithCovarianceStamped"),
+            ("/c/odom", "Odometry"),
+            ("/tf", "TFMessage"),
+        ]
+    ):
         s, p, q = loop_trajectory(N, centre=(3.0 * k, 0.0, 1.0), phase=k, t0_s=1_700_000_000.25)
         out[topic] = [(int(t), getattr(m, kind)(int(t), pp, qq)) for t, pp, qq in zip(s, p, q)]
         truth[topic] = (s, p, q)
     # GNSS: a loop in UTM zone 31, with heading from QuaternionStamped, from Imu, and without heading
-    for k, (fix, heading, kind) in enumerate([("/e/fix", "/e/heading", "QuaternionStamped"),
-                                             ("/f/fix", "/f/imu", "Imu"), ("/g/fix", None, None)]):
+    for k, (fix, heading, kind) in enumerate(
+        [("/e/fix", "/e/heading", "QuaternionStamped"), ("/f/fix", "/f/imu", "Imu"), ("/g/fix", None, None)]
+    ):
         s, p, q = loop_trajectory(N, centre=(UTM_EAST + 5.0 * k, UTM_NORTH, 80.0), phase=k, t0_s=1_700_000_000.0)
         lat, lon = utm31_to_latlon(p[:, 0], p[:, 1])
         status = np.zeros(N, dtype=int)
         status[[5, 6, 7]] = -1  # no fix: dropped
-        out[fix] = [(int(t), m.NavSatFix(int(t), la, lo, pp[2], st))
-                    for t, la, lo, pp, st in zip(s, lat, lon, p, status)]
+        out[fix] = [
+            (int(t), m.NavSatFix(int(t), la, lo, pp[2], st)) for t, la, lo, pp, st in zip(s, lat, lon, p, status)
+        ]
         if heading:
             hs = s + 3_000_000  # heading stamps 3 ms after the fixes
             out[heading] = [(int(t), getattr(m, kind)(int(t), qq)) for t, qq in zip(hs, q)]
@@ -45,8 +53,15 @@ def every_type_topics(storage: str):
     return out, truth
 
 
-SPECS = {"a": "/a/pose", "b": "/b/pose_cov", "c": "/c/odom", "d": "/tf:odom:base_link",
-         "e": "/e/fix+/e/heading", "f": "/f/fix+/f/imu", "g": "/g/fix"}
+SPECS = {
+    "a": "/a/pose",
+    "b": "/b/pose_cov",
+    "c": "/c/odom",
+    "d": "/tf:odom:base_link",
+    "e": "/e/fix+/e/heading",
+    "f": "/f/fix+/f/imu",
+    "g": "/g/fix",
+}
 
 
 @pytest.fixture(scope="module", params=STORAGES)
@@ -99,15 +114,21 @@ def test_bag_end_to_end_through_the_cli(bag, tmp_path):
 
 def test_unknown_topic_lists_the_bags_topics_and_types(bag):
     path, _ = bag
-    with pytest.raises(FormatError, match=r"no topic '/nope' for agent x \(topics: /a/pose \[geometry_msgs/PoseStamped\], "
-                                          r".*/chatter \[std_msgs/String\]"):
+    with pytest.raises(
+        FormatError,
+        match=r"no topic '/nope' for agent x \(topics: /a/pose \[geometry_msgs/PoseStamped\], "
+        r".*/chatter \[std_msgs/String\]",
+    ):
         read_bag(path, {"x": "/nope"})
 
 
 def test_unsupported_type_lists_the_supported_ones(bag):
     path, _ = bag
-    with pytest.raises(FormatError, match=r"/chatter has type std_msgs/msg/String, which is not supported "
-                                          r"\(supported: geometry_msgs/PoseStamped, .*sensor_msgs/NavSatFix\)"):
+    with pytest.raises(
+        FormatError,
+        match=r"/chatter has type std_msgs/msg/String, which is not supported "
+        r"\(supported: geometry_msgs/PoseStamped, .*sensor_msgs/NavSatFix\)",
+    ):
         read_bag(path, {"x": "/chatter"})
     with pytest.raises(FormatError, match=r"heading topic /a/pose has type .*PoseStamped, which is not supported"):
         read_bag(path, {"x": "/e/fix+/a/pose"})
@@ -152,14 +173,17 @@ def test_skip_missing_reads_nothing_when_no_agent_is_in_the_bag(bag):
     assert read_bag(path, {"alpha": "/alpha/fix+/alpha/heading"}, skip_missing=True) == []
 
 
-@pytest.mark.parametrize("spec, match", [
-    ("../evil=/a/pose", "not a safe folder name"),
-    ("a/b=/a/pose", "not a safe folder name"),
-    ("..=/a/pose", "not a safe folder name"),
-    ("noequals", "expected NAME=SPEC"),
-    ("a=/tf:odom", "a TF spec is /tf:PARENT:CHILD"),
-    ("a=/fix+", "a GNSS spec is /fix\\+/heading"),
-])
+@pytest.mark.parametrize(
+    "spec, match",
+    [
+        ("../evil=/a/pose", "not a safe folder name"),
+        ("a/b=/a/pose", "not a safe folder name"),
+        ("..=/a/pose", "not a safe folder name"),
+        ("noequals", "expected NAME=SPEC"),
+        ("a=/tf:odom", "a TF spec is /tf:PARENT:CHILD"),
+        ("a=/fix+", "a GNSS spec is /fix\\+/heading"),
+    ],
+)
 def test_bad_agent_specs(spec, match):
     with pytest.raises(ConfigError, match=match):
         parse_agent_spec(spec)
@@ -194,10 +218,14 @@ def test_s3e_reads_agents_without_ground_truth_from_the_bag(tmp_path):
     m = Msgs(typestore("sqlite3"))
     s, p, q = loop_trajectory(N, centre=(UTM_EAST, UTM_NORTH, 80.0), t0_s=1_700_000_000.0)
     lat, lon = utm31_to_latlon(p[:, 0], p[:, 1])
-    write_bag(seq / "bag", "sqlite3", {
-        "/alpha/fix": [(int(t), m.NavSatFix(int(t), la, lo, pp[2])) for t, la, lo, pp in zip(s, lat, lon, p)],
-        "/alpha/heading": [(int(t), m.QuaternionStamped(int(t), qq)) for t, qq in zip(s, q)],
-    })
+    write_bag(
+        seq / "bag",
+        "sqlite3",
+        {
+            "/alpha/fix": [(int(t), m.NavSatFix(int(t), la, lo, pp[2])) for t, la, lo, pp in zip(s, lat, lon, p)],
+            "/alpha/heading": [(int(t), m.QuaternionStamped(int(t), qq)) for t, qq in zip(s, q)],
+        },
+    )
     write_tum_file(seq / "Bob_gt.txt", s, p + [2.0, 0.0, 0.0], q)
     trajs = read_s3e([seq])
     assert [t.name for t in trajs] == ["alpha", "bob"]
@@ -217,7 +245,9 @@ def test_plain_mcap_file_every_type(tmp_path):
     np.testing.assert_array_equal(trajs[3].positions_xyz, p)
     np.testing.assert_array_equal(trajs[3].stamps_ns, s)
     np.testing.assert_allclose(trajs[4].quat_xyzw[0], truth["/e/fix"][2][0], atol=1e-15)
-    with pytest.raises(FormatError, match=r"no topic '/nope' for agent x \(topics: /a/pose \[geometry_msgs/PoseStamped\]"):
+    with pytest.raises(
+        FormatError, match=r"no topic '/nope' for agent x \(topics: /a/pose \[geometry_msgs/PoseStamped\]"
+    ):
         read_bag(plain, {"x": "/nope"})
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(plain.read_bytes()[:-100])

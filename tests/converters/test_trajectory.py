@@ -6,15 +6,27 @@ import numpy as np
 import pytest
 
 from studio.converters.names import check_agent_name, safe_agent_name
-from studio.core.geometry import quat_angle, quat_from_rotvec, quat_mul, quat_rotate
 from studio.core.errors import ConfigError
+from studio.core.geometry import quat_angle, quat_from_rotvec, quat_mul, quat_rotate
 
 
-@pytest.mark.parametrize("raw, safe", [
-    ("alpha", "alpha"), ("../../etc", "etc"), ("..", "agent"), ("/", "agent"), ("a/b", "a_b"),
-    (".hidden", "hidden"), ("robot 1", "robot_1"), ("convert.json", "agent_convert.json"), ("", "agent"),
-    ("a\\b", "a_b"), ("Ünïcode", "n_code"), ("a..b", "a_b"),
-])
+@pytest.mark.parametrize(
+    "raw, safe",
+    [
+        ("alpha", "alpha"),
+        ("../../etc", "etc"),
+        ("..", "agent"),
+        ("/", "agent"),
+        ("a/b", "a_b"),
+        (".hidden", "hidden"),
+        ("robot 1", "robot_1"),
+        ("convert.json", "agent_convert.json"),
+        ("", "agent"),
+        ("a\\b", "a_b"),
+        ("Ünïcode", "n_code"),
+        ("a..b", "a_b"),
+    ],
+)
 def test_safe_agent_name(raw, safe):
     assert safe_agent_name(raw) == safe
 

@@ -41,16 +41,19 @@ def test_unsorted_and_duplicate_stamps_are_fixed_with_a_counting_warning(tmp_pat
     assert warnings == [f"{f}: 1 out-of-order timestamp sorted, 1 duplicate timestamp dropped"]
 
 
-@pytest.mark.parametrize("body, match", [
-    ("1 0 0 0 0 0 0 1\n2 nan 0 0 0 0 0 1\n", r"r\.txt:2: value is not finite"),
-    ("1 0 0 0 0 0 0 1\n2 0 0 0 0 0 1\n", r"r\.txt:2: expected 8 columns"),
-    ("1 0 0 0 0 0 0 1\n2 0 x 0 0 0 0 1\n", r"r\.txt:2: 'x' is not a number"),
-    ("1 0 0 0 0 0 0 1\n2 0 0 0 0 0 0 0\n", r"r\.txt:2: quaternion is zero"),
-    ("# only a comment\n", r"r\.txt: no poses"),
-    ("", r"r\.txt: no poses"),
-    ("1 0 0 0 0 0 0 1\n", r"has 1 pose; a trajectory needs at least 2"),
-    ("1 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1\n", r"has 1 pose; a trajectory needs at least 2"),
-])
+@pytest.mark.parametrize(
+    "body, match",
+    [
+        ("1 0 0 0 0 0 0 1\n2 nan 0 0 0 0 0 1\n", r"r\.txt:2: value is not finite"),
+        ("1 0 0 0 0 0 0 1\n2 0 0 0 0 0 1\n", r"r\.txt:2: expected 8 columns"),
+        ("1 0 0 0 0 0 0 1\n2 0 x 0 0 0 0 1\n", r"r\.txt:2: 'x' is not a number"),
+        ("1 0 0 0 0 0 0 1\n2 0 0 0 0 0 0 0\n", r"r\.txt:2: quaternion is zero"),
+        ("# only a comment\n", r"r\.txt: no poses"),
+        ("", r"r\.txt: no poses"),
+        ("1 0 0 0 0 0 0 1\n", r"has 1 pose; a trajectory needs at least 2"),
+        ("1 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1\n", r"has 1 pose; a trajectory needs at least 2"),
+    ],
+)
 def test_bad_input_names_file_and_line(tmp_path, body, match):
     f = tmp_path / "r.txt"
     f.write_text(body)
@@ -94,12 +97,21 @@ def test_large_files_take_the_bulk_parser_with_identical_results(tmp_path, monke
     np.testing.assert_array_equal(fast[0], s)
 
 
-@pytest.mark.parametrize("edit, match", [
-    (lambda lines: lines.__setitem__(3000, lines[3000].replace(" ", " nan ", 1)), r"big\.txt:3001: expected 8 columns"),
-    (lambda lines: lines.__setitem__(3000, lines[3000].rsplit(" ", 1)[0] + " nan"), r"big\.txt:3001: value is not finite"),
-    (lambda lines: lines.__setitem__(3000, lines[2998]), r"big\.txt:3001: timestamps must increase"),
-    (lambda lines: lines.__setitem__(3000, lines[3000] + " # note"), r"big\.txt:3001: expected 8 columns"),
-])
+@pytest.mark.parametrize(
+    "edit, match",
+    [
+        (
+            lambda lines: lines.__setitem__(3000, lines[3000].replace(" ", " nan ", 1)),
+            r"big\.txt:3001: expected 8 columns",
+        ),
+        (
+            lambda lines: lines.__setitem__(3000, lines[3000].rsplit(" ", 1)[0] + " nan"),
+            r"big\.txt:3001: value is not finite",
+        ),
+        (lambda lines: lines.__setitem__(3000, lines[2998]), r"big\.txt:3001: timestamps must increase"),
+        (lambda lines: lines.__setitem__(3000, lines[3000] + " # note"), r"big\.txt:3001: expected 8 columns"),
+    ],
+)
 def test_irregular_large_files_fall_back_to_the_line_parser(tmp_path, edit, match):
     from studio.io.tum import read_tum
 
@@ -116,8 +128,10 @@ def test_bulk_stamp_parser_agrees_with_the_line_parser():
     from studio.io.tum import _stamp_ns, _stamps_from_digits
 
     rng = np.random.default_rng(1)
-    tokens = [f"{int(w)}.{int(f):0{d}d}" for w, f, d in zip(rng.integers(0, 2_000_000_000, 300),
-                                                          rng.integers(0, 10**9, 300), rng.integers(9, 10, 300))]
+    tokens = [
+        f"{int(w)}.{int(f):0{d}d}"
+        for w, f, d in zip(rng.integers(0, 2_000_000_000, 300), rng.integers(0, 10**9, 300), rng.integers(9, 10, 300))
+    ]
     tokens += ["0", "7", "7.", ".5", "1634567890.123456789999", "1.000000001", "8999999999.999999999"]
     got = _stamps_from_digits(np.array(tokens))
     assert got.tolist() == [_stamp_ns(t) for t in tokens]

@@ -7,13 +7,16 @@ import pytest
 from studio.core import parallel
 
 
-@pytest.mark.parametrize(("cores", "others", "expected"), [
-    (2, 0, 2),   # quiet machine: every core
-    (2, 1, 1),   # one core taken
-    (2, 5, 1),   # saturated: one process, never zero
-    (8, 3, 5),
-    (4, None, 4),  # /proc/loadavg unreadable: every core
-])
+@pytest.mark.parametrize(
+    ("cores", "others", "expected"),
+    [
+        (2, 0, 2),  # quiet machine: every core
+        (2, 1, 1),  # one core taken
+        (2, 5, 1),  # saturated: one process, never zero
+        (8, 3, 5),
+        (4, None, 4),  # /proc/loadavg unreadable: every core
+    ],
+)
 def test_default_jobs_leaves_busy_cores_alone(monkeypatch, cores, others, expected):
     monkeypatch.setattr(parallel, "available_cores", lambda: cores)
     monkeypatch.setattr(parallel, "_other_runnable", lambda: others)
@@ -86,6 +89,7 @@ def test_a_worker_that_dies_is_reported_in_one_line():
         if os.getpid() != parent and k >= 0:
             os.kill(os.getpid(), signal.SIGKILL)  # the worker vanishes without a word
         import time
+
         time.sleep(0.05)
         return k
 
@@ -224,7 +228,6 @@ def test_a_refused_fork_leaves_the_team_job_to_this_process(monkeypatch):
 
 
 def test_team_workers_end_when_their_leader_is_killed(tmp_path):
-    import os
     import subprocess
     import sys
     import time

@@ -85,6 +85,7 @@ def test_rotvec_rotation_part_is_the_angle_and_about_twice_g2os():
     z = np.column_stack([np.zeros((n, 3)), np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))])
     # X_j = X_i * Exp(angle * axis): the error is that rotation (measurement identity)
     from studio.core.geometry import quat_mul
+
     xj = np.column_stack([xi[:, :3], quat_mul(xi[:, 3:], quat_from_rotvec(axis * angles[:, None]))])
     rv = edge_errors(xi, xj, z, convention="rotvec")[:, 3:]
     g = edge_errors(xi, xj, z, convention="g2o")[:, 3:]
@@ -165,8 +166,9 @@ def test_graph_chi2_equals_g2os_active_chi2_on_a_two_agent_graph(tmp_path):
         for edges in (agent.odometry, agent.loop_closures):
             for i, j, m, u in zip(edges.from_index, edges.to_index, edges.measurements, edges.information_upper):
                 add(k * n + i, k * n + j, m, u)
-    for fa, fi, ta, ti, m, u in zip(inter.from_agent, inter.from_index, inter.to_agent, inter.to_index,
-                                    inter.measurements, inter.information_upper):
+    for fa, fi, ta, ti, m, u in zip(
+        inter.from_agent, inter.from_index, inter.to_agent, inter.to_index, inter.measurements, inter.information_upper
+    ):
         add(fa * n + fi, ta * n + ti, m, u)
     opt.initialize_optimization()
     opt.compute_active_errors()

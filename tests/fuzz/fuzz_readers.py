@@ -26,9 +26,9 @@ import tempfile
 import time
 import traceback
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -41,22 +41,64 @@ DATA = Path(__file__).resolve().parent.parent / "data"
 
 # Tokens that have broken parsers before: specials, overflows, signs, separators, other scripts.
 HOSTILE_TOKENS = [
-    "nan", "NaN", "-nan", "inf", "-inf", "Infinity", "1e400", "-1e400", "1e308", "1e-320", "0", "-0", "-0.0",
-    "9223372036854775807", "9223372036854775808", "-9223372036854775809", "99999999999999999999999",
-    "1" * 400, "0x10", "1_000", "١٢", "+", "-", ".", "e5", "1e", "0.0.0", "", "#", "\x00", "\ufeff", "é",
-    "\u2028", "\t", "\r", "VERTEX_SE2", "EDGE_SE3:QUAT", "1.5", "-3", "2147483648", "1e-300", "1e300",
+    "nan",
+    "NaN",
+    "-nan",
+    "inf",
+    "-inf",
+    "Infinity",
+    "1e400",
+    "-1e400",
+    "1e308",
+    "1e-320",
+    "0",
+    "-0",
+    "-0.0",
+    "9223372036854775807",
+    "9223372036854775808",
+    "-9223372036854775809",
+    "99999999999999999999999",
+    "1" * 400,
+    "0x10",
+    "1_000",
+    "١٢",
+    "+",
+    "-",
+    ".",
+    "e5",
+    "1e",
+    "0.0.0",
+    "",
+    "#",
+    "\x00",
+    "\ufeff",
+    "é",
+    "\u2028",
+    "\t",
+    "\r",
+    "VERTEX_SE2",
+    "EDGE_SE3:QUAT",
+    "1.5",
+    "-3",
+    "2147483648",
+    "1e-300",
+    "1e300",
 ]
 
 _G2O_SEED = (DATA / "golden" / "tiny_single" / "agent1" / "posegraph.g2o").read_bytes()
 _GT_SEED = (DATA / "golden" / "tiny_single" / "agent1" / "agent1_GT.tum").read_bytes()
 _TUM_SEED = (DATA / "trajectories" / "alpha.tum").read_bytes()
-_G2O_SE2_SEED = b"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0.1\nVERTEX_SE2 2 2 0.1 0.2\n" \
-                b"EDGE_SE2 0 1 1 0 0.1 100 0 0 100 0 1000\nEDGE_SE2 1 2 1 0.1 0.1 100 0 0 100 0 1000\n" \
-                b"EDGE_SE2 0 2 2 0.1 0.2 100 0 0 100 0 1000\n"
-_DAT_SEED = b"1 0 2 3 0.5 -0.25 0.0 0.0 0.0 0.1 0.994987 100 0.0 0.0 0.0 0.0 0.0 100 0.0 0.0 0.0 0.0 100 " \
-            b"0.0 0.0 0.0 400 0.0 0.0 400 0.0 400\n" \
-            b"2 1 1 0 0.5 -0.25 0.0 0.0 0.0 0.0 1.0 100 0.0 0.0 0.0 0.0 0.0 100 0.0 0.0 0.0 0.0 100 " \
-            b"0.0 0.0 0.0 400 0.0 0.0 400 0.0 400\n"
+_G2O_SE2_SEED = (
+    b"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0.1\nVERTEX_SE2 2 2 0.1 0.2\n"
+    b"EDGE_SE2 0 1 1 0 0.1 100 0 0 100 0 1000\nEDGE_SE2 1 2 1 0.1 0.1 100 0 0 100 0 1000\n"
+    b"EDGE_SE2 0 2 2 0.1 0.2 100 0 0 100 0 1000\n"
+)
+_DAT_SEED = (
+    b"1 0 2 3 0.5 -0.25 0.0 0.0 0.0 0.1 0.994987 100 0.0 0.0 0.0 0.0 0.0 100 0.0 0.0 0.0 0.0 100 "
+    b"0.0 0.0 0.0 400 0.0 0.0 400 0.0 400\n"
+    b"2 1 1 0 0.5 -0.25 0.0 0.0 0.0 0.0 1.0 100 0.0 0.0 0.0 0.0 0.0 100 0.0 0.0 0.0 0.0 100 "
+    b"0.0 0.0 0.0 400 0.0 0.0 400 0.0 400\n"
+)
 _JSON_SEED = (DATA / "configs" / "tiny_single.json").read_bytes()
 
 
@@ -70,6 +112,7 @@ def _seed_dataset(folder: Path) -> None:
 
 
 # --------------------------------------------------------------------------------------- mutations
+
 
 def mutate(data: bytes, rng: random.Random, rounds: int | None = None) -> bytes:
     """A few random edits of ``data``: byte flips, insertions, deletions, cuts, hostile tokens,
@@ -85,9 +128,9 @@ def mutate(data: bytes, rng: random.Random, rounds: int | None = None) -> bytes:
             buf[k:k] = bytes(rng.randrange(256) for _ in range(rng.randint(1, 8)))
         elif op == 2 and n:  # delete a run
             k = rng.randrange(n)
-            del buf[k:k + rng.randint(1, 32)]
+            del buf[k : k + rng.randint(1, 32)]
         elif op == 3 and n:  # cut the file (a truncated write)
-            del buf[rng.randrange(n):]
+            del buf[rng.randrange(n) :]
         elif op in (4, 5):  # a token replaced by a hostile one
             lines = bytes(buf).split(b"\n")
             li = rng.randrange(len(lines))
@@ -119,11 +162,17 @@ def mutate(data: bytes, rng: random.Random, rounds: int | None = None) -> bytes:
             buf = bytearray(b"\n".join(lines))
         elif op == 8:  # another encoding or line ending
             text = bytes(buf).decode("utf-8", errors="replace")
-            buf = bytearray(rng.choice([
-                lambda t: t.encode("utf-16"), lambda t: t.encode("latin-1", errors="replace"),
-                lambda t: t.replace("\n", "\r\n").encode(), lambda t: t.replace("\n", "\r").encode(),
-                lambda t: b"\xef\xbb\xbf" + t.encode(),
-            ])(text))
+            buf = bytearray(
+                rng.choice(
+                    [
+                        lambda t: t.encode("utf-16"),
+                        lambda t: t.encode("latin-1", errors="replace"),
+                        lambda t: t.replace("\n", "\r\n").encode(),
+                        lambda t: t.replace("\n", "\r").encode(),
+                        lambda t: b"\xef\xbb\xbf" + t.encode(),
+                    ]
+                )(text)
+            )
     return bytes(buf)
 
 
@@ -134,6 +183,7 @@ def mutate_json(data: bytes, rng: random.Random) -> bytes:
         doc = json.loads(data)
     except ValueError:
         return mutate(data, rng)
+
     def paths_of(node, path, out):
         items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
         for k, v in items:
@@ -141,8 +191,31 @@ def mutate_json(data: bytes, rng: random.Random) -> bytes:
             paths_of(v, path + [k], out)
         return out
 
-    hostile = [None, True, 0, -1, 1e308, -1e308, 5e-324, 10**400, 2**31, 2**63, -(2**31) - 1, "x", "", [], {},
-               [[[[]]]], 1e-300, 1e300, 2**31 - 1, 0.5, 3, "1", "NaN"]
+    hostile = [
+        None,
+        True,
+        0,
+        -1,
+        1e308,
+        -1e308,
+        5e-324,
+        10**400,
+        2**31,
+        2**63,
+        -(2**31) - 1,
+        "x",
+        "",
+        [],
+        {},
+        [[[[]]]],
+        1e-300,
+        1e300,
+        2**31 - 1,
+        0.5,
+        3,
+        "1",
+        "NaN",
+    ]
     for _ in range(rng.randint(1, 3)):
         paths = paths_of(doc, [], [])
         if not paths:
@@ -157,7 +230,7 @@ def mutate_json(data: bytes, rng: random.Random) -> bytes:
             parent[path[-1]] = copy.deepcopy(rng.choice(hostile))  # no shared (or cyclic) containers
     text = json.dumps(doc, indent=rng.choice([None, 1, 4]))
     if rng.random() < 0.1:
-        text = text.replace("\"NaN\"", "NaN").replace("1e+308", "1e999")
+        text = text.replace('"NaN"', "NaN").replace("1e+308", "1e999")
     out = text.encode("utf-8")
     return mutate(out, rng) if rng.random() < 0.3 else out
 
@@ -172,13 +245,16 @@ def _record(tag: str, width: int):
 
 
 g2o_texts = st.lists(
-    _record("VERTEX_SE2", 4) | _record("EDGE_SE2", 11) | _record("VERTEX_SE3:QUAT", 8)
-    | _record("EDGE_SE3:QUAT", 30) | st.sampled_from(["", "# comment", "FIX 0", "VERTEX_XY 0 1 2"]),
+    _record("VERTEX_SE2", 4)
+    | _record("EDGE_SE2", 11)
+    | _record("VERTEX_SE3:QUAT", 8)
+    | _record("EDGE_SE3:QUAT", 30)
+    | st.sampled_from(["", "# comment", "FIX 0", "VERTEX_XY 0 1 2"]),
     max_size=12,
 ).map("\n".join)
 tum_texts = st.lists(
-    st.lists(tokens, min_size=6, max_size=10).map(" ".join) | st.sampled_from(["", "# t x y z qx qy qz qw",
-                                                                              "timestamp,x,y,z,qx,qy,qz,qw"]),
+    st.lists(tokens, min_size=6, max_size=10).map(" ".join)
+    | st.sampled_from(["", "# t x y z qx qy qz qw", "timestamp,x,y,z,qx,qy,qz,qw"]),
     max_size=12,
 ).map("\n".join)
 dat_texts = st.lists(st.lists(tokens, min_size=11, max_size=34).map(" ".join), max_size=6).map("\n".join)
@@ -191,6 +267,7 @@ json_texts = json_values.map(lambda v: json.dumps(v, allow_nan=True))
 
 
 # ------------------------------------------------------------------------------------------ readers
+
 
 def _read_g2o(path: Path) -> None:
     from studio.io.g2o import read_g2o
@@ -207,8 +284,8 @@ def _read_tum(path: Path) -> None:
 
 
 def _read_dat(path: Path) -> None:
-    from studio.io.inter_lc_dat import read_inter_lc_dat
     from studio.core.model import PoseKind
+    from studio.io.inter_lc_dat import read_inter_lc_dat
 
     read_inter_lc_dat(path)
     read_inter_lc_dat(path, PoseKind.SE2)
@@ -268,14 +345,21 @@ def _check(report: FuzzReport, reader: str, call: Callable[[], None], data) -> N
             call()
     except StudioError as err:
         if "\n" in str(err) or not str(err):
-            report.failures.append(Failure(reader, f"{type(err).__name__} over several lines: {str(err)!r}",
-                                           "multi-line message", data))
+            report.failures.append(
+                Failure(reader, f"{type(err).__name__} over several lines: {str(err)!r}", "multi-line message", data)
+            )
     except BaseException as err:  # noqa: BLE001 - everything else is what we hunt for
         if isinstance(err, KeyboardInterrupt):
             raise
         tb = traceback.extract_tb(err.__traceback__)
-        last = next((fr for fr in reversed(tb) if "/studio/" in fr.filename or "/converters/" in fr.filename
-                     or "/generator/" in fr.filename), tb[-1] if tb else None)
+        last = next(
+            (
+                fr
+                for fr in reversed(tb)
+                if "/studio/" in fr.filename or "/converters/" in fr.filename or "/generator/" in fr.filename
+            ),
+            tb[-1] if tb else None,
+        )
         where = f"{type(err).__name__} at {Path(last.filename).name}:{last.lineno}" if last else type(err).__name__
         report.failures.append(Failure(reader, f"{type(err).__name__}: {str(err)[:200]}", where, data))
 
@@ -305,8 +389,9 @@ def _run_multi(report: FuzzReport, files: dict[str, bytes], work: Path) -> None:
 def _hypothesis_round(report: FuzzReport, target: Target, work: Path, examples: int, stop: float) -> None:
     """``examples`` generated inputs (hypothesis is only the generator: nothing is shrunk)."""
 
-    @settings(max_examples=examples, deadline=None, database=None, derandomize=False,
-              suppress_health_check=list(HealthCheck))
+    @settings(
+        max_examples=examples, deadline=None, database=None, derandomize=False, suppress_health_check=list(HealthCheck)
+    )
     @given(text=target.generated | st.binary(max_size=300).map(lambda b: b.decode("latin-1")))
     def run(text: str) -> None:
         if time.monotonic() < stop:
@@ -315,8 +400,13 @@ def _hypothesis_round(report: FuzzReport, target: Target, work: Path, examples: 
     run()
 
 
-def fuzz(seconds: float, *, seed: int | None = None, readers: list[str] | None = None,
-         log: Callable[[str], None] | None = None) -> FuzzReport:
+def fuzz(
+    seconds: float,
+    *,
+    seed: int | None = None,
+    readers: list[str] | None = None,
+    log: Callable[[str], None] | None = None,
+) -> FuzzReport:
     """Fuzz every reader (or those named) for about ``seconds`` in total, round-robin.
 
     The first round always runs, with plain mutations, so every reader is tried at least once even
@@ -332,15 +422,20 @@ def fuzz(seconds: float, *, seed: int | None = None, readers: list[str] | None =
         k = 0
         while k < len(names) or time.monotonic() < stop:
             if log is not None and k and k % len(names) == 0:
-                log(f"\r{time.monotonic() - t0:6.1f} s: {sum(report.tried.values())} inputs, "
-                    f"{len(report.failures)} failures")
+                log(
+                    f"\r{time.monotonic() - t0:6.1f} s: {sum(report.tried.values())} inputs, "
+                    f"{len(report.failures)} failures"
+                )
             name = names[k % len(names)]
             k += 1
             if name == MULTI:
                 for _ in range(20):
                     rel = rng.choice(["agent1/posegraph.g2o", "agent2/agent2_GT.tum", "inter_agent_lc.dat"])
-                    seed_data = {"agent1/posegraph.g2o": _G2O_SEED, "agent2/agent2_GT.tum": _GT_SEED,
-                                 "inter_agent_lc.dat": _DAT_SEED}[rel]
+                    seed_data = {
+                        "agent1/posegraph.g2o": _G2O_SEED,
+                        "agent2/agent2_GT.tum": _GT_SEED,
+                        "inter_agent_lc.dat": _DAT_SEED,
+                    }[rel]
                     _run_multi(report, {rel: mutate(seed_data, rng)}, work)
                 continue
             target = READERS[name]
@@ -367,15 +462,18 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=60.0, help="Time budget in seconds (default 60).")
     parser.add_argument("--seed", type=int, default=None, help="Seed of the mutations (default: random).")
-    parser.add_argument("--reader", action="append", choices=[*READERS, MULTI],
-                        help="Only this reader (repeatable; default: all).")
+    parser.add_argument(
+        "--reader", action="append", choices=[*READERS, MULTI], help="Only this reader (repeatable; default: all)."
+    )
     args = parser.parse_args(argv)
-    report = fuzz(args.seconds, seed=args.seed, readers=args.reader,
-                  log=lambda m: print(m, end="", file=sys.stderr, flush=True))
+    report = fuzz(
+        args.seconds, seed=args.seed, readers=args.reader, log=lambda m: print(m, end="", file=sys.stderr, flush=True)
+    )
     print(file=sys.stderr)
     total = sum(report.tried.values())
-    print(f"{total} inputs in {report.seconds:.0f} s; {len(report.failures)} failures "
-          f"({len(report.distinct)} distinct)")
+    print(
+        f"{total} inputs in {report.seconds:.0f} s; {len(report.failures)} failures ({len(report.distinct)} distinct)"
+    )
     for name, n in report.tried.items():
         print(f"  {name}: {n} inputs")
     for (reader, where), f in report.distinct.items():

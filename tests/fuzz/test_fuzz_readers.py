@@ -12,8 +12,9 @@ def test_readers_survive_30_seconds_of_fuzzing():
     report = fuzz(30.0)
     assert set(report.tried) == {*READERS, MULTI}
     assert all(n > 0 for n in report.tried.values()), report.tried
-    assert not report.failures, "\n".join(f"{f.reader}: {f.error} [{f.where}] input {f.data[:300]!r}"
-                                          for f in report.distinct.values())
+    assert not report.failures, "\n".join(
+        f"{f.reader}: {f.error} [{f.where}] input {f.data[:300]!r}" for f in report.distinct.values()
+    )
 
 
 def test_fuzzer_counts_and_catches_a_broken_reader(monkeypatch):
@@ -23,7 +24,9 @@ def test_fuzzer_counts_and_catches_a_broken_reader(monkeypatch):
     def broken(path):
         raise ValueError("boom")
 
-    monkeypatch.setitem(fuzz_readers.READERS, "tum", fuzz_readers.Target("tum", broken, (b"x",), fuzz_readers.tum_texts))
+    monkeypatch.setitem(
+        fuzz_readers.READERS, "tum", fuzz_readers.Target("tum", broken, (b"x",), fuzz_readers.tum_texts)
+    )
     report = fuzz(0.5, seed=3, readers=["tum"])
     assert report.tried["tum"] > 0
     assert len(report.failures) == report.tried["tum"]

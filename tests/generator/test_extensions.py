@@ -85,9 +85,10 @@ def test_grid3d_residuals_at_ground_truth_match_the_model(name):
     checks = []
     for a, ac in zip(g.agents, cfg.agents):
         gt = a.ground_truth
-        for edges, sp, sa in ((a.odometry, ac.std_dev_position, ac.std_dev_angle),
-                              (a.loop_closures, ac.std_dev_intra_loop_closure_position,
-                               ac.std_dev_intra_loop_closure_angle)):
+        for edges, sp, sa in (
+            (a.odometry, ac.std_dev_position, ac.std_dev_angle),
+            (a.loop_closures, ac.std_dev_intra_loop_closure_position, ac.std_dev_intra_loop_closure_angle),
+        ):
             true = relative_se3(gt[edges.from_index], gt[edges.to_index])
             n = relative_se3(true, edges.measurements)  # = (dt, Exp(dr))
             checks.append((n[:, 0:3], sp))
@@ -143,8 +144,17 @@ def test_gaussian_block_keeps_kollagens_bytes_and_outliers_keep_the_inliers():
 
 
 def test_outliers_fraction_kinds_and_geometry():
-    studio = {"outliers": {"intra_fraction": 0.1, "inter_fraction": 0.2, "kinds": {"random": 1, "aliasing": 3},
-                           "random_radius": 6.0, "random_min_radius": 2.0, "aliasing_min_distance": 8.0, "seed": 4}}
+    studio = {
+        "outliers": {
+            "intra_fraction": 0.1,
+            "inter_fraction": 0.2,
+            "kinds": {"random": 1, "aliasing": 3},
+            "random_radius": 6.0,
+            "random_min_radius": 2.0,
+            "aliasing_min_distance": 8.0,
+            "seed": 4,
+        }
+    }
     cfg = _cfg(_small(steps=500, studio=studio))
     res = generate_studio(cfg)
     g, planted = res.output.graph, res.outliers
@@ -163,8 +173,12 @@ def test_outliers_fraction_kinds_and_geometry():
     for ka, a in enumerate(ref.agents):
         for f, t in zip(a.loop_closures.from_index.tolist(), a.loop_closures.to_index.tolist()):
             true_to.setdefault((ka, f, ka), set()).add(t)
-    for fa, fi, ta, ti in zip(ref.inter.from_agent.tolist(), ref.inter.from_index.tolist(),
-                              ref.inter.to_agent.tolist(), ref.inter.to_index.tolist()):
+    for fa, fi, ta, ti in zip(
+        ref.inter.from_agent.tolist(),
+        ref.inter.from_index.tolist(),
+        ref.inter.to_agent.tolist(),
+        ref.inter.to_index.tolist(),
+    ):
         true_to.setdefault((fa, fi, ta), set()).add(ti)
     for (fa, fv, ta, tv), kind in zip(rows.tolist(), planted.kinds):
         gt = g.agents[ta].ground_truth
@@ -176,9 +190,14 @@ def test_outliers_fraction_kinds_and_geometry():
             assert any(np.isclose(normalize_angle(gt[tv, 2] - gt[t, 2]), 0) for t in true_to[(fa, fv, ta)])
     # every outlier is far off at the ground truth, in chi2
     e = g.inter
-    wrong = np.isin(np.arange(len(e)), [k for k in range(len(e))
-                                        if (e.from_agent[k], e.from_index[k], e.to_agent[k], e.to_index[k])
-                                        in {tuple(r) for r in rows.tolist()}])
+    wrong = np.isin(
+        np.arange(len(e)),
+        [
+            k
+            for k in range(len(e))
+            if (e.from_agent[k], e.from_index[k], e.to_agent[k], e.to_index[k]) in {tuple(r) for r in rows.tolist()}
+        ],
+    )
     gts = [a.ground_truth for a in g.agents]
     xi = np.array([gts[a][i] for a, i in zip(e.from_agent, e.from_index)])
     xj = np.array([gts[a][i] for a, i in zip(e.to_agent, e.to_index)])
@@ -196,7 +215,7 @@ def test_grid3d_climbs_and_closes_loops_in_z():
         z_levels |= set(np.round(z, 6).tolist())
         lc = a.loop_closures
         for f, t in zip(lc.from_index.tolist(), lc.to_index.tolist()):
-            if np.ptp(z[f:t + 1]) >= 1.0 - 1e-9:  # the loop went up or down a level and came back near
+            if np.ptp(z[f : t + 1]) >= 1.0 - 1e-9:  # the loop went up or down a level and came back near
                 closes += 1
     assert len(z_levels) > 8 and closes > 20
     assert len(g.inter) > 0 and np.ptp(g.inter.measurements[:, 2]) > 0.5
@@ -210,8 +229,9 @@ def test_grid3d_information_is_consistent_with_g2os_error():
     for a in g.agents:
         for e in (a.odometry, a.loop_closures):
             gt = a.ground_truth
-            chi2 += float(chi2_terms(edge_errors(gt[e.from_index], gt[e.to_index], e.measurements),
-                                     e.information_upper).sum())
+            chi2 += float(
+                chi2_terms(edge_errors(gt[e.from_index], gt[e.to_index], e.measurements), e.information_upper).sum()
+            )
             dof += 6 * len(e)
     assert abs(chi2 / dof - 1.0) < 0.05
 
@@ -246,8 +266,11 @@ def test_same_seed_same_bytes_and_outliers_txt(tmp_path):
     from studio.io.outliers_txt import read_outlier_kinds
     from studio.synth import synthesize
 
-    studio = {"walk": "grid3d", "noise": {"inter": {"model": "student_t", "dof": 4}},
-              "outliers": {"intra_fraction": 0.05, "inter_fraction": 0.05, "seed": 2}}
+    studio = {
+        "walk": "grid3d",
+        "noise": {"inter": {"model": "student_t", "dof": 4}},
+        "outliers": {"intra_fraction": 0.05, "inter_fraction": 0.05, "seed": 2},
+    }
     cfg = _cfg(_small(steps=200, studio=studio), name="d")
     r1 = synthesize(cfg, tmp_path / "a", rrd=False, jobs=1)
     synthesize(cfg, tmp_path / "b", rrd=False, jobs=2)
@@ -256,20 +279,37 @@ def test_same_seed_same_bytes_and_outliers_txt(tmp_path):
     assert len(rows) == len(r1.outliers.rows) > 0 and set(kinds) <= {"random", "aliasing"}
     assert not (tmp_path / "a" / "d_singleg2o").exists()
     assert "VERTEX_SE3:QUAT" in (r1.dataset_dir / "agent1" / "posegraph.g2o").read_text()[:200]
-    other = _cfg({**_small(steps=200, studio=studio), "inter_agent_loop_closure_parameters": {
-        **_small()["inter_agent_loop_closure_parameters"], "random_number_generator_seed": 9}}, name="d")
+    other = _cfg(
+        {
+            **_small(steps=200, studio=studio),
+            "inter_agent_loop_closure_parameters": {
+                **_small()["inter_agent_loop_closure_parameters"],
+                "random_number_generator_seed": 9,
+            },
+        },
+        name="d",
+    )
     synthesize(other, tmp_path / "c", rrd=False, jobs=1)
     assert _digest(tmp_path / "a") != _digest(tmp_path / "c")
 
 
-@pytest.mark.parametrize(("studio", "match"), [
-    ({"walk": "grid3d", "grid3d": {"vertical_prob": 0.1}}, r"studio\.grid3d\.vertical_prob: unknown key.*vertical_probability"),
-    ({"nosie": {}}, r"studio\.nosie: unknown key.*'noise'"),
-    ({"noise": {"odometry": {"model": "student_t", "dof": 2}}}, r"studio\.noise\.odometry\.dof: 2\.0 is outside \(2\.0"),
-    ({"noise": {"odometry": {"model": "cauchy"}}}, r"studio\.noise\.odometry\.model: must be one of"),
-    ({"outliers": {"intra_fraction": 1.5}}, r"studio\.outliers\.intra_fraction"),
-    ({"information_frame": "measurement"}, r"studio\.information_frame: .*exact_information_matrix"),
-])
+@pytest.mark.parametrize(
+    ("studio", "match"),
+    [
+        (
+            {"walk": "grid3d", "grid3d": {"vertical_prob": 0.1}},
+            r"studio\.grid3d\.vertical_prob: unknown key.*vertical_probability",
+        ),
+        ({"nosie": {}}, r"studio\.nosie: unknown key.*'noise'"),
+        (
+            {"noise": {"odometry": {"model": "student_t", "dof": 2}}},
+            r"studio\.noise\.odometry\.dof: 2\.0 is outside \(2\.0",
+        ),
+        ({"noise": {"odometry": {"model": "cauchy"}}}, r"studio\.noise\.odometry\.model: must be one of"),
+        ({"outliers": {"intra_fraction": 1.5}}, r"studio\.outliers\.intra_fraction"),
+        ({"information_frame": "measurement"}, r"studio\.information_frame: .*exact_information_matrix"),
+    ],
+)
 def test_bad_studio_block_is_refused_with_its_json_path(studio, match):
     with pytest.raises(ConfigError, match=match):
         _cfg(_small(studio=studio))

@@ -35,9 +35,7 @@ def test_tiny_configs_match_golden_digests(tmp_path, name):
     # rrd=False: these are kollagen's bytes; a recording is compared by content (tests/studio/test_recording.py)
     synthesize(load_synth_config(DATA / "configs" / f"{name}.json"), tmp_path, jobs=1, rrd=False)
     expected = _manifest(name)
-    written = sorted(
-        str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_file() and p.suffix != ".json"
-    )
+    written = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_file() and p.suffix != ".json")
     assert written == sorted(expected)
     for rel, digest in expected.items():
         assert hashlib.sha256((tmp_path / rel).read_bytes()).hexdigest() == digest, rel

@@ -2,15 +2,15 @@ import math
 
 import numpy as np
 
+from studio.core.geometry import normalize_angle
 from studio.generator.kollagen import (
     _libstdcxx_reduce,
-    _round_half_away,
     _round_to_int,
     agent_pairs,
     discrete_circle,
     effective_seeds,
 )
-from studio.core.geometry import normalize_angle
+from studio.generator.walk import _round_half_away
 
 
 def test_duplicate_seeds_are_replaced_like_kollagen():

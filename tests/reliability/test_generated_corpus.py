@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 
 from studio.cli import app
 from tests.conftest import DATA
-from tests.test_hostile import VALID_DAT, VALID_G2O, VALID_GT, _INFO
+from tests.test_hostile import _INFO, VALID_DAT, VALID_G2O, VALID_GT
 
 runner = CliRunner()
 
@@ -97,8 +97,20 @@ def test_tum_first_line_not_a_header(tmp_path, bad):
 
 
 # --------------------------------------------------------------------------- inter_agent_lc.dat
-DAT_CASES = ["1 0 2", "1 0 2 1 x", "0 0 2 1", "3 0 2 1", "1 9 2 1", "1 0 2 9", "1 -1 2 1", "1 0 2 1.5",
-             "1 0 2 1 nan 0 0 0 0 0 1 " + _INFO, "1 0 2 1 1 0 0 0 0 0 inf " + _INFO, "a b c d", "1e400 0 2 1"]
+DAT_CASES = [
+    "1 0 2",
+    "1 0 2 1 x",
+    "0 0 2 1",
+    "3 0 2 1",
+    "1 9 2 1",
+    "1 0 2 9",
+    "1 -1 2 1",
+    "1 0 2 1.5",
+    "1 0 2 1 nan 0 0 0 0 0 1 " + _INFO,
+    "1 0 2 1 1 0 0 0 0 0 inf " + _INFO,
+    "a b c d",
+    "1e400 0 2 1",
+]
 
 
 @pytest.mark.parametrize("line", DAT_CASES)
@@ -112,11 +124,13 @@ def _config() -> dict:
     return json.loads((DATA / "configs" / "tiny_three.json").read_text())
 
 
-SYNTH_CASES = [("number_of_steps", v) for v in (-1, 0.5, "3", None, 1e300, True)] + \
-    [("number_of_agents", v) for v in (-1, 0, 10_001, 2.5, "x", None)] + \
-    [("agent_parameters.stepsize", v) for v in (-1, 0, 1e-300, "x", None, 1e300)] + \
-    [("agent_parameters.step_fragment", v) for v in (-1, 0, 0.5, None)] + \
-    [("inter_agent_loop_closure_parameters.loop_closure_radius", v) for v in (-1, "x", None, 1e300)]
+SYNTH_CASES = (
+    [("number_of_steps", v) for v in (-1, 0.5, "3", None, 1e300, True)]
+    + [("number_of_agents", v) for v in (-1, 0, 10_001, 2.5, "x", None)]
+    + [("agent_parameters.stepsize", v) for v in (-1, 0, 1e-300, "x", None, 1e300)]
+    + [("agent_parameters.step_fragment", v) for v in (-1, 0, 0.5, None)]
+    + [("inter_agent_loop_closure_parameters.loop_closure_radius", v) for v in (-1, "x", None, 1e300)]
+)
 
 
 @pytest.mark.parametrize("key,value", SYNTH_CASES, ids=[f"{k}={v}" for k, v in SYNTH_CASES])
@@ -138,8 +152,14 @@ def test_synth_json_malformed(tmp_path, text):
 
 
 # --------------------------------------------------------------------------- option values
-CONVERT_OPTIONS = ["--lc-radius", "--keyframe-distance", "--odo-sigma-m-per-m", "--max-gap", "--lc-sigma-m",
-                   "--max-memory-gb"]
+CONVERT_OPTIONS = [
+    "--lc-radius",
+    "--keyframe-distance",
+    "--odo-sigma-m-per-m",
+    "--max-gap",
+    "--lc-sigma-m",
+    "--max-memory-gb",
+]
 OPTION_CASES = [(o, v) for o in CONVERT_OPTIONS for v in ("nan", "inf", "-1", "1e-300", "1e300")]
 
 
@@ -147,23 +167,35 @@ OPTION_CASES = [(o, v) for o in CONVERT_OPTIONS for v in ("nan", "inf", "-1", "1
 def test_convert_option_value(tmp_path, option, value):
     (tmp_path / "a.tum").write_text(VALID_GT)
     (tmp_path / "b.tum").write_text(VALID_GT)
-    refused(["convert", "tum", tmp_path / "a.tum", tmp_path / "b.tum", "-o", tmp_path / "o", option, value],
-            tmp_path, names=option)
+    refused(
+        ["convert", "tum", tmp_path / "a.tum", tmp_path / "b.tum", "-o", tmp_path / "o", option, value],
+        tmp_path,
+        names=option,
+    )
 
 
-@pytest.mark.parametrize("option,value", [("--max-memory-gb", v) for v in ("nan", "inf", "-1", "0", "1e300")]
-                         + [("--max-output-gb", v) for v in ("nan", "-1", "0")] + [("--jobs", "-1"), ("--jobs", "100000")])
+@pytest.mark.parametrize(
+    "option,value",
+    [("--max-memory-gb", v) for v in ("nan", "inf", "-1", "0", "1e300")]
+    + [("--max-output-gb", v) for v in ("nan", "-1", "0")]
+    + [("--jobs", "-1"), ("--jobs", "100000")],
+)
 def test_synth_option_value(tmp_path, option, value):
-    refused(["synth", DATA / "configs" / "tiny_three.json", "-o", tmp_path / "o", option, value], tmp_path,
-            names=option)
+    refused(
+        ["synth", DATA / "configs" / "tiny_three.json", "-o", tmp_path / "o", option, value], tmp_path, names=option
+    )
 
 
 # --------------------------------------------------------------------------- symlinks and special files
 def _link_cases(tmp_path: Path, ds: Path) -> dict[str, Path]:
     outside = tmp_path / "outside.g2o"
     outside.write_text(VALID_G2O)
-    return {"dangling": tmp_path / "missing.g2o", "outside": outside, "devzero": Path("/dev/zero"),
-            "devnull": Path("/dev/null")}
+    return {
+        "dangling": tmp_path / "missing.g2o",
+        "outside": outside,
+        "devzero": Path("/dev/zero"),
+        "devnull": Path("/dev/null"),
+    }
 
 
 @pytest.mark.parametrize("case", ["dangling", "outside", "devzero", "devnull", "self"])
@@ -223,14 +255,30 @@ def test_force_never_replaces_a_folder_studio_did_not_write(tmp_path):
     mine = tmp_path / "photos"
     mine.mkdir()
     (mine / "holiday.jpg").write_text("precious")
-    refused(["convert", "tum", tmp_path / "a.tum", tmp_path / "b.tum", "-o", mine, "--force"], tmp_path,
-            names="did not write")
+    refused(
+        ["convert", "tum", tmp_path / "a.tum", tmp_path / "b.tum", "-o", mine, "--force"],
+        tmp_path,
+        names="did not write",
+    )
     assert (mine / "holiday.jpg").read_text() == "precious"
-    ok = runner.invoke(app, ["convert", "tum", str(tmp_path / "a.tum"), str(tmp_path / "b.tum"), "-o",
-                             str(tmp_path / "ds"), "--no-rrd"])
+    ok = runner.invoke(
+        app,
+        ["convert", "tum", str(tmp_path / "a.tum"), str(tmp_path / "b.tum"), "-o", str(tmp_path / "ds"), "--no-rrd"],
+    )
     assert ok.exit_code == 0, ok.stderr
-    again = runner.invoke(app, ["convert", "tum", str(tmp_path / "a.tum"), str(tmp_path / "b.tum"), "-o",
-                                str(tmp_path / "ds"), "--no-rrd", "--force"])
+    again = runner.invoke(
+        app,
+        [
+            "convert",
+            "tum",
+            str(tmp_path / "a.tum"),
+            str(tmp_path / "b.tum"),
+            "-o",
+            str(tmp_path / "ds"),
+            "--no-rrd",
+            "--force",
+        ],
+    )
     assert again.exit_code == 0, again.stderr  # its own earlier output is replaced
 
 

@@ -24,8 +24,9 @@ def _ok_bag(root: Path, storage: str, name: str, *, quat_fault: bool = False) ->
     if quat_fault:
         q = q.copy()
         q[5] = [1e200, 0.0, 0.0, 1.0]
-    return write_bag(root / name, storage, {"/odom": [(int(t), m.Odometry(int(t), pp, qq))
-                                                     for t, pp, qq in zip(s, p, q)]})
+    return write_bag(
+        root / name, storage, {"/odom": [(int(t), m.Odometry(int(t), pp, qq)) for t, pp, qq in zip(s, p, q)]}
+    )
 
 
 def _damaged(root: Path, storage: str, kind: str) -> tuple[Path, str]:
@@ -37,8 +38,11 @@ def _damaged(root: Path, storage: str, kind: str) -> tuple[Path, str]:
         lat, lon = utm31_to_latlon(p[:, 0] + UTM_EAST, p[:, 1] + UTM_NORTH)
         lat = lat.copy()
         lat[3] = 200.0
-        return write_bag(root / f"lat_{storage}", storage, {
-            "/fix": [(int(t), m.NavSatFix(int(t), la, lo, 0.0)) for t, la, lo in zip(s, lat, lon)]}), "/fix"
+        return write_bag(
+            root / f"lat_{storage}",
+            storage,
+            {"/fix": [(int(t), m.NavSatFix(int(t), la, lo, 0.0)) for t, la, lo in zip(s, lat, lon)]},
+        ), "/fix"
     path = _ok_bag(root, storage, f"ok_{storage}")
     if kind == "garbage":
         target = root / f"garbage{path.suffix or '.mcap'}"
@@ -62,16 +66,18 @@ def _damaged(root: Path, storage: str, kind: str) -> tuple[Path, str]:
     return target, "/odom"
 
 
-CASES = [(s, k) for s in STORAGES for k in ("truncated", "garbage", "quaternion", "latitude")] + \
-    [(s, "metadata") for s in ("sqlite3", "mcap")]
+CASES = [(s, k) for s in STORAGES for k in ("truncated", "garbage", "quaternion", "latitude")] + [
+    (s, "metadata") for s in ("sqlite3", "mcap")
+]
 
 
 @pytest.mark.parametrize("storage, kind", CASES)
 def test_a_damaged_or_absurd_bag_is_one_line(tmp_path, storage, kind):
     bag, topic = _damaged(tmp_path, storage, kind)
     out = tmp_path / "out"
-    res = CliRunner().invoke(app, ["convert", "bag", str(bag), "--agent", f"a={topic}", "-o", str(out)],
-                             env={"CI": "true"})
+    res = CliRunner().invoke(
+        app, ["convert", "bag", str(bag), "--agent", f"a={topic}", "-o", str(out)], env={"CI": "true"}
+    )
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
     assert res.exit_code == 2, res.output
     assert len(lines) == 1 and lines[0].startswith("error: ") and bag.name in lines[0], res.output

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import fcntl
 import multiprocessing
 import os
 import subprocess
@@ -41,8 +40,18 @@ def test_a_second_writer_is_refused_while_the_first_holds_the_target(tmp_path):
 def test_two_concurrent_cli_runs_to_one_target_one_wins(tmp_path):
     ds = _dataset(tmp_path)
     env = dict(os.environ, CI="true", RERUN_ANALYTICS="0")
-    cmd = [sys.executable, "-c", "from studio.cli import main; main()", "record", str(ds), "-o", str(tmp_path / "o.rrd")]
-    procs = [subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    cmd = [
+        sys.executable,
+        "-c",
+        "from studio.cli import main; main()",
+        "record",
+        str(ds),
+        "-o",
+        str(tmp_path / "o.rrd"),
+    ]
+    procs = [
+        subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)
+    ]
     results = [(p.wait(timeout=120), p.stderr.read()) for p in procs]
     codes = sorted(c for c, _ in results)
     assert codes == [0, 2], results
@@ -177,14 +186,17 @@ def test_record_and_convert_on_a_full_disk_are_one_line_and_leave_nothing(small_
     from studio.synth import load_synth_config, synthesize
     from tests.conftest import DATA
 
-    ds = synthesize(load_synth_config(DATA / "configs" / "small3x100.json"), tmp_path / "src", rrd=False,
-                    jobs=1).dataset_dir
+    ds = synthesize(
+        load_synth_config(DATA / "configs" / "small3x100.json"), tmp_path / "src", rrd=False, jobs=1
+    ).dataset_dir
     st = os.statvfs(small_disk)
     free = st.f_bavail * st.f_frsize
     (small_disk / "filler").write_bytes(b"\0" * max(0, free - 64 * 1024))  # 64 kB left
     trajs = [str(DATA / "trajectories" / f"{n}.tum") for n in ("alpha", "bob", "carol")]
-    for args, target in ((["record", str(ds), "-o", str(small_disk / "x.rrd")], "x.rrd"),
-                         (["convert", "tum", *trajs, "-o", str(small_disk / "conv")], "conv")):
+    for args, target in (
+        (["record", str(ds), "-o", str(small_disk / "x.rrd")], "x.rrd"),
+        (["convert", "tum", *trajs, "-o", str(small_disk / "conv")], "conv"),
+    ):
         res = runner.invoke(app, args)
         assert res.exit_code == 2, (res.stderr, res.exception)
         assert len(res.stderr.splitlines()) == 1 and "No space left on device" in res.stderr, res.stderr
@@ -250,21 +262,28 @@ def test_a_process_that_ignores_ctrl_c_still_ignores_it_in_deferred_sections():
 
 def _python(code: str, *args: str, **env: str) -> subprocess.CompletedProcess:
     """Run ``code`` in a fresh interpreter (``args`` as its command line, ``env`` added; CI set)."""
-    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True,
-                          env=dict(os.environ, CI="true", **env), timeout=120)
+    return subprocess.run(
+        [sys.executable, "-c", code, *args],
+        capture_output=True,
+        text=True,
+        env=dict(os.environ, CI="true", **env),
+        timeout=120,
+    )
 
 
 def test_ctrl_c_while_the_command_line_loads_ends_quietly():
     # the console script's entry point; Ctrl-C arrives while studio.cli (numpy, typer, ...) is imported
-    code = ("import builtins, os, signal\n"
-            "real = builtins.__import__\n"
-            "def imp(name, *args, **kwargs):\n"
-            "    if name == 'studio.cli':\n"
-            "        os.kill(os.getpid(), signal.SIGINT)\n"
-            "    return real(name, *args, **kwargs)\n"
-            "builtins.__import__ = imp\n"
-            "from studio._entry import main\n"
-            "main()\n")
+    code = (
+        "import builtins, os, signal\n"
+        "real = builtins.__import__\n"
+        "def imp(name, *args, **kwargs):\n"
+        "    if name == 'studio.cli':\n"
+        "        os.kill(os.getpid(), signal.SIGINT)\n"
+        "    return real(name, *args, **kwargs)\n"
+        "builtins.__import__ = imp\n"
+        "from studio._entry import main\n"
+        "main()\n"
+    )
     res = _python(code, "--version")
     assert res.returncode == 130 and res.stderr == "" and res.stdout == ""
     ok = _python("from studio._entry import main; main()", "--version")
@@ -274,16 +293,21 @@ def test_ctrl_c_while_the_command_line_loads_ends_quietly():
 @pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts threads through Linux's /proc")
 def test_console_script_keeps_numpy_to_one_blas_thread():
     # the studio works in processes; an idle OpenBLAS thread spinning after numpy loads took CPU from them
-    code = ("import os\n"
-            "os.environ.pop('OPENBLAS_NUM_THREADS', None)\n"
-            "from studio._entry import limit_blas_threads\n"
-            "limit_blas_threads()\n"
-            "import numpy\n"
-            "print(os.environ['OPENBLAS_NUM_THREADS'], len(os.listdir('/proc/self/task')))\n")
+    code = (
+        "import os\n"
+        "os.environ.pop('OPENBLAS_NUM_THREADS', None)\n"
+        "from studio._entry import limit_blas_threads\n"
+        "limit_blas_threads()\n"
+        "import numpy\n"
+        "print(os.environ['OPENBLAS_NUM_THREADS'], len(os.listdir('/proc/self/task')))\n"
+    )
     res = _python(code)
     assert res.stdout.split() == ["1", "1"], res.stderr
-    kept = _python("import os\nfrom studio._entry import limit_blas_threads\n"
-                   "limit_blas_threads()\nprint(os.environ['OPENBLAS_NUM_THREADS'])\n", OPENBLAS_NUM_THREADS="3")
+    kept = _python(
+        "import os\nfrom studio._entry import limit_blas_threads\n"
+        "limit_blas_threads()\nprint(os.environ['OPENBLAS_NUM_THREADS'])\n",
+        OPENBLAS_NUM_THREADS="3",
+    )
     assert kept.stdout.strip() == "3"
 
 
@@ -318,13 +342,15 @@ def test_text_writers_start_the_disk_writing_and_survive_a_refusal(tmp_path, mon
 def test_ctrl_c_while_the_interpreter_exits_prints_nothing():
     # a Ctrl-C landing after the command finished, while exit handlers run (multiprocessing's
     # finalizers, say), printed "Exception ignored in ..." with a traceback
-    code = ("import atexit, os, signal, sys, time\n"
-            "import studio.cli\n"
-            "def late_ctrl_c():\n"
-            "    os.kill(os.getpid(), signal.SIGINT)\n"
-            "    time.sleep(0.05)\n"
-            "atexit.register(late_ctrl_c)\n"
-            "from studio._entry import main\n"
-            "main()\n")
+    code = (
+        "import atexit, os, signal, sys, time\n"
+        "import studio.cli\n"
+        "def late_ctrl_c():\n"
+        "    os.kill(os.getpid(), signal.SIGINT)\n"
+        "    time.sleep(0.05)\n"
+        "atexit.register(late_ctrl_c)\n"
+        "from studio._entry import main\n"
+        "main()\n"
+    )
     res = _python(code, "--version")
     assert res.returncode == 0 and res.stdout.startswith("studio ") and res.stderr == ""

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from studio.core.errors import ConfigError
-from studio.core.geometry import quat_from_rotvec, quat_mul, quat_rotate, quat_conj
+from studio.core.geometry import quat_conj, quat_from_rotvec, quat_mul, quat_rotate
 from studio.core.model import PoseKind
 from studio.core.residuals import chi2_terms, edge_errors
 from studio.solvers import METHODS, get_method
@@ -27,8 +27,9 @@ def _relative(kind, a, b):
     return np.column_stack([quat_rotate(qi, b[:, 0:3] - a[:, 0:3]), quat_mul(qi, b[:, 3:7])])
 
 
-def make_problem(kind: PoseKind, n: int = 60, *, seed: int = 1, closures: int = 25, outliers: int = 0,
-                 noise: float = 0.0):
+def make_problem(
+    kind: PoseKind, n: int = 60, *, seed: int = 1, closures: int = 25, outliers: int = 0, noise: float = 0.0
+):
     """A noiseless (or noisy) walk with loop closures; the initial values are a drifted copy."""
     rng = np.random.default_rng(seed)
     if kind is PoseKind.SE2:
@@ -39,7 +40,7 @@ def make_problem(kind: PoseKind, n: int = 60, *, seed: int = 1, closures: int = 
         q = np.zeros((n, 4))
         q[0] = [0, 0, 0, 1]
         for k in range(1, n):
-            q[k] = quat_mul(q[k - 1:k], quat_from_rotvec(rng.normal(0, 0.2, (1, 3))))[0]
+            q[k] = quat_mul(q[k - 1 : k], quat_from_rotvec(rng.normal(0, 0.2, (1, 3))))[0]
         q /= np.linalg.norm(q, axis=1, keepdims=True)
         t = np.cumsum(quat_rotate(q, np.tile([1.0, 0, 0], (n, 1))), axis=0)
         gt = np.column_stack([t, q])
@@ -162,7 +163,9 @@ def test_command_method_runs_an_external_program_and_maps_ids_back(tmp_path):
     problem, gt, _ = make_problem(PoseKind.SE2, n=20, closures=5)
     script = tmp_path / "truth.py"
     # an "external solver" that writes the ground truth, in its own id order (reversed)
-    lines = "".join(f"VERTEX_SE2 {k} {float(gt[k, 0])!r} {float(gt[k, 1])!r} {float(gt[k, 2])!r}\n" for k in reversed(range(20)))
+    lines = "".join(
+        f"VERTEX_SE2 {k} {float(gt[k, 0])!r} {float(gt[k, 1])!r} {float(gt[k, 2])!r}\n" for k in reversed(range(20))
+    )
     script.write_text(f"import sys\nopen(sys.argv[2], 'w').write({lines!r})\n")
     cmd = f"{sys.executable} {script} {{input}} {{output}}"
     sol = get_method("command")(problem, SolveOptions(command=cmd))
@@ -170,8 +173,9 @@ def test_command_method_runs_an_external_program_and_maps_ids_back(tmp_path):
     with pytest.raises(ConfigError, match="must contain {input} and {output}"):
         get_method("command")(problem, SolveOptions(command="true"))
     with pytest.raises(ConfigError, match="exited with status 3"):
-        get_method("command")(problem, SolveOptions(command=f"{sys.executable} -c 'import sys; sys.exit(3)' "
-                                                            "{input} {output}"))
+        get_method("command")(
+            problem, SolveOptions(command=f"{sys.executable} -c 'import sys; sys.exit(3)' {{input}} {{output}}")
+        )
 
 
 @pytest.mark.parametrize("kind", [PoseKind.SE2, PoseKind.SE3])
@@ -184,10 +188,24 @@ def test_residuals_match_g2o_itself(kind, tmp_path):
     rng = np.random.default_rng(2)
     d = 3 if kind is PoseKind.SE2 else 6
     rows, cols = np.triu_indices(d)
-    info = np.where(rows == cols, rng.uniform(1, 50, (problem.num_edges, len(rows))), rng.uniform(-0.5, 0.5, (problem.num_edges, len(rows))))
+    info = np.where(
+        rows == cols,
+        rng.uniform(1, 50, (problem.num_edges, len(rows))),
+        rng.uniform(-0.5, 0.5, (problem.num_edges, len(rows))),
+    )
     path = tmp_path / "p.g2o"
-    write_g2o(path, G2oDocument(kind, np.arange(problem.num_vertices), problem.initial, problem.edge_from,
-                                problem.edge_to, problem.measurements, info))
+    write_g2o(
+        path,
+        G2oDocument(
+            kind,
+            np.arange(problem.num_vertices),
+            problem.initial,
+            problem.edge_from,
+            problem.edge_to,
+            problem.measurements,
+            info,
+        ),
+    )
     opt = g2o.SparseOptimizer()
     opt.set_algorithm(g2o.OptimizationAlgorithmGaussNewton(g2o.BlockSolverX(g2o.LinearSolverEigenX())))
     assert opt.load(str(path))

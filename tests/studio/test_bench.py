@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import re
 from pathlib import Path
 
@@ -24,7 +23,8 @@ def test_a_small_bench_writes_the_table_and_plot_and_resumes(tmp_path):
         f'datasets = ["{DATA / "configs" / "small3x100.json"}"]\n'
         'cases = ["diagonal", "exact"]\nmethods = ["gtsam", "g2o"]\n'
         'alignments = ["none", "first-pose", "se3"]\n'
-        '[options.g2o]\nmax_iterations = 10\n')
+        "[options.g2o]\nmax_iterations = 10\n"
+    )
     spec = load_bench_spec(spec_path)
     out = tmp_path / "out"
     res = bench(spec, out, isolate=False)
@@ -55,20 +55,28 @@ def test_the_paper_spec_and_its_table_name_the_papers_figures():
     spec = load_bench_spec("paper")
     assert spec.datasets == ("multi3500x8", "multi10000x5") and spec.cases == ("diagonal", "exact")
     assert spec.input == "single-g2o" and "first-pose" in spec.alignments
-    rows = [{"dataset": "multi3500x8", "case": "diagonal", "method": "g2o", "ape_first-pose_m": 0.3865},
-            {"dataset": "multi3500x8", "case": "diagonal", "method": "odometry", "ape_first-pose_m": 14.88}]
+    rows = [
+        {"dataset": "multi3500x8", "case": "diagonal", "method": "g2o", "ape_first-pose_m": 0.3865},
+        {"dataset": "multi3500x8", "case": "diagonal", "method": "odometry", "ape_first-pose_m": 14.88},
+    ]
     table = format_paper_table(rows, spec, "first-pose")
     assert "0.386500 (paper 0.385161)" in table and "14.880000 (paper 14.883697)" in table
 
 
-@pytest.mark.parametrize("data, message", [
-    ({}, "datasets: missing key"),
-    ({"datasets": ["multi3500x8"], "method": ["gtsam"]}, "method: unknown key (did you mean 'methods'?)"),
-    ({"datasets": ["multi3500x8"], "methods": ["ceres"]}, "methods: unknown method 'ceres'"),
-    ({"datasets": ["multi3500x8"], "cases": ["robust"]}, "cases: unknown case 'robust'"),
-    ({"datasets": ["multi3500x8"], "alignments": ["sim2"]}, "alignments: unknown alignment 'sim2'"),
-    ({"datasets": ["multi3500x8"], "options": {"gtsam": {"iters": 3}}}, "options.gtsam.iters: unknown solve option"),
-])
+@pytest.mark.parametrize(
+    "data, message",
+    [
+        ({}, "datasets: missing key"),
+        ({"datasets": ["multi3500x8"], "method": ["gtsam"]}, "method: unknown key (did you mean 'methods'?)"),
+        ({"datasets": ["multi3500x8"], "methods": ["ceres"]}, "methods: unknown method 'ceres'"),
+        ({"datasets": ["multi3500x8"], "cases": ["robust"]}, "cases: unknown case 'robust'"),
+        ({"datasets": ["multi3500x8"], "alignments": ["sim2"]}, "alignments: unknown alignment 'sim2'"),
+        (
+            {"datasets": ["multi3500x8"], "options": {"gtsam": {"iters": 3}}},
+            "options.gtsam.iters: unknown solve option",
+        ),
+    ],
+)
 def test_bad_specs_name_the_key(data, message):
     with pytest.raises(ConfigError, match=re.escape(message)):
         bench_spec_from_dict(data, "spec.toml")

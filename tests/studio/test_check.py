@@ -54,9 +54,12 @@ def test_the_rotation_convention_changes_the_rotation_factor_fourfold(converted)
 
 def test_information_four_times_too_small_is_under_confident(converted, tmp_path):
     graph = read_multi_g2o(converted)
-    agents = tuple(dataclasses.replace(
-        a, odometry=dataclasses.replace(a.odometry, information_upper=a.odometry.information_upper / 4))
-        for a in graph.agents)
+    agents = tuple(
+        dataclasses.replace(
+            a, odometry=dataclasses.replace(a.odometry, information_upper=a.odometry.information_upper / 4)
+        )
+        for a in graph.agents
+    )
     scaled = dataclasses.replace(graph, agents=agents)
     (tmp_path / "scaled").mkdir()
     write_multi_g2o(scaled, tmp_path / "scaled", precision="full")
@@ -100,13 +103,16 @@ def test_cli_check_json_and_errors(converted, tmp_path):
     assert table.exit_code == 0 and "alpha" in table.output and "consistent" in table.output
     (tmp_path / "nogt").mkdir()
     g = read_multi_g2o(converted)
-    write_multi_g2o(dataclasses.replace(g, agents=tuple(dataclasses.replace(a, ground_truth=None)
-                                                        for a in g.agents)), tmp_path / "nogt")
+    write_multi_g2o(
+        dataclasses.replace(g, agents=tuple(dataclasses.replace(a, ground_truth=None) for a in g.agents)),
+        tmp_path / "nogt",
+    )
     bad = runner.invoke(app, ["check", str(tmp_path / "nogt")])
     assert bad.exit_code == 2
     assert bad.output.strip().splitlines() == [
         f"error: {tmp_path / 'nogt'}: agent alpha has no ground truth (alpha_GT.tum); "
-        "a dataset is checked at its ground truth"]
+        "a dataset is checked at its ground truth"
+    ]
     assert np.isfinite([c["total"]["factor"] for c in data["classes"]]).all()
 
 
@@ -116,12 +122,16 @@ def rotate_into_g2o_error_frame(info_upper: np.ndarray, theta_z: np.ndarray) -> 
     end pose). Upper triangles ``I11 I12 I13 I22 I23 I33``."""
     i11, i12, i13, i22, i23, i33 = info_upper.T
     c, s = np.cos(theta_z), np.sin(theta_z)
-    return np.column_stack([c * c * i11 + 2 * c * s * i12 + s * s * i22,
-                            -c * s * i11 + (c * c - s * s) * i12 + c * s * i22,
-                            c * i13 + s * i23,
-                            s * s * i11 - 2 * c * s * i12 + c * c * i22,
-                            -s * i13 + c * i23,
-                            i33])
+    return np.column_stack(
+        [
+            c * c * i11 + 2 * c * s * i12 + s * s * i22,
+            -c * s * i11 + (c * c - s * s) * i12 + c * s * i22,
+            c * i13 + s * i23,
+            s * s * i11 - 2 * c * s * i12 + c * c * i22,
+            -s * i13 + c * i23,
+            i33,
+        ]
+    )
 
 
 def test_kollagen_exact_information_rotated_into_g2os_error_frame_is_consistent(tmp_path):
@@ -139,7 +149,7 @@ def test_kollagen_exact_information_rotated_into_g2os_error_frame_is_consistent(
     theta_z = doc.edge_measurements[odo, 2]
     assert np.count_nonzero(np.abs(theta_z) > 1.0) >= 10  # there are turning edges to fix
 
-    def checked(sign: float) -> "object":
+    def checked(sign: float) -> object:
         info = doc.edge_information_upper.copy()
         info[odo] = rotate_into_g2o_error_frame(info[odo], sign * theta_z)
         folder = tmp_path / f"rotated{sign:+.0f}"

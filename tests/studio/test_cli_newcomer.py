@@ -29,8 +29,9 @@ def test_version_prints_the_package_version():
 def test_view_without_a_display_names_web_and_snapshot(tmp_path):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     rrd = REPO / "recordings" / "small3x100.rrd"
-    proc = subprocess.run([sys.executable, "-m", "studio.cli", "view", str(rrd)], env=env,
-                          capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "studio.cli", "view", str(rrd)], env=env, capture_output=True, text=True, timeout=60
+    )
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1, proc.stderr

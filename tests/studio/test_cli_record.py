@@ -64,8 +64,11 @@ def test_record_missing_folder(tmp_path):
 
 def test_record_folder_without_agents(tmp_path):
     (tmp_path / "empty").mkdir()
-    _fails_cleanly(["record", str(tmp_path / "empty"), "-o", str(tmp_path / "x.rrd")], tmp_path,
-                   "no agent folder with a posegraph.g2o")
+    _fails_cleanly(
+        ["record", str(tmp_path / "empty"), "-o", str(tmp_path / "x.rrd")],
+        tmp_path,
+        "no agent folder with a posegraph.g2o",
+    )
 
 
 def test_record_malformed_g2o_names_file_and_line(copy, tmp_path):
@@ -135,9 +138,9 @@ def _empty_recording(rrd: Path) -> None:
 
 
 def test_view_web_serves_on_localhost_only(tmp_path):
-    from studio.recording.viewer import view_web_command, web_viewer_address
-
     import rerun as rr
+
+    from studio.recording.viewer import view_web_command, web_viewer_address
 
     rrd = tmp_path / "x.rrd"
     rec = rr.RecordingStream("t")
@@ -179,8 +182,9 @@ def test_snapshot_renders_a_png(tmp_path):
     if not vulkan_drivers():
         pytest.skip("no Vulkan driver (apt-get install -y mesa-vulkan-drivers)")
     rrd = Path(__file__).resolve().parent.parent.parent / "recordings" / "small3x100.rrd"
-    res = runner.invoke(app, ["snapshot", str(rrd), "-o", str(tmp_path / "s.png"), "--node", "100",
-                              "--size", "800x500"])
+    res = runner.invoke(
+        app, ["snapshot", str(rrd), "-o", str(tmp_path / "s.png"), "--node", "100", "--size", "800x500"]
+    )
     assert res.exit_code == 0, res.output
     png = (tmp_path / "s.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000

@@ -87,7 +87,10 @@ def test_interrupted_run_leaves_nothing(tmp_path, monkeypatch):
 def test_preset_name_and_unknown_preset(tmp_path):
     res = _run("multi1x1", "-o", tmp_path)
     assert res.exit_code == 2
-    assert res.stderr.strip() == "error: multi1x1: no such file, and not a preset (presets: cube3d, multi10000x5, multi3500x8, multi3500x8_outliers)"
+    assert (
+        res.stderr.strip()
+        == "error: multi1x1: no such file, and not a preset (presets: cube3d, multi10000x5, multi3500x8, multi3500x8_outliers)"
+    )
 
 
 def _mutate(path: str, value):
@@ -105,34 +108,60 @@ def _mutate(path: str, value):
 
 
 BAD = [
-    ("missing key", _mutate("agent_parameters.agent_specific[2].std_dev_angle", KeyError),
-     "agent_parameters.agent_specific[2].std_dev_angle: missing key"),
-    ("mistyped key", _mutate("agent_parameters.agent_specific[1].std_dev_angle", "0.1"),
-     "agent_parameters.agent_specific[1].std_dev_angle: must be a number, got the string '0.1'"),
-    ("negative std dev", _mutate("inter_agent_loop_closure_parameters.std_dev_loop_closure_position", -0.1),
-     "inter_agent_loop_closure_parameters.std_dev_loop_closure_position: a standard deviation cannot be "
-     "negative, got -0.1"),
-    ("agent_specific count", _mutate("number_of_agents", 2),
-     "agent_parameters.agent_specific: has 3 entries; it needs 1 (shared by all agents) or "
-     "number_of_agents = 2"),
+    (
+        "missing key",
+        _mutate("agent_parameters.agent_specific[2].std_dev_angle", KeyError),
+        "agent_parameters.agent_specific[2].std_dev_angle: missing key",
+    ),
+    (
+        "mistyped key",
+        _mutate("agent_parameters.agent_specific[1].std_dev_angle", "0.1"),
+        "agent_parameters.agent_specific[1].std_dev_angle: must be a number, got the string '0.1'",
+    ),
+    (
+        "negative std dev",
+        _mutate("inter_agent_loop_closure_parameters.std_dev_loop_closure_position", -0.1),
+        "inter_agent_loop_closure_parameters.std_dev_loop_closure_position: a standard deviation cannot be "
+        "negative, got -0.1",
+    ),
+    (
+        "agent_specific count",
+        _mutate("number_of_agents", 2),
+        "agent_parameters.agent_specific: has 3 entries; it needs 1 (shared by all agents) or number_of_agents = 2",
+    ),
     ("zero agents", _mutate("number_of_agents", 0), "number_of_agents: must be at least 1, got 0"),
     ("negative agents", _mutate("number_of_agents", -3), "number_of_agents: must be at least 1, got -3"),
     ("zero steps", _mutate("number_of_steps", 0), "number_of_steps: must be at least 1, got 0"),
     ("fractional steps", _mutate("number_of_steps", 2.5), "number_of_steps: must be an integer, got 2.5"),
     ("zero stepsize", _mutate("agent_parameters.stepsize", 0), "agent_parameters.stepsize: must be positive, got 0.0"),
-    ("negative stepsize", _mutate("agent_parameters.stepsize", -1.0),
-     "agent_parameters.stepsize: must be positive, got -1.0"),
+    (
+        "negative stepsize",
+        _mutate("agent_parameters.stepsize", -1.0),
+        "agent_parameters.stepsize: must be positive, got -1.0",
+    ),
     ("negative steps", _mutate("number_of_steps", -5), "number_of_steps: must be at least 1, got -5"),
-    ("negative step fragment", _mutate("agent_parameters.step_fragment", -2),
-     "agent_parameters.step_fragment: must be at least 1, got -2"),
-    ("steps beyond int", _mutate("number_of_steps", 10**13),
-     "number_of_steps: 10000000000000 does not fit kollagen's 32-bit int"),
-    ("zero step fragment", _mutate("agent_parameters.step_fragment", 0),
-     "agent_parameters.step_fragment: must be at least 1, got 0"),
+    (
+        "negative step fragment",
+        _mutate("agent_parameters.step_fragment", -2),
+        "agent_parameters.step_fragment: must be at least 1, got -2",
+    ),
+    (
+        "steps beyond int",
+        _mutate("number_of_steps", 10**13),
+        "number_of_steps: 10000000000000 does not fit kollagen's 32-bit int",
+    ),
+    (
+        "zero step fragment",
+        _mutate("agent_parameters.step_fragment", 0),
+        "agent_parameters.step_fragment: must be at least 1, got 0",
+    ),
     ("bool as number", _mutate("align", 1), "align: must be true or false, got the number 1"),
     ("not an object", [1, 2, 3], "must be a JSON object, got an array"),
-    ("agent entry not an object", _mutate("agent_parameters.agent_specific[0]", 5),
-     "agent_parameters.agent_specific[0]: must be a JSON object, got the number 5"),
+    (
+        "agent entry not an object",
+        _mutate("agent_parameters.agent_specific[0]", 5),
+        "agent_parameters.agent_specific[0]: must be a JSON object, got the number 5",
+    ),
 ]
 
 
@@ -158,10 +187,15 @@ def test_missing_file(tmp_path):
 
 @pytest.mark.parametrize(
     ("text", "where"),
-    [("{\n  \"number_of_steps\": 3,\n  oops\n}", ":3:3: invalid JSON: Expecting property name enclosed in double quotes"),
-     ("", ":1:1: invalid JSON: Expecting value"),
-     ("{\"a\": NaN}", ": invalid JSON: NaN is not valid JSON"),
-     ("[" * 100000, "")],
+    [
+        (
+            '{\n  "number_of_steps": 3,\n  oops\n}',
+            ":3:3: invalid JSON: Expecting property name enclosed in double quotes",
+        ),
+        ("", ":1:1: invalid JSON: Expecting value"),
+        ('{"a": NaN}', ": invalid JSON: NaN is not valid JSON"),
+        ("[" * 100000, ""),
+    ],
 )
 def test_invalid_json(tmp_path, text, where):
     cfg = _write(tmp_path, text)
@@ -185,7 +219,9 @@ def test_exact_information_needs_positive_noise(tmp_path):
     data["exact_information_matrix"] = True
     res = _run(_write(tmp_path, data), "-o", tmp_path / "out")
     assert res.exit_code == 2
-    assert "agent_parameters.agent_specific[0].std_dev_angle: must be positive when exact_information_matrix" in res.stderr
+    assert (
+        "agent_parameters.agent_specific[0].std_dev_angle: must be positive when exact_information_matrix" in res.stderr
+    )
 
 
 def test_resource_guard_refuses_huge_configs_before_any_work(tmp_path):
@@ -197,8 +233,9 @@ def test_resource_guard_refuses_huge_configs_before_any_work(tmp_path):
         "over the 8 GB limit (raise it with --max-memory-gb)"
     )
     assert not (tmp_path / "out").exists()
-    res = _run(_write(tmp_path, _mutate("number_of_steps", 2 * 10**6), "big"), "-o", tmp_path / "out",
-               "--max-memory-gb", "1e9")
+    res = _run(
+        _write(tmp_path, _mutate("number_of_steps", 2 * 10**6), "big"), "-o", tmp_path / "out", "--max-memory-gb", "1e9"
+    )
     assert res.exit_code == 2
     assert "would write about 36 GB, over the 20 GB limit (raise it with --max-output-gb)" in res.stderr
 

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import pytest
 
@@ -35,8 +35,8 @@ def _synth(config: Path) -> Callable[[Path], Path]:
 
 def _convert_tum(folder: Path, name: str) -> Callable[[Path], Path]:
     def make(tmp: Path) -> Path:
-        from studio.converters.build import GraphOptions
         from studio.convert import ConvertConfig, convert
+        from studio.converters.build import GraphOptions
 
         inputs = tuple(str(p) for p in sorted(folder.glob("*.tum")))
         cfg = ConvertConfig("tum", inputs, (), GraphOptions(seed=7, outlier_fraction=0.05))

@@ -11,11 +11,11 @@ import pytest
 from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
-from studio.generator.presets import preset
 from studio.cli import app
 from studio.core.errors import EvaluationError, FormatError
-from studio.evaluate import Alignment, evaluate, format_markdown, format_table, score
 from studio.core.trajectory import Trajectory
+from studio.evaluate import Alignment, evaluate, format_markdown, format_table, score
+from studio.generator.presets import preset
 from studio.io.estimate import read_estimate
 from studio.io.g2o import G2oDocument, write_g2o
 from studio.io.multig2o import read_multi_g2o
@@ -98,7 +98,7 @@ def test_initial_estimate_pooled_ape_is_the_mean_distance_over_all_poses(small, 
     assert ev.overall.ape_translation_m.rmse == pytest.approx(np.sqrt(np.mean(dist**2)), rel=1e-12)
     assert ev.overall.ape_translation_m.mean > 0.1  # dead reckoning drifts
     for k, a in enumerate(ev.agents):
-        assert a.ape_translation_m.mean == pytest.approx(dist[241 * k: 241 * (k + 1)].mean(), rel=1e-15)
+        assert a.ape_translation_m.mean == pytest.approx(dist[241 * k : 241 * (k + 1)].mean(), rel=1e-15)
         assert a.ape_translation_m.min == 0.0  # every agent starts on its ground truth
     assert ev.alignment is Alignment.none and ev.alignment_text == "unaligned"
 
@@ -112,8 +112,9 @@ def test_metrics_equal_evo_metric_objects(graph):
     ev = score(graph, [Trajectory.from_poses(a.name, a.stamps_ns, p) for a, p in zip(graph.agents, est)])
 
     def traj(p, a):
-        return PoseTrajectory3D(positions_xyz=p[:, 0:3], orientations_quat_wxyz=p[:, [6, 3, 4, 5]],
-                                timestamps=a.stamps_ns / _NS)
+        return PoseTrajectory3D(
+            positions_xyz=p[:, 0:3], orientations_quat_wxyz=p[:, [6, 3, 4, 5]], timestamps=a.stamps_ns / _NS
+        )
 
     rel = metrics.PoseRelation
     pooled = {key: [] for key in ("at", "ar", "mt", "mr", "nt", "nr")}
@@ -122,10 +123,16 @@ def test_metrics_equal_evo_metric_objects(graph):
         cases = [
             ("at", row.ape_translation_m, metrics.APE(rel.translation_part)),
             ("ar", row.ape_rotation_deg, metrics.APE(rel.rotation_angle_deg)),
-            ("mt", row.rpe_m_translation_m, metrics.RPE(rel.translation_part, 1.0, metrics.Unit.meters,
-                                                        pairs_from_reference=True)),
-            ("mr", row.rpe_m_rotation_deg, metrics.RPE(rel.rotation_angle_deg, 1.0, metrics.Unit.meters,
-                                                       pairs_from_reference=True)),
+            (
+                "mt",
+                row.rpe_m_translation_m,
+                metrics.RPE(rel.translation_part, 1.0, metrics.Unit.meters, pairs_from_reference=True),
+            ),
+            (
+                "mr",
+                row.rpe_m_rotation_deg,
+                metrics.RPE(rel.rotation_angle_deg, 1.0, metrics.Unit.meters, pairs_from_reference=True),
+            ),
             ("nt", row.rpe_node_translation_m, metrics.RPE(rel.translation_part, 1, metrics.Unit.frames)),
             ("nr", row.rpe_node_rotation_deg, metrics.RPE(rel.rotation_angle_deg, 1, metrics.Unit.frames)),
         ]
@@ -157,8 +164,9 @@ def test_single_g2o_multi_g2o_and_tum_estimates_give_the_same_numbers(small, gra
     _write_single(tmp_path / "opt.g2o", est, order=np.random.default_rng(1).permutation(n))  # any vertex order
     _write_multi(tmp_path / "multi", graph, est)
     _write_tum(tmp_path / "tum", graph, est, suffix="_optimized")
-    results = [evaluate(small.dataset_dir, estimate=p) for p in
-               (tmp_path / "opt.g2o", tmp_path / "multi", tmp_path / "tum")]
+    results = [
+        evaluate(small.dataset_dir, estimate=p) for p in (tmp_path / "opt.g2o", tmp_path / "multi", tmp_path / "tum")
+    ]
     assert [r.estimate_layout for r in results] == ["single-g2o", "multi-g2o", "tum"]
     assert _numbers(results[0]) == _numbers(results[1]) == _numbers(results[2])
     direct = score(graph, [Trajectory.from_poses(a.name, a.stamps_ns, p) for a, p in zip(graph.agents, est)])
@@ -177,7 +185,8 @@ def test_tum_estimate_matched_within_tolerance(small, graph, tmp_path):
     _write_tum(tmp_path / "ok", graph, est, shift_ns=4_000_000)  # 4 ms off: within 10 ms
     _write_multi(tmp_path / "multi", graph, est)
     assert _numbers(evaluate(small.dataset_dir, estimate=tmp_path / "ok")) == _numbers(
-        evaluate(small.dataset_dir, estimate=tmp_path / "multi"))
+        evaluate(small.dataset_dir, estimate=tmp_path / "multi")
+    )
     with pytest.raises(EvaluationError, match=r"estimate of agent1: no timestamp matches .* within 0.001 s"):
         evaluate(small.dataset_dir, estimate=tmp_path / "ok", tum_max_diff_s=0.001)
     half = tmp_path / "half"
@@ -187,7 +196,10 @@ def test_tum_estimate_matched_within_tolerance(small, graph, tmp_path):
     ev = evaluate(small.dataset_dir, estimate=half)
     assert [a.poses for a in ev.agents] == [121, 121, 121]
     assert ev.overall.poses == 363
-    assert ev.warnings[2] == "estimate of agent3: 121 of 241 ground-truth poses matched within 0.01 s; only those are scored"
+    assert (
+        ev.warnings[2]
+        == "estimate of agent3: 121 of 241 ground-truth poses matched within 0.01 s; only those are scored"
+    )
     assert evaluate(small.dataset_dir, estimate=tmp_path / "ok").warnings == ()
     res = CliRunner().invoke(app, ["evaluate", str(small.dataset_dir), "-e", str(half)])
     assert res.exit_code == 0 and "warning: estimate of agent1: 121 of 241 ground-truth poses matched" in res.output
@@ -205,14 +217,17 @@ def _moved(poses, r, t, s=1.0):
 
 def test_alignment_removes_a_common_transform(graph):
     r = Rotation.from_euler("z", 30, degrees=True)
-    est = [Trajectory.from_poses(a.name, a.stamps_ns, _moved(a.ground_truth, r, [5.0, -3.0, 1.0], 1.2)) for a in graph.agents]
+    est = [
+        Trajectory.from_poses(a.name, a.stamps_ns, _moved(a.ground_truth, r, [5.0, -3.0, 1.0], 1.2))
+        for a in graph.agents
+    ]
     assert score(graph, est).overall.ape_translation_m.mean > 1.0
     assert score(graph, est, align="se3").overall.ape_translation_m.mean > 0.1  # scale is left
     ev = score(graph, est, align="sim3")
     assert ev.overall.ape_translation_m.max < 1e-9
     assert ev.overall.ape_rotation_deg.max < 1e-5
     assert ev.overall.rpe_m_translation_m.max < 1e-9  # RPE is computed after the sim(3) scale too
-    (rot, _, s), = ev.alignment_transforms
+    ((rot, _, s),) = ev.alignment_transforms
     assert s == pytest.approx(1 / 1.2)
     assert np.allclose(rot, r.inv().as_matrix())
     assert "sim3 Umeyama alignment, one for all agents" in format_table(ev)
@@ -224,9 +239,12 @@ def test_unknown_alignment_is_a_studio_error(graph):
 
 
 def test_align_per_agent_removes_one_transform_per_agent(graph):
-    est = [Trajectory.from_poses(a.name, a.stamps_ns,
-                                 _moved(a.ground_truth, Rotation.from_euler("z", 10 * k, degrees=True), [k, 0, 0]))
-           for k, a in enumerate(graph.agents)]
+    est = [
+        Trajectory.from_poses(
+            a.name, a.stamps_ns, _moved(a.ground_truth, Rotation.from_euler("z", 10 * k, degrees=True), [k, 0, 0])
+        )
+        for k, a in enumerate(graph.agents)
+    ]
     assert score(graph, est, align="se3").overall.ape_translation_m.mean > 0.1
     ev = score(graph, est, align="se3", align_per_agent=True)
     assert ev.overall.ape_translation_m.max < 1e-9
@@ -243,8 +261,11 @@ def test_single_g2o_missing_vertex_names_agent_and_count(small, graph, tmp_path)
     keep = np.ones(len(allp), dtype=bool)
     keep[241 + 17] = False  # agent2's vertex 17
     write_g2o(tmp_path / "opt.g2o", _doc(np.flatnonzero(keep), allp[keep]))
-    with pytest.raises(EvaluationError, match=r"opt.g2o: agent2 has 240 of its 241 vertices \(ids 241..481\); "
-                                              r"1 missing, the first is id 258"):
+    with pytest.raises(
+        EvaluationError,
+        match=r"opt.g2o: agent2 has 240 of its 241 vertices \(ids 241..481\); "
+        r"1 missing, the first is id 258",
+    ):
         evaluate(small.dataset_dir, estimate=tmp_path / "opt.g2o")
     write_g2o(tmp_path / "more.g2o", _doc(np.arange(len(allp) + 2), np.concatenate([allp, allp[:2]])))
     with pytest.raises(EvaluationError, match=r"2 vertices have ids outside the dataset's 723 \(ids 0..722\)"):
@@ -262,8 +283,11 @@ def test_multi_g2o_estimate_mismatches(small, graph, tmp_path):
         evaluate(small.dataset_dir, estimate=tmp_path / "missing")
     _write_multi(tmp_path / "shifted", graph, est)
     write_g2o(tmp_path / "shifted" / "agent2" / "posegraph.g2o", _doc(np.arange(241) + 1, est[1]))
-    with pytest.raises(EvaluationError, match=r"agent2 has 240 of its 241 vertices \(ids 0..240\); 1 missing, "
-                                              r"the first is id 0"):
+    with pytest.raises(
+        EvaluationError,
+        match=r"agent2 has 240 of its 241 vertices \(ids 0..240\); 1 missing, "
+        r"the first is id 0",
+    ):
         evaluate(small.dataset_dir, estimate=tmp_path / "shifted")
     _write_multi(tmp_path / "extra", graph, est)
     shutil.copytree(tmp_path / "extra" / "agent3", tmp_path / "extra" / "agent4")
@@ -299,8 +323,14 @@ def test_tum_folder_without_a_file_for_an_agent(small, graph, tmp_path):
     (tmp_path / "tum" / "agent3.tum").unlink()
     with pytest.raises(EvaluationError, match=r"no agent3.tum or agent3_\*.tum for agent agent3"):
         read_estimate(tmp_path / "tum", graph)
-    write_tum(tmp_path / "tum" / "agent3.tum", Trajectory.from_poses("agent3", graph.agents[2].stamps_ns, graph.agents[2].ground_truth))
-    write_tum(tmp_path / "tum" / "agent3_b.tum", Trajectory.from_poses("agent3", graph.agents[2].stamps_ns, graph.agents[2].ground_truth))
+    write_tum(
+        tmp_path / "tum" / "agent3.tum",
+        Trajectory.from_poses("agent3", graph.agents[2].stamps_ns, graph.agents[2].ground_truth),
+    )
+    write_tum(
+        tmp_path / "tum" / "agent3_b.tum",
+        Trajectory.from_poses("agent3", graph.agents[2].stamps_ns, graph.agents[2].ground_truth),
+    )
     with pytest.raises(EvaluationError, match=r"several TUM files for agent agent3: agent3.tum, agent3_b.tum"):
         read_estimate(tmp_path / "tum", graph)
 
@@ -309,8 +339,9 @@ def test_short_path_has_no_rpe_per_metre(graph):
     a = graph.agents[0]
     from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph
 
-    tiny = AgentGraph("tiny", a.kind, a.stamps_ns[:3], a.initial[:3], a.ground_truth[:3],
-                      Edges.empty(a.kind), Edges.empty(a.kind))
+    tiny = AgentGraph(
+        "tiny", a.kind, a.stamps_ns[:3], a.initial[:3], a.ground_truth[:3], Edges.empty(a.kind), Edges.empty(a.kind)
+    )
     ev = score(PoseGraph(a.kind, (tiny,), InterAgentEdges.empty(a.kind)))
     assert ev.agents[0].rpe_m_translation_m is None  # 3 poses, 0.5 m of path
     assert ev.agents[0].rpe_node_translation_m.count == 2
@@ -335,7 +366,10 @@ def test_cli_table_json_and_markdown(small):
     assert res.exit_code == 0, res.output
     doc = json.loads(res.output)
     assert doc["alignment"] == {"mode": "se3", "per_agent": False}
-    assert doc["all"]["ape_translation_m"]["mean"] == evaluate(small.dataset_dir, align="se3").overall.ape_translation_m.mean
+    assert (
+        doc["all"]["ape_translation_m"]["mean"]
+        == evaluate(small.dataset_dir, align="se3").overall.ape_translation_m.mean
+    )
     assert [a["name"] for a in doc["agents"]] == ["agent1", "agent2", "agent3"]
 
     res = runner.invoke(app, ["evaluate", str(small.dataset_dir), "--markdown"])
@@ -344,12 +378,15 @@ def test_cli_table_json_and_markdown(small):
     assert "| agent | poses | APE t mean |" in res.output
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--json", "--markdown"], "error: --json and --markdown exclude each other"),
-    (["--align-per-agent"], "error: --align-per-agent needs --align se3 or --align sim3"),
-    (["--estimate", "nowhere.g2o"], "error: nowhere.g2o: no such file or folder"),
-    (["--rpe-delta-m", "0"], "error: the RPE distance must be a positive number of metres, got 0.0"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--json", "--markdown"], "error: --json and --markdown exclude each other"),
+        (["--align-per-agent"], "error: --align-per-agent needs --align se3 or --align sim3"),
+        (["--estimate", "nowhere.g2o"], "error: nowhere.g2o: no such file or folder"),
+        (["--rpe-delta-m", "0"], "error: the RPE distance must be a positive number of metres, got 0.0"),
+    ],
+)
 def test_cli_bad_input_is_one_line_and_exit_2(small, args, message):
     res = CliRunner().invoke(app, ["evaluate", str(small.dataset_dir), *args])
     assert res.exit_code == 2
@@ -394,8 +431,9 @@ def test_rrd_holds_the_per_node_error_series(small, graph, tmp_path):
     est = _perturbed(graph)
     _write_multi(tmp_path / "multi", graph, est)
     rrd = tmp_path / "errors.rrd"
-    res = CliRunner().invoke(app, ["evaluate", str(small.dataset_dir), "-e", str(tmp_path / "multi"),
-                                   "--rrd", str(rrd)])
+    res = CliRunner().invoke(
+        app, ["evaluate", str(small.dataset_dir), "-e", str(tmp_path / "multi"), "--rrd", str(rrd)]
+    )
     assert res.exit_code == 0, res.output
     ev = evaluate(small.dataset_dir, estimate=tmp_path / "multi")
     chunks = {c.entity_path: c for c in RrdReader(rrd).stream() if not c.is_static}
@@ -403,8 +441,9 @@ def test_rrd_holds_the_per_node_error_series(small, graph, tmp_path):
     values = np.concatenate(batch.column("Scalars:scalars").to_pylist())
     assert np.array_equal(values, ev.ape_translation_series_m[1])
     assert batch.column("node").to_pylist() == list(range(241))
-    assert set(chunks) == {f"/evaluation/{s}/agent{k}" for k in (1, 2, 3)
-                           for s in ("ape_translation_m", "ape_rotation_deg")}
+    assert set(chunks) == {
+        f"/evaluation/{s}/agent{k}" for k in (1, 2, 3) for s in ("ape_translation_m", "ape_rotation_deg")
+    }
     # the 3D view: ground truth as one strip, the estimate as segments coloured by their error
     static = {c.entity_path: c.to_record_batch() for c in RrdReader(rrd).stream() if c.is_static}
     gt = static["/evaluation/world/agent2/ground_truth"].column("LineStrips3D:strips").to_pylist()[0][0]
@@ -415,9 +454,12 @@ def test_rrd_holds_the_per_node_error_series(small, graph, tmp_path):
     worst = int(np.argmax(ev.ape_translation_series_m[1][:-1] + ev.ape_translation_series_m[1][1:]))
     assert len(set(colours)) > 10 and colours[worst] != colours[0]
     reader = RrdReader(rrd)
-    kinds = sorted(v for c in reader.stream(store=reader.blueprints()[0])
-                   if "ViewBlueprint:class_identifier" in c.to_record_batch().schema.names
-                   for v in np.concatenate(c.to_record_batch().column("ViewBlueprint:class_identifier").to_pylist()))
+    kinds = sorted(
+        v
+        for c in reader.stream(store=reader.blueprints()[0])
+        if "ViewBlueprint:class_identifier" in c.to_record_batch().schema.names
+        for v in np.concatenate(c.to_record_batch().column("ViewBlueprint:class_identifier").to_pylist())
+    )
     assert kinds == ["3D", "TextDocument", "TimeSeries", "TimeSeries"]  # one plot per metric
     res = CliRunner().invoke(app, ["evaluate", str(small.dataset_dir), "--rrd", str(rrd)])
     assert res.exit_code == 2 and "already exists (use --force to overwrite)" in res.output

@@ -8,16 +8,19 @@ from __future__ import annotations
 
 import pytest
 
-from studio.generator.presets import preset
 from studio.evaluate import evaluate
+from studio.generator.presets import preset
 from studio.synth import synthesize
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name, poses, odometry_ape", [
-    ("multi3500x8", 8 * 3501, "14.883697"),
-    ("multi10000x5", 5 * 10001, "17.427713"),
-])
+@pytest.mark.parametrize(
+    "name, poses, odometry_ape",
+    [
+        ("multi3500x8", 8 * 3501, "14.883697"),
+        ("multi10000x5", 5 * 10001, "17.427713"),
+    ],
+)
 def test_paper_odometry_ape(tmp_path, name, poses, odometry_ape):
     res = synthesize(preset(name), tmp_path)
     ev = evaluate(res.dataset_dir)
@@ -33,7 +36,8 @@ def test_kollagen_reference_dataset_scores_like_ours(kollagen_reference, tmp_pat
     from studio.synth import load_synth_config
 
     theirs = evaluate(kollagen_reference / "outputs" / "small_three")
-    ours = evaluate(synthesize(load_synth_config(kollagen_reference / "configs" / "small_three.json"),
-                               tmp_path).dataset_dir)
+    ours = evaluate(
+        synthesize(load_synth_config(kollagen_reference / "configs" / "small_three.json"), tmp_path).dataset_dir
+    )
     assert theirs.to_dict()["agents"] == ours.to_dict()["agents"]
     assert theirs.overall.ape_translation_m.mean > 0

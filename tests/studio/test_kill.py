@@ -53,11 +53,19 @@ def test_killed_synth_leaves_no_target(tmp_path, sig):
     leftovers = _kill_while_staging(_studio("synth", "multi10000x5", "-o", out, "-q"), out, sig, 0.3)
     _assert_clean(leftovers, sig)
     # the next run in the same folder removes a stale staging folder and succeeds
-    done = subprocess.run(_studio("synth", DATA / "configs" / "tiny_single.json", "-o", out, "-q"),
-                          env=ENV, capture_output=True, text=True)
+    done = subprocess.run(
+        _studio("synth", DATA / "configs" / "tiny_single.json", "-o", out, "-q"),
+        env=ENV,
+        capture_output=True,
+        text=True,
+    )
     assert done.returncode == 0, done.stderr
     assert sorted(p.name for p in out.iterdir()) == [
-        "tiny_single", "tiny_single.config.json", "tiny_single.rrd", "tiny_single_singleg2o"]
+        "tiny_single",
+        "tiny_single.config.json",
+        "tiny_single.rrd",
+        "tiny_single_singleg2o",
+    ]
 
 
 @pytest.fixture(scope="module")
@@ -76,8 +84,12 @@ def test_killed_record_leaves_no_recording(tmp_path, big_dataset, sig):
     out.mkdir()
     leftovers = _kill_while_staging(_studio("record", big_dataset, "-o", out / "big.rrd", "-q"), out, sig)
     _assert_clean(leftovers, sig)
-    done = subprocess.run(_studio("record", DATA / "golden" / "tiny_single", "-o", out / "t.rrd", "-q"),
-                          env=ENV, capture_output=True, text=True)
+    done = subprocess.run(
+        _studio("record", DATA / "golden" / "tiny_single", "-o", out / "t.rrd", "-q"),
+        env=ENV,
+        capture_output=True,
+        text=True,
+    )
     assert done.returncode == 0, done.stderr
     assert sorted(p.name for p in out.iterdir()) == ["t.rrd"]
 
@@ -90,8 +102,18 @@ def big_tum(tmp_path_factory) -> list[Path]:
         n = 150_000
         t = np.arange(n)
         ang = 2 * np.pi * 20 * t / n + k
-        rows = np.column_stack([1_600_000_000 + t * 0.01, 30 * np.cos(ang), 30 * np.sin(ang), np.zeros(n),
-                                np.zeros(n), np.zeros(n), np.sin((ang + np.pi / 2) / 2), np.cos((ang + np.pi / 2) / 2)])
+        rows = np.column_stack(
+            [
+                1_600_000_000 + t * 0.01,
+                30 * np.cos(ang),
+                30 * np.sin(ang),
+                np.zeros(n),
+                np.zeros(n),
+                np.zeros(n),
+                np.sin((ang + np.pi / 2) / 2),
+                np.cos((ang + np.pi / 2) / 2),
+            ]
+        )
         path = root / f"robot{k}.txt"
         np.savetxt(path, rows, fmt=["%.2f"] + ["%.9f"] * 7)
         files.append(path)
@@ -105,7 +127,11 @@ def test_killed_convert_leaves_no_dataset(tmp_path, big_tum, sig):
     parent.mkdir()
     leftovers = _kill_while_staging(_studio("convert", "tum", *big_tum, "-o", parent / "ds", "-q"), parent, sig)
     _assert_clean(leftovers, sig)
-    done = subprocess.run(_studio("convert", "tum", DATA / "trajectories" / "alpha.tum", "-o", parent / "ok", "-q"),
-                          env=ENV, capture_output=True, text=True)
+    done = subprocess.run(
+        _studio("convert", "tum", DATA / "trajectories" / "alpha.tum", "-o", parent / "ok", "-q"),
+        env=ENV,
+        capture_output=True,
+        text=True,
+    )
     assert done.returncode == 0, done.stderr
     assert sorted(p.name for p in parent.iterdir()) == ["ok"]

@@ -20,8 +20,11 @@ def _agent(name="a", n=4, kind=PoseKind.SE2):
 
 
 def test_valid_graph_and_counts():
-    g = PoseGraph(PoseKind.SE2, (_agent("a"), _agent("b", 3)), InterAgentEdges(
-        PoseKind.SE2, [1], [2], [0], [3], [[0.1, 0.2, 0.3]], [[1, 0, 0, 1, 0, 1]]))
+    g = PoseGraph(
+        PoseKind.SE2,
+        (_agent("a"), _agent("b", 3)),
+        InterAgentEdges(PoseKind.SE2, [1], [2], [0], [3], [[0.1, 0.2, 0.3]], [[1, 0, 0, 1, 0, 1]]),
+    )
     assert g.num_poses == 7
     assert g.edge_counts() == {"odometry": 5, "intra_loop_closures": 0, "inter_loop_closures": 1}
 
@@ -72,8 +75,11 @@ def test_lift_to_se3_keeps_xy_and_turns_yaw_into_quaternion():
     a = _agent()
     poses = a.initial.copy()
     poses[:, 2] = [0.0, np.pi / 2, -np.pi / 2, 1.0]
-    g = PoseGraph(PoseKind.SE2, (AgentGraph("a", PoseKind.SE2, a.stamps_ns, poses, poses, a.odometry,
-                                            a.loop_closures),), InterAgentEdges.empty(PoseKind.SE2))
+    g = PoseGraph(
+        PoseKind.SE2,
+        (AgentGraph("a", PoseKind.SE2, a.stamps_ns, poses, poses, a.odometry, a.loop_closures),),
+        InterAgentEdges.empty(PoseKind.SE2),
+    )
     lifted = g.to_se3()
     assert lifted is g.to_se3()  # cached
     q = lifted.agents[0].initial[:, 3:7]

@@ -28,8 +28,14 @@ def _env() -> dict[str, str]:
 def _in_pty(args: list[str], cwd: Path) -> tuple[int, str]:
     """Run ``python -m studio.cli ARGS`` with stdin, stdout and stderr on a pseudo-terminal."""
     leader, follower = os.openpty()
-    proc = subprocess.Popen([sys.executable, "-m", "studio.cli", *args], stdin=follower, stdout=follower,
-                            stderr=follower, cwd=cwd, env=_env())
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "studio.cli", *args],
+        stdin=follower,
+        stdout=follower,
+        stderr=follower,
+        cwd=cwd,
+        env=_env(),
+    )
     os.close(follower)
     chunks = []
     while True:
@@ -46,8 +52,9 @@ def _in_pty(args: list[str], cwd: Path) -> tuple[int, str]:
 
 
 def _in_pipe(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "studio.cli", *args], cwd=cwd, env=_env(),
-                          capture_output=True, text=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "studio.cli", *args], cwd=cwd, env=_env(), capture_output=True, text=True, timeout=120
+    )
 
 
 def test_synth_draws_progress_per_agent_and_pair_on_a_terminal(tmp_path):
@@ -101,16 +108,19 @@ def test_terminal_progress_is_none_off_a_terminal(capsys):
 
 
 def test_a_command_in_a_pipe_does_not_load_rich(tmp_path):
-    code = ("import sys\n"
-            "from studio.core.progress import terminal_progress\n"
-            "with terminal_progress() as p:\n"
-            "    seen = (p is None, 'rich' in sys.modules)\n"
-            "open('seen.txt', 'w').write(repr(seen))\n")
+    code = (
+        "import sys\n"
+        "from studio.core.progress import terminal_progress\n"
+        "with terminal_progress() as p:\n"
+        "    seen = (p is None, 'rich' in sys.modules)\n"
+        "open('seen.txt', 'w').write(repr(seen))\n"
+    )
     env = {k: v for k, v in _env().items() if k not in ("FORCE_COLOR", "TTY_COMPATIBLE")}
 
     def seen(extra: dict[str, str]) -> str:
-        proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env={**env, **extra},
-                              capture_output=True, text=True, timeout=60)
+        proc = subprocess.run(
+            [sys.executable, "-c", code], cwd=tmp_path, env={**env, **extra}, capture_output=True, text=True, timeout=60
+        )
         assert proc.returncode == 0, proc.stderr
         return (tmp_path / "seen.txt").read_text()
 

@@ -9,11 +9,23 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from studio.generator.kollagen import generate
 from studio.core.model import AgentGraph, PoseGraph
+from studio.generator.kollagen import generate
 from studio.recording.checks import fingerprint_rrd, read_fingerprint, rrd_compare, rrd_verify, write_fingerprint
 from studio.recording.dataset import STRIP_CHUNK_ROWS, inter_pair_path, record_graph, recording_id_for
-from studio.recording.entities import APPLICATION_ID, LOOP_CLOSURES_INTER, LOOP_CLOSURES_INTRA, PATH_GROUND_TRUTH, PATH_INITIAL, POSE_GROUND_TRUTH, SERIES_INTER_LOOP_CLOSURES, SERIES_LOOP_CLOSURES, SERIES_POSITION_ERROR, TIMELINE_NODE, TIMELINE_TIME
+from studio.recording.entities import (
+    APPLICATION_ID,
+    LOOP_CLOSURES_INTER,
+    LOOP_CLOSURES_INTRA,
+    PATH_GROUND_TRUTH,
+    PATH_INITIAL,
+    POSE_GROUND_TRUTH,
+    SERIES_INTER_LOOP_CLOSURES,
+    SERIES_LOOP_CLOSURES,
+    SERIES_POSITION_ERROR,
+    TIMELINE_NODE,
+    TIMELINE_TIME,
+)
 from studio.synth import load_synth_config, synthesize
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "configs"
@@ -58,31 +70,41 @@ def check_recording_matches(path: Path, graph: PoseGraph) -> None:
     g = graph.to_se3()
     assert data[("_store",)] == (APPLICATION_ID, recording_id_for(graph))
     for agent in g.agents:
-        (_, gt_strips), = data[(_entity(PATH_GROUND_TRUTH, agent), "LineStrips3D:strips")]
-        np.testing.assert_array_equal(np.array(gt_strips[0], dtype=np.float32),
-                                      agent.ground_truth[:, 0:3].astype(np.float32))
-        (_, init_strips), = data[(_entity(PATH_INITIAL, agent), "LineStrips3D:strips")]
-        np.testing.assert_array_equal(np.array(init_strips[0], dtype=np.float32),
-                                      agent.initial[:, 0:3].astype(np.float32))
-        poses = sorted(data[(_entity(POSE_GROUND_TRUTH, agent), "Transform3D:translation")],
-                       key=lambda r: r[0][TIMELINE_NODE])
+        ((_, gt_strips),) = data[(_entity(PATH_GROUND_TRUTH, agent), "LineStrips3D:strips")]
+        np.testing.assert_array_equal(
+            np.array(gt_strips[0], dtype=np.float32), agent.ground_truth[:, 0:3].astype(np.float32)
+        )
+        ((_, init_strips),) = data[(_entity(PATH_INITIAL, agent), "LineStrips3D:strips")]
+        np.testing.assert_array_equal(
+            np.array(init_strips[0], dtype=np.float32), agent.initial[:, 0:3].astype(np.float32)
+        )
+        poses = sorted(
+            data[(_entity(POSE_GROUND_TRUTH, agent), "Transform3D:translation")], key=lambda r: r[0][TIMELINE_NODE]
+        )
         assert [r[0][TIMELINE_NODE] for r in poses] == list(range(agent.num_poses))
-        np.testing.assert_array_equal(np.array([r[1][0] for r in poses], dtype=np.float32),
-                                      agent.ground_truth[:, 0:3].astype(np.float32))
+        np.testing.assert_array_equal(
+            np.array([r[1][0] for r in poses], dtype=np.float32), agent.ground_truth[:, 0:3].astype(np.float32)
+        )
         lcs = data.get((_entity(LOOP_CLOSURES_INTRA, agent), "LineStrips3D:strips"), [])
         assert len(lcs) == len(agent.loop_closures)
         created = np.maximum(agent.loop_closures.from_index, agent.loop_closures.to_index)
         assert sorted(r[0][TIMELINE_NODE] for r in lcs) == sorted(created.tolist())
-        counts = sorted(data[(_entity(SERIES_LOOP_CLOSURES, agent), "Scalars:scalars")],
-                        key=lambda r: r[0][TIMELINE_NODE])
+        counts = sorted(
+            data[(_entity(SERIES_LOOP_CLOSURES, agent), "Scalars:scalars")], key=lambda r: r[0][TIMELINE_NODE]
+        )
         assert counts[-1][1] == [float(len(agent.loop_closures))]
-        errors = sorted(data[(_entity(SERIES_POSITION_ERROR, agent), "Scalars:scalars")],
-                        key=lambda r: r[0][TIMELINE_NODE])
+        errors = sorted(
+            data[(_entity(SERIES_POSITION_ERROR, agent), "Scalars:scalars")], key=lambda r: r[0][TIMELINE_NODE]
+        )
         expected = np.linalg.norm(agent.initial[:, 0:3] - agent.ground_truth[:, 0:3], axis=1)
         np.testing.assert_array_equal(np.array([r[1][0] for r in errors]), expected)
     inter_root = "/" + LOOP_CLOSURES_INTER.split("{")[0]
-    inter = [r for key, rows in data.items() if len(key) == 2 and str(key[0]).startswith(inter_root)
-             and key[1] == "LineStrips3D:strips" for r in rows]
+    inter = [
+        r
+        for key, rows in data.items()
+        if len(key) == 2 and str(key[0]).startswith(inter_root) and key[1] == "LineStrips3D:strips"
+        for r in rows
+    ]
     assert len(inter) == len(graph.inter)  # no outliers here: every one is drawn as an inlier
     pairs = {(min(a, b), max(a, b)) for a, b in zip(graph.inter.from_agent.tolist(), graph.inter.to_agent.tolist())}
     for a, b in pairs:  # one entity per agent pair
@@ -150,16 +172,21 @@ def test_time_indexed_strips_come_in_chunks_of_at_most_a_thousand_rows(small_rrd
     import rerun.chunk as rc
 
     reader = rc.RrdReader(small_rrd)
-    sizes = [c.num_rows for c in reader.stream()
-             if c.entity_path.startswith("/world/") and "loop_closures" in c.entity_path and not c.is_static]
+    sizes = [
+        c.num_rows
+        for c in reader.stream()
+        if c.entity_path.startswith("/world/") and "loop_closures" in c.entity_path and not c.is_static
+    ]
     assert sizes and max(sizes) <= STRIP_CHUNK_ROWS
     assert sum(sizes) == 313 + 677  # intra + inter loop closures of small3x100
 
 
 def test_real_stamps_add_a_time_timeline(small_graph, tmp_path):
     base = 1_700_000_000 * 10**9
-    agents = tuple(dataclasses.replace(a, stamps_ns=base + np.arange(a.num_poses) * 50_000_000 + 7 * k)
-                   for k, a in enumerate(small_graph.agents))
+    agents = tuple(
+        dataclasses.replace(a, stamps_ns=base + np.arange(a.num_poses) * 50_000_000 + 7 * k)
+        for k, a in enumerate(small_graph.agents)
+    )
     graph = dataclasses.replace(small_graph, agents=agents)
     res = record_graph(graph, tmp_path / "t.rrd", name="t")
     assert res.real_time
@@ -182,8 +209,9 @@ def test_agent_without_ground_truth_draws_loop_closures_on_the_initial_estimate(
     first = min(lcs, key=lambda r: r[0][TIMELINE_NODE])
     lc = a.loop_closures
     k = int(np.argmin(np.maximum(lc.from_index, lc.to_index)))
-    np.testing.assert_array_equal(np.array(first[1][0], dtype=np.float32)[0],
-                                  np.r_[a.initial[lc.from_index[k], 0:2], 0.0].astype(np.float32))
+    np.testing.assert_array_equal(
+        np.array(first[1][0], dtype=np.float32)[0], np.r_[a.initial[lc.from_index[k], 0:2], 0.0].astype(np.float32)
+    )
 
 
 # --------------------------------------------------------------------------------------------------
@@ -192,8 +220,9 @@ def test_agent_without_ground_truth_draws_loop_closures_on_the_initial_estimate(
 
 def test_two_runs_give_equal_fingerprints_and_rrd_compare_accepts_them(small_graph, small_rrd, tmp_path):
     again = tmp_path / "again.rrd"
-    record_graph(small_graph, again, name="small3x100",
-                 config_json=json.dumps(json.loads((SMALL).read_text()), sort_keys=True))
+    record_graph(
+        small_graph, again, name="small3x100", config_json=json.dumps(json.loads((SMALL).read_text()), sort_keys=True)
+    )
     assert small_rrd.read_bytes() != again.read_bytes()  # chunk ids and row ids differ ...
     assert fingerprint_rrd(again) == fingerprint_rrd(small_rrd)  # ... the content does not
     rrd_compare(small_rrd, again)
@@ -205,17 +234,20 @@ def test_one_ulp_change_to_one_pose_changes_the_fingerprint(small_graph, tmp_pat
     # one ulp of the float32 that Rerun stores for x of pose 17
     gt[17, 0] = float(np.nextafter(np.float32(gt[17, 0]), np.float32(np.inf)))
     assert np.float32(gt[17, 0]) != np.float32(a0.ground_truth[17, 0])
-    changed = dataclasses.replace(small_graph, agents=(dataclasses.replace(a0, ground_truth=gt),)
-                                  + small_graph.agents[1:])
+    changed = dataclasses.replace(
+        small_graph, agents=(dataclasses.replace(a0, ground_truth=gt),) + small_graph.agents[1:]
+    )
     base, ulp = tmp_path / "base.rrd", tmp_path / "ulp.rrd"
     record_graph(small_graph, base, name="x")
     record_graph(changed, ulp, name="x")
     fa, fb = fingerprint_rrd(base), fingerprint_rrd(ulp)
     assert fa.keys() == fb.keys()
     differing = {k for k in fa if fa[k] != fb[k]}
-    assert {"recording0 /world/agent1/ground_truth LineStrips3D:strips",
-            "recording0 /world/agent1/ground_truth_pose Transform3D:translation",
-            "recording0 /metrics/position_error/agent1 Scalars:scalars"} <= differing
+    assert {
+        "recording0 /world/agent1/ground_truth LineStrips3D:strips",
+        "recording0 /world/agent1/ground_truth_pose Transform3D:translation",
+        "recording0 /metrics/position_error/agent1 Scalars:scalars",
+    } <= differing
     assert "recording0 /world/agent2/ground_truth LineStrips3D:strips" not in differing
 
 
@@ -226,8 +258,10 @@ def test_fingerprint_includes_the_blueprint(small_graph, tmp_path, monkeypatch):
     monkeypatch.setattr(recording, "TIMELINE_NODE", "nodes")  # the time panel starts elsewhere
     record_graph(small_graph, tmp_path / "b.rrd", name="x")
     fa, fb = fingerprint_rrd(tmp_path / "a.rrd"), fingerprint_rrd(tmp_path / "b.rrd")
-    assert fa["blueprint0 /time_panel TimePanelBlueprint:timeline"] != \
-        fb["blueprint0 /time_panel TimePanelBlueprint:timeline"]
+    assert (
+        fa["blueprint0 /time_panel TimePanelBlueprint:timeline"]
+        != fb["blueprint0 /time_panel TimePanelBlueprint:timeline"]
+    )
 
 
 def test_fingerprint_file_round_trips(small_rrd, tmp_path):
@@ -245,16 +279,20 @@ def test_record_of_the_written_folder_equals_the_synth_recording(small_synth, tm
     # kollagen's folder holds 3D records of a planar graph: both paths record the same thing, SE2
     assert {k for k in fa if fa[k] != fb[k]} == set()
     for path in (small_synth.rrd_path, res.path):
-        facts = {key[1]: v for key, rows in read_back(path).items() if key[0] == "/__properties/dataset"
-                 for _, v in rows}
+        facts = {
+            key[1]: v for key, rows in read_back(path).items() if key[0] == "/__properties/dataset" for _, v in rows
+        }
         assert facts["pose_kind"] == ["SE2"]
 
 
 def test_synth_without_rrd(tmp_path):
     res = synthesize(load_synth_config(SMALL), tmp_path, rrd=False)
     assert res.rrd_path is None
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["small3x100", "small3x100.config.json",
-                                                          "small3x100_singleg2o"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "small3x100",
+        "small3x100.config.json",
+        "small3x100_singleg2o",
+    ]
 
 
 @pytest.mark.slow
@@ -284,7 +322,7 @@ def test_spatial_graph_keeps_its_heights(small_graph, tmp_path):
     record_graph(graph, tmp_path / "z.rrd", name="z")
     check_recording_matches(tmp_path / "z.rrd", graph)
     data = read_back(tmp_path / "z.rrd")
-    (_, strips), = data[(_entity(PATH_GROUND_TRUTH, a0), "LineStrips3D:strips")]
+    ((_, strips),) = data[(_entity(PATH_GROUND_TRUTH, a0), "LineStrips3D:strips")]
     assert strips[0][-1][2] == pytest.approx(5.0)
 
 

@@ -49,8 +49,13 @@ def test_the_recordings_take_their_colours_from_the_colours_module():
     """No colour literal elsewhere in studio/recording: a new colour goes into colours.py, and the
     contrast test above sees it."""
     literal = re.compile(r"\(\s*\d{1,3}\s*,\s*\d{1,3}\s*,\s*\d{1,3}\s*(,\s*\d{1,3}\s*)?\)")
-    found = [f"{p.name}:{n}: {line.strip()}" for p in sorted(RECORDING.glob("*.py")) if p.name != "colours.py"
-             for n, line in enumerate(p.read_text(encoding="utf-8").splitlines(), start=1) if literal.search(line)]
+    found = [
+        f"{p.name}:{n}: {line.strip()}"
+        for p in sorted(RECORDING.glob("*.py"))
+        if p.name != "colours.py"
+        for n, line in enumerate(p.read_text(encoding="utf-8").splitlines(), start=1)
+        if literal.search(line)
+    ]
     assert not found, "\n".join(found)
 
 

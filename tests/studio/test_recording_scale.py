@@ -22,8 +22,8 @@ TRAJECTORIES = Path(__file__).resolve().parent.parent / "data" / "trajectories"
 
 @pytest.fixture(scope="module")
 def converted(tmp_path_factory):
-    from studio.converters.build import GraphOptions
     from studio.convert import ConvertConfig, convert
+    from studio.converters.build import GraphOptions
 
     inputs = tuple(str(p) for p in sorted(TRAJECTORIES.glob("*.tum")))
     cfg = ConvertConfig("tum", inputs, (), GraphOptions(seed=7, outlier_fraction=0.2))
@@ -31,8 +31,11 @@ def converted(tmp_path_factory):
 
 
 def _strips(data: dict, prefix: str) -> int:
-    return sum(len(rows) for key, rows in data.items()
-               if len(key) == 2 and str(key[0]).startswith(prefix) and key[1] == "LineStrips3D:strips")
+    return sum(
+        len(rows)
+        for key, rows in data.items()
+        if len(key) == 2 and str(key[0]).startswith(prefix) and key[1] == "LineStrips3D:strips"
+    )
 
 
 def test_outliers_have_their_own_entity_and_are_not_drawn_as_inliers(converted, tmp_path):
@@ -43,7 +46,8 @@ def test_outliers_have_their_own_entity_and_are_not_drawn_as_inliers(converted, 
         data = read_back(path)
         assert len(data[("/" + LOOP_CLOSURES_OUTLIERS, "LineStrips3D:strips")]) == len(rows)
         inliers = _strips(data, "/world/inter_loop_closures/") + sum(
-            _strips(data, f"/world/{a.name}/loop_closures") for a in converted.build.graph.agents)
+            _strips(data, f"/world/{a.name}/loop_closures") for a in converted.build.graph.agents
+        )
         assert inliers == counts["intra_loop_closures"] + counts["inter_loop_closures"] - len(rows)
 
 
@@ -66,10 +70,10 @@ def test_many_inter_agent_loop_closures_are_thinner_and_fainter():
 def test_estimate_is_drawn_thinner_and_fainter_than_ground_truth(converted):
     data = read_back(converted.rrd_path)
     name = converted.build.graph.agents[0].name
-    (_, gt_colour), = data[(f"/world/{name}/ground_truth", "LineStrips3D:colors")]
-    (_, est_colour), = data[(f"/world/{name}/initial", "LineStrips3D:colors")]
-    (_, gt_radius), = data[(f"/world/{name}/ground_truth", "LineStrips3D:radii")]
-    (_, est_radius), = data[(f"/world/{name}/initial", "LineStrips3D:radii")]
+    ((_, gt_colour),) = data[(f"/world/{name}/ground_truth", "LineStrips3D:colors")]
+    ((_, est_colour),) = data[(f"/world/{name}/initial", "LineStrips3D:colors")]
+    ((_, gt_radius),) = data[(f"/world/{name}/ground_truth", "LineStrips3D:radii")]
+    ((_, est_radius),) = data[(f"/world/{name}/initial", "LineStrips3D:radii")]
     # same hue (RGB), the estimate translucent: colours are packed 0xRRGGBBAA
     assert gt_colour[0] >> 8 == est_colour[0] >> 8
     assert (est_colour[0] & 0xFF) < (gt_colour[0] & 0xFF) == 0xFF

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -37,8 +36,11 @@ def test_solving_a_multi_g2o_folder_lowers_the_error_and_writes_an_estimate(smal
     assert info["chi2_history"][0] == pytest.approx(res.chi2_initial)
     names = sorted(p.name for p in (tmp_path / "est" / "estimate").iterdir())
     assert names == ["agent1", "agent2", "agent3", "inter_agent_lc.dat", "tum"]
-    assert sorted(p.name for p in (tmp_path / "est" / "estimate" / "tum").iterdir()) == \
-        ["agent1.tum", "agent2.tum", "agent3.tum"]
+    assert sorted(p.name for p in (tmp_path / "est" / "estimate" / "tum").iterdir()) == [
+        "agent1.tum",
+        "agent2.tum",
+        "agent3.tum",
+    ]
     # the TUM files score exactly like the g2o estimate
     by_tum = evaluate(small.dataset_dir, estimate=tmp_path / "est" / "estimate" / "tum", align="se3")
     assert by_tum.overall.ape_translation_m.mean == pytest.approx(after, rel=1e-9)
@@ -104,8 +106,12 @@ def test_solve_recording_is_the_same_for_the_same_run(small, tmp_path, source):
     ids = [[s.recording_id for s in rc.RrdReader(tmp_path / f"{n}.rrd").recordings()] for n in "ab"]
     assert ids[0] == ids[1]
     assert fingerprint_rrd(tmp_path / "a.rrd") == fingerprint_rrd(tmp_path / "b.rrd")
-    names = {str(c.entity_path) for c in rc.RrdReader(tmp_path / "a.rrd").stream()
-             for n in c.to_record_batch().schema.names if n == "log_time"}
+    names = {
+        str(c.entity_path)
+        for c in rc.RrdReader(tmp_path / "a.rrd").stream()
+        for n in c.to_record_batch().schema.names
+        if n == "log_time"
+    }
     assert not names  # no wall clock in the data
 
 
@@ -116,17 +122,21 @@ def test_cli_solve_then_evaluate(small, tmp_path):
     assert "gtsam" in res.output and str(out / "estimate") in res.output
     again = runner.invoke(app, ["solve", str(small.dataset_dir), "-o", str(out)])
     assert again.exit_code == 2 and "already exists" in again.output
-    ev = runner.invoke(app, ["evaluate", str(small.dataset_dir), "--estimate", str(out / "estimate"),
-                             "--align", "first-pose"])
+    ev = runner.invoke(
+        app, ["evaluate", str(small.dataset_dir), "--estimate", str(out / "estimate"), "--align", "first-pose"]
+    )
     assert ev.exit_code == 0 and "first pose of each agent" in ev.output
 
 
-@pytest.mark.parametrize("args, message", [
-    (["solve", "missing-folder", "-o", "x"], "no such dataset"),
-    (["solve", "{ds}", "-o", "{tmp}/x", "--iterations", "0"], "max_iterations: expected an integer in 1..10000"),
-    (["solve", "{ds}", "-o", "{tmp}/x", "--method", "command"], "command: method command needs the program"),
-    (["solve", "{ds}", "-o", "{tmp}/x", "--rrd", "{tmp}/run.png"], "must end in .rrd"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["solve", "missing-folder", "-o", "x"], "no such dataset"),
+        (["solve", "{ds}", "-o", "{tmp}/x", "--iterations", "0"], "max_iterations: expected an integer in 1..10000"),
+        (["solve", "{ds}", "-o", "{tmp}/x", "--method", "command"], "command: method command needs the program"),
+        (["solve", "{ds}", "-o", "{tmp}/x", "--rrd", "{tmp}/run.png"], "must end in .rrd"),
+    ],
+)
 def test_cli_bad_input_is_one_line(small, tmp_path, args, message):
     argv = [a.format(ds=small.dataset_dir, tmp=tmp_path) for a in args]
     res = runner.invoke(app, argv)
@@ -163,8 +173,9 @@ def test_default_method_never_ends_above_its_start_on_kollagen_exact_information
     can raise the cost there, and the method then goes on with Levenberg-Marquardt."""
     import dataclasses
 
-    cfg = dataclasses.replace(load_synth_config(DATA / "configs" / "small3x100.json"),
-                              exact_information_matrix=True, name="exact")
+    cfg = dataclasses.replace(
+        load_synth_config(DATA / "configs" / "small3x100.json"), exact_information_matrix=True, name="exact"
+    )
     res = synthesize(cfg, tmp_path, rrd=False, jobs=1)
     out = solve(res.single_dir / "exact.g2o", tmp_path / "est")
     history = out.solution.chi2_history
@@ -186,8 +197,10 @@ def test_absurd_or_unsolvable_graphs_are_one_line(small, tmp_path):
     g2o.write_text("\n".join(lines) + "\n")
     res = runner.invoke(app, ["solve", str(bad), "-o", str(tmp_path / "x")])
     assert res.exit_code == 2
-    assert res.output.strip() == f"error: {bad}: vertex 3 (global id order) lies beyond 1e+09 m: " \
-                                 "not a pose graph an optimizer can take"
+    assert (
+        res.output.strip() == f"error: {bad}: vertex 3 (global id order) lies beyond 1e+09 m: "
+        "not a pose graph an optimizer can take"
+    )
     # an agent joined to no other (its inter-agent closures removed): the optimizer's own failure
     lone = tmp_path / "lone"
     shutil.copytree(small.dataset_dir, lone)

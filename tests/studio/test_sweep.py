@@ -30,15 +30,19 @@ def _spec(tmp_path: Path, steps: str = '["evaluate"]', extra: str = "") -> Path:
     path = tmp_path / "spec.toml"
     path.write_text(
         f'name = "grid"\nbase = "{DATA / "configs" / "tiny_three.json"}"\nsteps = {steps}\n{extra}'
-        '[grid]\nnumber_of_steps = [20, 40, 60]\n'
-        '"inter_agent_loop_closure_parameters.loop_closure_radius" = [1.0, 2.0]\nseed = [0, 1]\n')
+        "[grid]\nnumber_of_steps = [20, 40, 60]\n"
+        '"inter_agent_loop_closure_parameters.loop_closure_radius" = [1.0, 2.0]\nseed = [0, 1]\n'
+    )
     return path
 
 
 def _same_tree(a: Path, b: Path) -> bool:
     files = sorted(p.relative_to(a) for p in a.rglob("*") if p.is_file())
-    return bool(files) and files == sorted(p.relative_to(b) for p in b.rglob("*") if p.is_file()) and \
-        all(filecmp.cmp(a / f, b / f, shallow=False) for f in files)
+    return (
+        bool(files)
+        and files == sorted(p.relative_to(b) for p in b.rglob("*") if p.is_file())
+        and all(filecmp.cmp(a / f, b / f, shallow=False) for f in files)
+    )
 
 
 def test_twelve_cells_on_two_workers_give_the_bytes_of_sequential_synth_runs_and_resume(tmp_path):
@@ -53,9 +57,23 @@ def test_twelve_cells_on_two_workers_give_the_bytes_of_sequential_synth_runs_and
     for row in res.rows[:12]:
         cell = row["cell"]
         alone = tmp_path / "alone" / cell
-        done = subprocess.run([sys.executable, "-m", "studio.cli", "synth", str(out / "configs" / f"{cell}.json"),
-                               "-o", str(alone), "-q", "--no-rrd"], capture_output=True, text=True, cwd=REPO,
-                              env=dict(os.environ, CI="true"))
+        done = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "studio.cli",
+                "synth",
+                str(out / "configs" / f"{cell}.json"),
+                "-o",
+                str(alone),
+                "-q",
+                "--no-rrd",
+            ],
+            capture_output=True,
+            text=True,
+            cwd=REPO,
+            env=dict(os.environ, CI="true"),
+        )
         assert done.returncode == 0, done.stderr
         assert row["command"].startswith(f"studio synth {out / 'configs' / cell}.json -o DIR")
         assert _same_tree(alone / cell, out / "cells" / cell / cell)
@@ -76,8 +94,10 @@ def test_twelve_cells_on_two_workers_give_the_bytes_of_sequential_synth_runs_and
 
 def test_a_killed_worker_leaves_no_partial_cell_and_the_cell_completes(tmp_path):
     spec = load_sweep_spec(_spec(tmp_path, '["evaluate", "tests.studio.sweep_steps:die_once"]'))
-    spec = sweep_spec_from_dict({"name": "kill", "base": spec.base, "steps": list(spec.steps),
-                                 "grid": {"number_of_steps": [20, 30]}}, "kill.toml")
+    spec = sweep_spec_from_dict(
+        {"name": "kill", "base": spec.base, "steps": list(spec.steps), "grid": {"number_of_steps": [20, 30]}},
+        "kill.toml",
+    )
     out = tmp_path / "out"
     res = sweep(spec, out, workers=2)
     assert res.failed == 0 and len(res.rows) == 2
@@ -86,27 +106,38 @@ def test_a_killed_worker_leaves_no_partial_cell_and_the_cell_completes(tmp_path)
     for r in res.rows:
         cell = out / "cells" / r["cell"]
         assert sorted(p.name for p in cell.iterdir()) == sorted(
-            [r["cell"], f"{r['cell']}_singleg2o", f"{r['cell']}.config.json", "result.json"])
+            [r["cell"], f"{r['cell']}_singleg2o", f"{r['cell']}.config.json", "result.json"]
+        )
 
 
 def test_a_failing_cell_records_its_error_and_the_sweep_goes_on(tmp_path):
-    spec = sweep_spec_from_dict({"name": "fail", "base": str(DATA / "configs" / "tiny_three.json"),
-                                 "steps": ["evaluate", "solve"], "options": {"solve": {"method": "command"}},
-                                 "grid": {"number_of_steps": [20, 30]}}, "fail.toml")
+    spec = sweep_spec_from_dict(
+        {
+            "name": "fail",
+            "base": str(DATA / "configs" / "tiny_three.json"),
+            "steps": ["evaluate", "solve"],
+            "options": {"solve": {"method": "command"}},
+            "grid": {"number_of_steps": [20, 30]},
+        },
+        "fail.toml",
+    )
     res = sweep(spec, tmp_path / "out", workers=1)
     assert res.failed == 2
     assert all(r["error"].startswith("command: method command needs the program") for r in res.rows)
     assert not any((tmp_path / "out" / "cells").iterdir())  # nothing half-made is left
 
 
-@pytest.mark.parametrize("data, message", [
-    ({"grid": {}}, "base: missing key"),
-    ({"base": "multi3500x8", "grids": {}}, "grids: unknown key (did you mean 'grid'?)"),
-    ({"base": "multi3500x8", "steps": ["plot"]}, "steps: unknown step 'plot'"),
-    ({"base": "multi3500x8", "grid": {"number_of_agent": [2]}}, "cell 1: number_of_agent: no such key"),
-    ({"base": "multi3500x8", "grid": {"number_of_agents": [0]}}, "number_of_agents"),
-    ({"base": "multi3500x8", "grid": {"seed": [-1]}}, "seed: expected a non-negative integer"),
-])
+@pytest.mark.parametrize(
+    "data, message",
+    [
+        ({"grid": {}}, "base: missing key"),
+        ({"base": "multi3500x8", "grids": {}}, "grids: unknown key (did you mean 'grid'?)"),
+        ({"base": "multi3500x8", "steps": ["plot"]}, "steps: unknown step 'plot'"),
+        ({"base": "multi3500x8", "grid": {"number_of_agent": [2]}}, "cell 1: number_of_agent: no such key"),
+        ({"base": "multi3500x8", "grid": {"number_of_agents": [0]}}, "number_of_agents"),
+        ({"base": "multi3500x8", "grid": {"seed": [-1]}}, "seed: expected a non-negative integer"),
+    ],
+)
 def test_bad_specs_are_refused_before_any_work(tmp_path, data, message):
     with pytest.raises(ConfigError, match=message.replace("(", r"\(").replace(")", r"\)").replace("?", r"\?")):
         expand(sweep_spec_from_dict(data, "s.toml"), tmp_path)
@@ -122,9 +153,22 @@ def _free_port() -> int:
 def test_a_sweep_on_a_scheduler_started_as_a_separate_process(tmp_path):
     port = _free_port()
     env = dict(os.environ, CI="true", PYTHONPATH=str(REPO))
-    sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
-                              "--port", str(port), "--no-dashboard"], env=env, stdout=subprocess.DEVNULL,
-                             stderr=subprocess.DEVNULL, start_new_session=True)
+    sched = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "distributed.cli.dask_scheduler",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--no-dashboard",
+        ],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
     worker = None
     try:
         deadline = time.monotonic() + 60
@@ -134,15 +178,33 @@ def test_a_sweep_on_a_scheduler_started_as_a_separate_process(tmp_path):
                 break
             except OSError:
                 time.sleep(0.2)
-        worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", f"tcp://127.0.0.1:{port}",
-                                   "--nworkers", "1", "--nthreads", "1", "--no-dashboard", "--host", "127.0.0.1"],
-                                  env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                  start_new_session=True, cwd=tmp_path)
+        worker = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "distributed.cli.dask_worker",
+                f"tcp://127.0.0.1:{port}",
+                "--nworkers",
+                "1",
+                "--nthreads",
+                "1",
+                "--no-dashboard",
+                "--host",
+                "127.0.0.1",
+            ],
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+            cwd=tmp_path,
+        )
         spec_path = tmp_path / "s.toml"
-        spec_path.write_text(f'name = "remote"\nbase = "{DATA / "configs" / "tiny_three.json"}"\n'
-                             '[grid]\nnumber_of_steps = [20, 30]\n')
-        res = runner.invoke(app, ["sweep", str(spec_path), "-o", str(tmp_path / "out"),
-                                  "--scheduler", f"tcp://127.0.0.1:{port}"])
+        spec_path.write_text(
+            f'name = "remote"\nbase = "{DATA / "configs" / "tiny_three.json"}"\n[grid]\nnumber_of_steps = [20, 30]\n'
+        )
+        res = runner.invoke(
+            app, ["sweep", str(spec_path), "-o", str(tmp_path / "out"), "--scheduler", f"tcp://127.0.0.1:{port}"]
+        )
         assert res.exit_code == 0, res.output
         assert "remote: 2 cells (2 run now, 0 failed)" in res.output
         assert len(pd.read_parquet(tmp_path / "out" / "sweep.parquet")) == 2
@@ -159,8 +221,9 @@ def test_cli_bad_spec_is_one_line(tmp_path):
     spec.write_text('base = "multi3500x8"\nstep = ["evaluate"]\n')
     res = runner.invoke(app, ["sweep", str(spec), "-o", str(tmp_path / "o")])
     assert res.exit_code == 2
-    assert res.output.strip() == (f"error: {spec}: step: unknown key (did you mean 'steps'?); "
-                                  "known: base, cells, grid, name, options, steps")
+    assert res.output.strip() == (
+        f"error: {spec}: step: unknown key (did you mean 'steps'?); known: base, cells, grid, name, options, steps"
+    )
     assert json.dumps(1)
 
 
@@ -176,12 +239,23 @@ def test_a_bug_in_a_step_is_the_cells_one_line_error_and_dask_prints_nothing(tmp
         pass  # already taken by something else: the case we want anyway
     try:
         spec_path = tmp_path / "s.json"
-        spec_path.write_text(json.dumps({"name": "bug", "base": str(DATA / "configs" / "tiny_three.json"),
-                                         "steps": ["tests.studio.sweep_steps:boom"],
-                                         "grid": {"number_of_steps": [20, 30]}}))
-        done = subprocess.run([sys.executable, "-m", "studio.cli", "sweep", str(spec_path), "-o", str(tmp_path / "o"),
-                               "--workers", "1"], capture_output=True, text=True, cwd=REPO,
-                              env=dict(os.environ, CI="true", PYTHONPATH=str(REPO)))
+        spec_path.write_text(
+            json.dumps(
+                {
+                    "name": "bug",
+                    "base": str(DATA / "configs" / "tiny_three.json"),
+                    "steps": ["tests.studio.sweep_steps:boom"],
+                    "grid": {"number_of_steps": [20, 30]},
+                }
+            )
+        )
+        done = subprocess.run(
+            [sys.executable, "-m", "studio.cli", "sweep", str(spec_path), "-o", str(tmp_path / "o"), "--workers", "1"],
+            capture_output=True,
+            text=True,
+            cwd=REPO,
+            env=dict(os.environ, CI="true", PYTHONPATH=str(REPO)),
+        )
     finally:
         holder.close()
     assert done.returncode == 0, done.stderr
@@ -194,9 +268,15 @@ def test_a_bug_in_a_step_is_the_cells_one_line_error_and_dask_prints_nothing(tmp
 
 
 def test_a_cell_whose_worker_dies_on_every_attempt_is_an_error_row_and_leaves_nothing(tmp_path):
-    spec = sweep_spec_from_dict({"name": "dead", "base": str(DATA / "configs" / "tiny_three.json"),
-                                 "steps": ["tests.studio.sweep_steps:die_always"],
-                                 "grid": {"number_of_steps": [20]}}, "dead.toml")
+    spec = sweep_spec_from_dict(
+        {
+            "name": "dead",
+            "base": str(DATA / "configs" / "tiny_three.json"),
+            "steps": ["tests.studio.sweep_steps:die_always"],
+            "grid": {"number_of_steps": [20]},
+        },
+        "dead.toml",
+    )
     res = sweep(spec, tmp_path / "out", workers=1, retries=0)
     assert res.failed == 1
     assert res.rows[0]["error"].startswith("no attempt finished (1 tried): KilledWorker")

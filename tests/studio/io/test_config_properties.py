@@ -9,11 +9,11 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from studio.generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
 from studio.core.errors import ConfigError, StudioError
+from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind, graphs_equal
+from studio.generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
 from studio.io.multig2o import read_multi_g2o, write_multi_g2o
 from studio.io.synth_config import parse_synth_config, read_synth_config, synth_config_to_json
-from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind, graphs_equal
 
 pos = st.floats(min_value=1e-6, max_value=1e6, allow_nan=False)
 nonneg = st.floats(min_value=0.0, max_value=1e6, allow_nan=False)
@@ -25,14 +25,44 @@ def synth_configs(draw):
     n = draw(st.integers(1, 5))
 
     def agent():
-        return AgentConfig(draw(pos), draw(pos), draw(nonneg), draw(nonneg), draw(seed), draw(nonneg), draw(nonneg),
-                           draw(nonneg), draw(nonneg), draw(pos), draw(st.floats(0, 1)), draw(nonneg))
+        return AgentConfig(
+            draw(pos),
+            draw(pos),
+            draw(nonneg),
+            draw(nonneg),
+            draw(seed),
+            draw(nonneg),
+            draw(nonneg),
+            draw(nonneg),
+            draw(nonneg),
+            draw(pos),
+            draw(st.floats(0, 1)),
+            draw(nonneg),
+        )
 
     agents = tuple(agent() for _ in range(n))
-    inter = InterLoopClosureConfig(draw(nonneg), draw(nonneg), draw(nonneg), draw(nonneg), draw(pos), draw(nonneg),
-                                   draw(st.floats(0, 1)), draw(seed))
-    return SynthConfig(draw(st.integers(1, 2**31 - 1)), draw(st.booleans()), n, draw(st.booleans()), draw(pos),
-                       draw(st.integers(1, 64)), draw(st.booleans()), agents, inter, name="c")
+    inter = InterLoopClosureConfig(
+        draw(nonneg),
+        draw(nonneg),
+        draw(nonneg),
+        draw(nonneg),
+        draw(pos),
+        draw(nonneg),
+        draw(st.floats(0, 1)),
+        draw(seed),
+    )
+    return SynthConfig(
+        draw(st.integers(1, 2**31 - 1)),
+        draw(st.booleans()),
+        n,
+        draw(st.booleans()),
+        draw(pos),
+        draw(st.integers(1, 64)),
+        draw(st.booleans()),
+        agents,
+        inter,
+        name="c",
+    )
 
 
 @settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -44,7 +74,10 @@ def test_synth_config_json_round_trip_is_exact(tmp_path, cfg):
 
 
 json_values = st.recursive(
-    st.none() | st.booleans() | st.integers(-(2**70), 2**70) | st.floats(allow_nan=False, allow_infinity=False)
+    st.none()
+    | st.booleans()
+    | st.integers(-(2**70), 2**70)
+    | st.floats(allow_nan=False, allow_infinity=False)
     | st.text(max_size=5),
     lambda children: st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=8), children, max_size=4),
     max_leaves=20,
@@ -64,10 +97,26 @@ def test_arbitrary_json_documents_raise_only_config_errors(doc):
 @given(data=st.data())
 def test_mutated_valid_config_raises_only_config_errors(data):
     base = json.loads(open(__file__.rsplit("/tests/", 1)[0] + "/tests/data/configs/tiny_three.json").read())
-    path = data.draw(st.lists(st.sampled_from(["agent_parameters", "agent_specific", 0, 1, 2,
-                                               "inter_agent_loop_closure_parameters", "number_of_agents",
-                                               "stepsize", "std_dev_angle", "random_number_generator_seed"]),
-                              min_size=1, max_size=4))
+    path = data.draw(
+        st.lists(
+            st.sampled_from(
+                [
+                    "agent_parameters",
+                    "agent_specific",
+                    0,
+                    1,
+                    2,
+                    "inter_agent_loop_closure_parameters",
+                    "number_of_agents",
+                    "stepsize",
+                    "std_dev_angle",
+                    "random_number_generator_seed",
+                ]
+            ),
+            min_size=1,
+            max_size=4,
+        )
+    )
     value = data.draw(json_values)
     obj = base
     for key in path[:-1]:
@@ -129,8 +178,10 @@ def test_multi_g2o_folder_round_trip_is_exact(tmp_path_factory, g):
     back = read_multi_g2o(folder)
     # odometry is recognised as the leading chain k -> k+1: a loop closure 0->1 right after it would join it
     assert graphs_equal(back, g) or any(
-        len(a.loop_closures) and a.loop_closures.from_index[0] + 1 == a.loop_closures.to_index[0]
-        and a.loop_closures.from_index[0] == len(a.odometry) for a in g.agents
+        len(a.loop_closures)
+        and a.loop_closures.from_index[0] + 1 == a.loop_closures.to_index[0]
+        and a.loop_closures.from_index[0] == len(a.odometry)
+        for a in g.agents
     )
 
 
@@ -149,8 +200,8 @@ def test_arbitrary_convert_configs_raise_only_studio_errors(doc):
 def convert_configs(draw):
     import dataclasses
 
-    from studio.converters.build import GraphOptions
     from studio.convert import ConvertConfig
+    from studio.converters.build import GraphOptions
 
     values = {}
     for f in dataclasses.fields(GraphOptions):

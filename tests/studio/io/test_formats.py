@@ -8,15 +8,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from studio.generator.kollagen import generate
 from studio.core.errors import FormatError
+from studio.core.model import PoseKind, graphs_equal
+from studio.core.trajectory import Trajectory
+from studio.generator.kollagen import generate
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.io.inter_lc_dat import read_inter_lc_dat
 from studio.io.multig2o import read_multi_g2o, write_multi_g2o
 from studio.io.synth_config import read_synth_config
-from studio.core.trajectory import Trajectory
 from studio.io.tum import read_tum, write_tum
-from studio.core.model import PoseKind, graphs_equal
 
 DATA = Path(__file__).resolve().parents[2] / "data"
 
@@ -88,9 +88,15 @@ def test_reads_committed_kollagen_layout():
 
 
 def test_g2o_2d_round_trip_stream():
-    doc = G2oDocument(PoseKind.SE2, np.array([0, 1]), np.array([[0.0, 0.0, 0.0], [1.0, -0.0, 0.1]]),
-                      np.array([0]), np.array([1]), np.array([[1.0, 1e-300, 0.1]]),
-                      np.array([[1.0, 0.5, 0.0, 2.0, 0.0, 3.0]]))
+    doc = G2oDocument(
+        PoseKind.SE2,
+        np.array([0, 1]),
+        np.array([[0.0, 0.0, 0.0], [1.0, -0.0, 0.1]]),
+        np.array([0]),
+        np.array([1]),
+        np.array([[1.0, 1e-300, 0.1]]),
+        np.array([[1.0, 0.5, 0.0, 2.0, 0.0, 3.0]]),
+    )
     buf = io.StringIO()
     write_g2o(buf, doc)
     assert buf.getvalue().splitlines()[1] == "VERTEX_SE2 1 1 -0 0.10000000000000001"
@@ -120,14 +126,18 @@ def test_g2o_parse_errors_name_file_and_line(tmp_path, text, message):
     path.write_text(text)
     with pytest.raises(FormatError) as err:
         read_g2o(path)
-    assert str(err.value).startswith(str(tmp_path / message.split(":")[0]) + message[len(message.split(":")[0]):])
+    assert str(err.value).startswith(str(tmp_path / message.split(":")[0]) + message[len(message.split(":")[0]) :])
 
 
 def test_tum_round_trip_exact_and_fractional_stamps(tmp_path):
     stamps = np.array([1634567890_123456789, 1634567890_223456789, 1634567891_000000000])
-    poses = np.array([[1.0, 2.0, 3.0, 0.0, 0.0, 0.0, 1.0],
-                      [0.1, -0.2, 0.0, 0.5, 0.5, 0.5, 0.5],
-                      [1e-9, 2.0, -3.0, 0.0, 0.0, -1.0, 0.0]])
+    poses = np.array(
+        [
+            [1.0, 2.0, 3.0, 0.0, 0.0, 0.0, 1.0],
+            [0.1, -0.2, 0.0, 0.5, 0.5, 0.5, 0.5],
+            [1e-9, 2.0, -3.0, 0.0, 0.0, -1.0, 0.0],
+        ]
+    )
     write_tum(tmp_path / "t.tum", Trajectory.from_poses("t", stamps, poses))
     assert (tmp_path / "t.tum").read_text().splitlines()[0] == "1634567890.123456789 1 2 3 0.0 0.0 0 1"
     back = read_tum(tmp_path / "t.tum")
@@ -144,10 +154,12 @@ def test_tum_reader_accepts_commas_comments_header_and_normalises():
 
 @pytest.mark.parametrize(
     ("text", "message"),
-    [("1 0 0 0 0 0 0 1\n2 0 0\n", ":2: expected 8 columns"),
-     ("1 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1\n", ":2: timestamps must increase"),
-     ("1 0 0 0 0 0 0 0\n", ":1: quaternion is zero"),
-     ("1 0 inf 0 0 0 0 1\n", ":1: value is not finite")],
+    [
+        ("1 0 0 0 0 0 0 1\n2 0 0\n", ":2: expected 8 columns"),
+        ("1 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1\n", ":2: timestamps must increase"),
+        ("1 0 0 0 0 0 0 0\n", ":1: quaternion is zero"),
+        ("1 0 inf 0 0 0 0 1\n", ":1: value is not finite"),
+    ],
 )
 def test_tum_errors(tmp_path, text, message):
     p = tmp_path / "t.tum"

@@ -9,11 +9,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from studio.core.errors import FormatError
+from studio.core.model import InterAgentEdges, PoseKind
+from studio.core.trajectory import Trajectory
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.io.inter_lc_dat import read_inter_lc_dat, write_inter_lc_dat
-from studio.core.trajectory import Trajectory
 from studio.io.tum import read_tum, write_tum
-from studio.core.model import InterAgentEdges, PoseKind
 
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
 
@@ -40,8 +40,15 @@ def test_g2o_round_trip_bit_exact(data, n, kind):
     iw = kind.information_width
     info = np.array(data.draw(st.lists(finite, min_size=m * iw, max_size=m * iw))).reshape(m, iw)
     ids = np.array(data.draw(st.permutations(range(n))), dtype=np.int64) * 3 - 5
-    doc = G2oDocument(kind, ids, poses, ids[ends[:m]] if m else ends[:0], ids[ends[m:]] if m else ends[:0],
-                      meas.reshape(m, w), info.reshape(m, iw))
+    doc = G2oDocument(
+        kind,
+        ids,
+        poses,
+        ids[ends[:m]] if m else ends[:0],
+        ids[ends[m:]] if m else ends[:0],
+        meas.reshape(m, w),
+        info.reshape(m, iw),
+    )
     buf = io.StringIO()
     write_g2o(buf, doc)
     back = read_g2o(io.StringIO(buf.getvalue()))
@@ -73,8 +80,9 @@ def test_inter_lc_dat_full_precision_round_trip(data, n):
     if n:
         meas[:, 3:7] = unit_quats(n, data)
     info = np.array(data.draw(st.lists(finite, min_size=21 * n, max_size=21 * n))).reshape(n, 21)
-    idx = np.array(data.draw(st.lists(st.integers(0, 10**6), min_size=4 * n, max_size=4 * n)),
-                   dtype=np.int64).reshape(n, 4)
+    idx = np.array(data.draw(st.lists(st.integers(0, 10**6), min_size=4 * n, max_size=4 * n)), dtype=np.int64).reshape(
+        n, 4
+    )
     inter = InterAgentEdges(PoseKind.SE3, idx[:, 0], idx[:, 1], idx[:, 2], idx[:, 3], meas, info)
     buf = io.StringIO()
     write_inter_lc_dat(buf, inter, precision="full")
@@ -95,11 +103,22 @@ def test_arbitrary_bytes_raise_only_format_errors(tmp_path_factory, blob):
             assert "\n" not in str(err)
 
 
-record_lines = st.sampled_from([
-    "VERTEX_SE2 0 0 0 0", "VERTEX_SE2 1 1.5 -2 0.3", "EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1",
-    "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1", "EDGE_SE3:QUAT 0 1 " + " ".join(["0"] * 6 + ["1"] + ["1"] * 21),
-    "0 0 0 0 0 0 0 1", "1.5 1 2 3 0 0 0 1", "# c", "", "nan", "1e400", "VERTEX_SE2 0 x 0 0",
-])
+record_lines = st.sampled_from(
+    [
+        "VERTEX_SE2 0 0 0 0",
+        "VERTEX_SE2 1 1.5 -2 0.3",
+        "EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1",
+        "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1",
+        "EDGE_SE3:QUAT 0 1 " + " ".join(["0"] * 6 + ["1"] + ["1"] * 21),
+        "0 0 0 0 0 0 0 1",
+        "1.5 1 2 3 0 0 0 1",
+        "# c",
+        "",
+        "nan",
+        "1e400",
+        "VERTEX_SE2 0 x 0 0",
+    ]
+)
 
 
 @settings(max_examples=200, deadline=None)

@@ -29,9 +29,31 @@ def _edge_values() -> np.ndarray:
     """Powers of ten and their neighbours, ties, zeros, extremes, non-finite values."""
     p = 10.0 ** np.arange(-13, 19)
     near = np.concatenate([np.nextafter(p, 0), p, np.nextafter(p, np.inf), np.nextafter(np.nextafter(p, 0), 0)])
-    special = np.array([0.0, -0.0, 1.0, 0.5, 0.25, 1e-5, 1e-4, 9.999999999999999e16, 123456789012345678.0,
-                        5e-324, 2.2250738585072014e-308, 1.7976931348623157e308, np.inf, -np.inf, np.nan,
-                        1890.359168241966, 1000000.0, 5e-7, 2.5e-7, 1.5e-6, 0.0000004999999999999999])
+    special = np.array(
+        [
+            0.0,
+            -0.0,
+            1.0,
+            0.5,
+            0.25,
+            1e-5,
+            1e-4,
+            9.999999999999999e16,
+            123456789012345678.0,
+            5e-324,
+            2.2250738585072014e-308,
+            1.7976931348623157e308,
+            np.inf,
+            -np.inf,
+            np.nan,
+            1890.359168241966,
+            1000000.0,
+            5e-7,
+            2.5e-7,
+            1.5e-6,
+            0.0000004999999999999999,
+        ]
+    )
     ties = np.arange(1, 2000) * 2.0**-21  # exact binary ties for %f's sixth decimal
     values = np.concatenate([near, special, ties, ties * 1e3])
     return np.concatenate([values, -values])
@@ -45,11 +67,13 @@ def test_edge_values_match_printf():
 
 def test_random_magnitudes_match_printf():
     rng = np.random.default_rng(7)
-    values = np.concatenate([
-        rng.normal(size=20000) * 10.0 ** rng.integers(-20, 25, size=20000),
-        rng.integers(-(2**53), 2**53, 20000).astype(np.float64) * 2.0 ** rng.integers(-90, 20, 20000),
-        rng.integers(-4000, 4000, 20000) * 0.25,  # grid positions: the repeated-values path
-    ])
+    values = np.concatenate(
+        [
+            rng.normal(size=20000) * 10.0 ** rng.integers(-20, 25, size=20000),
+            rng.integers(-(2**53), 2**53, 20000).astype(np.float64) * 2.0 ** rng.integers(-90, 20, 20000),
+            rng.integers(-4000, 4000, 20000) * 0.25,  # grid positions: the repeated-values path
+        ]
+    )
     for fmt in ("%.17g", "%f"):
         assert _texts(values, fmt) == [fmt % v for v in values.tolist()]
 
@@ -93,7 +117,9 @@ def test_float_rows_groups_repeated_rows():
 def test_concat_joins_without_separator():
     sign = TextColumn(np.array([[45], [0]], dtype=np.uint8), np.array([1, 0]))
     assert concat([sign, int_column(np.array([0, 12])), literal("."), int_column(np.array([5, 7]))]).tolist() == [
-        "-0.5", "12.7"]
+        "-0.5",
+        "12.7",
+    ]
 
 
 def test_format_float_single_values():
@@ -108,8 +134,10 @@ def _padding_is_nul(col: TextColumn) -> bool:
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.lists(st.floats(allow_nan=True, allow_infinity=True, allow_subnormal=True), min_size=1, max_size=60),
-       st.lists(st.integers(-(2**63) + 1, 2**63 - 1), min_size=1, max_size=30))
+@given(
+    st.lists(st.floats(allow_nan=True, allow_infinity=True, allow_subnormal=True), min_size=1, max_size=60),
+    st.lists(st.integers(-(2**63) + 1, 2**63 - 1), min_size=1, max_size=30),
+)
 def test_every_column_is_nul_padded(floats, ints):
     # join_array takes the lines' characters to be the non-NUL bytes of the laid-out fields
     values = np.array(floats + [1.0, 0.5, 100.0, 0.0, 1e-3], dtype=np.float64)  # trailing zeros cut in fixed notation
@@ -122,12 +150,16 @@ def test_every_column_is_nul_padded(floats, ints):
     ints_col = int_column(np.array(ints, dtype=np.int64))
     assert _padding_is_nul(ints_col)
     sign = TextColumn(np.array([[45], [0]], dtype=np.uint8), np.array([1, 0]))
-    assert _padding_is_nul(concat([sign, int_column(np.array([0, 123456])), literal("."), int_column(np.array([5, 7]))]))
+    assert _padding_is_nul(
+        concat([sign, int_column(np.array([0, 123456])), literal("."), int_column(np.array([5, 7]))])
+    )
 
 
 def test_join_array_matches_line_by_line_formatting():
     rng = np.random.default_rng(3)
-    values = np.column_stack([rng.normal(size=500) * 10.0 ** rng.integers(-6, 8, 500), rng.integers(-40, 40, 500) * 0.25])
-    ids = rng.integers(-10**6, 10**6, 500)
+    values = np.column_stack(
+        [rng.normal(size=500) * 10.0 ** rng.integers(-6, 8, 500), rng.integers(-40, 40, 500) * 0.25]
+    )
+    ids = rng.integers(-(10**6), 10**6, 500)
     text = join_array([literal("EDGE"), int_column(ids), *float_columns(values, ["%.17g", "%f"])]).tobytes()
     assert text == b"".join(b"EDGE %d %.17g %f\n" % (i, a, b) for i, (a, b) in zip(ids.tolist(), values.tolist()))
