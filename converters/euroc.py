@@ -8,6 +8,12 @@ quaternion **scalar first** (``w x y z``). The machine-hall sequences share one 
 Leica/Vicon frame), so their trajectories are agents of one map. Inputs are sequence folders (or
 their ``mav0`` folder, or the ``data.csv`` files themselves); each agent is named after its
 sequence folder (``mh_01_easy``).
+
+**TUM VI** sequences (``dataset-room1_512_16``) ship the same ASL layout with motion-capture ground
+truth instead: ``<sequence>/mav0/mocap0/data.csv``, a ``#`` header, then ``timestamp [ns],
+p_RS_R_x, p_RS_R_y, p_RS_R_z [m], q_RS_w, q_RS_x, q_RS_y, q_RS_z``: 8 columns, the same nanosecond
+stamps and scalar-first quaternion, the pose of the IMU in the motion-capture frame. Where a
+sequence folder has both, the state estimate (EuRoC's) is taken.
 """
 
 from __future__ import annotations
@@ -24,18 +30,28 @@ from studio.core.types import PathLike
 __all__ = ["read_euroc", "euroc_ground_truth", "GT_RELATIVE"]
 
 GT_RELATIVE = Path("mav0") / "state_groundtruth_estimate0" / "data.csv"
-_WHAT = "EuRoC ground truth: timestamp [ns], p xyz [m], q wxyz, v xyz, b_w xyz, b_a xyz"
+#: TUM VI's ground truth: motion capture of the IMU, 8 columns
+MOCAP_RELATIVE = Path("mav0") / "mocap0" / "data.csv"
+_EUROC_WHAT = "EuRoC ground truth: timestamp [ns], p xyz [m], q wxyz, v xyz, b_w xyz, b_a xyz"
+_MOCAP_WHAT = "TUM VI mocap: timestamp [ns], p xyz [m], q wxyz"
+#: columns and layout by the folder holding the data.csv (a bare data.csv may be either)
+_LAYOUTS: dict[str, tuple[int | tuple[int, ...], str]] = {
+    "state_groundtruth_estimate0": (17, _EUROC_WHAT),
+    "mocap0": (8, _MOCAP_WHAT),
+}
+_GROUND_TRUTH_FOLDERS = tuple(_LAYOUTS)
 
 
 def euroc_ground_truth(path: Path) -> tuple[str, Path] | None:
     """``(agent name, data.csv)`` of a sequence folder, its ``mav0`` folder or the file; or None."""
     if path.is_file() and path.name == "data.csv":
-        seq = path.parent.parent.parent if path.parent.name == "state_groundtruth_estimate0" else path.parent
+        seq = path.parent.parent.parent if path.parent.name in _GROUND_TRUTH_FOLDERS else path.parent
         return safe_agent_name(seq.name.lower()), path
-    for base, rel in ((path, GT_RELATIVE), (path, Path(*GT_RELATIVE.parts[1:]))):
-        if (base / rel).is_file():
-            seq = base if rel == GT_RELATIVE else base.parent
-            return safe_agent_name(seq.name.lower()), base / rel
+    for full in (GT_RELATIVE, MOCAP_RELATIVE):
+        for base, rel in ((path, full), (path, Path(*full.parts[1:]))):
+            if (base / rel).is_file():
+                seq = base if rel == full else base.parent
+                return safe_agent_name(seq.name.lower()), base / rel
     return None
 
 
@@ -53,7 +69,8 @@ def read_euroc(
         if found is None:
             raise FormatError(f"{raw}: no EuRoC ground truth ({GT_RELATIVE})")
         name, csv = found
-        table, stamps = read_table(csv, 17, what=_WHAT, int_first=True, quaternion="wxyz")
+        columns, what = _LAYOUTS.get(csv.parent.name, ((17, 8), f"{_EUROC_WHAT}; or {_MOCAP_WHAT}"))
+        table, stamps = read_table(csv, columns, what=what, int_first=True, quaternion="wxyz")
         assert stamps is not None
         quat_xyzw = table[:, [5, 6, 7, 4]]  # w x y z in the file
         out.append(clean_trajectory(name, stamps, table[:, 1:4], quat_xyzw, str(csv), warn))

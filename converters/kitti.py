@@ -1,6 +1,7 @@
 """KITTI odometry ground truth: ``poses/<seq>.txt``, one pose per line as the 12 numbers of a 3x4
 matrix ``[R | t]`` (row major), the camera's pose in the first camera frame, and optionally the
-sequence's ``times.txt`` (seconds, one per line; without it the poses are stamped at 10 Hz).
+sequence's ``times.txt`` (seconds, one per line; without it the poses are stamped at 10 Hz, with
+a warning).
 
 The camera frame is x right, y down, z forward; the studio's frames are z up. Each pose is turned
 into the z-up frame ``x forward, y left, z up`` for both the world and the body:
@@ -63,6 +64,11 @@ def read_kitti(
         pos = m[:, :, 3] @ CAMERA_TO_Z_UP.T
         times = kitti_times_for(path)
         if times is None:
+            if warn is not None:
+                warn(
+                    f"{path}: no times.txt beside it or in sequences/{path.stem}/; "
+                    f"poses stamped at {KITTI_RATE_HZ:g} Hz"
+                )
             stamps = np.round(np.arange(len(m)) * (1e9 / KITTI_RATE_HZ)).astype(np.int64)
         else:
             t, _ = read_table(times, 1, what="KITTI times.txt: one time in seconds per line", header=False)

@@ -72,6 +72,17 @@ def write_tum(target: PathLike | IO[str], traj: Trajectory) -> None:
     write_text(target, _tum_pieces(traj))
 
 
+def _nanosecond_hint(token: str) -> str:
+    """A hint for a stamp that reads as nanoseconds (EuRoC and TUM VI ``data.csv`` files, ROS stamps)."""
+    digits = token.lstrip("+-")
+    if digits.isdecimal() and len(digits) >= 16:
+        return (
+            f" ({token[:40]} looks like nanoseconds, TUM stamps are seconds; a EuRoC or TUM VI data.csv, "
+            "whose quaternion is w x y z, is read by `studio convert euroc`)"
+        )
+    return ""
+
+
 def _stamp_ns(token: str) -> int:
     if token.isdecimal():  # whole seconds (kollagen's node indices): the common case, fast
         return int(token) * NS_PER_S
@@ -139,7 +150,7 @@ def _parse(source: PathLike | IO[str], *, require_increasing: bool) -> tuple[np.
         if not all(map(math.isfinite, vals)):
             raise FormatError(f"{name}:{lineno}: value is not finite")
         if not -(2**63) <= stamp < 2**63:
-            raise FormatError(f"{name}:{lineno}: timestamp out of range")
+            raise FormatError(f"{name}:{lineno}: timestamp out of range{_nanosecond_hint(parts[0])}")
         seen_data = True
         stamps.append(stamp)
         rows.append(vals)

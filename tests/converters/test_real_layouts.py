@@ -466,3 +466,61 @@ def test_the_shipped_headers_are_read(tmp_path):
     kimera.write_text("#timestamp_kf,x,y,z,qw,qx,qy,qz\n1665777000123456789,1,2,3,1,0,0,0\n")
     table, stamps = read_table(kimera, 8, what="Kimera", int_first=True, quaternion="wxyz")
     assert stamps.tolist() == [1665777000123456789] and table[0, 4] == 1.0
+
+
+def _tumvi_sequence(root: Path, name: str, k: int):
+    """TUM VI as it ships in the ASL layout: motion capture of the IMU, 8 columns, w x y z."""
+    folder = root / name / "mav0" / "mocap0"
+    folder.mkdir(parents=True)
+    s, p, q = loop_trajectory(400, rate_hz=120.0, radius=2.0, phase=k, climb=0.5)
+    q = (Rotation.from_quat(q) * Rotation.from_euler("x", 0.4)).as_quat()
+    rows = ["#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],q_RS_w [],q_RS_x [],q_RS_y [],q_RS_z []"]
+    stamps = 1_520_530_308_199_447_626 + (s - s[0])
+    for t, pp, qq in zip(stamps.tolist(), p.tolist(), q.tolist()):
+        rows.append(",".join([str(t), *map(repr, pp), repr(qq[3]), repr(qq[0]), repr(qq[1]), repr(qq[2])]))
+    (folder / "data.csv").write_text("\n".join(rows) + "\n")
+    return stamps, p, q
+
+
+def test_tum_vi_mocap_folders_are_read_by_euroc_with_w_x_y_z_quaternions(tmp_path):
+    truth = {n: _tumvi_sequence(tmp_path, n, k) for k, n in enumerate(["dataset-room1_512_16", "dataset-room2_512_16"])}
+    out = tmp_path / "ds"
+    r = run(*(tmp_path / n for n in truth), "-o", out, "--keyframe-distance", "0.3")  # the source is guessed
+    assert r.exit_code == 0, r.output
+    assert read_convert_config(out / "convert.json").source == "euroc"
+    g = read_multi_g2o(out)
+    assert [a.name for a in g.agents] == ["dataset-room1_512_16", "dataset-room2_512_16"]
+    s, p, q = truth["dataset-room1_512_16"]
+    a = g.agents[0]
+    k = np.searchsorted(s, a.stamps_ns)
+    assert np.array_equal(s[k], a.stamps_ns)  # nanosecond stamps kept exactly
+    moved = a.ground_truth[:, 0:3] - a.ground_truth[0, 0:3]  # the dataset's origin is shifted, not its shape
+    assert np.abs(moved - (p[k] - p[k][0])).max() < 1e-9
+    rel = Rotation.from_quat(q[k]).inv() * Rotation.from_quat(a.ground_truth[:, 3:7])
+    assert rel.magnitude().max() < 1e-9
+
+
+def test_a_tum_vi_file_given_to_tum_says_it_looks_like_nanoseconds(tmp_path):
+    _tumvi_sequence(tmp_path, "dataset-room1_512_16", 0)
+    csv = tmp_path / "dataset-room1_512_16" / "mav0" / "mocap0" / "data.csv"
+    r = runner.invoke(app, ["convert", "tum", str(csv), "-o", str(tmp_path / "x")])
+    assert r.exit_code == 2
+    line = r.output.strip()
+    assert len(line.splitlines()) == 1
+    assert f"{csv}:2: timestamp out of range" in line and "looks like nanoseconds" in line
+    assert "studio convert euroc" in line
+    assert not (tmp_path / "x").exists()
+
+
+def test_kitti_without_times_txt_warns_and_report_json_says_it(tmp_path):
+    n = 40
+    lines = [" ".join(f"{v:.12e}" for v in [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0.5 * i]) for i in range(n)]
+    (tmp_path / "07.txt").write_text("\n".join(lines) + "\n")
+    r = runner.invoke(
+        app, ["convert", "kitti", str(tmp_path / "07.txt"), "-o", str(tmp_path / "ds"), "--keyframe-distance", "0.4"]
+    )
+    assert r.exit_code == 0, r.output
+    assert "no times.txt" in r.output and "10 Hz" in r.output
+    report = json.loads((tmp_path / "ds" / "report.json").read_text())
+    assert any("no times.txt" in w and "10 Hz" in w for w in report["warnings"]), report["warnings"]
+    assert read_multi_g2o(tmp_path / "ds").agents[0].stamps_ns[1] == 100_000_000
