@@ -385,7 +385,7 @@ def build_graph(
         dup = next(n for n in names if names.count(n) > 1)
         files = [str(t.source) for t in trajectories if t.name == dup][:2]
         raise ConfigError(
-            f"two agents are named {dup!r} ({' and '.join(files)}); rename one of the inputs or name them with --agent"
+            f"two agents are named {dup!r} ({' and '.join(files)}); rename one of the inputs (or its folder)"
         )
     planar = opts.planar
     origin = trajectories[0].positions_xyz[0].copy()

@@ -2,7 +2,9 @@
 
 Space- or comma-separated, ``#`` comments or one header line; parsing is :func:`studio.io.tum.read_tum_rows`
 (errors name ``file:line``). Quaternions are normalised; unsorted or duplicate timestamps are sorted
-and de-duplicated with a warning that counts them. One file is one agent, named after the file.
+and de-duplicated with a warning that counts them. One file is one agent, named after the file; files
+whose names collide (every TUM RGB-D sequence ships ``groundtruth.txt``) are named after their folders
+(``rgbd_dataset_freiburg1_xyz``).
 """
 
 from __future__ import annotations
@@ -30,11 +32,18 @@ def read_tum_trajectory(path: PathLike, *, name: str | None = None, warn: Warn |
     return clean_trajectory(agent, stamps_ns, poses[:, :3], poses[:, 3:], str(path), warn)
 
 
+def agent_names(inputs: Sequence[PathLike]) -> list[str]:
+    """One agent name per file: its stem, or its folder's name where stems collide."""
+    stems = [safe_agent_name(Path(p).stem) for p in inputs]
+    return [safe_agent_name(Path(p).resolve().parent.name) if stems.count(s) > 1 else s for p, s in zip(inputs, stems)]
+
+
 def read_tum_sources(
     inputs: Sequence[PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None, progress=None
 ) -> list[Trajectory]:
     """``studio convert tum FILE...``: one agent per file, in the order given."""
     sizes = [Path(p).stat().st_size if Path(p).is_file() else 0 for p in inputs]
+    names = agent_names(inputs)
     total = sum(sizes)
 
     def tick(done: int, _n: int) -> None:
@@ -45,14 +54,14 @@ def read_tum_sources(
         trajs = []
         tick(0, len(inputs))
         for k, p in enumerate(inputs):
-            trajs.append(read_tum_trajectory(p, warn=warn))
+            trajs.append(read_tum_trajectory(p, name=names[k], warn=warn))
             tick(k + 1, len(inputs))
         return trajs
 
     # large files are parsed by several processes; their warnings are replayed here, in order
     def read_one(k: int):
         messages: list[str] = []
-        return read_tum_trajectory(inputs[k], warn=messages.append), messages
+        return read_tum_trajectory(inputs[k], name=names[k], warn=messages.append), messages
 
     out = []
     for traj, messages in parallel_map(read_one, len(inputs), on_done=tick):

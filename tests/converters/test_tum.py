@@ -137,3 +137,34 @@ def test_bulk_stamp_parser_agrees_with_the_line_parser():
     assert got.tolist() == [_stamp_ns(t) for t in tokens]
     for bad in (["1e9"], ["-1.5"], ["1.2.3"], ["."], ["12345678901"], ["a"]):
         assert _stamps_from_digits(np.array(bad)) is None
+
+
+def test_tum_rgbd_sequences_all_named_groundtruth_become_agents_named_after_their_folders(tmp_path):
+    """TUM RGB-D ships every sequence's ground truth as ``<sequence>/groundtruth.txt`` with three
+    ``#`` header lines; two of them given together are two agents named after their folders."""
+    from typer.testing import CliRunner
+
+    from studio.cli import app
+    from studio.io.multig2o import read_multi_g2o
+
+    header = "# ground truth trajectory\n# file: 'rgbd_dataset_freiburg1_xyz.bag'\n# timestamp tx ty tz qx qy qz qw"
+    files = []
+    for k, seq in enumerate(["rgbd_dataset_freiburg1_xyz", "rgbd_dataset_freiburg1_desk"]):
+        s, p, q = loop_trajectory(200, phase=k)
+        (tmp_path / seq).mkdir()
+        files.append(write_tum_file(tmp_path / seq / "groundtruth.txt", s, p, q, header=header))
+    assert [t.name for t in read_tum_sources(files)] == ["rgbd_dataset_freiburg1_xyz", "rgbd_dataset_freiburg1_desk"]
+    res = CliRunner().invoke(app, ["convert", "tum", *map(str, files), "-o", str(tmp_path / "ds")])
+    assert res.exit_code == 0, res.output
+    assert [a.name for a in read_multi_g2o(tmp_path / "ds").agents] == [
+        "rgbd_dataset_freiburg1_xyz",
+        "rgbd_dataset_freiburg1_desk",
+    ]
+    # names that still collide are refused without suggesting an option `tum` does not have
+    (tmp_path / "x" / "rgbd").mkdir(parents=True)
+    (tmp_path / "y" / "rgbd").mkdir(parents=True)
+    twins = [write_tum_file(tmp_path / d / "rgbd" / "groundtruth.txt", s, p, q) for d in ("x", "y")]
+    res = CliRunner().invoke(app, ["convert", "tum", *map(str, twins), "-o", str(tmp_path / "ds2")])
+    assert res.exit_code == 2
+    assert "two agents are named 'rgbd'" in res.output and "--agent" not in res.output
+    assert not (tmp_path / "ds2").exists()
