@@ -277,17 +277,29 @@ def snapshot(
         "--theme",
         help="dark, or light: the views on the light theme's white background (the viewer's panels stay dark).",
     ),
+    views_only: bool = typer.Option(
+        False, "--views-only", help="Only the views: no menu, time panel, side panels or notifications."
+    ),
     force: bool = typer.Option(False, "--force", help="Replace an existing picture."),
 ) -> None:
     """Render a recording to a PNG without a display (needs a Vulkan driver, e.g. mesa-vulkan-drivers).
 
-    Example: studio snapshot out/multi3500x8.rrd -o multi.png --node 400
+    Example: studio snapshot out/multi3500x8.rrd -o multi.png --node 400 --views-only
     """
     from studio.recording.viewer import snapshot as render
 
     with terminal_progress() as progress:
-        res = render(rrd, out, node=node, window_size=size, progress=progress, force=force, theme=theme.value)
-    typer.echo(f"{res.path}: node {res.time}")
+        res = render(
+            rrd,
+            out,
+            node=node,
+            window_size=size,
+            progress=progress,
+            force=force,
+            theme=theme.value,
+            views_only=views_only,
+        )
+    typer.echo(f"{res.path}: {res.timeline} {res.time}")
 
 
 # --- studio convert -----------------------------------------------------------------------------

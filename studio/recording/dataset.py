@@ -509,7 +509,8 @@ def fixed_id(part: Any, namespace: uuid.UUID, name: str) -> Any:
 
 def default_blueprint(scene: _Scene) -> rrb.Blueprint:
     """The layout saved in every recording: 3D view of all agents, time series beside it, time panel
-    on ``node``, paused. Planar data is seen from straight above."""
+    on ``node``, following (a viewer opens the file at its last node, with everything shown).
+    Planar data is seen from straight above."""
     import rerun as rr
     import rerun.blueprint as rrb
 
@@ -566,7 +567,7 @@ def default_blueprint(scene: _Scene) -> rrb.Blueprint:
         fixed_id(part, _RECORDING_ID_NAMESPACE, f"blueprint/{label}")
     return rrb.Blueprint(
         root,
-        rrb.TimePanel(timeline=TIMELINE_NODE, play_state="paused", expanded=True),
+        rrb.TimePanel(timeline=TIMELINE_NODE, play_state="following", expanded=True),
         rrb.BlueprintPanel(expanded=False),
         rrb.SelectionPanel(expanded=False),
         auto_views=False,

@@ -209,7 +209,7 @@ def evaluation_blueprint(series: Sequence[ErrorSeries]) -> Any:
     root = _fixed(rrb.Horizontal(*views, right, column_shares=[3, 2] if views else None), "root")
     return rrb.Blueprint(
         root,
-        rrb.TimePanel(timeline=TIMELINE_NODE, play_state="paused", expanded=False),
+        rrb.TimePanel(timeline=TIMELINE_NODE, play_state="following", expanded=False),
         rrb.BlueprintPanel(expanded=False),
         rrb.SelectionPanel(expanded=False),
         auto_views=False,

@@ -80,7 +80,7 @@ def solve_blueprint(names: Sequence[str]) -> Any:
             ),
             "root",
         ),
-        rrb.TimePanel(timeline=TIMELINE_ITERATION),
+        rrb.TimePanel(timeline=TIMELINE_ITERATION, play_state="following"),
         collapse_panels=True,
     )
 

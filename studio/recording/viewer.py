@@ -8,7 +8,9 @@ one, ``mesa-vulkan-drivers``, is enough), opens the file, moves the time cursor 
 
 from __future__ import annotations
 
+import contextlib
 import glob
+import io
 import os
 import shutil
 import socket
@@ -16,8 +18,10 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.progress import Progress, report
@@ -172,8 +176,14 @@ def snapshot(
     progress: Progress | None = None,
     force: bool = False,
     theme: str = "dark",
+    views_only: bool = False,
 ) -> SnapshotResult:
     """Render ``rrd`` to ``png`` with the cursor at ``node`` (default: the last node), no display needed.
+
+    ``views_only`` hides the viewer's panels (top bar with its notifications, time panel, streams
+    and selection panels) for the picture and trims the empty window strip above the views, so the
+    picture holds only the recording's views: the form for a paper or the docs. The file is not
+    changed.
 
     ``theme="light"`` gives every view the light theme's background (Rerun's ``viewport_background``
     token of the light theme, white), through the viewer's blueprint API; the viewer's own panels
@@ -213,6 +223,7 @@ def snapshot(
             settle_s=settle_s,
             progress=progress,
             theme=theme,
+            views_only=views_only,
         )
 
 
@@ -229,6 +240,54 @@ def _light_backgrounds(client) -> None:
     client.set_blueprint(blueprint, of="recording")
 
 
+#: the viewer's panels, as its blueprint names them
+_PANELS = ("/top_panel", "/blueprint_panel", "/selection_panel", "/time_panel")
+
+
+def _hide_panels(client: Any) -> None:
+    """Hide every panel around the views (the top panel carries the viewer's notifications)."""
+    blueprint = client.get_blueprint().blueprint
+    for path in _PANELS:
+        kind = "TimePanelBlueprint" if path == "/time_panel" else "PanelBlueprint"
+        blueprint.setdefault(path, {}).setdefault(kind, {})["state"] = "Hidden"
+    client.set_blueprint(blueprint, of="recording")
+
+
+def _steady_picture(client: Any, timeout_s: float) -> bytes:
+    """A screenshot once two in a row are the same picture: the viewer's start-up notifications
+    ("Headless viewer running…", the software rasterizer) fade out some 8-10 s after it starts and
+    are drawn over the views whatever the panels."""
+    import numpy as np
+    from PIL import Image
+
+    def pixels(png: bytes) -> Any:
+        with Image.open(io.BytesIO(png)) as im:
+            return np.asarray(im.convert("RGB"))
+
+    deadline = time.monotonic() + timeout_s
+    shot = client.take_screenshot()
+    while time.monotonic() < deadline:
+        time.sleep(1.0)
+        again = client.take_screenshot()
+        if np.array_equal(pixels(again), pixels(shot)):
+            return again
+        shot = again
+    return shot
+
+
+def _trim_top(png: Path) -> None:
+    """Cut the empty strip above the views (the window's frame, left where the top panel was): down
+    to its bottom edge, a full-width line of one light colour in the picture's top quarter."""
+    import numpy as np
+    from PIL import Image
+
+    with Image.open(png) as im:
+        rgb = np.asarray(im.convert("RGB"), dtype=np.float64)[: im.height // 4]
+        edge = np.flatnonzero((rgb.mean(axis=(1, 2)) > 30.0) & (rgb.std(axis=(1, 2)) < 2.5))
+        if edge.size:
+            im.crop((0, int(edge[-1]) + 1, im.width, im.height)).save(png, format="PNG")
+
+
 def _snapshot_into(
     rrd: Path,
     png: Path,
@@ -240,11 +299,52 @@ def _snapshot_into(
     settle_s: float,
     progress: Progress | None,
     theme: str = "dark",
+    views_only: bool = False,
 ) -> SnapshotResult:
-    from rerun.experimental import ViewerClient
-
     step = "snapshot"
     report(progress, step, 0, 4, "stages")
+    with _headless_viewer(rrd, size, timeout_s, on_started=lambda: report(progress, step, 1, 4, "stages")) as (
+        client,
+        state,
+    ):
+        report(progress, step, 2, 4, "stages")
+        rec = state.recordings[0]
+        timelines = {t.name: t for t in rec.timelines}
+        # a dataset's `node`, a solve's `iteration`, a sweep's `cell`
+        name = next((t for t in (TIMELINE_NODE, TIMELINE_ITERATION, TIMELINE_CELL) if t in timelines), None)
+        if name is None:
+            raise FormatError(f"{rrd}: no `node`, `iteration` or `cell` timeline (not a studio recording?)")
+        tl = timelines[name]
+        at = tl.end if node is None else node
+        if at is not None and tl.start is not None and not tl.start <= at <= tl.end:
+            raise ConfigError(f"--node {node}: the recording's {name} timeline spans {tl.start}..{tl.end}")
+        if theme == "light":
+            _light_backgrounds(client)
+        if views_only:
+            _hide_panels(client)
+        client.set_time(name, sequence=int(at), play_state="paused")
+        time.sleep(settle_s)  # chunks stream in lazily after the cursor moves
+        report(progress, step, 3, 4, "stages")
+        if views_only:
+            tmp.write_bytes(_steady_picture(client, timeout_s))
+        else:
+            client.save_screenshot(str(tmp.resolve()))
+        report(progress, step, 4, 4, "stages")
+        if not tmp.is_file():
+            raise OutputError("the viewer did not write a screenshot")
+        if views_only:
+            _trim_top(tmp)
+        return SnapshotResult(png, name, int(at))
+
+
+@contextlib.contextmanager
+def _headless_viewer(
+    rrd: Path, size: str, timeout_s: float, on_started: Callable[[], None] | None = None
+) -> Iterator[tuple[Any, Any]]:
+    """A headless viewer with ``rrd`` loaded: ``(client, state right after loading)``; the viewer
+    and every process it started are stopped on leaving."""
+    from rerun.experimental import ViewerClient
+
     port = _free_port()
     cmd = [
         rerun_executable(),
@@ -262,7 +362,8 @@ def _snapshot_into(
     proc = subprocess.Popen(cmd, env=_env(), stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True)
     try:
         client = _connect(ViewerClient, proc, log, port, timeout_s)
-        report(progress, step, 1, 4, "stages")
+        if on_started is not None:
+            on_started()
         client.open(str(rrd))
         deadline = time.monotonic() + timeout_s
         while True:
@@ -272,30 +373,19 @@ def _snapshot_into(
             if time.monotonic() > deadline:
                 raise OutputError(f"{rrd}: the viewer did not finish loading within {timeout_s:.0f} s")
             time.sleep(0.1)
-        report(progress, step, 2, 4, "stages")
-        rec = state.recordings[0]
-        timelines = {t.name: t for t in rec.timelines}
-        # a dataset's `node`, a solve's `iteration`, a sweep's `cell`
-        name = next((t for t in (TIMELINE_NODE, TIMELINE_ITERATION, TIMELINE_CELL) if t in timelines), None)
-        if name is None:
-            raise FormatError(f"{rrd}: no `node`, `iteration` or `cell` timeline (not a studio recording?)")
-        tl = timelines[name]
-        at = tl.end if node is None else node
-        if at is not None and tl.start is not None and not tl.start <= at <= tl.end:
-            raise ConfigError(f"--node {node}: the recording's {name} timeline spans {tl.start}..{tl.end}")
-        if theme == "light":
-            _light_backgrounds(client)
-        client.set_time(name, sequence=int(at), play_state="paused")
-        time.sleep(settle_s)  # chunks stream in lazily after the cursor moves
-        report(progress, step, 3, 4, "stages")
-        client.save_screenshot(str(tmp.resolve()))
-        report(progress, step, 4, 4, "stages")
-        if not tmp.is_file():
-            raise OutputError("the viewer did not write a screenshot")
-        return SnapshotResult(png, name, int(at))
+        yield client, state
     finally:
         _stop_group(proc)
         log.close()
+
+
+def opened_at(rrd: PathLike, *, timeout_s: float = 60.0) -> tuple[str | None, int | None]:
+    """Where a viewer opening ``rrd`` puts its time cursor: ``(timeline, time)`` right after loading,
+    nothing moved (studio recordings open at their end: their time panel is ``following``)."""
+    rrd = _check_rrd(Path(rrd))
+    with _headless_viewer(rrd, "800x500", timeout_s) as (_client, state):
+        rec = state.recordings[0]
+        return rec.current_timeline, rec.current_time
 
 
 def _stop_group(proc: subprocess.Popen) -> None:
