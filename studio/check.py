@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from studio._callable import make_callable
 from studio.core.errors import FormatError
 from studio.core.geometry import is_planar_se3, se3_information_to_se2
 from studio.core.model import PoseKind
@@ -392,3 +393,6 @@ def format_check(report: CheckReport, *, per_agent: bool = False) -> str:
     if n > 10:
         lines.append(f"  ... {n - 10} more (--json lists all)")
     return "\n".join(lines) + "\n"
+
+
+make_callable(__name__)  # studio.check(...) is studio.check.check(...) (studio/_callable.py)

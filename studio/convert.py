@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from studio._callable import make_callable
 from studio.converters.build import BuildResult, GraphOptions, Progress, build_graph
 from studio.converters.registry import check_inputs, get_reader
 from studio.converters.transforms import (
@@ -380,3 +381,6 @@ def convert(
 def _write_text(path: Path, text: str) -> None:
     with open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write(text)
+
+
+make_callable(__name__)  # studio.convert(...) is studio.convert.convert(...) (studio/_callable.py)

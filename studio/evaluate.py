@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from studio._callable import make_callable
 from studio.core.alignment import Alignment
 from studio.core.errors import EvaluationError, OutputError
 from studio.core.model import PoseGraph
@@ -592,3 +593,6 @@ def write_evaluation_recording(
         save_evaluation_recording(staging / path.name, format_markdown(ev), series, recording_id=recording_id)
     report(progress, "evaluation recording", 1, 1, "files")
     return path
+
+
+make_callable(__name__)  # studio.evaluate(...) is studio.evaluate.evaluate(...) (studio/_callable.py)

@@ -30,6 +30,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from studio._callable import make_callable
 from studio.core.errors import ConfigError, FormatError
 from studio.core.geometry import is_planar_se3, planar_poses_to_se3, se3_information_to_se2, se3_poses_to_planar
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
@@ -347,3 +348,6 @@ def _json_default(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     raise TypeError(f"not JSON: {type(value).__name__}")
+
+
+make_callable(__name__)  # studio.solve(...) is studio.solve.solve(...) (studio/_callable.py)

@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from studio._callable import make_callable
 from studio.core.errors import ConfigError, StudioError
 from studio.core.progress import Progress, report
 from studio.core.types import PathLike
@@ -605,3 +606,6 @@ def _plots(spec: SweepSpec, out: Path, df: Any) -> list[Path]:
         plt.close(fig)
         paths.append(path)
     return paths
+
+
+make_callable(__name__)  # studio.sweep(...) is studio.sweep.sweep(...) (studio/_callable.py)

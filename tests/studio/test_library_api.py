@@ -1,0 +1,56 @@
+"""`import studio` gives the main calls (docs/library.md), lazily, whatever was imported before."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import studio
+
+
+def test_the_documented_names_are_the_calls_they_say():
+    from studio.evaluate import evaluate
+    from studio.io.multig2o import read_multi_g2o
+    from studio.synth import synthesize
+
+    assert studio.synthesize is synthesize
+    assert studio.read_multi_g2o is read_multi_g2o
+    assert callable(studio.evaluate) and studio.evaluate.evaluate is evaluate
+    assert set(studio.__all__) <= set(dir(studio)) | {"__version__"}
+
+
+def test_a_pipeline_module_imported_first_is_still_callable(tmp_path):
+    """``from studio.evaluate import X`` loads the module, which then holds the name ``studio.evaluate``:
+    calling it must still run the function (in a fresh interpreter, so nothing was loaded before)."""
+    code = (
+        "import studio.convert, studio.evaluate, studio.solve, studio.check, studio.bench, studio.sweep\n"
+        "import studio\n"
+        f"r = studio.synthesize(studio.load_synth_config({str(tmp_path / 'c.json')!r}), {str(tmp_path)!r}, rrd=False)\n"
+        "ev = studio.evaluate(r.dataset_dir)\n"
+        "print(r.dataset_dir, round(ev.overall.ape_translation_m.mean, 9), studio.convert.ConvertConfig.__name__)\n"
+    )
+    from pathlib import Path
+
+    config = Path(__file__).resolve().parents[1] / "data" / "configs" / "small3x100.json"
+    (tmp_path / "c.json").write_text(config.read_text())
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    folder, mean, name = out.stdout.split()
+    from studio.evaluate import evaluate
+
+    expected = evaluate(folder).overall.ape_translation_m.mean
+    assert float(mean) == round(expected, 9) and expected > 0.1 and name == "ConvertConfig"
+
+
+def test_import_studio_loads_no_pipeline_or_heavy_library():
+    code = "import sys, studio; print(sorted(m for m in sys.modules if m.startswith(('studio.', 'numpy', 'rerun'))))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"
+
+
+def test_an_unknown_name_is_an_attribute_error():
+    import pytest
+
+    with pytest.raises(AttributeError, match="no attribute 'synthesise'"):
+        studio.synthesise  # noqa: B018
