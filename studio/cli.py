@@ -244,17 +244,26 @@ def evaluate(
 def view(
     rrd: Path = typer.Argument(..., metavar="FILE.rrd", help="A recording (studio record / studio synth)."),
     web: bool = typer.Option(False, "--web", help="Serve the web viewer on 127.0.0.1 instead of a window."),
-    port: int = typer.Option(9090, "--port", help="Port of the web viewer (with --web)."),
+    port: int = typer.Option(
+        None,
+        "--port",
+        help="Port of the web viewer page (with --web; default 9090, or a free port when 9090 is taken).",
+    ),
 ) -> None:
     """Open a recording in the Rerun viewer (native window, or the web viewer with --web).
 
     Example: studio view out/multi3500x8.rrd --web
     """
-    from studio.recording.viewer import run_viewer, view_command, view_web_command, web_viewer_address
+    from studio.recording.viewer import run_viewer, view_command, view_web_command
 
     if web:
-        cmd = view_web_command(rrd, port=port)
-        typer.echo(f"web viewer: open {web_viewer_address(port)} in a browser (Ctrl+C stops it)")
+        served = view_web_command(rrd, port=port)
+        cmd = served.command
+        typer.echo(f"web viewer: open {served.address} in a browser (Ctrl+C stops it)")
+        typer.echo(
+            f"from another machine: ssh -L {served.web_port}:127.0.0.1:{served.web_port} "
+            f"-L {served.grpc_port}:127.0.0.1:{served.grpc_port} THIS_HOST, then open the same address there"
+        )
     else:
         cmd = view_command(rrd)
     raise typer.Exit(run_viewer(cmd))

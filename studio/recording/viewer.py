@@ -39,6 +39,8 @@ __all__ = [
     "view_command",
     "view_web_command",
     "web_viewer_address",
+    "WebViewer",
+    "DEFAULT_WEB_PORT",
 ]
 
 #: Where the Vulkan loader looks for installed drivers (ICD manifests).
@@ -121,35 +123,97 @@ def view_command(rrd: PathLike) -> list[str]:
     return [rerun_executable(), "--bind", "127.0.0.1", str(path)]
 
 
-#: Port of the gRPC server that ``rerun --serve-web`` starts beside the web viewer (Rerun's default).
-GRPC_PORT = 9876
+#: The web viewer's port when none is asked for and it is free (otherwise a free one is taken).
+DEFAULT_WEB_PORT = 9090
 
 
-def web_viewer_address(port: int) -> str:
-    """The address to open in a browser: the web viewer, told where the recording is served."""
-    return f"http://127.0.0.1:{port}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{GRPC_PORT}%2Fproxy"
+@dataclass(frozen=True)
+class WebViewer:
+    """What ``studio view --web`` runs: the command and the two ports it serves on 127.0.0.1."""
+
+    command: list[str]
+    web_port: int
+    """The web viewer's page (HTTP)."""
+    grpc_port: int
+    """The gRPC server the page reads the recording from."""
+
+    @property
+    def address(self) -> str:
+        """The address to open in a browser: the web viewer, told where the recording is served."""
+        return web_viewer_address(self.web_port, self.grpc_port)
 
 
-def view_web_command(rrd: PathLike, *, port: int = 9090) -> list[str]:
-    """The command that serves ``rrd`` with the web viewer on 127.0.0.1 only."""
-    if not 0 < port < 65536:
+def web_viewer_address(port: int, grpc_port: int) -> str:
+    """The web viewer at ``port``, reading the recording from the gRPC server at ``grpc_port``."""
+    return f"http://127.0.0.1:{port}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc_port}%2Fproxy"
+
+
+def _port_free(port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
+def view_web_command(rrd: PathLike, *, port: int | None = None) -> WebViewer:
+    """Serve ``rrd`` with the web viewer on 127.0.0.1 only. ``port`` is the page's port: a port
+    asked for must be free (else one line naming it); without one, 9090 when free, else any free
+    port. The gRPC server the page reads from always takes a free port, so several viewers can run
+    at once."""
+    if port is not None and not 0 < port < 65536:
         raise ConfigError(f"--port {port}: not a TCP port")
-    return [
+    path = _check_rrd(Path(rrd))
+    if port is None:
+        web = DEFAULT_WEB_PORT if _port_free(DEFAULT_WEB_PORT) else _free_port()
+    elif _port_free(port):
+        web = port
+    else:
+        raise ConfigError(f"--port {port}: 127.0.0.1:{port} is in use (leave --port out to take a free port)")
+    grpc = _free_port()
+    while grpc == web:
+        grpc = _free_port()
+    command = [
         rerun_executable(),
         "--serve-web",
         "--bind",
         "127.0.0.1",
         "--web-viewer-port",
-        str(port),
+        str(web),
         "--port",
-        str(GRPC_PORT),
-        str(_check_rrd(Path(rrd))),
+        str(grpc),
+        str(path),
     ]
+    return WebViewer(command, web, grpc)
 
 
 def run_viewer(command: list[str]) -> int:
-    """Run a viewer command in the foreground; its exit code."""
-    return subprocess.call(command, env=_env())
+    """Run a viewer command in the foreground; its exit code. The viewer ends with this process
+    however it ends: on Ctrl+C (SIGINT), SIGTERM or SIGHUP it is stopped before this returns
+    (``128 + signal`` for a signal), so no ``rerun`` is left serving under PID 1."""
+    import signal
+
+    class _Stop(Exception):
+        def __init__(self, signum: int) -> None:
+            self.signum = signum
+
+    def stop(signum: int, _frame: object) -> None:
+        raise _Stop(signum)
+
+    previous = {s: signal.signal(s, stop) for s in (signal.SIGTERM, signal.SIGHUP)}
+    proc = subprocess.Popen(command, env=_env(), start_new_session=True)
+    try:
+        return proc.wait()
+    except KeyboardInterrupt:
+        return 128 + signal.SIGINT
+    except _Stop as why:
+        return 128 + why.signum
+    finally:
+        if proc.poll() is None:
+            _stop_group(proc)
+        for s, handler in previous.items():
+            signal.signal(s, handler)
 
 
 def _free_port() -> int:

@@ -307,6 +307,6 @@ def test_snapshot_and_view_targets(tmp_path):
     ]:
         refused(args, tmp_path, names=match)
     assert (tmp_path / "old.png").read_bytes() == b"old"
-    assert "127.0.0.1" in view_web_command(rrd)
+    assert "127.0.0.1" in view_web_command(rrd).command
     if os.environ.get("DISPLAY"):
         assert "127.0.0.1" in view_command(rrd)

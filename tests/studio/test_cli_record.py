@@ -146,10 +146,13 @@ def test_view_web_serves_on_localhost_only(tmp_path):
     rec = rr.RecordingStream("t")
     rec.save(str(rrd))  # a real (empty) recording: damaged ones are refused before a viewer starts
     rec.disconnect()
-    cmd = view_web_command(rrd, port=9123)
+    served = view_web_command(rrd, port=9123)
+    cmd = served.command
     assert cmd[1:6] == ["--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", "9123"]
+    assert cmd[6:8] == ["--port", str(served.grpc_port)] and served.grpc_port != 9123
     assert cmd[-1] == str(rrd.resolve())
-    assert web_viewer_address(9123).startswith("http://127.0.0.1:9123/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A")
+    assert served.address == web_viewer_address(9123, served.grpc_port)
+    assert served.address == (f"http://127.0.0.1:9123/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{served.grpc_port}%2Fproxy")
 
 
 def test_view_missing_file(tmp_path):

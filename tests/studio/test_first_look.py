@@ -106,3 +106,73 @@ def test_views_only_snapshot_has_no_panels_around_the_views(tmp_path):
 
     assert patch(views) == {DARK_BACKGROUND_RGB}
     assert len(patch(full)) > 3
+
+
+def _web_viewer(rrd: Path, *extra: str):
+    """`studio view --web` as a user runs it; (process, its first output line)."""
+    import os
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from studio._entry import main; main()", "view", str(rrd), "--web", *extra],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env={**os.environ, "CI": "true", "RERUN_ANALYTICS": "0"},
+    )
+    assert proc.stdout is not None
+    return proc, proc.stdout.readline()
+
+
+def _children(pid: int) -> list:
+    import psutil
+
+    return psutil.Process(pid).children(recursive=True)
+
+
+def _wait_for_children(pid: int, timeout_s: float = 20.0) -> list:
+    import time
+
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        kids = _children(pid)
+        if kids:
+            return kids
+        time.sleep(0.1)
+    raise AssertionError("the viewer did not start")
+
+
+def test_two_web_viewers_at_once_and_sigterm_leaves_no_child(tmp_path):
+    import signal
+    import socket
+
+    import psutil
+
+    rrd = REPO / "recordings" / "small3x100.rrd"
+    first, line1 = _web_viewer(rrd)
+    second, line2 = _web_viewer(rrd)
+    try:
+        kids = _wait_for_children(first.pid) + _wait_for_children(second.pid)
+        assert line1.startswith("web viewer: open http://127.0.0.1:") and line2.startswith("web viewer: open ")
+        assert line1 != line2  # two page ports and two gRPC ports
+        # a port asked for that is taken: one line naming it, exit 2
+        with socket.socket() as busy:
+            busy.bind(("127.0.0.1", 0))
+            busy.listen()
+            port = busy.getsockname()[1]
+            third, line3 = _web_viewer(rrd, "--port", str(port))
+            assert third.wait(timeout=60) == 2
+            assert (
+                line3.strip()
+                == f"error: --port {port}: 127.0.0.1:{port} is in use (leave --port out to take a free port)"
+            )
+        for proc in (first, second):
+            proc.send_signal(signal.SIGTERM)
+            assert proc.wait(timeout=30) == 128 + signal.SIGTERM
+        gone, alive = psutil.wait_procs(kids, timeout=15)
+        assert not alive, [p.cmdline() for p in alive]
+    finally:
+        for proc in (first, second):
+            if proc.poll() is None:
+                proc.kill()
