@@ -79,6 +79,18 @@ def cli_errors(func):
     return wrapper
 
 
+def _output_columns() -> int | None:
+    """The width to fit text tables to: ``$COLUMNS`` where set, a terminal's width, else none (pipes
+    and files get the wide table whole)."""
+    import os
+    import shutil
+    import sys
+
+    if os.environ.get("COLUMNS", "").isdigit():
+        return int(os.environ["COLUMNS"])
+    return shutil.get_terminal_size().columns if sys.stdout.isatty() else None
+
+
 def _warn(msg: str) -> None:
     typer.echo(f"warning: {msg}", err=True)
 
@@ -236,7 +248,7 @@ def evaluate(
     if as_json:
         typer.echo(ev.to_json())
     else:
-        typer.echo(format_markdown(ev) if markdown else format_table(ev), nl=False)
+        typer.echo(format_markdown(ev) if markdown else format_table(ev, width=_output_columns()), nl=False)
 
 
 @app.command()

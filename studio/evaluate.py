@@ -524,20 +524,41 @@ def _header_lines(ev: Evaluation) -> list[str]:
     ]
 
 
-def format_table(ev: Evaluation) -> str:
-    """A plain-text table, agents as rows and ``all`` (every agent pooled) last."""
+def _aligned(rows: list[list[str]]) -> list[str]:
+    """Rows of cells as lines: the first column left-aligned, the others right-aligned."""
+    widths = [max(len(r[c]) for r in rows) for c in range(len(rows[0]))]
+    return ["  ".join(r[0].ljust(widths[0]) if c == 0 else r[c].rjust(widths[c]) for c in range(len(r))) for r in rows]
+
+
+def format_table(ev: Evaluation, *, width: int | None = None) -> str:
+    """A plain-text table, agents as rows and ``all`` (every agent pooled) last. Where that is wider
+    than ``width`` characters (a terminal's columns), the table is turned: metrics as rows, agents
+    as columns, in as many blocks of agents as it takes to fit."""
     head = ["agent"] + [c[0] for c in _COLUMNS]
     body = [_cells(a) for a in ev.agents] + [_cells(ev.overall)]
-    widths = [max(len(r[c]) for r in [head] + body) for c in range(len(head))]
+    lines = _aligned([head] + body)
+    if width is None or len(lines[0]) <= width:
+        rule = "-" * len(lines[0])
+        return "\n".join(_header_lines(ev) + ["", lines[0], rule, *lines[1:-1], rule, lines[-1]]) + "\n"
+    return "\n".join(_header_lines(ev) + _turned(head, body, width)) + "\n"
 
-    def line(r):
-        return "  ".join(r[0].ljust(widths[0]) if c == 0 else r[c].rjust(widths[c]) for c in range(len(r)))
 
-    rule = "-" * len(line(head))
-    return (
-        "\n".join(_header_lines(ev) + ["", line(head), rule] + [line(r) for r in body[:-1]] + [rule, line(body[-1])])
-        + "\n"
-    )
+def _turned(head: list[str], body: list[list[str]], width: int) -> list[str]:
+    """Metrics as rows and agents as columns, in blocks of agents that fit ``width``."""
+    label = max(map(len, head))
+    out: list[str] = []
+    start = 0
+    while start < len(body):
+        stop = start + 1
+        while (
+            stop < len(body)
+            and len(_aligned([[h] + [r[i] for r in body[start : stop + 1]] for i, h in enumerate(head)])[0]) <= width
+        ):
+            stop += 1
+        block = _aligned([[h.ljust(label)] + [r[i] for r in body[start:stop]] for i, h in enumerate(head)])
+        out += ["", block[0], "-" * len(block[0]), *block[1:]]
+        start = stop
+    return out
 
 
 def format_markdown(ev: Evaluation) -> str:

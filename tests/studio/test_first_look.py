@@ -176,3 +176,27 @@ def test_two_web_viewers_at_once_and_sigterm_leaves_no_child(tmp_path):
         for proc in (first, second):
             if proc.poll() is None:
                 proc.kill()
+
+
+def test_evaluate_fits_the_terminal_and_keeps_every_number(tmp_path):
+    """At $COLUMNS=100 the table is turned (metrics as rows, agents as columns) in blocks that fit;
+    in a pipe (no $COLUMNS) it stays the wide table, agents as rows."""
+    import re
+
+    config = load_synth_config(DATA / "small3x100.json")
+    ds = synthesize(config, tmp_path, rrd=False).dataset_dir
+    wide = runner.invoke(app, ["evaluate", str(ds)], env={"COLUMNS": ""})
+    narrow = runner.invoke(app, ["evaluate", str(ds)], env={"COLUMNS": "45"})
+    assert wide.exit_code == 0 and narrow.exit_code == 0, (wide.output, narrow.output)
+    table = [line for line in wide.output.splitlines() if re.match(r"^(agent\d|all) ", line)]
+    assert len(table) == 4 and max(map(len, wide.output.splitlines())) > 100
+    body = narrow.output.split("\n\n", 1)[1]
+    assert max(map(len, body.splitlines())) <= 45
+    assert body.count("APE t mean") == 2  # two blocks of agents
+    # every number of the wide table is in the turned one
+    numbers = lambda text: sorted(re.findall(r"\b\d+\.\d{6}\b", text))  # noqa: E731
+    assert numbers(wide.output) == numbers(narrow.output) and len(numbers(wide.output)) == 4 * 10
+    assert re.search(r"^APE t mean\s+\d", body, re.M) and body.rstrip().split("\n\n")[-1].split()[1:3] == [
+        "agent3",
+        "all",
+    ]
