@@ -38,7 +38,7 @@ from typing import Literal
 
 import numpy as np
 
-from studio.core.errors import FormatError, GraphError
+from studio.core.errors import FormatError, GraphError, OutputError
 from studio.core.geometry import se3_poses_to_planar
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.trajectory import Trajectory
@@ -98,7 +98,10 @@ def write_multi_g2o(
 ) -> None:
     """Write ``graph`` into ``folder`` (which must exist). ``records`` picks 2D or 3D g2o records;
     ``folder_names`` names the agent folders ``agent1..agentN`` (``agents.json`` keeps the agents'
-    names where they differ, with ``sources``) or after the agents."""
+    names where they differ, with ``sources``) or after the agents. A missing folder is an
+    :class:`OutputError` naming it (commands write into a staged folder: studio.io.atomic)."""
+    if not Path(folder).is_dir():
+        raise OutputError(f"{folder}: no such folder (write_multi_g2o writes into an existing folder)")
     for part in multi_g2o_parts(
         graph, folder, records=records, precision=precision, folder_names=folder_names, sources=sources
     ):

@@ -54,3 +54,18 @@ def test_an_unknown_name_is_an_attribute_error():
 
     with pytest.raises(AttributeError, match="no attribute 'synthesise'"):
         studio.synthesise  # noqa: B018
+
+
+def test_write_multi_g2o_into_a_missing_folder_is_one_studio_error(tmp_path):
+    import pytest
+
+    from studio.core.errors import OutputError
+
+    config = studio.load_synth_config(
+        __import__("pathlib").Path(__file__).resolve().parents[1] / "data" / "configs" / "small3x100.json"
+    )
+    ds = studio.synthesize(config, tmp_path, rrd=False).dataset_dir
+    graph = studio.read_multi_g2o(ds)
+    with pytest.raises(OutputError, match=r"/missing/x: no such folder"):
+        studio.write_multi_g2o(graph, tmp_path / "missing" / "x")
+    assert not (tmp_path / "missing").exists()
