@@ -7,7 +7,7 @@ Lengths are in metres (kollagen's "length unit"), angles in radians, information
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from studio.core.errors import ConfigError
 from studio.generator.extensions import StudioExtensions
@@ -91,6 +91,35 @@ class SynthConfig:
     @property
     def poses_per_agent(self) -> int:
         return self.number_of_steps * self.step_fragment + 1
+
+
+#: Replicate ``r`` of a config draws every seed ``s`` as ``(s + REPLICATE_SEED_STRIDE * r) mod
+#: SEED_MODULUS`` (the walks' and loop closures' mt19937 seeds stay in kollagen's range), so replicates
+#: of one config are independent datasets with the config's own seeds as replicate 0.
+REPLICATE_SEED_STRIDE = 1_000_003
+SEED_MODULUS = 2**31 - 1
+
+
+def replicate_seed(seed: int, replicate: int) -> int:
+    """Seed ``seed`` of replicate ``replicate`` (``replicate_seed(s, 0) == s`` for kollagen's seeds)."""
+    return (seed + REPLICATE_SEED_STRIDE * replicate) % SEED_MODULUS
+
+
+def replicate_config(config: SynthConfig, replicate: int) -> SynthConfig:
+    """``config`` with every seed moved to replicate ``replicate`` (0: ``config`` itself); the same
+    draw as ``studio sweep``'s ``seed`` parameter."""
+    if isinstance(replicate, bool) or not isinstance(replicate, int) or replicate < 0:
+        raise ConfigError(f"seed: expected a non-negative integer, got {replicate!r}")
+    if replicate == 0:
+        return config
+    agents = tuple(
+        replace(a, random_number_generator_seed=replicate_seed(a.random_number_generator_seed, replicate))
+        for a in config.agents
+    )
+    inter = replace(
+        config.inter, random_number_generator_seed=replicate_seed(config.inter.random_number_generator_seed, replicate)
+    )
+    return replace(config, agents=agents, inter=inter)
 
 
 #: Rough cost model of one pose, measured on the paper's presets (peak RSS about 170 MB for 50,005

@@ -22,6 +22,8 @@ __version__ = "0.1.0"
 _API: dict[str, str] = {
     "synthesize": "studio.synth",
     "load_synth_config": "studio.synth",
+    "generate": "studio.synth",
+    "generate_many": "studio.synth",
     "convert": "studio.convert",
     "read_convert_config": "studio.convert",
     "ConvertConfig": "studio.convert",

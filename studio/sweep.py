@@ -67,8 +67,6 @@ __all__ = [
 ]
 
 _KEYS = {"name", "base", "grid", "cells", "steps", "options"}
-_SEED_STRIDE = 1_000_003
-_INT32 = 2**31 - 1
 RESULT = "result.json"
 
 
@@ -234,14 +232,12 @@ def _apply(kind: str, base: dict[str, Any], params: Mapping[str, Any], where: st
             # a cell that changes the number of agents cycles through the base's agent entries
             doc["agent_parameters"]["agent_specific"] = [copy.deepcopy(entries[k % len(entries)]) for k in range(n)]
         if seed:
+            from studio.generator.config import replicate_seed
+
             for entry in doc["agent_parameters"]["agent_specific"]:
-                entry["random_number_generator_seed"] = (
-                    entry["random_number_generator_seed"] + _SEED_STRIDE * seed
-                ) % _INT32
+                entry["random_number_generator_seed"] = replicate_seed(entry["random_number_generator_seed"], seed)
             inter = doc["inter_agent_loop_closure_parameters"]
-            inter["random_number_generator_seed"] = (
-                inter["random_number_generator_seed"] + _SEED_STRIDE * seed
-            ) % _INT32
+            inter["random_number_generator_seed"] = replicate_seed(inter["random_number_generator_seed"], seed)
     return doc
 
 

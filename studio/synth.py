@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 from studio.core.checks import check_option
 from studio.core.errors import ConfigError
 from studio.core.model import PoseGraph
-from studio.core.parallel import parallel_map, run_team
+from studio.core.parallel import default_jobs, parallel_map, run_team
 from studio.core.progress import Progress, report
 from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
@@ -26,7 +26,15 @@ from studio.io.outliers_txt import write_outliers_txt
 from studio.io.singleg2o import write_single_g2o, write_single_tum
 from studio.io.synth_config import read_synth_config, synth_config_to_json
 
-__all__ = ["EXTRA_WRITERS", "SynthResult", "load_synth_config", "synthesize", "write_outputs"]
+__all__ = [
+    "EXTRA_WRITERS",
+    "SynthResult",
+    "load_synth_config",
+    "synthesize",
+    "write_outputs",
+    "generate",
+    "generate_many",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -221,3 +229,30 @@ def synthesize(
         out_dir / rrd_name if rrd else None,
         outliers=outliers,
     )
+
+
+def generate(config: SynthConfig, *, seed: int = 0, jobs: int | None = 1) -> PoseGraph:
+    """The dataset of ``config`` as arrays (a :class:`~studio.core.model.PoseGraph`), nothing
+    written: the graph ``synthesize`` would write, byte for byte once written. ``seed`` picks a
+    replicate (0: the config's own seeds; others as ``studio sweep``'s ``seed``, see
+    :func:`~studio.generator.config.replicate_config`). ``jobs=1`` (the default) keeps it in this
+    process, which is fastest for small datasets."""
+    from studio.generator.config import replicate_config
+
+    return STUDIO.generate(replicate_config(config, seed), jobs=jobs).graph
+
+
+def generate_many(config: SynthConfig, seeds: Iterable[int], *, jobs: int | None = None) -> Iterator[PoseGraph]:
+    """:func:`generate` for each of ``seeds``, in order, lazily: a batch of replicates for a learning
+    pipeline (docs/synth.md has a PyTorch-style ``IterableDataset`` over it). With ``jobs`` above 1
+    (default: the idle cores) the replicates are made in blocks shared by forked processes; each
+    graph does not depend on it."""
+    seeds = list(seeds)
+    workers = default_jobs() if jobs is None else jobs
+    block = max(1, 4 * workers)
+    for start in range(0, len(seeds), block):
+        chunk = seeds[start : start + block]
+        if workers <= 1 or len(chunk) == 1:
+            yield from (generate(config, seed=s) for s in chunk)
+        else:
+            yield from parallel_map(lambda k, chunk=chunk: generate(config, seed=chunk[k]), len(chunk), workers)
