@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
@@ -242,6 +243,10 @@ def generate(config: SynthConfig, *, seed: int = 0, jobs: int | None = 1) -> Pos
     return STUDIO.generate(replicate_config(config, seed), jobs=jobs).graph
 
 
+def _generate_one(config: SynthConfig, seeds: list[int], k: int) -> PoseGraph:
+    return generate(config, seed=seeds[k])
+
+
 def generate_many(config: SynthConfig, seeds: Iterable[int], *, jobs: int | None = None) -> Iterator[PoseGraph]:
     """:func:`generate` for each of ``seeds``, in order, lazily: a batch of replicates for a learning
     pipeline (docs/synth.md has a PyTorch-style ``IterableDataset`` over it). With ``jobs`` above 1
@@ -255,4 +260,4 @@ def generate_many(config: SynthConfig, seeds: Iterable[int], *, jobs: int | None
         if workers <= 1 or len(chunk) == 1:
             yield from (generate(config, seed=s) for s in chunk)
         else:
-            yield from parallel_map(lambda k, chunk=chunk: generate(config, seed=chunk[k]), len(chunk), workers)
+            yield from parallel_map(functools.partial(_generate_one, config, chunk), len(chunk), workers)
