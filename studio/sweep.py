@@ -574,7 +574,18 @@ def _save_png(fig: Any, tmp: Path) -> None:
     fig.savefig(tmp, dpi=90, format="png")
 
 
+def _plotted(df: Any) -> tuple[list[str], list[str]]:
+    """The swept parameters worth a plot (varying, not the replicate ``seed``) and the metrics worth
+    a panel (present, numeric, not constant)."""
+    params = [c for c in df.columns if c.startswith("param:") and c != "param:seed" and df[c].nunique() > 1]
+    metrics = [c for c in PLOTTED if c in df.columns and df[c].dtype.kind in "fiu" and df[c].dropna().nunique() > 1]
+    return params, metrics
+
+
 def _plots(spec: SweepSpec, out: Path, df: Any) -> list[Path]:
+    """One PNG per swept parameter: small multiples, one panel per metric, every cell a point at
+    its parameter value (replicates side by side) and the mean over replicates as a line; numeric
+    parameters on a numeric axis, others in their order of first appearance."""
     try:
         import matplotlib
 
@@ -582,22 +593,36 @@ def _plots(spec: SweepSpec, out: Path, df: Any) -> list[Path]:
         import matplotlib.pyplot as plt
     except ImportError:
         return []
+    params, metrics = _plotted(df)
+    if not metrics:
+        return []
     paths = []
     (out / "plots").mkdir(exist_ok=True)
-    params = [c for c in df.columns if c.startswith("param:")]
-    metrics = [c for c in PLOTTED if c in df.columns]
+    cols = min(3, len(metrics))
+    rows = -(-len(metrics) // cols)
     for p in params:
-        if df[p].nunique() < 2 or not metrics:
-            continue
-        fig, axes = plt.subplots(1, len(metrics), figsize=(3.2 * len(metrics), 3.0), squeeze=False)
-        means = df.groupby(p)[metrics].mean(numeric_only=True)
-        for ax, m in zip(axes[0], metrics):
-            ax.plot(means.index.astype(str), means[m], marker="o")
-            ax.set_xlabel(p.removeprefix("param:").split(".")[-1], fontsize=8)
-            ax.set_title(m, fontsize=8)
+        label = p.removeprefix("param:")
+        numeric = df[p].dtype.kind in "fiu"
+        order = sorted(df[p].unique()) if numeric else list(dict.fromkeys(df[p].astype(str)))
+        x = df[p].to_numpy(dtype=float) if numeric else df[p].astype(str).map(order.index).to_numpy(dtype=float)
+        fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 2.6 * rows), squeeze=False)
+        for ax in axes.ravel()[len(metrics) :]:
+            ax.set_visible(False)
+        for ax, m in zip(axes.ravel(), metrics):
+            y = df[m].to_numpy(dtype=float)
+            ax.plot(x, y, "o", markersize=3, alpha=0.5, color="#0072B2", label="cells")
+            means = df.assign(_x=x).groupby("_x")[m].mean()
+            ax.plot(means.index, means.to_numpy(), "-", color="#D55E00", linewidth=1.5, label="mean")
+            ax.set_title(m, fontsize=9)
+            ax.set_xlabel(label.split(".")[-1], fontsize=8)
             ax.tick_params(labelsize=7)
+            if not numeric:
+                ax.set_xticks(range(len(order)), order, rotation=30, ha="right")
+            ax.grid(alpha=0.3)
+        axes.ravel()[0].legend(fontsize=7, frameon=False)
+        fig.suptitle(f"{spec.name}: metrics against {label} ({len(df)} cells)", fontsize=10)
         fig.tight_layout()
-        path = out / "plots" / f"{p.removeprefix('param:').replace('.', '_')}.png"
+        path = out / "plots" / f"{label.replace('.', '_')}.png"
         write_replacing(path, functools.partial(_save_png, fig))
         plt.close(fig)
         paths.append(path)

@@ -1,4 +1,8 @@
-"""A sweep's summary as Rerun data: one point per cell on the ``cell`` timeline, one series per metric."""
+"""A sweep's summary as Rerun data: one point per cell on the ``cell`` timeline, one series per metric.
+
+Cells are points, not a line: neighbouring cells differ in any parameter, so a line between them
+would draw a trend that is not there (the PNGs of ``OUT/plots`` put the metrics against their
+parameters' values)."""
 
 from __future__ import annotations
 
@@ -25,7 +29,7 @@ def log_sweep(rec: Any, table: Any) -> None:
             continue
         values = table[col].to_numpy(dtype=np.float64)
         path = SWEEP_SERIES.format(metric=rr.escape_entity_path_part(col))
-        rec.log(path, rr.SeriesLines(names=col), static=True)
+        rec.log(path, rr.SeriesPoints(names=col, markers="circle", marker_sizes=3.0), static=True)
         rec.send_columns(path, indexes=index, columns=rr.Scalars.columns(scalars=values))
 
 

@@ -281,3 +281,23 @@ def test_a_cell_whose_worker_dies_on_every_attempt_is_an_error_row_and_leaves_no
     assert res.failed == 1
     assert res.rows[0]["error"].startswith("no attempt finished (1 tried): KilledWorker")
     assert not any((tmp_path / "out" / "cells").iterdir())
+
+
+def test_plots_leave_out_the_seed_and_constant_series():
+    import pandas as pd
+
+    from studio.sweep import _plotted
+
+    df = pd.DataFrame(
+        {
+            "param:inter_agent_loop_closure_parameters.loop_closure_radius": [2.0, 2.0, 4.0, 4.0],
+            "param:seed": [0, 1, 0, 1],
+            "param:number_of_agents": [3, 3, 3, 3],
+            "inter_loop_closures": [10, 12, 30, 33],
+            "odometry": [400, 400, 400, 400],
+            "ape_initial_none_m": [0.5, 0.6, 0.5, 0.6],
+        }
+    )
+    params, metrics = _plotted(df)
+    assert params == ["param:inter_agent_loop_closure_parameters.loop_closure_radius"]
+    assert metrics == ["inter_loop_closures", "ape_initial_none_m"]
