@@ -28,9 +28,8 @@ __all__ = [
     "OUTLIER_COLOUR",
     "GROUND_TRUTH_GREY",
     "ERROR_SCALE_RGB",
-    "SOLVE_ESTIMATE_LINE",
-    "SOLVE_ERROR_LOW_RGB",
-    "SOLVE_ERROR_HIGH_RGB",
+    "SOLVE_ESTIMATE_ALPHA",
+    "error_colours",
     "DARK_BACKGROUND_RGB",
     "LIGHT_BACKGROUND_RGB",
     "MIN_CONTRAST_OPAQUE",
@@ -70,12 +69,13 @@ INTER_FAINT_ALPHA = 100
 OUTLIER_COLOUR: RGBA = (255, 0, 200, 255)
 #: Ground truth under an estimate (evaluation and solve recordings): a grey on no error scale.
 GROUND_TRUTH_GREY: RGBA = (150, 150, 150, 255)
-#: Evaluation error scale, from no error to the largest: blue, cyan, green, amber, red.
-ERROR_SCALE_RGB: tuple[RGB, ...] = ((59, 76, 192), (0, 170, 200), (40, 170, 60), (220, 170, 0), (215, 30, 30))
-#: Solve recordings: the estimate's path, and its points from no error (green) to a large one (red).
-SOLVE_ESTIMATE_LINE: RGBA = (90, 140, 230, 200)
-SOLVE_ERROR_LOW_RGB: RGB = (40, 180, 60)
-SOLVE_ERROR_HIGH_RGB: RGB = (220, 40, 40)
+#: Error scale of evaluation and solve recordings, from no error to the largest shown: viridis
+#: (perceptually uniform, readable with every common colour-vision deficiency) sampled at t = 0.18,
+#: 0.32, 0.46, 0.60, 0.74 (matplotlib's table): the stretch of it that keeps the contrast rule on
+#: both themes (its darkest purple vanishes on the dark theme, its yellow on white).
+ERROR_SCALE_RGB: tuple[RGB, ...] = ((67, 62, 133), (50, 100, 142), (36, 134, 142), (34, 168, 132), (88, 199, 101))
+#: Solve recordings: each agent's estimate path is drawn in its agent colour at this alpha.
+SOLVE_ESTIMATE_ALPHA = 200
 
 #: Background of the viewer's views on the dark theme: Rerun 0.41's design token
 #: ``viewport_background`` of ``crates/viewer/re_ui/data/dark_theme.ron`` (``{Gray.100}``, ``#0d0d0d``
@@ -131,9 +131,17 @@ def recording_colours() -> dict[str, RGBA]:
         lo = min(int(np.floor(x)), len(scale) - 2)
         r, g, b = (int(v) for v in np.rint(scale[lo] * (1.0 - (x - lo)) + scale[lo + 1] * (x - lo)))
         out[f"error scale at {t:.3f}"] = (r, g, b, 255)
-    out["solve estimate path"] = SOLVE_ESTIMATE_LINE
-    low, high = np.asarray(SOLVE_ERROR_LOW_RGB, float), np.asarray(SOLVE_ERROR_HIGH_RGB, float)
-    for t in np.linspace(0.0, 1.0, 11):
-        r, g, b = (int(v) for v in (low + t * (high - low)))
-        out[f"solve error at {t:.1f}"] = (r, g, b, 255)
+    for k, (r, g, b) in enumerate(AGENT_PALETTE_RGB):
+        out[f"agent {k + 1} solve estimate path"] = (r, g, b, SOLVE_ESTIMATE_ALPHA)
     return out
+
+
+def error_colours(errors: np.ndarray, largest: float) -> np.ndarray:
+    """(n, 4) uint8 RGBA colours of ``errors`` on the error scale 0 .. ``largest`` (clipped above)."""
+    scale = np.asarray(ERROR_SCALE_RGB, dtype=np.float64)
+    t = np.clip(np.asarray(errors, dtype=np.float64) / (largest if largest > 0 else 1.0), 0.0, 1.0)
+    x = t * (len(scale) - 1)
+    lo = np.minimum(np.floor(x).astype(np.int64), len(scale) - 2)
+    f = (x - lo)[:, None]
+    rgb = np.rint(scale[lo] * (1.0 - f) + scale[lo + 1] * f).astype(np.uint8)
+    return np.column_stack([rgb, np.full(len(rgb), 255, dtype=np.uint8)])

@@ -36,6 +36,7 @@ __all__ = [
     "SOLVE_GROUND_TRUTH",
     "SOLVE_CHI2",
     "SOLVE_ERROR",
+    "SOLVE_SCALE",
     "TIMELINE_CELL",
     "SWEEP_TABLE",
     "SWEEP_SERIES",
@@ -106,6 +107,8 @@ SOLVE_GROUND_TRUTH = "solve/{agent}/ground_truth"
 SOLVE_CHI2 = "solve/metrics/chi2"
 #: Scalar per iteration: mean position error of the estimate against the ground truth [m].
 SOLVE_ERROR = "solve/metrics/position_error_m"
+#: Static text: what the estimate's point colours mean (the error scale and its range in metres).
+SOLVE_SCALE = "solve/colour_scale"
 
 # Sweep ------------------------------------------------------------------------------------------------
 #: Sequence timeline of a sweep: the cell's position in the sweep's table.

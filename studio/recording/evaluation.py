@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from studio.core.types import PathLike
-from studio.recording.colours import ERROR_SCALE_RGB, GROUND_TRUTH_GREY
+from studio.recording.colours import GROUND_TRUTH_GREY, error_colours
 from studio.recording.dataset import agent_colour, fixed_id, hash_columns
 from studio.recording.entities import (
     APPLICATION_ID,
@@ -76,18 +76,6 @@ class ErrorSeries:
 
 #: Label shown in the viewer for each metric the evaluation logs.
 METRIC_LABELS = {"ape_translation_m": "APE translation [m]", "ape_rotation_deg": "APE rotation [deg]"}
-
-_SCALE = np.asarray(ERROR_SCALE_RGB, dtype=np.float64)
-
-
-def error_colours(errors: np.ndarray, largest: float) -> np.ndarray:
-    """(n, 4) uint8 RGBA colours of ``errors`` on the scale 0 .. ``largest``."""
-    t = np.clip(np.asarray(errors, dtype=np.float64) / (largest if largest > 0 else 1.0), 0.0, 1.0)
-    x = t * (len(_SCALE) - 1)
-    lo = np.minimum(np.floor(x).astype(np.int64), len(_SCALE) - 2)
-    f = (x - lo)[:, None]
-    rgb = np.rint(_SCALE[lo] * (1.0 - f) + _SCALE[lo + 1] * f).astype(np.uint8)
-    return np.column_stack([rgb, np.full(len(rgb), 255, dtype=np.uint8)])
 
 
 def evaluation_recording_id(summary_markdown: str, series: Sequence[ErrorSeries]) -> str:

@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from studio.core.geometry import planar_poses_to_se3
+from studio.core.geometry import is_planar_se3, planar_poses_to_se3
 from studio.core.model import PoseGraph, PoseKind
 from studio.core.types import PathLike
-from studio.recording.colours import GROUND_TRUTH_GREY, SOLVE_ERROR_HIGH_RGB, SOLVE_ERROR_LOW_RGB, SOLVE_ESTIMATE_LINE
+from studio.recording.colours import AGENT_PALETTE_RGB, GROUND_TRUTH_GREY, SOLVE_ESTIMATE_ALPHA, error_colours
 from studio.recording.entities import (
     APPLICATION_ID,
     SOLVE,
@@ -28,19 +28,13 @@ from studio.recording.entities import (
     SOLVE_ERROR,
     SOLVE_ESTIMATE,
     SOLVE_GROUND_TRUTH,
+    SOLVE_SCALE,
     TIMELINE_ITERATION,
 )
 
 __all__ = ["log_solve", "write_solve_recording", "solve_blueprint", "solve_recording_id"]
 
 _NAMESPACE = uuid.UUID("0b6f5d4e-3c1a-4f7e-9d2b-8a5c6e7f1d30")
-
-
-def _error_colours(err: np.ndarray, scale: float) -> np.ndarray:
-    """Green (0) to red (``scale`` or more), RGBA bytes."""
-    t = np.clip(err / max(scale, 1e-12), 0.0, 1.0)[:, None]
-    green, red = np.array([*SOLVE_ERROR_LOW_RGB, 255.0]), np.array([*SOLVE_ERROR_HIGH_RGB, 255.0])
-    return (green + t * (red - green)).astype(np.uint8)
 
 
 def solve_recording_id(
@@ -57,7 +51,9 @@ def solve_recording_id(
     return str(uuid.uuid5(_NAMESPACE, h.hexdigest()))
 
 
-def solve_blueprint(names: Sequence[str]) -> Any:
+def solve_blueprint(names: Sequence[str], positions_xyz: np.ndarray | None = None, planar: bool = False) -> Any:
+    """The 3D view beside the cost and error plots; planar data (``planar``) is seen from straight
+    above ``positions_xyz``'s centre, with no ground grid, as in dataset recordings."""
     import rerun.blueprint as rrb
 
     from studio.recording.dataset import fixed_id
@@ -65,14 +61,25 @@ def solve_blueprint(names: Sequence[str]) -> Any:
     def fixed(part: Any, label: str) -> Any:
         return fixed_id(part, _NAMESPACE, f"blueprint/{label}")
 
+    view: dict[str, Any] = {}
+    if planar and positions_xyz is not None and len(positions_xyz):
+        lo, hi = positions_xyz.min(axis=0), positions_xyz.max(axis=0)
+        cx, cy, cz = (float(v) for v in 0.5 * (lo + hi))
+        extent = float(max(np.max(hi - lo), 1.0))
+        view["eye_controls"] = rrb.EyeControls3D(
+            position=(cx, cy, cz + 1.1 * extent), look_target=(cx, cy, cz), eye_up=(0.0, 1.0, 0.0)
+        )
+        view["line_grid"] = rrb.LineGrid3D(visible=False)
     return rrb.Blueprint(
         fixed(
             rrb.Horizontal(
-                fixed(rrb.Spatial3DView(name="estimate vs ground truth", origin=SOLVE), "space"),
+                fixed(rrb.Spatial3DView(name="estimate vs ground truth", origin=SOLVE, **view), "space"),
                 fixed(
                     rrb.Vertical(
                         fixed(rrb.TimeSeriesView(name="chi2 (g2o convention)", origin=SOLVE_CHI2), "chi2"),
                         fixed(rrb.TimeSeriesView(name="mean position error [m]", origin=SOLVE_ERROR), "error"),
+                        fixed(rrb.TextDocumentView(name="colours", origin=SOLVE_SCALE), "scale"),
+                        row_shares=[3, 3, 1],
                     ),
                     "plots",
                 ),
@@ -110,7 +117,20 @@ def log_solve(
             )
     scale = 1.0
     if truth is not None and lifted:
-        scale = float(np.percentile(np.linalg.norm(lifted[0][1][:, 0:3] - truth[:, 0:3], axis=1), 95))
+        # scaled to the estimate the recording ends on: a 5 cm optimum is not drawn in the colour of
+        # the initial guess's metres
+        final = np.linalg.norm(lifted[-1][1][:, 0:3] - truth[:, 0:3], axis=1)
+        scale = max(float(np.percentile(final, 95)), 1e-6)
+        rec.log(
+            SOLVE_SCALE,
+            rr.TextDocument(
+                f"Estimate points coloured by position error against the ground truth: viridis from "
+                f"dark blue (0 m) through teal to green ({scale:.4g} m, the 95th percentile of the final "
+                f"estimate's error; larger errors stay green). Paths in each agent's colour, ground truth grey.",
+                media_type="text/markdown",
+            ),
+            static=True,
+        )
     rec.log(SOLVE_CHI2, rr.SeriesLines(names="chi2"), static=True)
     rec.log(SOLVE_ERROR, rr.SeriesLines(names="mean position error [m]"), static=True)
     for k, poses in lifted:
@@ -119,12 +139,13 @@ def log_solve(
         for j, name in enumerate(names):
             lo, hi = int(offsets[j]), int(offsets[j + 1])
             pts = poses[lo:hi, 0:3]
-            colours = None if err is None else _error_colours(err[lo:hi], scale)
+            colours = None if err is None else error_colours(err[lo:hi], scale)
             path = SOLVE_ESTIMATE.format(agent=rr.escape_entity_path_part(name))
+            line = (*AGENT_PALETTE_RGB[j % len(AGENT_PALETTE_RGB)], SOLVE_ESTIMATE_ALPHA)
             rec.log(
                 path,
                 rr.Points3D(pts, colors=colours, radii=-2.0),
-                rr.LineStrips3D([pts], colors=[SOLVE_ESTIMATE_LINE], radii=-0.75),
+                rr.LineStrips3D([pts], colors=[line], radii=-0.75),
             )
         if k < len(chi2_history):
             rec.log(SOLVE_CHI2, rr.Scalars(chi2_history[k]))
@@ -156,7 +177,12 @@ def write_solve_recording(
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)
         rec.set_log_time_enabled(False)  # no wall clock in the data: the same run, the same content
         try:
-            rec.save(staging / path.name, default_blueprint=solve_blueprint(names))
+            shown = planar_poses_to_se3(iterates[-1][1]) if iterates and kind is PoseKind.SE2 else None
+            if iterates and shown is None:
+                shown = iterates[-1][1]
+            planar = kind is PoseKind.SE2 or (shown is not None and is_planar_se3(shown))
+            xyz = None if shown is None else shown[:, 0:3]
+            rec.save(staging / path.name, default_blueprint=solve_blueprint(names, xyz, planar))
             rec.send_recording_name(name)
             log_solve(rec, graph, offsets, kind, iterates, chi2_history)
         finally:
