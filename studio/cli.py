@@ -9,15 +9,19 @@ from __future__ import annotations
 import enum
 import functools
 import time
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, get_args
 
 import typer
 
+from studio.converters.registry import SOURCES
 from studio.core.alignment import Alignment
 from studio.core.errors import StudioError
 from studio.core.progress import terminal_progress
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
+from studio.solvers import DEFAULT_METHOD, METHODS
+from studio.solvers.problem import Init, Optimizer, SolveOptions
 
 app = typer.Typer(
     name="studio",
@@ -27,6 +31,11 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+def _choices(name: str, values: Iterable[str]) -> type[enum.Enum]:
+    """A str enum of ``values`` (a registry's names) for a typer option's choices."""
+    return enum.Enum(name, [(v, v) for v in values], type=str)  # type: ignore[return-value]
 
 
 class RecordKind(str, enum.Enum):
@@ -302,16 +311,15 @@ def convert(
         None,
         metavar="[FORMAT]",
         show_default=False,
-        help="Source format: tum, s3e, airmuseum, bag, euroc, kitti, kimera-multi; "
-        "guessed from the inputs when left out and unambiguous.",
+        help="Source format: "
+        + "; ".join(f"{name}: {src.help}" for name, src in SOURCES.items())
+        + "; guessed from the inputs when left out and unambiguous.",
     ),
     inputs: list[Path] = typer.Argument(
         None,
         metavar="INPUT...",
         show_default=False,
-        help="TUM files (tum), a sequence folder (s3e, airmuseum, euroc), a bag "
-        "(.bag, ROS 2 folder, .mcap), KITTI poses files, a Kimera-Multi "
-        "ground-truth folder.",
+        help="Per source: " + "; ".join(f"{name}: {src.inputs}" for name, src in SOURCES.items()) + ".",
     ),
     out: Path = typer.Option(..., "-o", "--out", help="The dataset folder to write."),
     agent: list[str] = typer.Option(
@@ -467,22 +475,27 @@ def _with_graph_options(command: Any) -> Any:
 _with_graph_options(convert)
 
 
-class MethodChoice(str, enum.Enum):
-    gtsam = "gtsam"
-    g2o = "g2o"
-    gnc = "gnc"
-    command = "command"
+# --- studio solve -------------------------------------------------------------------------------
+# The methods, their help, defaults and the options each reads come from studio.solvers' registry.
+
+MethodChoice = _choices("MethodChoice", METHODS)
+OptimizerChoice = _choices("OptimizerChoice", get_args(Optimizer))
+InitChoice = _choices("InitChoice", get_args(Init))
 
 
-class OptimizerChoice(str, enum.Enum):
-    gn = "gn"
-    lm = "lm"
+def _readers_of(option: str) -> str:
+    """The methods that read ``option``, for its help text (``gtsam, gnc``)."""
+    return ", ".join(name for name, entry in METHODS.items() if option in entry.options)
 
 
-class InitChoice(str, enum.Enum):
-    chordal = "chordal"
-    spanning_tree = "spanning-tree"
-    odometry = "odometry"
+def _iterations_help() -> str:
+    default = SolveOptions().max_iterations
+    own = [f"{name}: {e.defaults['max_iterations']}" for name, e in METHODS.items() if "max_iterations" in e.defaults]
+    return (
+        f"Most iterations (default {default}"
+        + "".join(f"; {x}" for x in own)
+        + f"; methods: {_readers_of('max_iterations')})."
+    )
 
 
 class DimensionChoice(str, enum.Enum):
@@ -496,21 +509,26 @@ class DimensionChoice(str, enum.Enum):
 def solve(
     dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder or a single .g2o file."),
     out: Path = typer.Option(..., "-o", "--out", help="Folder to write: the estimate and solve.json."),
-    method: MethodChoice = typer.Option(
-        MethodChoice.gtsam,
+    method: MethodChoice = typer.Option(  # type: ignore[valid-type]
+        DEFAULT_METHOD,
         "--method",
         "-m",
-        help="gtsam (chordal guess + GN), g2o (paper's setup), gnc (robust), command (an external program).",
+        help=", ".join(f"{name} ({entry.help})" for name, entry in METHODS.items()) + ".",
     ),
-    optimizer: OptimizerChoice = typer.Option(OptimizerChoice.gn, "--optimizer", help="gn or lm (gtsam)."),
-    init: InitChoice = typer.Option(InitChoice.chordal, "--init", help="Initial guess (gtsam, gnc)."),
-    iterations: int | None = typer.Option(
-        None, "--iterations", help="Most iterations (default 20; g2o: exactly 10, as the paper)."
+    optimizer: OptimizerChoice = typer.Option(  # type: ignore[valid-type]
+        SolveOptions().optimizer,
+        "--optimizer",
+        help=f"{' or '.join(get_args(Optimizer))} (methods: {_readers_of('optimizer')}).",
     ),
+    init: InitChoice = typer.Option(  # type: ignore[valid-type]
+        SolveOptions().init, "--init", help=f"Initial guess (methods: {_readers_of('init')})."
+    ),
+    iterations: int | None = typer.Option(None, "--iterations", help=_iterations_help()),
     command: str = typer.Option(
         "",
         "--command",
-        help="Program for --method command, with {input} and {output}, e.g. 'se-sync {input} {output}'.",
+        help=f"Program to run (methods: {_readers_of('command')}), with {{input}} and {{output}}, "
+        "e.g. 'se-sync {input} {output}'.",
     ),
     dimension: DimensionChoice = typer.Option(
         DimensionChoice.auto, "--dimension", help="auto: planar 3D data is solved in SE(2)."
@@ -531,9 +549,9 @@ def solve(
     res = run_solve(
         dataset,
         out,
-        method=method.value,
-        optimizer=optimizer.value,
-        init=init.value,
+        method=method.value,  # type: ignore[attr-defined]
+        optimizer=optimizer.value,  # type: ignore[attr-defined]
+        init=init.value,  # type: ignore[attr-defined]
         max_iterations=iterations,
         command=command,
         dimension=dimension.value,  # type: ignore[arg-type]

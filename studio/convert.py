@@ -11,7 +11,7 @@ The dataset folder ``OUT`` holds::
     └── outliers.txt                                   # the loop closures that are outliers (ground truth)
 
 Between reading and building, trajectories may be re-expressed in FLU body axes (``body_frames``;
-AirMuseum's robots by default), given headings from their motion when their orientation carries no
+by default the source entry's ``body_frames``: AirMuseum's robots), given headings from their motion when their orientation carries no
 information (``orientation``: S3E's RTK ground truth), and split into several agents (``split``,
 ``overlap_s``). Agent folders are ``agent1..agentN`` (kollagen's reader needs them) with the robots'
 names in ``agents.json``, or named after the robots with ``folder_names="robots"``.
@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from studio.converters.build import BuildResult, GraphOptions, Progress, build_graph
-from studio.converters.registry import check_inputs, get_reader
+from studio.converters.registry import check_inputs, get_reader, get_source
 from studio.converters.transforms import (
     apply_body_frame,
     body_frame_rotation,
@@ -50,6 +50,7 @@ from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
+from studio.io.textfmt import write_text
 
 __all__ = ["ConvertConfig", "ConvertResult", "convert", "read_convert_config", "convert_config_to_json", "CONFIG_NAME"]
 
@@ -63,7 +64,7 @@ class ConvertConfig:
     """What ``studio convert`` did: the source format, its inputs, ``--agent`` specs and the options."""
 
     source: str
-    """A name of :data:`converters.registry.READERS` (tum, s3e, airmuseum, bag)."""
+    """A name of :data:`converters.registry.SOURCES` (tum, s3e, airmuseum, bag, ...)."""
     inputs: tuple[str, ...]
     """Paths of the inputs (absolute once resolved by :func:`convert`)."""
     agents: tuple[str, ...] = ()
@@ -255,11 +256,8 @@ def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tup
     """Body frames, derived headings and the split, in that order (see the module docstring).
 
     Returns the trajectories to build and, per agent whose headings were derived, ``DERIVED``."""
-    frames = {}
-    if cfg.source == "airmuseum":
-        from studio.converters.airmuseum import BODY_FRAMES
-
-        frames = {t.name: BODY_FRAMES[t.name.lower()] for t in trajs if t.name.lower() in BODY_FRAMES}
+    defaults = get_source(cfg.source).body_frames  # the source's own (AirMuseum's robots)
+    frames = {t.name: defaults[t.name.lower()] for t in trajs if t.name.lower() in defaults}
     names = {t.name for t in trajs}
     for spec in cfg.body_frames:
         name, _, code = spec.partition("=")
@@ -351,9 +349,10 @@ def convert(
         )
         if progress:
             progress("writing", 1, 2, "parts")
-        _write_text(ds / CONFIG_NAME, json.dumps(convert_config_to_json(cfg), indent=2) + "\n")
-        _write_text(ds / "report.json", json.dumps(_report(build, trajs, warnings, orientation), indent=2) + "\n")
-        _write_text(ds / "outliers.txt", _outlier_lines(build))
+        write_text(ds / CONFIG_NAME, (json.dumps(convert_config_to_json(cfg), indent=2) + "\n").encode("utf-8"))
+        report = json.dumps(_report(build, trajs, warnings, orientation), indent=2) + "\n"
+        write_text(ds / "report.json", report.encode("utf-8"))
+        write_text(ds / "outliers.txt", _outlier_lines(build).encode("utf-8"))
         if progress:
             progress("writing", 2, 2, "parts")
         if recorder is not None:
@@ -375,8 +374,3 @@ def convert(
     return ConvertResult(
         cfg, out, tuple(trajs), build, tuple(warnings), out / f"{out.name}.rrd" if rrd else None, orientation
     )
-
-
-def _write_text(path: Path, text: str) -> None:
-    with open(path, "w", encoding="utf-8", newline="\n") as f:
-        f.write(text)
