@@ -20,6 +20,7 @@ from studio.core.alignment import Alignment
 from studio.core.errors import StudioError
 from studio.core.progress import terminal_progress
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
+from studio.generator.presets import PRESETS
 from studio.solvers import DEFAULT_METHOD, METHODS
 from studio.solvers.problem import Init, Optimizer, SolveOptions
 
@@ -98,7 +99,7 @@ def synth(
     config: str = typer.Argument(
         ...,
         metavar="CONFIG.json|PRESET",
-        help="A kollagen JSON config, or a built-in preset: multi3500x8, multi10000x5, cube3d, multi3500x8_outliers.",
+        help=f"A kollagen JSON config, or a built-in preset: {', '.join(PRESETS)}.",
     ),
     out: Path = typer.Option(..., "-o", "--out", help="Parent folder of the outputs (kollagen's DEST)."),
     force: bool = typer.Option(False, "--force", help="Replace existing outputs."),

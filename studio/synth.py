@@ -15,7 +15,7 @@ from studio.core.progress import Progress, report
 from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.generator.config import SynthConfig, estimate_resources
-from studio.generator.extended import STUDIO
+from studio.generator.extended import STUDIO, walk_mode
 from studio.generator.kollagen import SingleG2oView
 from studio.generator.outliers import PlantedOutliers
 from studio.generator.presets import PRESETS, preset, preset_names
@@ -169,9 +169,9 @@ def synthesize(
     check_resources(config, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
     out_dir = Path(out_dir)
     name = config.name
-    three_d = config.studio is not None and config.studio.walk == "grid3d"
-    if three_d and multi_records == "2d":
-        raise ConfigError(f"{name}: walk grid3d is 3D; --multi-records 2d cannot hold it")
+    walk = None if config.studio is None else walk_mode(config.studio.walk)
+    if walk is not None and not walk.planar and multi_records == "2d":
+        raise ConfigError(f"{name}: walk {walk.name} is 3D; --multi-records 2d cannot hold it")
     extras = [f"{name}{suffix}" for suffix in generator.extra_suffixes(config)]
     config_name, rrd_name = f"{name}.config.json", f"{name}.rrd"
     names = [name, *extras, config_name] + ([rrd_name] if rrd else [])

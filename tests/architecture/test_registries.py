@@ -2,7 +2,7 @@
 solve defaults and bench's per-method options come from them, and the recipes of
 docs/architecture.md ("Where new things go") hold: a dummy method and a dummy source, each one
 registry entry registered for the test only, reach the CLI, the pipelines and bench with nothing
-else changed."""
+else changed; a dummy generator mode reaches the config parser and ``studio synth``."""
 
 from __future__ import annotations
 
@@ -24,6 +24,8 @@ from studio.bench import bench_spec_from_dict
 from studio.converters.registry import SOURCES, Source, guess_source
 from studio.converters.tum import read_tum_sources
 from studio.core.errors import ConfigError
+from studio.generator.extended import WALK_MODES, WalkMode
+from studio.io.synth_config import parse_synth_config
 from studio.solvers import METHODS, SolveMethod
 from studio.solvers.problem import Init, Optimizer, Solution
 from tests.converters.synthetic import loop_trajectory, write_tum_file
@@ -212,3 +214,49 @@ def test_detection_sees_each_source(tmp_path):
     for name, source in expected.items():
         assert guess_source([tmp_path / name]) == source, name
     np.testing.assert_equal(sorted(expected.values()), sorted(SOURCES))
+
+
+# ------------------------------------------------------------------------- a dummy mode, one entry
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_a_new_generator_mode_is_one_registry_entry(tmp_path):
+    from studio.synth import load_synth_config, synthesize
+
+    data = json.loads((DATA / "configs" / "small3x100.json").read_text())
+    data["exact_information_matrix"] = False
+    calls: list[str] = []
+
+    def again(name: str) -> Any:
+        def run(cfg, seeds, *, jobs, progress):  # another walk's, counted
+            calls.append(cfg.name)
+            return WALK_MODES[name].run(cfg, seeds, jobs=jobs, progress=progress)
+
+        return run
+
+    data["studio"] = {"version": 1, "walk": "again"}
+    with pytest.raises(ConfigError, match=r"studio\.walk.*'again'"):
+        parse_synth_config(data, name="again")
+    with _registered(WALK_MODES, "again", WalkMode("again", "kollagen's walk, counted", again("kollagen"), True)):
+        res = synthesize(parse_synth_config(data, name="again"), tmp_path / "a", rrd=False, jobs=1)
+    assert calls == ["again"]
+    plain = synthesize(load_synth_config(DATA / "configs" / "small3x100.json"), tmp_path / "b", rrd=False, jobs=1)
+    assert res.single_dir is not None and res.single_dir.is_dir()  # a planar mode offers the single-g2o view
+    assert _files(res.dataset_dir) == _files(plain.dataset_dir)  # the same walk: the same bytes
+    assert json.loads(res.config_path.read_text())["studio"]["walk"] == "again"
+
+    # a spatial mode: no single-g2o view, and neither Exact information nor 2D records
+    data["studio"] = {"version": 1, "walk": "tower"}
+    with _registered(WALK_MODES, "tower", WalkMode("tower", "grid3d's walk, counted", again("grid3d"), False)):
+        res = synthesize(parse_synth_config(data, name="tower"), tmp_path / "c", rrd=False, jobs=1)
+        assert res.single_dir is None and res.output.graph.kind.name == "SE3"
+        with pytest.raises(ConfigError, match="walk tower is 3D"):
+            synthesize(parse_synth_config(data, name="tower"), tmp_path / "d", multi_records="2d", rrd=False)
+        with pytest.raises(ConfigError, match='Exact information is planar; walk "tower"'):
+            parse_synth_config({**data, "exact_information_matrix": True}, name="tower")
+        with pytest.raises(ConfigError, match='studio.grid3d.*applies to walk "grid3d" only'):
+            parse_synth_config({**data, "studio": {**data["studio"], "grid3d": {"vertical_step": 2.0}}}, name="t")
+    assert calls == ["again", "tower"]
