@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import enum
 import functools
+import re
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -66,13 +67,13 @@ def _root(
 
 
 def _as_flags(err: StudioError) -> str:
-    """The error's text, with the library option it names (``lc_radius: ...``) written as the flag
-    the user typed (``--lc-radius: ...``)."""
+    """The error's text, with the library option it names (``lc_radius: ...``, ``raise it with
+    max_memory_gb``) written as the flag the user typed (``--lc-radius: ...``, ``--max-memory-gb``)."""
     text = str(err)
     option = getattr(err, "option", None)
-    if option and text.startswith(f"{option}:"):
-        return "--" + option.replace("_", "-") + text[len(option) :]
-    return text
+    if not option:
+        return text
+    return re.sub(rf"(?<![\w.-]){re.escape(option)}(?![\w-])", "--" + option.replace("_", "-"), text)
 
 
 def cli_errors(func):
@@ -224,8 +225,6 @@ def evaluate(
 
     if as_json and markdown:
         raise ConfigError("--json and --markdown exclude each other")
-    if align_per_agent and align not in (Alignment.se3, Alignment.sim3):
-        raise ConfigError("--align-per-agent needs --align se3 or --align sim3")
     with terminal_progress() as progress:
         ev = evaluate_dataset(
             dataset,

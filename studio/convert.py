@@ -308,7 +308,7 @@ def convert(
         raise OutputError(f"{out}: -o must name the dataset folder itself")
     if (out.exists() or out.is_symlink()) and not force:
         raise OutputError(f"{out} already exists (use --force to overwrite)")
-    check_option("--max-memory-gb", max_memory_gb, allow_zero=False)
+    check_option("max_memory_gb", max_memory_gb, allow_zero=False)
     cfg = _resolve_inputs(cfg)
     check_not_overlapping([out], cfg.inputs)
     warnings: list[str] = []

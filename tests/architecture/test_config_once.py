@@ -49,3 +49,23 @@ def test_errors_name_the_option_in_a_config_file_and_the_flag_on_the_command_lin
     res = CliRunner().invoke(app, ["convert", "tum", str(f), "-o", str(tmp_path / "o"), "--lc-radius", "0"])
     assert res.exit_code == 2
     assert res.output.strip() == "error: --lc-radius: must be > 0"
+
+
+def test_library_errors_name_options_and_the_cli_shows_their_flags(tmp_path):
+    """synth's and convert's limits are library options in the library's messages (no CLI flag in a
+    library message), and flags on the command line."""
+    from studio.convert import ConvertConfig, convert
+    from studio.synth import load_synth_config, synthesize
+
+    cfg = load_synth_config(str(REPO / "tests" / "data" / "configs" / "tiny_single.json"))
+    for kwargs, option in (({"max_memory_gb": -1.0}, "max_memory_gb"), ({"jobs": -1}, "jobs")):
+        with pytest.raises(ConfigError, match=rf"^{option}: ") as err:
+            synthesize(cfg, tmp_path, **kwargs)
+        assert err.value.option == option and "--" not in str(err.value)
+    with pytest.raises(ConfigError, match=r"raise it with max_memory_gb\)$"):
+        synthesize(cfg, tmp_path, max_memory_gb=1e-9)
+    with pytest.raises(ConfigError, match=r"^max_memory_gb: ") as err:
+        convert(ConvertConfig("tum", ()), tmp_path / "o", max_memory_gb=0)
+    config = str(REPO / "tests" / "data" / "configs" / "tiny_single.json")
+    res = CliRunner().invoke(app, ["synth", config, "-o", str(tmp_path), "--max-memory-gb", "-1"])
+    assert res.exit_code == 2 and res.output.startswith("error: --max-memory-gb: "), res.output
