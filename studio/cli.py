@@ -66,6 +66,10 @@ def _root(
     """cslam-studio: collaborative-SLAM pose-graph datasets."""
 
 
+#: Library options whose flag is not their name in kebab case (``overlap_s`` -> ``--overlap``).
+_FLAGS: dict[str, str] = {}
+
+
 def _as_flags(err: StudioError) -> str:
     """The error's text, with the library option it names (``lc_radius: ...``, ``raise it with
     max_memory_gb``) written as the flag the user typed (``--lc-radius: ...``, ``--max-memory-gb``)."""
@@ -73,7 +77,8 @@ def _as_flags(err: StudioError) -> str:
     option = getattr(err, "option", None)
     if not option:
         return text
-    return re.sub(rf"(?<![\w.-]){re.escape(option)}(?![\w-])", "--" + option.replace("_", "-"), text)
+    flag = "--" + _FLAGS.get(option, option).replace("_", "-")
+    return re.sub(rf"(?<![\w.-]){re.escape(option)}(?![\w-])", flag, text)
 
 
 def cli_errors(func):
@@ -338,30 +343,7 @@ def convert(
         DEFAULT_MAX_MEMORY_GB, "--max-memory-gb", help="Refuse a loop-closure search estimated to need more memory."
     ),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
-    orientation: str = typer.Option(
-        "auto",
-        "--orientation",
-        help="keep the trajectories' orientation, derive headings from the motion, or "
-        "auto: derive where it carries no information (S3E).",
-    ),
-    heading_window_m: float = typer.Option(
-        2.0, "--heading-window-m", help="Path length over which a derived heading is measured, in metres."
-    ),
-    body_frame: list[str] = typer.Option(
-        [],
-        "--body-frame",
-        metavar="NAME=CODE",
-        help="An agent's body axes, e.g. robotA=ufl (AirMuseum's are the default).",
-    ),
-    split: int = typer.Option(0, "--split", help="Split each trajectory into this many agents over time (0: off)."),
-    overlap: float = typer.Option(0.0, "--overlap", help="Overlap of consecutive --split windows, in seconds."),
-    folder_names: str = typer.Option(
-        "agents",
-        "--folder-names",
-        help="agents: folders agent1..agentN with agents.json (kollagen's reader); "
-        "robots: folders named after the robots.",
-    ),
-    **graph_options: Any,
+    **options: Any,
 ) -> None:
     """Turn real trajectories into a multi-g2o dataset with synthetic odometry and loop closures.
 
@@ -373,7 +355,7 @@ def convert(
     _tune_allocator()
     import dataclasses
 
-    from studio.convert import ConvertConfig, read_convert_config
+    from studio.convert import ConvertConfig, pipeline_flags, read_convert_config
     from studio.convert import convert as run_convert
     from studio.converters.build import GraphOptions
 
@@ -388,34 +370,24 @@ def convert(
         if getattr(ctx.get_parameter_source(name), "name", "") in ("COMMANDLINE", "ENVIRONMENT")
     }
     option_names = [f.name for f in dataclasses.fields(GraphOptions)]
+    # the pipeline's own options (ConvertConfig's fields with a flag), typed as the dataclass says
     pipeline: dict[str, Any] = {
-        "orientation": orientation,
-        "heading_window_m": heading_window_m,
-        "body_frames": tuple(body_frame),
-        "split": split,
-        "overlap_s": overlap,
-        "folder_names": folder_names,
+        k: tuple(options[k]) if isinstance(options[k], list) else options[k] for k in pipeline_flags()
     }
-    flags = {
-        "orientation": "orientation",
-        "heading_window_m": "heading_window_m",
-        "body_frames": "body_frame",
-        "split": "split",
-        "overlap_s": "overlap",
-        "folder_names": "folder_names",
-    }
+    graph_options = {k: options[k] for k in option_names}
     if source is not None and source not in source_names():
         inputs = [Path(source), *(inputs or [])]  # no FORMAT given: the first input
         source = guess_source(inputs)
     if config is not None:
         base = read_convert_config(config)
         overrides = {k: graph_options[k] for k in option_names if k in given}
+        merged: dict[str, Any] = {k: (pipeline[k] if k in given else getattr(base, k)) for k in pipeline}
         cfg = ConvertConfig(
             source or base.source,
             tuple(str(p) for p in inputs) if inputs else base.inputs,
             tuple(agent) if agent else base.agents,
             dataclasses.replace(base.options, **overrides),
-            **{k: (pipeline[k] if flags[k] in given else getattr(base, k)) for k in pipeline},
+            **merged,
         )
     else:
         if not source:
@@ -472,6 +444,40 @@ def _with_graph_options(command: Any) -> Any:
     return command
 
 
+def _with_convert_options(command: Any) -> Any:
+    """Give ``command`` one typer option per pipeline field of :class:`ConvertConfig` (its flag,
+    default, help and metavar declared once, in ``studio/convert.py``); the parameter is the field's
+    name, so an error naming the field (``ConfigError.option``) is shown as its flag."""
+    import dataclasses
+    import inspect
+
+    from studio.convert import ConvertConfig
+
+    sig = inspect.signature(command)
+    params = [p for p in sig.parameters.values() if p.kind is not inspect.Parameter.VAR_KEYWORD]
+    hints = dict(getattr(command, "__annotations__", {}))
+    for f in dataclasses.fields(ConvertConfig):
+        if "help" not in f.metadata:
+            continue
+        flag = f.metadata["flag"] or f.name
+        _FLAGS[f.name] = flag
+        default: Any = f.default
+        many = isinstance(default, tuple)
+        annotation: Any = list[str] if many else type(default)
+        option = typer.Option(
+            list(default) if many else default,
+            "--" + flag.replace("_", "-"),
+            help=f.metadata["help"],
+            metavar=f.metadata["metavar"] or None,
+        )
+        params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=annotation))
+        hints[f.name] = annotation
+    command.__signature__ = sig.replace(parameters=params)
+    command.__annotations__ = hints
+    return command
+
+
+_with_convert_options(convert)
 _with_graph_options(convert)
 
 

@@ -52,11 +52,25 @@ from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
 from studio.io.textfmt import write_text
 
-__all__ = ["ConvertConfig", "ConvertResult", "convert", "read_convert_config", "convert_config_to_json", "CONFIG_NAME"]
+__all__ = [
+    "ConvertConfig",
+    "ConvertResult",
+    "convert",
+    "read_convert_config",
+    "convert_config_to_json",
+    "pipeline_flags",
+    "CONFIG_NAME",
+]
 
 CONFIG_NAME = "convert.json"
 _FORMAT = "studio-convert/1"
 _OPTION_FIELDS = [f.name for f in dataclasses.fields(GraphOptions)]
+
+
+def _pipeline(default: Any, help: str, *, flag: str = "", metavar: str = "") -> Any:
+    """A pipeline field of :class:`ConvertConfig`: its default, help text and command-line flag
+    (``--split``; the field's name unless given), declared once (the CLI builds its options from them)."""
+    return field(default=default, metadata={"help": help, "flag": flag, "metavar": metavar})
 
 
 @dataclass(frozen=True)
@@ -70,18 +84,30 @@ class ConvertConfig:
     agents: tuple[str, ...] = ()
     """``NAME=SPEC`` strings (bags only)."""
     options: GraphOptions = field(default_factory=GraphOptions)
-    orientation: str = "auto"
+    orientation: str = _pipeline(
+        "auto",
+        "keep the trajectories' orientation, derive headings from the motion, or "
+        "auto: derive where it carries no information (S3E).",
+    )
     """``keep`` the trajectories' orientation, ``derive`` headings from the motion, or ``auto``: derive
     where the orientation carries no information (all the same, e.g. identity)."""
-    heading_window_m: float = 2.0
+    heading_window_m: float = _pipeline(2.0, "Path length over which a derived heading is measured, in metres.")
     """Path length [m] over which a derived heading is measured."""
-    body_frames: tuple[str, ...] = ()
+    body_frames: tuple[str, ...] = _pipeline(
+        (),
+        "An agent's body axes, e.g. robotA=ufl (the source's own, AirMuseum's, are the default).",
+        flag="body_frame",
+        metavar="NAME=CODE",
+    )
     """``NAME=CODE`` body frames (``robotA=ufl``), besides the source's defaults (AirMuseum's)."""
-    split: int = 0
+    split: int = _pipeline(0, "Split each trajectory into this many agents over time (0: off).")
     """Split every trajectory into this many agents over consecutive time windows (0: off)."""
-    overlap_s: float = 0.0
+    overlap_s: float = _pipeline(0.0, "Overlap of consecutive --split windows, in seconds.", flag="overlap")
     """Overlap [s] of consecutive split windows."""
-    folder_names: str = "agents"
+    folder_names: str = _pipeline(
+        "agents",
+        "agents: folders agent1..agentN with agents.json (kollagen's reader); robots: folders named after the robots.",
+    )
     """``agents``: folders agent1..agentN with agents.json (kollagen's reader needs them); ``robots``."""
 
     def __post_init__(self) -> None:
@@ -90,11 +116,17 @@ class ConvertConfig:
         object.__setattr__(self, "agents", tuple(self.agents))
         object.__setattr__(self, "body_frames", tuple(self.body_frames))
         if self.orientation not in ("auto", "keep", "derive"):
-            raise ConfigError(f"orientation: expected auto, keep or derive, got {self.orientation!r}")
+            raise ConfigError(
+                f"orientation: expected auto, keep or derive, got {self.orientation!r}", option="orientation"
+            )
         if self.folder_names not in ("agents", "robots"):
-            raise ConfigError(f"folder_names: expected agents or robots, got {self.folder_names!r}")
+            raise ConfigError(
+                f"folder_names: expected agents or robots, got {self.folder_names!r}", option="folder_names"
+            )
         if isinstance(self.split, bool) or not isinstance(self.split, int) or self.split < 0 or self.split == 1:
-            raise ConfigError(f"split: expected 0 (off) or an integer of at least 2, got {self.split!r}")
+            raise ConfigError(
+                f"split: expected 0 (off) or an integer of at least 2, got {self.split!r}", option="split"
+            )
         for name, value in (("heading_window_m", self.heading_window_m), ("overlap_s", self.overlap_s)):
             if (
                 isinstance(value, bool)
@@ -105,12 +137,13 @@ class ConvertConfig:
             ):
                 raise ConfigError(
                     f"{name}: expected a {'positive' if name == 'heading_window_m' else 'non-negative'} "
-                    f"number, got {value!r}"
+                    f"number, got {value!r}",
+                    option=name,
                 )
         for spec in self.body_frames:
             name, sep, code = spec.partition("=")
             if not sep or not name:
-                raise ConfigError(f"body_frames: {spec!r}: expected NAME=CODE (e.g. robotA=ufl)")
+                raise ConfigError(f"body_frames: {spec!r}: expected NAME=CODE (e.g. robotA=ufl)", option="body_frames")
             body_frame_rotation(code)
 
 
@@ -128,7 +161,12 @@ class ConvertResult:
 
 
 #: The pipeline's own keys of convert.json (besides the source, inputs, agents and graph options).
-_PIPELINE_FIELDS = ("orientation", "heading_window_m", "body_frames", "split", "overlap_s", "folder_names")
+_PIPELINE_FIELDS = tuple(f.name for f in dataclasses.fields(ConvertConfig) if "help" in f.metadata)
+
+
+def pipeline_flags() -> dict[str, str]:
+    """Each pipeline field's command-line flag without the dashes' prefix (``overlap_s`` -> ``overlap``)."""
+    return {f.name: f.metadata["flag"] or f.name for f in dataclasses.fields(ConvertConfig) if "help" in f.metadata}
 
 
 def convert_config_to_json(cfg: ConvertConfig) -> dict[str, Any]:
@@ -262,7 +300,9 @@ def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tup
     for spec in cfg.body_frames:
         name, _, code = spec.partition("=")
         if name not in names:
-            raise ConfigError(f"body_frames: {spec}: no agent {name!r} (agents: {', '.join(sorted(names))})")
+            raise ConfigError(
+                f"body_frames: {spec}: no agent {name!r} (agents: {', '.join(sorted(names))})", option="body_frames"
+            )
         frames[name] = code
     out = [apply_body_frame(t, frames[t.name]) if t.name in frames and frames[t.name] != "flu" else t for t in trajs]
     orientation = {}
