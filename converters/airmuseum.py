@@ -25,7 +25,7 @@ from studio.core.errors import FormatError
 from studio.core.trajectory import Trajectory, Warn
 from studio.core.types import PathLike
 
-__all__ = ["read_airmuseum", "find_ground_truth_files", "BODY_FRAMES"]
+__all__ = ["read_airmuseum", "find_ground_truth_files", "is_airmuseum_sequence", "BODY_FRAMES"]
 
 #: AirMuseum's body frames per robot name, lower case (x, y, z axes as Forward/Left/Up/Right/Down/Back).
 BODY_FRAMES = {"drone": "flu", "robota": "ufl", "robotb": "ufl", "robotc": "fur"}
@@ -58,6 +58,17 @@ def find_ground_truth_files(root: Path) -> list[tuple[str, Path]]:
             if inner:
                 found.append((safe_agent_name(p.name), inner[0]))
     return found
+
+
+def is_airmuseum_sequence(path: Path) -> bool:
+    """True for a scenario folder with a ``data/`` folder and ground-truth files (also when they are
+    malformed, e.g. two in one robot folder: the reader then says what is wrong)."""
+    if not (path.is_dir() and (path / "data").is_dir()):
+        return False
+    try:
+        return bool(find_ground_truth_files(path))
+    except FormatError:
+        return True
 
 
 def read_airmuseum(

@@ -3,23 +3,27 @@
 Every reader follows the :class:`SourceReader` seam: ``reader(inputs, *, agents=(), warn=None,
 progress=None) -> list[Trajectory]``, where ``inputs`` are the paths given on the command line and
 ``agents`` the ``NAME=SPEC`` strings of ``--agent``. A source's facts (does it take ``--agent``, how
-many inputs, what its agents are named after) are declared once beside its reader, and
-:func:`check_inputs` checks them before any reader runs. Readers that need heavy libraries import
-them when called. A new source is one module with its reader and one entry here.
+many inputs, what its agents are named after, its help line, how its paths are recognised, its
+agents' default body frames) are declared once in its entry, and :func:`check_inputs` checks them
+before any reader runs; ``studio convert``'s help and source list are built from the entries.
+Readers that need heavy libraries import them when called. A new source is one module with its
+reader and one entry here.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
 
-from studio.converters.airmuseum import read_airmuseum
+from studio.converters.airmuseum import BODY_FRAMES as AIRMUSEUM_BODY_FRAMES
+from studio.converters.airmuseum import is_airmuseum_sequence, read_airmuseum
 from studio.converters.euroc import euroc_ground_truth, read_euroc
+from studio.converters.kimera_multi import SUFFIX as KIMERA_SUFFIX
 from studio.converters.kimera_multi import kimera_files, read_kimera_multi
 from studio.converters.kitti import read_kitti
-from studio.converters.s3e import read_s3e
+from studio.converters.s3e import is_s3e_sequence, read_s3e
 from studio.converters.tum import read_tum_sources
 from studio.core.errors import ConfigError
 from studio.core.progress import Progress
@@ -35,6 +39,7 @@ __all__ = [
     "get_source",
     "source_names",
     "check_inputs",
+    "detect_sources",
     "guess_source",
 ]
 
@@ -52,17 +57,31 @@ class SourceReader(Protocol):
     ) -> list[Trajectory]: ...
 
 
+class Detect(Protocol):
+    """True when one input path is unmistakably this source's (it must not raise on other data)."""
+
+    def __call__(self, path: Path) -> bool: ...
+
+
 @dataclass(frozen=True)
 class Source:
+    """One source format as the registry declares it: the whole declaration of a source."""
+
     read: SourceReader
     inputs: str
-    """What the inputs are, for messages (``one sequence folder``)."""
+    """What the inputs are, for messages and ``studio convert --help`` (``one sequence folder``)."""
     agents_from: str
     """What the agents are named after, for messages."""
+    help: str = ""
+    """One line for ``studio convert --help``: what the source is."""
     one_input: bool = False
     """Exactly one input (a sequence folder), else one or more."""
     takes_agents: bool = False
     """Takes ``--agent NAME=SPEC`` (bags)."""
+    detect: Detect | None = None
+    """Recognises an input path of this source, for :func:`guess_source` (None: never guessed)."""
+    body_frames: Mapping[str, str] = field(default_factory=dict)
+    """Default body frames (``FLU`` codes) of the agents, by lower-case agent name; ``--body-frame`` wins."""
 
 
 def _read_bag(
@@ -77,21 +96,87 @@ def _read_bag(
     return read_bag_sources(inputs, agents=agents, warn=warn, progress=progress)
 
 
+def _first_row_width(path: Path) -> int | None:
+    """The number of fields of a ``.txt`` file's first data line (not a ``#`` comment), or None."""
+    if path.suffix != ".txt" or not path.is_file():
+        return None
+    with open(path, encoding="utf-8", errors="replace") as f:
+        for line in f:
+            fields = line.replace(",", " ").split()
+            if fields and not line.lstrip().startswith("#"):
+                return len(fields)
+    return None
+
+
+def _is_tum(path: Path) -> bool:
+    return path.suffix == ".tum" or _first_row_width(path) == 8
+
+
+def _is_kitti(path: Path) -> bool:
+    return _first_row_width(path) == 12
+
+
+def _is_bag(path: Path) -> bool:
+    return path.suffix in (".bag", ".mcap") or (path.is_dir() and (path / "metadata.yaml").is_file())
+
+
+def _is_euroc(path: Path) -> bool:
+    return (path.is_dir() or path.name == "data.csv") and euroc_ground_truth(path) is not None
+
+
+def _is_kimera_multi(path: Path) -> bool:
+    return bool(kimera_files(path)) if path.is_dir() else path.name.endswith(KIMERA_SUFFIX)
+
+
 SOURCES: dict[str, Source] = {
-    "tum": Source(read_tum_sources, "trajectory files", "their files"),
-    "s3e": Source(read_s3e, "one sequence folder", "alpha, bob and carol", one_input=True),
-    "airmuseum": Source(read_airmuseum, "one sequence folder", "the robot folders", one_input=True),
-    "bag": Source(_read_bag, "bags", "the --agent names", takes_agents=True),
-    "euroc": Source(read_euroc, "sequence folders (e.g. MH_01_easy)", "their sequences"),
-    "kitti": Source(read_kitti, "poses files (e.g. poses/00.txt)", "their files"),
-    "kimera-multi": Source(read_kimera_multi, "a ground-truth folder", "the robots' files"),
+    "tum": Source(
+        read_tum_sources, "trajectory files", "their files", "TUM trajectories, one agent per file", detect=_is_tum
+    ),
+    "s3e": Source(
+        read_s3e,
+        "one sequence folder",
+        "alpha, bob and carol",
+        "an S3E sequence (<agent>_gt.txt, or its bag's GNSS fixes)",
+        one_input=True,
+        detect=is_s3e_sequence,
+    ),
+    "airmuseum": Source(
+        read_airmuseum,
+        "one sequence folder",
+        "the robot folders",
+        "an AirMuseum scenario (one ground truth per robot; its body frames by default)",
+        one_input=True,
+        detect=is_airmuseum_sequence,
+        body_frames=AIRMUSEUM_BODY_FRAMES,
+    ),
+    "bag": Source(
+        _read_bag,
+        "bags (.bag, ROS 2 folder, .mcap)",
+        "the --agent names",
+        "ROS 1/2 bags, one --agent per robot",
+        takes_agents=True,
+        detect=_is_bag,
+    ),
+    "euroc": Source(
+        read_euroc, "sequence folders (e.g. MH_01_easy)", "their sequences", "EuRoC MAV ground truth", detect=_is_euroc
+    ),
+    "kitti": Source(
+        read_kitti, "poses files (e.g. poses/00.txt)", "their files", "KITTI odometry poses", detect=_is_kitti
+    ),
+    "kimera-multi": Source(
+        read_kimera_multi,
+        "a ground-truth folder",
+        "the robots' files",
+        "Kimera-Multi ground truth (<robot>_gt_odom.csv)",
+        detect=_is_kimera_multi,
+    ),
 }
 #: Each source's reader.
 READERS: dict[str, SourceReader] = {name: src.read for name, src in SOURCES.items()}
 
 
 def source_names() -> list[str]:
-    return list(READERS)
+    return list(SOURCES)
 
 
 def get_source(name: str) -> Source:
@@ -116,51 +201,22 @@ def check_inputs(name: str, inputs: Sequence[PathLike], agents: Sequence[str]) -
         raise ConfigError(f"studio convert {name} needs {src.inputs}")
 
 
-def _kind_of(path: Path) -> str | None:
-    """The source one input path unambiguously belongs to, or None."""
-    from studio.converters.airmuseum import find_ground_truth_files
-    from studio.converters.s3e import _GT as S3E_GT
-
-    if path.suffix in (".bag", ".mcap") or (path.is_dir() and (path / "metadata.yaml").is_file()):
-        return "bag"
-    if path.is_dir():
-        if euroc_ground_truth(path) is not None:
-            return "euroc"
-        if kimera_files(path):
-            return "kimera-multi"
-        entries = [*path.iterdir(), *(q for d in path.iterdir() if d.is_dir() for q in d.iterdir())]
-        if any(S3E_GT.match(q.name) for q in entries):
-            return "s3e"
-        if (path / "data").is_dir() and find_ground_truth_files(path):
-            return "airmuseum"
-        return None
-    if path.name == "data.csv" and euroc_ground_truth(path) is not None:
-        return "euroc"
-    if path.name.endswith("_gt_odom.csv"):
-        return "kimera-multi"
-    if path.suffix == ".tum":
-        return "tum"
-    if path.suffix == ".txt" and path.is_file():
-        with open(path, encoding="utf-8", errors="replace") as f:
-            for line in f:
-                fields = line.replace(",", " ").split()
-                if fields and not line.lstrip().startswith("#"):
-                    return "kitti" if len(fields) == 12 else "tum" if len(fields) == 8 else None
-    return None
+def detect_sources(path: Path) -> list[str]:
+    """The sources whose ``detect`` claims ``path`` (none, one, or several when it is ambiguous)."""
+    return [name for name, src in SOURCES.items() if src.detect is not None and src.detect(path)]
 
 
 def guess_source(inputs: Sequence[PathLike]) -> str:
-    """The source format of ``inputs`` where the paths tell it unambiguously (a ``.bag``/``.mcap``
-    or a folder with ``metadata.yaml``: bag; an EuRoC sequence folder; a Kimera-Multi ground-truth
-    folder; an S3E or AirMuseum sequence; ``.tum`` files; a KITTI poses file of 12 numbers per line).
-    Otherwise a ConfigError asks for the source by name."""
-    from pathlib import Path
-
+    """The source format of ``inputs`` where the paths tell it unambiguously: every path claimed by
+    the ``detect`` of one and the same source (a ``.bag``/``.mcap`` or a folder with ``metadata.yaml``:
+    bag; an EuRoC sequence folder; a Kimera-Multi ground-truth folder; an S3E or AirMuseum sequence;
+    ``.tum`` files; a KITTI poses file of 12 numbers per line). Otherwise a ConfigError asks for the
+    source by name."""
     if not inputs:
         raise ConfigError("give a source (" + ", ".join(READERS) + ") and its inputs, or --config")
-    kinds = {str(p): _kind_of(Path(p)) for p in inputs}
-    unknown = [p for p, k in kinds.items() if k is None]
-    found = {k for k in kinds.values() if k is not None}
+    kinds = {str(p): detect_sources(Path(p)) for p in inputs}
+    unknown = [p for p, k in kinds.items() if not k]
+    found = {name for k in kinds.values() for name in k}
     if unknown or len(found) != 1:
         why = (
             f"cannot tell the source of {unknown[0]}" if unknown else f"the inputs look like {', '.join(sorted(found))}"

@@ -27,7 +27,7 @@ from studio.core.trajectory import Trajectory, Warn
 from studio.core.types import PathLike
 from studio.io.tum import read_tum_rows
 
-__all__ = ["S3E_AGENTS", "read_s3e"]
+__all__ = ["S3E_AGENTS", "read_s3e", "is_s3e_sequence"]
 
 S3E_AGENTS = ("alpha", "bob", "carol")
 #: A ground truth of this many poses or fewer is an indoor sequence's start and end only.
@@ -40,6 +40,11 @@ def _candidates(root: Path) -> list[Path]:
     for sub in sorted(p for p in root.iterdir() if p.is_dir()):
         found += sorted(sub.iterdir())
     return found
+
+
+def is_s3e_sequence(path: Path) -> bool:
+    """True for a folder holding (or with a subfolder holding) an ``<agent>_gt.txt`` of S3E's agents."""
+    return path.is_dir() and any(_GT.match(q.name) for q in _candidates(path))
 
 
 def read_s3e(

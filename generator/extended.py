@@ -7,6 +7,8 @@
   frame; then outliers.
 * ``walk: grid3d``: :mod:`studio.generator.grid3d`, then outliers.
 
+The walks are the entries of :data:`WALK_MODES` (the generator modes' registry).
+
 Re-drawn planar noise follows kollagen's measurement models: odometry ``l^ = l + s_p n1``,
 ``dtheta^ = dtheta + s_a n2`` written as ``(l^ cos dtheta^, l^ sin dtheta^, dtheta^)`` and dead
 reckoning re-composed from the first ground-truth pose; loop closures ``(dx, dy, dtheta) + (s_p n1,
@@ -17,9 +19,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
+from studio.core.errors import ConfigError
 from studio.core.geometry import normalize_angle, relative_planar_pose
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.progress import Progress
@@ -30,7 +34,17 @@ from studio.generator.kollagen import SingleG2oView, SynthOutput, effective_seed
 from studio.generator.outliers import PlantedOutliers, plant_outliers
 from studio.generator.seam import GeneratedDataset
 
-__all__ = ["StudioOutput", "generate_studio", "rotate_exact_information", "StudioGenerator", "STUDIO"]
+__all__ = [
+    "StudioOutput",
+    "generate_studio",
+    "rotate_exact_information",
+    "StudioGenerator",
+    "STUDIO",
+    "WalkMode",
+    "WalkTrace",
+    "WALK_MODES",
+    "walk_mode",
+]
 
 _STREAM_ODOMETRY, _STREAM_INTRA, _STREAM_INTER = 31, 32, 33
 
@@ -160,45 +174,115 @@ def _planar_lc(
     return np.column_stack([dx + sp * n[:, 0], dy + sp * n[:, 1], dt + sa * n[:, 2]])
 
 
+@dataclass(frozen=True, eq=False)
+class WalkTrace:
+    """A walk mode's result: kollagen's output shape, and per agent what the outlier planter needs."""
+
+    output: SynthOutput
+    positions: list[np.ndarray]
+    """Per agent ``(n, 3)`` true positions [m]."""
+    cells: list[np.ndarray]
+    """Per agent ``(n, 3)`` integer grid cells, in units of ``stepsize / step_fragment``."""
+    headings: list[np.ndarray]
+    """Per agent quarter-turn headings ``0..3``."""
+
+
+class WalkRun(Protocol):
+    """Generate ``cfg``'s graph with the walk (``seeds``: the agents' effective seeds)."""
+
+    def __call__(
+        self, cfg: SynthConfig, seeds: tuple[int, ...], *, jobs: int | None, progress: Progress | None
+    ) -> WalkTrace: ...
+
+
+@dataclass(frozen=True)
+class WalkMode:
+    """One generator mode (``"studio": {"walk": NAME}``) as the registry declares it."""
+
+    name: str
+    help: str
+    """One line for the docs and messages: what the walk is."""
+    run: WalkRun
+    planar: bool
+    """A planar (SE(2)) graph: kollagen's single-g2o view and Exact information apply to it."""
+    block: str | None = None
+    """Key of the mode's own options in the ``"studio"`` block (parsed by ``studio/io/studio_block.py``)."""
+
+
+def _kollagen_walk(
+    cfg: SynthConfig, seeds: tuple[int, ...], *, jobs: int | None, progress: Progress | None
+) -> WalkTrace:
+    """kollagen's walk, its noise re-drawn per non-Gaussian class, its Exact information rotated."""
+    ext = cfg.studio
+    assert ext is not None
+    F = cfg.step_fragment
+    out = generate(cfg, jobs=jobs, progress=progress)
+    graph = out.graph
+    if any(not ext.noise_of(c).is_gaussian for c in ("odometry", "intra", "inter")):
+        graph = _renoise_planar(graph, cfg, seeds)
+    exact = out.exact_odometry_information
+    if exact is not None and ext.information_frame == "measurement":
+        # the planned (true) turn: kollagen's table is indexed by it, and the error's law in the
+        # measurement frame does not depend on it (see rotate_exact_information)
+        truths = [a.ground_truth for a in graph.agents]
+        assert all(t is not None for t in truths)  # kollagen's agents always have ground truth
+        exact = tuple(
+            rotate_exact_information(e, normalize_angle(t[1:, 2] - t[:-1, 2]))  # type: ignore[index]
+            for e, t in zip(exact, truths)
+        )
+    out = SynthOutput(graph, exact, out.connector_information, out.seeds)
+    gts = [a.ground_truth for a in graph.agents]
+    positions = [np.column_stack([g[:, 0], g[:, 1], np.zeros(len(g))]) for g in gts]  # type: ignore[index, arg-type]
+    cells = [
+        np.column_stack([np.rint(p[:, 0:2] * F / cfg.stepsize), np.zeros(len(p))]).astype(np.int64) for p in positions
+    ]
+    headings = [np.rint(g[:, 2] / (math.pi / 2)).astype(np.int64) % 4 for g in gts]  # type: ignore[index]
+    return WalkTrace(out, positions, cells, headings)
+
+
+def _grid3d_walk(cfg: SynthConfig, seeds: tuple[int, ...], *, jobs: int | None, progress: Progress | None) -> WalkTrace:
+    graph, walks = generate_grid3d(cfg, seeds)
+    return WalkTrace(
+        SynthOutput(graph, None, np.zeros(6), seeds),
+        [w.poses[:, 0:3] for w in walks],
+        [w.cells for w in walks],
+        [w.heading for w in walks],
+    )
+
+
+#: The generator modes: the walks a config's ``"studio"`` block may name. A new mode is one module
+#: (its walk, pure numpy) and one entry here; options of its own also go into ``studio_block.py``.
+WALK_MODES: dict[str, WalkMode] = {
+    mode.name: mode
+    for mode in (
+        WalkMode("kollagen", "kollagen's planar grid walk (byte-exact), noise models re-drawn", _kollagen_walk, True),
+        WalkMode(
+            "grid3d", "kollagen's turns plus climbing and descending steps, in SE(3)", _grid3d_walk, False, "grid3d"
+        ),
+    )
+}
+
+
+def walk_mode(name: str) -> WalkMode:
+    try:
+        return WALK_MODES[name]
+    except KeyError:
+        raise ConfigError(f"walk: unknown walk {name!r} (known: {', '.join(WALK_MODES)})") from None
+
+
 def generate_studio(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | None = None) -> StudioOutput:
     """Generate ``cfg`` with its ``"studio"`` block (kollagen's :func:`generate` when there is none)."""
     ext = cfg.studio
     if ext is None or not ext.changes_kollagen_bytes:
         return StudioOutput(generate(cfg, jobs=jobs, progress=progress), None)
     seeds = effective_seeds([a.random_number_generator_seed for a in cfg.agents])
-    F = cfg.step_fragment
-    if ext.walk == "grid3d":
-        graph, walks = generate_grid3d(cfg, seeds)
-        out = SynthOutput(graph, None, np.zeros(6), seeds)
-        positions = [w.poses[:, 0:3] for w in walks]
-        cells = [w.cells for w in walks]
-        headings = [w.heading for w in walks]
-    else:
-        out = generate(cfg, jobs=jobs, progress=progress)
-        graph = out.graph
-        if any(not ext.noise_of(c).is_gaussian for c in ("odometry", "intra", "inter")):
-            graph = _renoise_planar(graph, cfg, seeds)
-        exact = out.exact_odometry_information
-        if exact is not None and ext.information_frame == "measurement":
-            # the planned (true) turn: kollagen's table is indexed by it, and the error's law in the
-            # measurement frame does not depend on it (see rotate_exact_information)
-            truths = [a.ground_truth for a in graph.agents]
-            assert all(t is not None for t in truths)  # kollagen's agents always have ground truth
-            exact = tuple(
-                rotate_exact_information(e, normalize_angle(t[1:, 2] - t[:-1, 2]))  # type: ignore[index]
-                for e, t in zip(exact, truths)
-            )
-        out = SynthOutput(graph, exact, out.connector_information, out.seeds)
-        gts = [a.ground_truth for a in graph.agents]
-        positions = [np.column_stack([g[:, 0], g[:, 1], np.zeros(len(g))]) for g in gts]  # type: ignore[index, arg-type]
-        cells = [
-            np.column_stack([np.rint(p[:, 0:2] * F / cfg.stepsize), np.zeros(len(p))]).astype(np.int64)
-            for p in positions
-        ]
-        headings = [np.rint(g[:, 2] / (math.pi / 2)).astype(np.int64) % 4 for g in gts]  # type: ignore[index]
+    trace = walk_mode(ext.walk).run(cfg, seeds, jobs=jobs, progress=progress)
+    out = trace.output
     planted = None
     if ext.outliers is not None:
-        planted = plant_outliers(out.graph, positions, cells, headings, F, ext.outliers)
+        planted = plant_outliers(
+            out.graph, trace.positions, trace.cells, trace.headings, cfg.step_fragment, ext.outliers
+        )
         out = SynthOutput(planted.graph, out.exact_odometry_information, out.connector_information, out.seeds)
     return StudioOutput(out, planted)
 
@@ -211,8 +295,8 @@ class StudioGenerator:
     name = "kollagen+studio"
 
     def extra_suffixes(self, config: SynthConfig) -> tuple[str, ...]:
-        three_d = config.studio is not None and config.studio.walk == "grid3d"
-        return () if three_d else ("_singleg2o",)
+        planar = config.studio is None or walk_mode(config.studio.walk).planar
+        return ("_singleg2o",) if planar else ()
 
     def generate(
         self, config: SynthConfig, *, jobs: int | None = None, progress: Progress | None = None

@@ -22,7 +22,6 @@ __all__ = [
     "Grid3dConfig",
     "StudioExtensions",
     "NOISE_MODELS",
-    "WALKS",
     "OUTLIER_KINDS",
     "INFORMATION_FRAMES",
     "EXTENSIONS_VERSION",
@@ -33,7 +32,6 @@ __all__ = [
 #: The version of the ``"studio"`` block this code reads.
 EXTENSIONS_VERSION = 1
 NOISE_MODELS = ("gaussian", "student_t", "laplace", "mixture")
-WALKS = ("kollagen", "grid3d")
 OUTLIER_KINDS = ("random", "aliasing")
 INFORMATION_FRAMES = ("kollagen", "measurement")
 #: The measurement classes a noise model can be given to.
@@ -131,6 +129,7 @@ class StudioExtensions:
 
     version: int = EXTENSIONS_VERSION
     walk: str = "kollagen"
+    """A generator mode: a name of ``studio.generator.extended.WALK_MODES``."""
     grid3d: Grid3dConfig = field(default_factory=Grid3dConfig)
     noise: tuple[tuple[str, NoiseModel], ...] = ()
     """Per class (``odometry``, ``intra``, ``inter``); a class not listed is Gaussian (kollagen's)."""

@@ -5,8 +5,8 @@ a planar :class:`~studio.core.model.PoseGraph` and the few extras kollagen's sin
 
 The walk is :mod:`studio.generator.walk`, the loop-closure search :mod:`studio.generator.loop_closures`;
 this module runs them in kollagen's order (agents, alignment, pairs), holds kollagen's seed rule and
-exact odometry information, and offers kollagen's single-g2o view as the seam's extra
-(:class:`SingleG2oView`, :data:`KOLLAGEN`).
+exact odometry information, and defines kollagen's single-g2o view, the seam's extra
+(:class:`SingleG2oView`), which :data:`studio.generator.extended.STUDIO` offers for planar walks.
 """
 
 from __future__ import annotations
@@ -31,12 +31,9 @@ from studio.generator.loop_closures import (
     discrete_circle,
 )
 from studio.generator.rng import MT19937Stream
-from studio.generator.seam import GeneratedDataset
 from studio.generator.walk import _dead_reckon, _random_walk, _round_to_int, _Walk
 
 __all__ = [
-    "KOLLAGEN",
-    "KollagenGenerator",
     "SingleG2oView",
     "SynthOutput",
     "generate",
@@ -245,22 +242,3 @@ class SingleG2oView:
     exact_odometry_information: tuple[np.ndarray, ...] | None
     """Per agent ``(n-1, 6)`` derived odometry information, or None."""
     suffix: str = "_singleg2o"
-
-
-class KollagenGenerator:
-    """kollagen behind the :class:`~studio.generator.seam.Generator` seam."""
-
-    name = "kollagen"
-
-    def extra_suffixes(self, config: SynthConfig) -> tuple[str, ...]:
-        return ("_singleg2o",)
-
-    def generate(
-        self, config: SynthConfig, *, jobs: int | None = None, progress: Progress | None = None
-    ) -> GeneratedDataset:
-        out = generate(config, jobs=jobs, progress=progress)
-        view = SingleG2oView(out.connector_information, out.exact_odometry_information)
-        return GeneratedDataset(out.graph, (view,))
-
-
-KOLLAGEN = KollagenGenerator()

@@ -41,7 +41,8 @@ class GeneratedDataset:
 
 
 class Generator(Protocol[ConfigT_contra]):
-    """A synthetic-data generator (``studio.generator.kollagen.KOLLAGEN`` is the first)."""
+    """A synthetic-data generator (``studio.generator.extended.STUDIO``: kollagen's walk, byte-exact,
+    and the studio's modes, :data:`~studio.generator.extended.WALK_MODES`)."""
 
     name: str
 

@@ -7,10 +7,11 @@ A bench spec (TOML or JSON, or the built-in name ``paper``) names
 * ``cases``: ``diagonal`` and/or ``exact`` (kollagen's ``exact_information_matrix``; it changes the
   single g2o only, which is why the paper's optimizers read the single g2o); folders are taken as
   they are (case ``as-is``);
-* ``methods``: solver methods of :mod:`studio.solvers` (``gtsam``, ``g2o``, ``gnc``, ``command``);
+* ``methods``: solver methods of :mod:`studio.solvers` (its registry: ``gtsam``, ``g2o``, ...);
 * ``input``: ``single-g2o`` (kollagen's single file, as the paper) or ``multi-g2o``;
 * ``alignments``: the ``studio evaluate`` alignments to score every estimate under;
-* ``options``: per-method solver options (``[options.command] command = "..."``).
+* ``options``: per-method solver options, those the method's registry entry reads, and ``dimension``
+  (``[options.command] command = "..."``).
 
 Each cell (dataset, case, method) runs in a fresh process so its peak memory is its own; its results
 are written to ``OUT/runs/<cell>/cell.json`` and a finished cell is never recomputed. Synthetic
@@ -116,8 +117,16 @@ class BenchResult:
 
 
 _KEYS = {"name", "datasets", "cases", "methods", "input", "alignments", "options"}
-#: Keyword options of :func:`studio.solve.solve` a spec may set per method.
-SOLVE_OPTIONS = {"optimizer", "init", "max_iterations", "relative_tolerance", "command", "dimension"}
+#: Keywords of :func:`studio.solve.solve` a spec may set for every method, besides the options the
+#: method's registry entry reads (:attr:`studio.solvers.SolveMethod.options`).
+SOLVE_KEYWORDS = ("dimension",)
+
+
+def solve_options(method: str) -> tuple[str, ...]:
+    """The solve options a spec may set for ``method`` (``[options.<method>]``)."""
+    from studio.solvers import method_entry
+
+    return (*method_entry(method).options, *SOLVE_KEYWORDS)
 
 
 def _as_list(value: Any, where: str) -> tuple[str, ...]:
@@ -163,10 +172,12 @@ def bench_spec_from_dict(data: Mapping[str, Any], source: str) -> BenchSpec:
     for m, opts in options.items():
         if m not in methods:
             raise ConfigError(f"{source}: options.{m}: not one of the spec's methods ({', '.join(methods)})")
+        known_options = solve_options(m)
         for key in opts:
-            if key not in SOLVE_OPTIONS:
+            if key not in known_options:
                 raise ConfigError(
-                    f"{source}: options.{m}.{key}: unknown solve option (known: {', '.join(sorted(SOLVE_OPTIONS))})"
+                    f"{source}: options.{m}.{key}: unknown solve option of method {m} "
+                    f"(known: {', '.join(known_options)})"
                 )
     name = data.get("name", Path(source).stem if source != "<built-in>" else "bench")
     if not isinstance(name, str) or not name or "/" in name:

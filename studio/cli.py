@@ -8,16 +8,22 @@ from __future__ import annotations
 
 import enum
 import functools
+import re
 import time
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, get_args
 
 import typer
 
+from studio.converters.registry import SOURCES
 from studio.core.alignment import Alignment
 from studio.core.errors import StudioError
 from studio.core.progress import terminal_progress
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
+from studio.generator.presets import PRESETS
+from studio.solvers import DEFAULT_METHOD, METHODS
+from studio.solvers.problem import Init, Optimizer, SolveOptions
 
 app = typer.Typer(
     name="studio",
@@ -27,6 +33,11 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+def _choices(name: str, values: Iterable[str]) -> type[enum.Enum]:
+    """A str enum of ``values`` (a registry's names) for a typer option's choices."""
+    return enum.Enum(name, [(v, v) for v in values], type=str)  # type: ignore[return-value]
 
 
 class RecordKind(str, enum.Enum):
@@ -55,14 +66,19 @@ def _root(
     """cslam-studio: collaborative-SLAM pose-graph datasets."""
 
 
+#: Library options whose flag is not their name in kebab case (``overlap_s`` -> ``--overlap``).
+_FLAGS: dict[str, str] = {}
+
+
 def _as_flags(err: StudioError) -> str:
-    """The error's text, with the library option it names (``lc_radius: ...``) written as the flag
-    the user typed (``--lc-radius: ...``)."""
+    """The error's text, with the library option it names (``lc_radius: ...``, ``raise it with
+    max_memory_gb``) written as the flag the user typed (``--lc-radius: ...``, ``--max-memory-gb``)."""
     text = str(err)
     option = getattr(err, "option", None)
-    if option and text.startswith(f"{option}:"):
-        return "--" + option.replace("_", "-") + text[len(option) :]
-    return text
+    if not option:
+        return text
+    flag = "--" + _FLAGS.get(option, option).replace("_", "-")
+    return re.sub(rf"(?<![\w.-]){re.escape(option)}(?![\w-])", flag, text)
 
 
 def cli_errors(func):
@@ -101,7 +117,7 @@ def synth(
     config: str = typer.Argument(
         ...,
         metavar="CONFIG.json|PRESET",
-        help="A kollagen JSON config, or a built-in preset: multi3500x8, multi10000x5, cube3d, multi3500x8_outliers.",
+        help=f"A kollagen JSON config, or a built-in preset: {', '.join(PRESETS)}.",
     ),
     out: Path = typer.Option(..., "-o", "--out", help="Parent folder of the outputs (kollagen's DEST)."),
     force: bool = typer.Option(False, "--force", help="Replace existing outputs."),
@@ -226,8 +242,6 @@ def evaluate(
 
     if as_json and markdown:
         raise ConfigError("--json and --markdown exclude each other")
-    if align_per_agent and align not in (Alignment.se3, Alignment.sim3):
-        raise ConfigError("--align-per-agent needs --align se3 or --align sim3")
     with terminal_progress() as progress:
         ev = evaluate_dataset(
             dataset,
@@ -335,16 +349,15 @@ def convert(
         None,
         metavar="[FORMAT]",
         show_default=False,
-        help="Source format: tum, s3e, airmuseum, bag, euroc, kitti, kimera-multi; "
-        "guessed from the inputs when left out and unambiguous.",
+        help="Source format: "
+        + "; ".join(f"{name}: {src.help}" for name, src in SOURCES.items())
+        + "; guessed from the inputs when left out and unambiguous.",
     ),
     inputs: list[Path] = typer.Argument(
         None,
         metavar="INPUT...",
         show_default=False,
-        help="TUM files (tum), a sequence folder (s3e, airmuseum, euroc), a bag "
-        "(.bag, ROS 2 folder, .mcap), KITTI poses files, a Kimera-Multi "
-        "ground-truth folder.",
+        help="Per source: " + "; ".join(f"{name}: {src.inputs}" for name, src in SOURCES.items()) + ".",
     ),
     out: Path = typer.Option(..., "-o", "--out", help="The dataset folder to write."),
     agent: list[str] = typer.Option(
@@ -363,30 +376,7 @@ def convert(
         DEFAULT_MAX_MEMORY_GB, "--max-memory-gb", help="Refuse a loop-closure search estimated to need more memory."
     ),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
-    orientation: str = typer.Option(
-        "auto",
-        "--orientation",
-        help="keep the trajectories' orientation, derive headings from the motion, or "
-        "auto: derive where it carries no information (S3E).",
-    ),
-    heading_window_m: float = typer.Option(
-        2.0, "--heading-window-m", help="Path length over which a derived heading is measured, in metres."
-    ),
-    body_frame: list[str] = typer.Option(
-        [],
-        "--body-frame",
-        metavar="NAME=CODE",
-        help="An agent's body axes, e.g. robotA=ufl (AirMuseum's are the default).",
-    ),
-    split: int = typer.Option(0, "--split", help="Split each trajectory into this many agents over time (0: off)."),
-    overlap: float = typer.Option(0.0, "--overlap", help="Overlap of consecutive --split windows, in seconds."),
-    folder_names: str = typer.Option(
-        "agents",
-        "--folder-names",
-        help="agents: folders agent1..agentN with agents.json (kollagen's reader); "
-        "robots: folders named after the robots.",
-    ),
-    **graph_options: Any,
+    **options: Any,
 ) -> None:
     """Turn real trajectories into a multi-g2o dataset with synthetic odometry and loop closures.
 
@@ -398,7 +388,7 @@ def convert(
     _tune_allocator()
     import dataclasses
 
-    from studio.convert import ConvertConfig, read_convert_config
+    from studio.convert import ConvertConfig, pipeline_flags, read_convert_config
     from studio.convert import convert as run_convert
     from studio.converters.build import GraphOptions
 
@@ -413,34 +403,24 @@ def convert(
         if getattr(ctx.get_parameter_source(name), "name", "") in ("COMMANDLINE", "ENVIRONMENT")
     }
     option_names = [f.name for f in dataclasses.fields(GraphOptions)]
+    # the pipeline's own options (ConvertConfig's fields with a flag), typed as the dataclass says
     pipeline: dict[str, Any] = {
-        "orientation": orientation,
-        "heading_window_m": heading_window_m,
-        "body_frames": tuple(body_frame),
-        "split": split,
-        "overlap_s": overlap,
-        "folder_names": folder_names,
+        k: tuple(options[k]) if isinstance(options[k], list) else options[k] for k in pipeline_flags()
     }
-    flags = {
-        "orientation": "orientation",
-        "heading_window_m": "heading_window_m",
-        "body_frames": "body_frame",
-        "split": "split",
-        "overlap_s": "overlap",
-        "folder_names": "folder_names",
-    }
+    graph_options = {k: options[k] for k in option_names}
     if source is not None and source not in source_names():
         inputs = [Path(source), *(inputs or [])]  # no FORMAT given: the first input
         source = guess_source(inputs)
     if config is not None:
         base = read_convert_config(config)
         overrides = {k: graph_options[k] for k in option_names if k in given}
+        merged: dict[str, Any] = {k: (pipeline[k] if k in given else getattr(base, k)) for k in pipeline}
         cfg = ConvertConfig(
             source or base.source,
             tuple(str(p) for p in inputs) if inputs else base.inputs,
             tuple(agent) if agent else base.agents,
             dataclasses.replace(base.options, **overrides),
-            **{k: (pipeline[k] if flags[k] in given else getattr(base, k)) for k in pipeline},
+            **merged,
         )
     else:
         if not source:
@@ -497,25 +477,64 @@ def _with_graph_options(command: Any) -> Any:
     return command
 
 
+def _with_convert_options(command: Any) -> Any:
+    """Give ``command`` one typer option per pipeline field of :class:`ConvertConfig` (its flag,
+    default, help and metavar declared once, in ``studio/convert.py``); the parameter is the field's
+    name, so an error naming the field (``ConfigError.option``) is shown as its flag."""
+    import dataclasses
+    import inspect
+
+    from studio.convert import ConvertConfig
+
+    sig = inspect.signature(command)
+    params = [p for p in sig.parameters.values() if p.kind is not inspect.Parameter.VAR_KEYWORD]
+    hints = dict(getattr(command, "__annotations__", {}))
+    for f in dataclasses.fields(ConvertConfig):
+        if "help" not in f.metadata:
+            continue
+        flag = f.metadata["flag"] or f.name
+        _FLAGS[f.name] = flag
+        default: Any = f.default
+        many = isinstance(default, tuple)
+        annotation: Any = list[str] if many else type(default)
+        option = typer.Option(
+            list(default) if many else default,
+            "--" + flag.replace("_", "-"),
+            help=f.metadata["help"],
+            metavar=f.metadata["metavar"] or None,
+        )
+        params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=annotation))
+        hints[f.name] = annotation
+    command.__signature__ = sig.replace(parameters=params)
+    command.__annotations__ = hints
+    return command
+
+
+_with_convert_options(convert)
 _with_graph_options(convert)
 
 
-class MethodChoice(str, enum.Enum):
-    gtsam = "gtsam"
-    g2o = "g2o"
-    gnc = "gnc"
-    command = "command"
+# --- studio solve -------------------------------------------------------------------------------
+# The methods, their help, defaults and the options each reads come from studio.solvers' registry.
+
+MethodChoice = _choices("MethodChoice", METHODS)
+OptimizerChoice = _choices("OptimizerChoice", get_args(Optimizer))
+InitChoice = _choices("InitChoice", get_args(Init))
 
 
-class OptimizerChoice(str, enum.Enum):
-    gn = "gn"
-    lm = "lm"
+def _readers_of(option: str) -> str:
+    """The methods that read ``option``, for its help text (``gtsam, gnc``)."""
+    return ", ".join(name for name, entry in METHODS.items() if option in entry.options)
 
 
-class InitChoice(str, enum.Enum):
-    chordal = "chordal"
-    spanning_tree = "spanning-tree"
-    odometry = "odometry"
+def _iterations_help() -> str:
+    default = SolveOptions().max_iterations
+    own = [f"{name}: {e.defaults['max_iterations']}" for name, e in METHODS.items() if "max_iterations" in e.defaults]
+    return (
+        f"Most iterations (default {default}"
+        + "".join(f"; {x}" for x in own)
+        + f"; methods: {_readers_of('max_iterations')})."
+    )
 
 
 class DimensionChoice(str, enum.Enum):
@@ -529,21 +548,26 @@ class DimensionChoice(str, enum.Enum):
 def solve(
     dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder or a single .g2o file."),
     out: Path = typer.Option(..., "-o", "--out", help="Folder to write: the estimate and solve.json."),
-    method: MethodChoice = typer.Option(
-        MethodChoice.gtsam,
+    method: MethodChoice = typer.Option(  # type: ignore[valid-type]
+        DEFAULT_METHOD,
         "--method",
         "-m",
-        help="gtsam (chordal guess + GN), g2o (paper's setup), gnc (robust), command (an external program).",
+        help=", ".join(f"{name} ({entry.help})" for name, entry in METHODS.items()) + ".",
     ),
-    optimizer: OptimizerChoice = typer.Option(OptimizerChoice.gn, "--optimizer", help="gn or lm (gtsam)."),
-    init: InitChoice = typer.Option(InitChoice.chordal, "--init", help="Initial guess (gtsam, gnc)."),
-    iterations: int | None = typer.Option(
-        None, "--iterations", help="Most iterations (default 20; g2o: exactly 10, as the paper)."
+    optimizer: OptimizerChoice = typer.Option(  # type: ignore[valid-type]
+        SolveOptions().optimizer,
+        "--optimizer",
+        help=f"{' or '.join(get_args(Optimizer))} (methods: {_readers_of('optimizer')}).",
     ),
+    init: InitChoice = typer.Option(  # type: ignore[valid-type]
+        SolveOptions().init, "--init", help=f"Initial guess (methods: {_readers_of('init')})."
+    ),
+    iterations: int | None = typer.Option(None, "--iterations", help=_iterations_help()),
     command: str = typer.Option(
         "",
         "--command",
-        help="Program for --method command, with {input} and {output}, e.g. 'se-sync {input} {output}'.",
+        help=f"Program to run (methods: {_readers_of('command')}), with {{input}} and {{output}}, "
+        "e.g. 'se-sync {input} {output}'.",
     ),
     dimension: DimensionChoice = typer.Option(
         DimensionChoice.auto, "--dimension", help="auto: planar 3D data is solved in SE(2)."
@@ -564,9 +588,9 @@ def solve(
     res = run_solve(
         dataset,
         out,
-        method=method.value,
-        optimizer=optimizer.value,
-        init=init.value,
+        method=method.value,  # type: ignore[attr-defined]
+        optimizer=optimizer.value,  # type: ignore[attr-defined]
+        init=init.value,  # type: ignore[attr-defined]
         max_iterations=iterations,
         command=command,
         dimension=dimension.value,  # type: ignore[arg-type]

@@ -11,7 +11,7 @@ The dataset folder ``OUT`` holds::
     └── outliers.txt                                   # the loop closures that are outliers (ground truth)
 
 Between reading and building, trajectories may be re-expressed in FLU body axes (``body_frames``;
-AirMuseum's robots by default), given headings from their motion when their orientation carries no
+by default the source entry's ``body_frames``: AirMuseum's robots), given headings from their motion when their orientation carries no
 information (``orientation``: S3E's RTK ground truth), and split into several agents (``split``,
 ``overlap_s``). Agent folders are ``agent1..agentN`` (kollagen's reader needs them) with the robots'
 names in ``agents.json``, or named after the robots with ``folder_names="robots"``.
@@ -35,7 +35,7 @@ import numpy as np
 
 from studio._callable import make_callable
 from studio.converters.build import BuildResult, GraphOptions, Progress, build_graph
-from studio.converters.registry import check_inputs, get_reader
+from studio.converters.registry import check_inputs, get_reader, get_source
 from studio.converters.transforms import (
     apply_body_frame,
     body_frame_rotation,
@@ -51,12 +51,27 @@ from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
+from studio.io.textfmt import write_text
 
-__all__ = ["ConvertConfig", "ConvertResult", "convert", "read_convert_config", "convert_config_to_json", "CONFIG_NAME"]
+__all__ = [
+    "ConvertConfig",
+    "ConvertResult",
+    "convert",
+    "read_convert_config",
+    "convert_config_to_json",
+    "pipeline_flags",
+    "CONFIG_NAME",
+]
 
 CONFIG_NAME = "convert.json"
 _FORMAT = "studio-convert/1"
 _OPTION_FIELDS = [f.name for f in dataclasses.fields(GraphOptions)]
+
+
+def _pipeline(default: Any, help: str, *, flag: str = "", metavar: str = "") -> Any:
+    """A pipeline field of :class:`ConvertConfig`: its default, help text and command-line flag
+    (``--split``; the field's name unless given), declared once (the CLI builds its options from them)."""
+    return field(default=default, metadata={"help": help, "flag": flag, "metavar": metavar})
 
 
 @dataclass(frozen=True)
@@ -64,24 +79,36 @@ class ConvertConfig:
     """What ``studio convert`` did: the source format, its inputs, ``--agent`` specs and the options."""
 
     source: str
-    """A name of :data:`converters.registry.READERS` (tum, s3e, airmuseum, bag)."""
+    """A name of :data:`converters.registry.SOURCES` (tum, s3e, airmuseum, bag, ...)."""
     inputs: tuple[str, ...]
     """Paths of the inputs (absolute once resolved by :func:`convert`)."""
     agents: tuple[str, ...] = ()
     """``NAME=SPEC`` strings (bags only)."""
     options: GraphOptions = field(default_factory=GraphOptions)
-    orientation: str = "auto"
+    orientation: str = _pipeline(
+        "auto",
+        "keep the trajectories' orientation, derive headings from the motion, or "
+        "auto: derive where it carries no information (S3E).",
+    )
     """``keep`` the trajectories' orientation, ``derive`` headings from the motion, or ``auto``: derive
     where the orientation carries no information (all the same, e.g. identity)."""
-    heading_window_m: float = 2.0
+    heading_window_m: float = _pipeline(2.0, "Path length over which a derived heading is measured, in metres.")
     """Path length [m] over which a derived heading is measured."""
-    body_frames: tuple[str, ...] = ()
+    body_frames: tuple[str, ...] = _pipeline(
+        (),
+        "An agent's body axes, e.g. robotA=ufl (the source's own, AirMuseum's, are the default).",
+        flag="body_frame",
+        metavar="NAME=CODE",
+    )
     """``NAME=CODE`` body frames (``robotA=ufl``), besides the source's defaults (AirMuseum's)."""
-    split: int = 0
+    split: int = _pipeline(0, "Split each trajectory into this many agents over time (0: off).")
     """Split every trajectory into this many agents over consecutive time windows (0: off)."""
-    overlap_s: float = 0.0
+    overlap_s: float = _pipeline(0.0, "Overlap of consecutive --split windows, in seconds.", flag="overlap")
     """Overlap [s] of consecutive split windows."""
-    folder_names: str = "agents"
+    folder_names: str = _pipeline(
+        "agents",
+        "agents: folders agent1..agentN with agents.json (kollagen's reader); robots: folders named after the robots.",
+    )
     """``agents``: folders agent1..agentN with agents.json (kollagen's reader needs them); ``robots``."""
 
     def __post_init__(self) -> None:
@@ -90,11 +117,17 @@ class ConvertConfig:
         object.__setattr__(self, "agents", tuple(self.agents))
         object.__setattr__(self, "body_frames", tuple(self.body_frames))
         if self.orientation not in ("auto", "keep", "derive"):
-            raise ConfigError(f"orientation: expected auto, keep or derive, got {self.orientation!r}")
+            raise ConfigError(
+                f"orientation: expected auto, keep or derive, got {self.orientation!r}", option="orientation"
+            )
         if self.folder_names not in ("agents", "robots"):
-            raise ConfigError(f"folder_names: expected agents or robots, got {self.folder_names!r}")
+            raise ConfigError(
+                f"folder_names: expected agents or robots, got {self.folder_names!r}", option="folder_names"
+            )
         if isinstance(self.split, bool) or not isinstance(self.split, int) or self.split < 0 or self.split == 1:
-            raise ConfigError(f"split: expected 0 (off) or an integer of at least 2, got {self.split!r}")
+            raise ConfigError(
+                f"split: expected 0 (off) or an integer of at least 2, got {self.split!r}", option="split"
+            )
         for name, value in (("heading_window_m", self.heading_window_m), ("overlap_s", self.overlap_s)):
             if (
                 isinstance(value, bool)
@@ -105,12 +138,13 @@ class ConvertConfig:
             ):
                 raise ConfigError(
                     f"{name}: expected a {'positive' if name == 'heading_window_m' else 'non-negative'} "
-                    f"number, got {value!r}"
+                    f"number, got {value!r}",
+                    option=name,
                 )
         for spec in self.body_frames:
             name, sep, code = spec.partition("=")
             if not sep or not name:
-                raise ConfigError(f"body_frames: {spec!r}: expected NAME=CODE (e.g. robotA=ufl)")
+                raise ConfigError(f"body_frames: {spec!r}: expected NAME=CODE (e.g. robotA=ufl)", option="body_frames")
             body_frame_rotation(code)
 
 
@@ -128,7 +162,12 @@ class ConvertResult:
 
 
 #: The pipeline's own keys of convert.json (besides the source, inputs, agents and graph options).
-_PIPELINE_FIELDS = ("orientation", "heading_window_m", "body_frames", "split", "overlap_s", "folder_names")
+_PIPELINE_FIELDS = tuple(f.name for f in dataclasses.fields(ConvertConfig) if "help" in f.metadata)
+
+
+def pipeline_flags() -> dict[str, str]:
+    """Each pipeline field's command-line flag without the dashes' prefix (``overlap_s`` -> ``overlap``)."""
+    return {f.name: f.metadata["flag"] or f.name for f in dataclasses.fields(ConvertConfig) if "help" in f.metadata}
 
 
 def convert_config_to_json(cfg: ConvertConfig) -> dict[str, Any]:
@@ -256,16 +295,15 @@ def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tup
     """Body frames, derived headings and the split, in that order (see the module docstring).
 
     Returns the trajectories to build and, per agent whose headings were derived, ``DERIVED``."""
-    frames = {}
-    if cfg.source == "airmuseum":
-        from studio.converters.airmuseum import BODY_FRAMES
-
-        frames = {t.name: BODY_FRAMES[t.name.lower()] for t in trajs if t.name.lower() in BODY_FRAMES}
+    defaults = get_source(cfg.source).body_frames  # the source's own (AirMuseum's robots)
+    frames = {t.name: defaults[t.name.lower()] for t in trajs if t.name.lower() in defaults}
     names = {t.name for t in trajs}
     for spec in cfg.body_frames:
         name, _, code = spec.partition("=")
         if name not in names:
-            raise ConfigError(f"body_frames: {spec}: no agent {name!r} (agents: {', '.join(sorted(names))})")
+            raise ConfigError(
+                f"body_frames: {spec}: no agent {name!r} (agents: {', '.join(sorted(names))})", option="body_frames"
+            )
         frames[name] = code
     out = [apply_body_frame(t, frames[t.name]) if t.name in frames and frames[t.name] != "flu" else t for t in trajs]
     orientation = {}
@@ -311,7 +349,7 @@ def convert(
         raise OutputError(f"{out}: -o must name the dataset folder itself")
     if (out.exists() or out.is_symlink()) and not force:
         raise OutputError(f"{out} already exists (use --force to overwrite)")
-    check_option("--max-memory-gb", max_memory_gb, allow_zero=False)
+    check_option("max_memory_gb", max_memory_gb, allow_zero=False)
     cfg = _resolve_inputs(cfg)
     check_not_overlapping([out], cfg.inputs)
     warnings: list[str] = []
@@ -352,9 +390,10 @@ def convert(
         )
         if progress:
             progress("writing", 1, 2, "parts")
-        _write_text(ds / CONFIG_NAME, json.dumps(convert_config_to_json(cfg), indent=2) + "\n")
-        _write_text(ds / "report.json", json.dumps(_report(build, trajs, warnings, orientation), indent=2) + "\n")
-        _write_text(ds / "outliers.txt", _outlier_lines(build))
+        write_text(ds / CONFIG_NAME, (json.dumps(convert_config_to_json(cfg), indent=2) + "\n").encode("utf-8"))
+        report = json.dumps(_report(build, trajs, warnings, orientation), indent=2) + "\n"
+        write_text(ds / "report.json", report.encode("utf-8"))
+        write_text(ds / "outliers.txt", _outlier_lines(build).encode("utf-8"))
         if progress:
             progress("writing", 2, 2, "parts")
         if recorder is not None:
@@ -376,11 +415,6 @@ def convert(
     return ConvertResult(
         cfg, out, tuple(trajs), build, tuple(warnings), out / f"{out.name}.rrd" if rrd else None, orientation
     )
-
-
-def _write_text(path: Path, text: str) -> None:
-    with open(path, "w", encoding="utf-8", newline="\n") as f:
-        f.write(text)
 
 
 make_callable(__name__)  # studio.convert(...) is studio.convert.convert(...) (studio/_callable.py)

@@ -34,7 +34,7 @@ import numpy as np
 
 from studio._callable import make_callable
 from studio.core.alignment import Alignment
-from studio.core.errors import EvaluationError, OutputError
+from studio.core.errors import ConfigError, EvaluationError, OutputError
 from studio.core.model import PoseGraph
 from studio.core.progress import Progress, report
 from studio.core.types import PathLike
@@ -319,6 +319,21 @@ def _quiet_numpy(func):
     return wrapper
 
 
+def check_alignment(align: Alignment | str, align_per_agent: bool) -> Alignment:
+    """The alignment named ``align``; one per agent (``align_per_agent``) only for se3 and sim3
+    (first-pose is one per agent by nature, none has nothing to align)."""
+    try:
+        align = Alignment(align)
+    except ValueError:
+        raise EvaluationError(f"unknown alignment {align!r} (known: {', '.join(a.value for a in Alignment)})") from None
+    if align_per_agent and align not in (Alignment.se3, Alignment.sim3):
+        raise ConfigError(
+            f"align_per_agent: one alignment per agent needs an se3 or sim3 alignment, not {align.value}",
+            option="align_per_agent",
+        )
+    return align
+
+
 @_quiet_numpy
 def score(
     graph: PoseGraph,
@@ -341,10 +356,7 @@ def score(
     ``tum_max_diff_s``); otherwise pose k of an agent is the estimate of its vertex k."""
     from evo.core import metrics
 
-    try:
-        align = Alignment(align)
-    except ValueError:
-        raise EvaluationError(f"unknown alignment {align!r} (known: {', '.join(a.value for a in Alignment)})") from None
+    align = check_alignment(align, align_per_agent)
     if not (math.isfinite(rpe_delta_m) and rpe_delta_m > 0):
         raise EvaluationError(f"the RPE distance must be a positive number of metres, got {rpe_delta_m!r}")
     if rpe_delta_nodes < 1:
@@ -463,6 +475,7 @@ def evaluate(
     from studio.io.estimate import read_estimate
     from studio.io.multig2o import read_multi_g2o
 
+    check_alignment(align, align_per_agent)  # before any reading
     step = "evaluate"
     report(progress, step, 0, 3, "stages")
     graph = read_multi_g2o(dataset, edges=False)

@@ -26,7 +26,7 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -36,8 +36,8 @@ from studio.core.geometry import is_planar_se3, planar_poses_to_se3, se3_informa
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
-from studio.solvers import DEFAULT_METHOD, get_method
-from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
+from studio.solvers import DEFAULT_METHOD, method_entry
+from studio.solvers.problem import Init, Iteration, Optimizer, Problem, Solution, SolveOptions, graph_chi2
 
 __all__ = ["SolveResult", "solve", "load_problem", "Dimension", "SOLVE_JSON"]
 
@@ -263,15 +263,15 @@ def solve(
     ``rrd`` also writes a Rerun recording of the run (every iteration on an ``iteration`` timeline,
     beside the ground truth, with the cost per iteration)."""
     from studio.io.atomic import staged_outputs
-    from studio.solvers.g2o_method import G2O_DEFAULT_ITERATIONS
 
-    solver = get_method(method)
-    if optimizer not in ("gn", "lm"):
-        raise ConfigError(f"optimizer: expected gn or lm, got {optimizer!r}")
-    if init not in ("chordal", "spanning-tree", "odometry"):
-        raise ConfigError(f"init: expected chordal, spanning-tree or odometry, got {init!r}")
+    entry = method_entry(method)
+    solver = entry.solve
+    if optimizer not in get_args(Optimizer):
+        raise ConfigError(f"optimizer: expected {' or '.join(get_args(Optimizer))}, got {optimizer!r}")
+    if init not in get_args(Init):
+        raise ConfigError(f"init: expected {', '.join(get_args(Init)[:-1])} or {get_args(Init)[-1]}, got {init!r}")
     if max_iterations is None:
-        max_iterations = G2O_DEFAULT_ITERATIONS if method == "g2o" else 20
+        max_iterations = entry.default("max_iterations")  # the method's own default (g2o: the paper's 10)
     if isinstance(max_iterations, bool) or not isinstance(max_iterations, int) or not 1 <= max_iterations <= 10_000:
         raise ConfigError(f"max_iterations: expected an integer in 1..10000, got {max_iterations!r}")
     if not (isinstance(relative_tolerance, (int, float)) and 0 <= relative_tolerance < 1):

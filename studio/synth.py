@@ -16,7 +16,7 @@ from studio.core.progress import Progress, report
 from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.generator.config import SynthConfig, estimate_resources
-from studio.generator.extended import STUDIO
+from studio.generator.extended import STUDIO, walk_mode
 from studio.generator.kollagen import SingleG2oView
 from studio.generator.outliers import PlantedOutliers
 from studio.generator.presets import PRESETS, preset, preset_names
@@ -138,12 +138,14 @@ def check_resources(
     if memory > max_memory_gb * 1e9:
         raise ConfigError(
             f"{config.name}: {poses:.3g} poses and their loop-closure radii would need about "
-            f"{memory / 1e9:.3g} GB of memory, over the {max_memory_gb:g} GB limit (raise it with --max-memory-gb)"
+            f"{memory / 1e9:.3g} GB of memory, over the {max_memory_gb:g} GB limit (raise it with max_memory_gb)",
+            option="max_memory_gb",
         )
     if output > max_output_gb * 1e9:
         raise ConfigError(
             f"{config.name}: {poses:.3g} poses would write about {output / 1e9:.3g} GB, over the "
-            f"{max_output_gb:g} GB limit (raise it with --max-output-gb)"
+            f"{max_output_gb:g} GB limit (raise it with max_output_gb)",
+            option="max_output_gb",
         )
 
 
@@ -171,16 +173,16 @@ def synthesize(
     Configs estimated to need more memory or disk than the limits are refused before any work.
     ``progress`` hears of each agent, agent pair, written part and recorded agent.
     """
-    check_option("--max-memory-gb", max_memory_gb, allow_zero=False)
-    check_option("--max-output-gb", max_output_gb, allow_zero=False)
+    check_option("max_memory_gb", max_memory_gb, allow_zero=False)
+    check_option("max_output_gb", max_output_gb, allow_zero=False)
     if jobs is not None and (isinstance(jobs, bool) or not 0 <= jobs <= 4096):
-        raise ConfigError(f"--jobs: expected 0 (the idle cores) .. 4096, got {jobs!r}")
+        raise ConfigError(f"jobs: expected 0 (the idle cores) .. 4096, got {jobs!r}", option="jobs")
     check_resources(config, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
     out_dir = Path(out_dir)
     name = config.name
-    three_d = config.studio is not None and config.studio.walk == "grid3d"
-    if three_d and multi_records == "2d":
-        raise ConfigError(f"{name}: walk grid3d is 3D; --multi-records 2d cannot hold it")
+    walk = None if config.studio is None else walk_mode(config.studio.walk)
+    if walk is not None and not walk.planar and multi_records == "2d":
+        raise ConfigError(f"{name}: walk {walk.name} is 3D; multi_records 2d cannot hold it", option="multi_records")
     extras = [f"{name}{suffix}" for suffix in generator.extra_suffixes(config)]
     config_name, rrd_name = f"{name}.config.json", f"{name}.rrd"
     names = [name, *extras, config_name] + ([rrd_name] if rrd else [])

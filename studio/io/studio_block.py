@@ -25,13 +25,13 @@ from dataclasses import fields
 from typing import Any
 
 from studio.core.errors import ConfigError
+from studio.generator.extended import WALK_MODES, walk_mode
 from studio.generator.extensions import (
     EXTENSIONS_VERSION,
     INFORMATION_FRAMES,
     NOISE_CLASSES,
     NOISE_MODELS,
     OUTLIER_KINDS,
-    WALKS,
     Grid3dConfig,
     NoiseModel,
     OutlierConfig,
@@ -129,10 +129,12 @@ def parse_studio_block(obj: Any, *, fail: Fail, exact: bool) -> StudioExtensions
         raise fail("studio.version", f"missing key (this studio reads version {EXTENSIONS_VERSION})")
     if obj["version"] != EXTENSIONS_VERSION or isinstance(obj["version"], bool):
         raise fail("studio.version", f"{obj['version']!r} is not a version this studio reads ({EXTENSIONS_VERSION})")
-    walk = _choice(obj, "walk", "studio", fail, "kollagen", WALKS)
+    walk = _choice(obj, "walk", "studio", fail, "kollagen", tuple(WALK_MODES))
+    mode = walk_mode(walk)
+    for other in WALK_MODES.values():  # a mode's own options apply to that mode only
+        if other.block is not None and other.block != mode.block and obj.get(other.block):
+            raise fail(f"studio.{other.block}", f'applies to walk "{other.name}" only')
     g = _check_keys(obj.get("grid3d", {}), "studio.grid3d", tuple(f.name for f in fields(Grid3dConfig)), fail)
-    if g and walk != "grid3d":
-        raise fail("studio.grid3d", 'applies to walk "grid3d" only')
     d = Grid3dConfig()
     seed_offset = g.get("seed_offset", 0)
     if isinstance(seed_offset, bool) or not isinstance(seed_offset, int) or abs(seed_offset) > 2**31:
@@ -143,10 +145,10 @@ def parse_studio_block(obj: Any, *, fail: Fail, exact: bool) -> StudioExtensions
         tilt_std_dev=_number(g, "tilt_std_dev", "studio.grid3d", fail, d.tilt_std_dev, 0, 1.0),
         seed_offset=seed_offset,
     )
-    if walk == "grid3d" and exact:
+    if not mode.planar and exact:
         raise fail(
             "exact_information_matrix",
-            'kollagen\'s Exact information is planar; walk "grid3d" writes '
+            f'kollagen\'s Exact information is planar; walk "{walk}" writes '
             "its own consistent 6x6 information (set it to false)",
         )
     n = _check_keys(obj.get("noise", {}), "studio.noise", NOISE_CLASSES, fail)
@@ -198,7 +200,7 @@ def parse_studio_block(obj: Any, *, fail: Fail, exact: bool) -> StudioExtensions
 def studio_block_to_json(ext: StudioExtensions) -> dict:
     """The block as written in the effective config (every key, defaults included)."""
     out: dict[str, Any] = {"version": ext.version, "walk": ext.walk}
-    if ext.walk == "grid3d":
+    if walk_mode(ext.walk).block == "grid3d":
         out["grid3d"] = {f.name: getattr(ext.grid3d, f.name) for f in fields(Grid3dConfig)}
     if ext.noise:
         noise = {}

@@ -1,28 +1,87 @@
 """Optimizer back-ends (layer 3): each method solves a :class:`~studio.solvers.problem.Problem` of
 columns and returns a :class:`~studio.solvers.problem.Solution`.
 
-The registry is an explicit dict; an unknown name raises and lists the known ones. A method imports
-its library when called, and a missing library raises a one-line ConfigError naming the extra to
-install (``pip install 'cslam-studio[solve]'``).
+The registry is an explicit dict of :class:`SolveMethod` entries, the whole declaration of a
+method: its name, one line of help, the :class:`~studio.solvers.problem.SolveOptions` it reads and
+its own defaults for them. ``studio solve --method`` (choices and help), ``studio solve``'s
+defaults and ``studio bench``'s per-method options are built from it; an unknown name raises and
+lists the known ones. A method imports its library when called, and a missing library raises a
+one-line ConfigError naming the extra to install (``pip install 'cslam-studio[solve]'``).
 """
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
 from studio.core.errors import ConfigError
 from studio.solvers.command import solve_command
-from studio.solvers.g2o_method import solve_g2o
+from studio.solvers.g2o_method import G2O_DEFAULT_ITERATIONS, solve_g2o
 from studio.solvers.gtsam_method import solve_gnc, solve_gtsam
-from studio.solvers.problem import Method
+from studio.solvers.problem import Method, SolveOptions
 
-__all__ = ["METHODS", "method_names", "get_method", "DEFAULT_METHOD"]
+__all__ = [
+    "METHODS",
+    "SolveMethod",
+    "method_names",
+    "get_method",
+    "method_entry",
+    "option_names",
+    "DEFAULT_METHOD",
+]
 
 DEFAULT_METHOD = "gtsam"
 
-METHODS: dict[str, Method] = {
-    "gtsam": solve_gtsam,
-    "g2o": solve_g2o,
-    "gnc": solve_gnc,
-    "command": solve_command,
+#: The fields of :class:`SolveOptions`, the only names an entry may list or give a default for.
+_OPTION_FIELDS = tuple(f.name for f in dataclasses.fields(SolveOptions))
+
+
+@dataclass(frozen=True)
+class SolveMethod:
+    """One optimizer back-end as the registry declares it."""
+
+    name: str
+    solve: Method
+    help: str
+    """One line for ``studio solve --help`` (what the method does)."""
+    options: tuple[str, ...]
+    """The :class:`SolveOptions` fields the method reads (the others are ignored by it)."""
+    defaults: Mapping[str, Any] = field(default_factory=dict)
+    """The method's own defaults for some of :attr:`options` (``SolveOptions``' defaults otherwise)."""
+
+    def __post_init__(self) -> None:
+        for key in (*self.options, *self.defaults):
+            if key not in _OPTION_FIELDS:
+                raise ConfigError(f"method {self.name}: {key!r} is not a SolveOptions field")
+        for key in self.defaults:
+            if key not in self.options:
+                raise ConfigError(f"method {self.name}: a default for {key!r}, which it does not read")
+
+    def default(self, option: str) -> Any:
+        """The method's default for ``option`` (its own, else ``SolveOptions``')."""
+        if option in self.defaults:
+            return self.defaults[option]
+        return getattr(SolveOptions(), option)
+
+
+_GTSAM_OPTIONS = ("optimizer", "init", "max_iterations", "relative_tolerance")
+
+METHODS: dict[str, SolveMethod] = {
+    entry.name: entry
+    for entry in (
+        SolveMethod("gtsam", solve_gtsam, "chordal guess + GN", _GTSAM_OPTIONS),
+        SolveMethod(
+            "g2o",
+            solve_g2o,
+            "the paper's setup: spanning tree, then GN for exactly --iterations",
+            ("init", "max_iterations"),
+            {"max_iterations": G2O_DEFAULT_ITERATIONS},
+        ),
+        SolveMethod("gnc", solve_gnc, "robust: rejects outlier loop closures", _GTSAM_OPTIONS),
+        SolveMethod("command", solve_command, "an external program", ("command",)),
+    )
 }
 
 
@@ -30,8 +89,19 @@ def method_names() -> list[str]:
     return list(METHODS)
 
 
-def get_method(name: str) -> Method:
+def method_entry(name: str) -> SolveMethod:
     try:
         return METHODS[name]
     except KeyError:
         raise ConfigError(f"method: unknown method {name!r} (known: {', '.join(METHODS)})") from None
+
+
+def get_method(name: str) -> Method:
+    """The back-end function of method ``name``."""
+    return method_entry(name).solve
+
+
+def option_names() -> tuple[str, ...]:
+    """Every option some method reads, in :class:`SolveOptions`' order."""
+    used = {key for entry in METHODS.values() for key in entry.options}
+    return tuple(key for key in _OPTION_FIELDS if key in used)

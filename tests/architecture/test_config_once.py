@@ -49,3 +49,61 @@ def test_errors_name_the_option_in_a_config_file_and_the_flag_on_the_command_lin
     res = CliRunner().invoke(app, ["convert", "tum", str(f), "-o", str(tmp_path / "o"), "--lc-radius", "0"])
     assert res.exit_code == 2
     assert res.output.strip() == "error: --lc-radius: must be > 0"
+
+
+def test_library_errors_name_options_and_the_cli_shows_their_flags(tmp_path):
+    """synth's and convert's limits are library options in the library's messages (no CLI flag in a
+    library message), and flags on the command line."""
+    from studio.convert import ConvertConfig, convert
+    from studio.synth import load_synth_config, synthesize
+
+    cfg = load_synth_config(str(REPO / "tests" / "data" / "configs" / "tiny_single.json"))
+    for kwargs, option in (({"max_memory_gb": -1.0}, "max_memory_gb"), ({"jobs": -1}, "jobs")):
+        with pytest.raises(ConfigError, match=rf"^{option}: ") as err:
+            synthesize(cfg, tmp_path, **kwargs)
+        assert err.value.option == option and "--" not in str(err.value)
+    with pytest.raises(ConfigError, match=r"raise it with max_memory_gb\)$"):
+        synthesize(cfg, tmp_path, max_memory_gb=1e-9)
+    with pytest.raises(ConfigError, match=r"^max_memory_gb: ") as err:
+        convert(ConvertConfig("tum", ()), tmp_path / "o", max_memory_gb=0)
+    config = str(REPO / "tests" / "data" / "configs" / "tiny_single.json")
+    res = CliRunner().invoke(app, ["synth", config, "-o", str(tmp_path), "--max-memory-gb", "-1"])
+    assert res.exit_code == 2 and res.output.startswith("error: --max-memory-gb: "), res.output
+
+
+def test_convert_pipeline_options_come_from_convert_config(tmp_path):
+    """--split, --overlap, ... are ConvertConfig's fields: flag, default and help declared once there;
+    an error naming the field is shown with its flag, also where the two differ (overlap_s)."""
+    from studio.convert import ConvertConfig, pipeline_flags
+
+    source = (REPO / "studio" / "cli.py").read_text(encoding="utf-8")
+    text = re.sub(r"\s+", "", _help())
+    flags = pipeline_flags()
+    assert flags == {
+        "orientation": "orientation",
+        "heading_window_m": "heading_window_m",
+        "body_frames": "body_frame",
+        "split": "split",
+        "overlap_s": "overlap",
+        "folder_names": "folder_names",
+    }
+    for f in dataclasses.fields(ConvertConfig):
+        if f.name not in flags:
+            continue
+        flag = "--" + flags[f.name].replace("_", "-")
+        assert f'"{flag}"' not in source, flag
+        assert flag in text and re.sub(r"\s+", "", f.metadata["help"]) in text
+        if f.default != ():
+            assert f"[default:{f.default}]" in text
+    f = tmp_path / "a.tum"
+    f.write_text("1 0 0 0 0 0 0 1\n2 1 0 0 0 0 0 1\n")
+    for args, message in (
+        (["--overlap", "-1"], "error: --overlap: expected a non-negative number, got -1.0"),
+        (["--split", "1"], "error: --split: expected 0 (off) or an integer of at least 2, got 1"),
+        (["--body-frame", "x"], "error: --body-frame: 'x': expected NAME=CODE (e.g. robotA=ufl)"),
+    ):
+        res = CliRunner().invoke(app, ["convert", "tum", str(f), "-o", str(tmp_path / "o"), *args])
+        assert res.exit_code == 2 and res.output.strip() == message, res.output
+    with pytest.raises(ConfigError, match=r"^overlap_s: ") as err:
+        ConvertConfig("tum", (), overlap_s=-1.0)
+    assert err.value.option == "overlap_s"

@@ -75,6 +75,10 @@ def test_the_paper_spec_and_its_table_name_the_papers_figures():
             {"datasets": ["multi3500x8"], "options": {"gtsam": {"iters": 3}}},
             "options.gtsam.iters: unknown solve option",
         ),
+        (  # the method's registry entry says which options it reads: command reads no optimizer
+            {"datasets": ["multi3500x8"], "methods": ["command"], "options": {"command": {"optimizer": "lm"}}},
+            "options.command.optimizer: unknown solve option of method command (known: command, dimension)",
+        ),
     ],
 )
 def test_bad_specs_name_the_key(data, message):

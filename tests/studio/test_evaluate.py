@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 from studio.cli import app
-from studio.core.errors import EvaluationError, FormatError
+from studio.core.errors import ConfigError, EvaluationError, FormatError
 from studio.core.trajectory import Trajectory
 from studio.evaluate import Alignment, evaluate, format_markdown, format_table, score
 from studio.generator.presets import preset
@@ -252,6 +252,13 @@ def test_align_per_agent_removes_one_transform_per_agent(graph):
     assert ev.alignment_text == "se3 Umeyama alignment, one per agent"
 
 
+@pytest.mark.parametrize("align", ["none", "first-pose"])
+def test_the_library_refuses_align_per_agent_the_cli_refuses(graph, align):
+    with pytest.raises(ConfigError, match=rf"^align_per_agent: .* needs an se3 or sim3 alignment, not {align}$") as err:
+        score(graph, None, align=align, align_per_agent=True)
+    assert err.value.option == "align_per_agent"
+
+
 # ------------------------------------------------------------------------------------------ bad input
 
 
@@ -382,7 +389,10 @@ def test_cli_table_json_and_markdown(small):
     "args, message",
     [
         (["--json", "--markdown"], "error: --json and --markdown exclude each other"),
-        (["--align-per-agent"], "error: --align-per-agent needs --align se3 or --align sim3"),
+        (
+            ["--align-per-agent"],
+            "error: --align-per-agent: one alignment per agent needs an se3 or sim3 alignment, not none",
+        ),
         (["--estimate", "nowhere.g2o"], "error: nowhere.g2o: no such file or folder"),
         (["--rpe-delta-m", "0"], "error: the RPE distance must be a positive number of metres, got 0.0"),
     ],

@@ -1,0 +1,262 @@
+"""The registries are the one place a plug-in is declared: the CLI's choices and help lists, the
+solve defaults and bench's per-method options come from them, and the recipes of
+docs/architecture.md ("Where new things go") hold: a dummy method and a dummy source, each one
+registry entry registered for the test only, reach the CLI, the pipelines and bench with nothing
+else changed; a dummy generator mode reaches the config parser and ``studio synth``."""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import json
+import re
+from collections.abc import Iterator, MutableMapping
+from pathlib import Path
+from typing import Any, get_args
+
+import numpy as np
+import pytest
+import typer.main
+from typer.testing import CliRunner
+
+import studio.cli
+from studio.bench import bench_spec_from_dict
+from studio.converters.registry import SOURCES, Source, guess_source
+from studio.converters.tum import read_tum_sources
+from studio.core.errors import ConfigError
+from studio.generator.extended import WALK_MODES, WalkMode
+from studio.io.synth_config import parse_synth_config
+from studio.solvers import METHODS, SolveMethod
+from studio.solvers.problem import Init, Optimizer, Solution
+from tests.converters.synthetic import loop_trajectory, write_tum_file
+
+REPO = Path(__file__).resolve().parents[2]
+DATA = REPO / "tests" / "data"
+
+
+def _params(app: typer.Typer, command: str) -> dict[str, Any]:
+    return {p.name: p for p in typer.main.get_command(app).commands[command].params}  # type: ignore[attr-defined]
+
+
+def _help(app: typer.Typer, command: str) -> str:
+    """The command's help without white space (help text wraps lines, also at hyphens)."""
+    res = CliRunner().invoke(app, [command, "--help"], env={"COLUMNS": "300"})
+    assert res.exit_code == 0, res.output
+    return re.sub(r"\s+", "", res.output)
+
+
+def _bare(text: str) -> str:
+    return re.sub(r"\s+", "", text)
+
+
+@contextlib.contextmanager
+def _registered(registry: MutableMapping[str, Any], name: str, entry: Any) -> Iterator[typer.Typer]:
+    """``entry`` in ``registry`` under ``name``, and the CLI built anew from the registries; both
+    restored afterwards (the CLI module is reloaded, since typer reads the choices when it is built)."""
+    assert name not in registry
+    registry[name] = entry
+    try:
+        yield importlib.reload(studio.cli).app
+    finally:
+        del registry[name]
+        importlib.reload(studio.cli)
+
+
+# ------------------------------------------------------------------------------------ the CLI's lists
+
+
+def test_solve_choices_and_help_are_the_method_registry():
+    params = _params(studio.cli.app, "solve")
+    assert tuple(params["method"].type.choices) == tuple(METHODS)
+    assert tuple(params["optimizer"].type.choices) == get_args(Optimizer)
+    assert tuple(params["init"].type.choices) == get_args(Init)
+    text = _help(studio.cli.app, "solve")
+    for name, entry in METHODS.items():
+        assert _bare(f"{name} ({entry.help})") in text
+    assert "g2o:10" in text  # g2o's own default, declared on its entry
+
+
+def test_convert_help_lists_the_source_registry():
+    text = _help(studio.cli.app, "convert")
+    for name, src in SOURCES.items():
+        assert _bare(f"{name}: {src.help}") in text
+        assert _bare(f"{name}: {src.inputs}") in text
+
+
+def test_the_cli_and_pipelines_name_no_method_or_source():
+    """Choices are not copied: no method or source name is written in the CLI, and the pipelines do
+    not switch on one (``== "g2o"``, ``== "airmuseum"``)."""
+    cli = (REPO / "studio" / "cli.py").read_text(encoding="utf-8")
+    # `studio check --convention g2o` names g2o's error convention, not the solve method
+    cli = re.sub(r"class ConventionChoice\b.*?\n\n\n", "", cli, flags=re.DOTALL)
+    for name in (*METHODS, *SOURCES):
+        assert not re.search(rf'(?<![\w-])"{re.escape(name)}"', cli), name
+    for module in ("solve.py", "bench.py", "convert.py", "sweep.py"):
+        text = (REPO / "studio" / module).read_text(encoding="utf-8")
+        for name in (*METHODS, *SOURCES):
+            assert not re.search(rf'[=!]= *"{re.escape(name)}"', text), (module, name)
+
+
+def test_an_entry_may_only_name_solve_options():
+    with pytest.raises(ConfigError, match="'iters' is not a SolveOptions field"):
+        SolveMethod("bad", METHODS["gtsam"].solve, "", ("iters",))
+    with pytest.raises(ConfigError, match="a default for 'init', which it does not read"):
+        SolveMethod("bad", METHODS["gtsam"].solve, "", ("max_iterations",), {"init": "odometry"})
+
+
+# ------------------------------------------------------------------------- a dummy method, one entry
+
+
+def _dead_reckoning(problem, options, on_iteration=None):
+    """A method that returns the initial values after ``options.max_iterations`` do-nothing steps."""
+    return Solution(problem.initial.copy(), options.max_iterations, notes={"dummy": True})
+
+
+def test_a_new_method_is_one_registry_entry(tmp_path):
+    from studio.synth import load_synth_config, synthesize
+
+    ds = synthesize(load_synth_config(DATA / "configs" / "tiny_single.json"), tmp_path, rrd=False, jobs=1)
+    entry = SolveMethod(
+        "dead-reckoning", _dead_reckoning, "keeps the initial values", ("max_iterations",), {"max_iterations": 3}
+    )
+    with _registered(METHODS, "dead-reckoning", entry) as app:
+        assert "dead-reckoning" in _params(app, "solve")["method"].type.choices
+        text = _help(app, "solve")
+        assert _bare("dead-reckoning (keeps the initial values)") in text and "dead-reckoning:3" in text
+        out = tmp_path / "solved"
+        res = CliRunner().invoke(app, ["solve", str(ds.dataset_dir), "-o", str(out), "-m", "dead-reckoning"])
+        assert res.exit_code == 0, res.output
+        info = json.loads((out / "solve.json").read_text())
+        assert info["method"] == "dead-reckoning" and info["iterations"] == 3  # the entry's own default
+        assert info["notes"] == {"dummy": True}
+        assert info["chi2_final"] == pytest.approx(info["chi2_dataset"])
+        # bench takes it, with the options its entry reads and no other
+        spec = {"datasets": ["x"], "methods": ["dead-reckoning"], "options": {"dead-reckoning": {"max_iterations": 5}}}
+        assert bench_spec_from_dict(spec, "spec.toml").methods == ("dead-reckoning",)
+        spec["options"] = {"dead-reckoning": {"init": "odometry"}}
+        with pytest.raises(ConfigError, match=r"options\.dead-reckoning\.init: unknown solve option"):
+            bench_spec_from_dict(spec, "spec.toml")
+    assert "dead-reckoning" not in _params(studio.cli.app, "solve")["method"].type.choices
+
+
+# ------------------------------------------------------------------------- a dummy source, one entry
+
+
+def _read_walker(inputs, *, agents=(), warn=None, progress=None):
+    """A ``.walk`` file is a TUM file under another suffix (the test's stand-in for a new format)."""
+    return read_tum_sources(inputs, agents=agents, warn=warn, progress=progress)
+
+
+def test_a_new_source_is_one_registry_entry(tmp_path):
+    s, p, q = loop_trajectory(300)
+    walk = write_tum_file(tmp_path / "walker.walk", s, p, q)
+    tum = write_tum_file(tmp_path / "walker.tum", s, p, q)
+    entry = Source(
+        _read_walker,
+        "walk files",
+        "their files",
+        "the test's walk files",
+        detect=lambda path: path.suffix == ".walk",
+        body_frames={"walker": "ufl"},
+    )
+    with _registered(SOURCES, "walk", entry) as app:
+        text = _help(app, "convert")
+        assert _bare("walk: the test's walk files") in text and "walk:walkfiles" in text
+        assert guess_source([walk]) == "walk"
+
+        def convert(*args: object) -> dict[str, bytes]:
+            out = tmp_path / f"ds{len(list(tmp_path.glob('ds*')))}"
+            res = CliRunner().invoke(app, ["convert", *map(str, args), "-o", str(out), "--no-rrd"])
+            assert res.exit_code == 0, res.output
+            return {p.name: p.read_bytes() for p in sorted((out / "agent1").iterdir())}
+
+        guessed = convert(walk)  # no FORMAT: the entry's detect claims the path
+        assert guessed == convert("walk", walk)
+        # the entry's default body frame is applied (the TUM source has none) and --body-frame wins
+        assert guessed != convert("tum", tum)
+        assert convert("walk", walk, "--body-frame", "walker=flu") == convert("tum", tum)
+    with pytest.raises(ConfigError, match="cannot tell the source"):
+        guess_source([walk])
+
+
+def test_a_path_two_sources_claim_is_ambiguous(tmp_path):
+    path = tmp_path / "x.tum"
+    path.write_text("1 0 0 0 0 0 0 1\n")
+    entry = Source(_read_walker, "files", "their files", "", detect=lambda p: p.suffix == ".tum")
+    with _registered(SOURCES, "also-tum", entry):
+        with pytest.raises(ConfigError, match="the inputs look like also-tum, tum: name it"):
+            guess_source([path])
+
+
+def test_detection_sees_each_source(tmp_path):
+    """Each entry's detect recognises its own layout and no other's."""
+    (tmp_path / "seq" / "mav0" / "state_groundtruth_estimate0").mkdir(parents=True)
+    (tmp_path / "seq" / "mav0" / "state_groundtruth_estimate0" / "data.csv").write_text("#t\n")
+    (tmp_path / "s3e").mkdir()
+    (tmp_path / "s3e" / "alpha_gt.txt").write_text("1 0 0 0 0 0 0 1\n")
+    (tmp_path / "am" / "data" / "robotA").mkdir(parents=True)
+    (tmp_path / "am" / "data" / "robotA" / "body_stamped_groundtruth.txt").write_text("# t\n")
+    (tmp_path / "kimera").mkdir()
+    (tmp_path / "kimera" / "acl_jackal_gt_odom.csv").write_text("t\n")
+    (tmp_path / "ros2").mkdir()
+    (tmp_path / "ros2" / "metadata.yaml").write_text("x\n")
+    (tmp_path / "poses.txt").write_text(" ".join(["0"] * 12) + "\n")
+    (tmp_path / "traj.txt").write_text("# comment\n" + " ".join(["0"] * 8) + "\n")
+    expected = {
+        "seq": "euroc",
+        "s3e": "s3e",
+        "am": "airmuseum",
+        "kimera": "kimera-multi",
+        "ros2": "bag",
+        "poses.txt": "kitti",
+        "traj.txt": "tum",
+    }
+    for name, source in expected.items():
+        assert guess_source([tmp_path / name]) == source, name
+    np.testing.assert_equal(sorted(expected.values()), sorted(SOURCES))
+
+
+# ------------------------------------------------------------------------- a dummy mode, one entry
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_a_new_generator_mode_is_one_registry_entry(tmp_path):
+    from studio.synth import load_synth_config, synthesize
+
+    data = json.loads((DATA / "configs" / "small3x100.json").read_text())
+    data["exact_information_matrix"] = False
+    calls: list[str] = []
+
+    def again(name: str) -> Any:
+        def run(cfg, seeds, *, jobs, progress):  # another walk's, counted
+            calls.append(cfg.name)
+            return WALK_MODES[name].run(cfg, seeds, jobs=jobs, progress=progress)
+
+        return run
+
+    data["studio"] = {"version": 1, "walk": "again"}
+    with pytest.raises(ConfigError, match=r"studio\.walk.*'again'"):
+        parse_synth_config(data, name="again")
+    with _registered(WALK_MODES, "again", WalkMode("again", "kollagen's walk, counted", again("kollagen"), True)):
+        res = synthesize(parse_synth_config(data, name="again"), tmp_path / "a", rrd=False, jobs=1)
+    assert calls == ["again"]
+    plain = synthesize(load_synth_config(DATA / "configs" / "small3x100.json"), tmp_path / "b", rrd=False, jobs=1)
+    assert res.single_dir is not None and res.single_dir.is_dir()  # a planar mode offers the single-g2o view
+    assert _files(res.dataset_dir) == _files(plain.dataset_dir)  # the same walk: the same bytes
+    assert json.loads(res.config_path.read_text())["studio"]["walk"] == "again"
+
+    # a spatial mode: no single-g2o view, and neither Exact information nor 2D records
+    data["studio"] = {"version": 1, "walk": "tower"}
+    with _registered(WALK_MODES, "tower", WalkMode("tower", "grid3d's walk, counted", again("grid3d"), False)):
+        res = synthesize(parse_synth_config(data, name="tower"), tmp_path / "c", rrd=False, jobs=1)
+        assert res.single_dir is None and res.output.graph.kind.name == "SE3"
+        with pytest.raises(ConfigError, match="walk tower is 3D"):
+            synthesize(parse_synth_config(data, name="tower"), tmp_path / "d", multi_records="2d", rrd=False)
+        with pytest.raises(ConfigError, match='Exact information is planar; walk "tower"'):
+            parse_synth_config({**data, "exact_information_matrix": True}, name="tower")
+        with pytest.raises(ConfigError, match='studio.grid3d.*applies to walk "grid3d" only'):
+            parse_synth_config({**data, "studio": {**data["studio"], "grid3d": {"vertical_step": 2.0}}}, name="t")
+    assert calls == ["again", "tower"]
