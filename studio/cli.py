@@ -472,6 +472,7 @@ class MethodChoice(str, enum.Enum):
     g2o = "g2o"
     gnc = "gnc"
     command = "command"
+    dgs = "dgs"
 
 
 class OptimizerChoice(str, enum.Enum):
@@ -500,13 +501,15 @@ def solve(
         MethodChoice.gtsam,
         "--method",
         "-m",
-        help="gtsam (chordal guess + GN), g2o (paper's setup), gnc (robust), command (an external program).",
+        help="gtsam (chordal guess + GN), g2o (paper's setup), gnc (robust), command (an external program), "
+        "dgs (Distributed Gauss-Seidel, one robot per agent).",
     ),
     optimizer: OptimizerChoice = typer.Option(OptimizerChoice.gn, "--optimizer", help="gn or lm (gtsam)."),
     init: InitChoice = typer.Option(InitChoice.chordal, "--init", help="Initial guess (gtsam, gnc)."),
     iterations: int | None = typer.Option(
-        None, "--iterations", help="Most iterations (default 20; g2o: exactly 10, as the paper)."
+        None, "--iterations", help="Most iterations (default 20; g2o: exactly 10, as the paper; dgs: rounds, 100)."
     ),
+    robots: int = typer.Option(0, "--robots", help="dgs on a single .g2o: that many robots of contiguous ids (0: 8)."),
     command: str = typer.Option(
         "",
         "--command",
@@ -539,6 +542,7 @@ def solve(
         dimension=dimension.value,  # type: ignore[arg-type]
         force=force,
         rrd=rrd,
+        robots=robots,
     )
     if as_json:
         typer.echo(json.dumps(res.to_dict(), indent=2))
@@ -549,6 +553,18 @@ def solve(
         f"{res.chi2_final:.6g} (dead reckoning {res.chi2_dataset:.6g}){rejected}, {res.seconds:.2f} s\n"
         f"  {res.estimate_path}" + ("" if res.rrd_path is None else f"\n  {res.rrd_path}")
     )
+    if res.method == "dgs":
+        notes = res.solution.notes
+        typer.echo(
+            f"  dgs: {notes['robots']} robots, {notes['rounds']} rounds ({notes['rotation_rounds']} rotation, "
+            f"{notes['pose_rounds']} pose), {notes['bytes_total']:,} bytes sent"
+            + ("" if notes["converged"] else " (stopped at the round limit before the tolerances)")
+        )
+        curve = res.ape_per_round
+        if curve is not None:
+            typer.echo("  round  APE first-pose mean [m]  APE se3 mean [m]")
+            for k, fp, s3 in zip(curve["round"], curve["first_pose_mean_m"], curve["se3_mean_m"]):
+                typer.echo(f"  {k:5d}  {fp:23.6f}  {s3:16.6f}")
 
 
 class ConventionChoice(str, enum.Enum):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from studio.core.errors import ConfigError
 from studio.solvers.command import solve_command
+from studio.solvers.dgs import solve_dgs
 from studio.solvers.g2o_method import solve_g2o
 from studio.solvers.gtsam_method import solve_gnc, solve_gtsam
 from studio.solvers.problem import Method
@@ -23,6 +24,7 @@ METHODS: dict[str, Method] = {
     "g2o": solve_g2o,
     "gnc": solve_gnc,
     "command": solve_command,
+    "dgs": solve_dgs,
 }
 
 
