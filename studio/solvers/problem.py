@@ -69,8 +69,11 @@ class SolveOptions:
     """``dgs``: the rotation stage stops when no rotation-matrix entry changes more in a round."""
     pose_tol: float = 1e-2
     """``dgs``: a pose-stage system stops when no update entry [m, rad] changes more in a round."""
-    gamma: float = 1.0
-    """``dgs``: over-relaxation of each robot's block update (1: plain Gauss-Seidel)."""
+    rotation_gamma: float = 1.0
+    """``dgs``: over-relaxation of each robot's block update in the rotation stage (1: plain Gauss-Seidel)."""
+    pose_gamma: float = 1.9
+    """``dgs``: over-relaxation of each robot's block update in the pose stage (measured best of
+    1, 1.3, 1.6, 1.9 on kollagen's datasets, see docs/solve.md)."""
     schedule: str = "gauss-seidel"
     """``dgs``: robots update in turn (``gauss-seidel``) or all from the last round (``jacobi``)."""
 
