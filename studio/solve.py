@@ -335,7 +335,7 @@ def solve(
         rejected,
         solution,
         rrd_path,
-        None if scorer is None else scorer.curve,
+        None if scorer is None else scorer.rounds(solution),
     )
     stem = Path(dataset).stem
     with staged_outputs(out.parent, [out.name], force=force) as staging:
@@ -378,6 +378,11 @@ class _RoundScorer:
         gt = [np.asarray(a.ground_truth) for a in graph.to_se3().agents]
         keys = ("round", "first_pose_mean_m", "first_pose_rmse_m", "se3_mean_m", "se3_rmse_m")
         return cls(loaded, gt, {k: [] for k in keys})
+
+    def rounds(self, solution: Solution) -> dict[str, list[float]]:
+        """The curve with ``round`` the dgs round of each iteration (iteration i >= 1: pose round i)."""
+        skip = int(solution.notes.get("rotation_rounds", 0))  # type: ignore[call-overload]
+        return {**self.curve, "round": [k + skip if k else 0 for k in self.curve["round"]]}
 
     def add(self, k: int, poses: np.ndarray) -> None:
         from studio.evaluate import ape_translation

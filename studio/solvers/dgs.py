@@ -550,16 +550,23 @@ def dgs_rounds(
 def solve_dgs(problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution:
     """The ``dgs`` method (see the module doc): robots from ``problem.agent_of_vertex``, else a
     contiguous split into ``options.robots``; ``options.max_iterations`` rounds at most.
-    ``on_iteration`` gets round 0 (the dataset's values) and every pose-stage round's estimate."""
+
+    Iteration 0 is the dataset's values (DGS has no separate initial guess: each robot starts from
+    its own odometry), iteration ``i >= 1`` the estimate after the ``i``-th pose-stage round (round
+    ``rotation_rounds + i``; the rotation stage's rounds have no poses): ``on_iteration`` gets them
+    and ``chi2_history`` holds their chi2."""
     robot = problem.agent_of_vertex
     if robot is None:
         robot = contiguous_robots(problem.num_vertices, options.robots or min(8, problem.num_vertices))
     if on_iteration is not None:
         on_iteration(0, problem.initial)
 
+    pose_rounds = [0]
+
     def on_round(r: DgsRound, poses: np.ndarray | None) -> None:
         if on_iteration is not None and poses is not None:
-            on_iteration(r.round, poses)
+            pose_rounds[0] += 1
+            on_iteration(pose_rounds[0], poses)
 
     result = dgs_rounds(
         problem,
@@ -572,11 +579,13 @@ def solve_dgs(problem: Problem, options: SolveOptions, on_iteration: Iteration |
         schedule=options.schedule,  # type: ignore[arg-type]  # dgs_rounds checks it
         on_round=on_round,
     )
+    history = (graph_chi2(problem, problem.initial), *(r.chi2 for r in result.rounds if r.chi2 is not None))
     return Solution(
         result.poses,
         result.num_rounds,
-        result.chi2_history,
+        history,
         notes={
+            "chi2_first_linearization": result.chi2_initial,
             "robots": result.robots,
             "rounds": result.num_rounds,
             "rotation_rounds": result.rotation_rounds,

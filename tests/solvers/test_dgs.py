@@ -101,8 +101,10 @@ def test_the_solve_method_reports_rounds_and_bytes_and_calls_back_per_round():
     sol = get_method("dgs")(problem, SolveOptions(max_iterations=60), lambda k, poses: seen.append(k))
     notes = sol.notes
     assert sol.iterations == notes["rounds"] == notes["rotation_rounds"] + notes["pose_rounds"] <= 60
-    assert seen == [0, *range(notes["rotation_rounds"] + 1, notes["rounds"] + 1)]
+    assert seen == list(range(notes["pose_rounds"] + 1))  # iteration i: the i-th pose-stage round
     assert len(sol.chi2_history) == notes["pose_rounds"] + 1
+    assert sol.chi2_history[0] == graph_chi2(problem, problem.initial)
+    assert sol.chi2_history[1:] == tuple(c for c in notes["round_chi2"] if c is not None)
     assert notes["bytes_total"] == sum(notes["bytes_per_robot"]) == sum(notes["round_bytes"])
     assert sum(notes["bytes_per_link"].values()) == notes["bytes_total"]
     assert set(notes["bytes_per_link"]) <= {f"{a}->{b}" for a in range(3) for b in range(3) if a != b}
