@@ -516,10 +516,8 @@ def dgs_rounds(
         blocks = _factorise(h, dofs_of(b, fix_anchor=robots == 1 or schedule == "jacobi"), n * b)
         linearizations += 1
         delta = np.zeros(n * b)
-        step_rounds = 0
         while len(rounds) < max_rounds:
             change = _round(delta, g, blocks, schedule, pose_gamma)
-            step_rounds += 1
             poses = _reanchor(kind, _retract(kind, lin, delta.reshape(n, b)), anchor, start[anchor])
             sent = send(b) + handshake
             handshake = 0
