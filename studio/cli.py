@@ -563,6 +563,7 @@ def solve(
         SolveOptions().init, "--init", help=f"Initial guess (methods: {_readers_of('init')})."
     ),
     iterations: int | None = typer.Option(None, "--iterations", help=_iterations_help()),
+    robots: int = typer.Option(0, "--robots", help="dgs on a single .g2o: that many robots of contiguous ids (0: 8)."),
     command: str = typer.Option(
         "",
         "--command",
@@ -596,6 +597,7 @@ def solve(
         dimension=dimension.value,  # type: ignore[arg-type]
         force=force,
         rrd=rrd,
+        robots=robots,
     )
     if as_json:
         typer.echo(json.dumps(res.to_dict(), indent=2))
@@ -606,6 +608,18 @@ def solve(
         f"{res.chi2_final:.6g} (dead reckoning {res.chi2_dataset:.6g}){rejected}, {res.seconds:.2f} s\n"
         f"  {res.estimate_path}" + ("" if res.rrd_path is None else f"\n  {res.rrd_path}")
     )
+    if "rounds" in res.solution.notes:  # a method that works in rounds (dgs) says how they went
+        notes = res.solution.notes
+        typer.echo(
+            f"  dgs: {notes['robots']} robots, {notes['rounds']} rounds ({notes['rotation_rounds']} rotation, "
+            f"{notes['pose_rounds']} pose), {notes['bytes_total']:,} bytes sent"
+            + ("" if notes["converged"] else " (stopped at the round limit before the tolerances)")
+        )
+        curve = res.ape_per_round
+        if curve is not None:
+            typer.echo("  round  APE first-pose mean [m]  APE se3 mean [m]")
+            for k, fp, s3 in zip(curve["round"], curve["first_pose_mean_m"], curve["se3_mean_m"]):
+                typer.echo(f"  {k:5d}  {fp:23.6f}  {s3:16.6f}")
 
 
 class ConventionChoice(str, enum.Enum):

@@ -50,6 +50,7 @@ __all__ = [
     "ErrorStats",
     "evaluate",
     "score",
+    "ape_translation",
     "format_table",
     "format_markdown",
     "DEFAULT_TUM_MAX_DIFF_S",
@@ -453,6 +454,42 @@ def score(
         alignment_transforms=tuple(transforms),
         warnings=tuple(warnings),
     )
+
+
+@_quiet_numpy
+def ape_translation(
+    graph: PoseGraph, ground_truth_se3: Sequence[np.ndarray], poses_se3: Sequence[np.ndarray], *, align: Alignment | str
+) -> ErrorStats:
+    """The translation APE [m] of :func:`score` (its row ``all``) and nothing else, for scoring many
+    iterates of one estimate cheaply: ``poses_se3`` one ``(n_a, 7)`` array per agent, vertex k of an
+    agent its pose k; ``ground_truth_se3`` the graph's ground truth in 3D (``graph.to_se3()``'s,
+    passed in so a caller converts it once). ``first-pose`` aligns each agent, ``se3``/``sim3`` all
+    agents together, as :func:`score` does."""
+    align = Alignment(align)
+    if len(poses_se3) != len(graph.agents) or len(ground_truth_se3) != len(graph.agents):
+        raise EvaluationError(f"the estimate has {len(poses_se3)} agents, the dataset {len(graph.agents)}")
+    ests = [np.asarray(p, dtype=np.float64) for p in poses_se3]
+    for agent, gt, est in zip(graph.agents, ground_truth_se3, ests):
+        if est.shape != gt.shape:
+            raise EvaluationError(f"estimate of {agent.name}: {len(est)} poses for the dataset's {len(gt)}")
+        _check_finite(est, f"estimate of {agent.name}")
+    if align is Alignment.first_pose:
+        ests = [_apply(est, *_first_pose_transform(gt[0], est[0]), 1.0) for gt, est in zip(ground_truth_se3, ests)]
+    elif align is not Alignment.none:
+        r, t, s = _umeyama(
+            np.concatenate([e[:, 0:3] for e in ests]),
+            np.concatenate([g[:, 0:3] for g in ground_truth_se3]),
+            align is Alignment.sim3,
+            "all agents",
+        )
+        ests = [_apply(est, r, t, s) for est in ests]
+    errors = np.linalg.norm(
+        np.concatenate([g[:, 0:3] for g in ground_truth_se3]) - np.concatenate([e[:, 0:3] for e in ests]), axis=1
+    )
+    stats = ErrorStats.of(errors)
+    if stats is None or not np.all(np.isfinite(errors)):
+        raise EvaluationError("estimate: no finite translation error to score")
+    return stats
 
 
 def evaluate(

@@ -16,7 +16,9 @@ kollagen's connector edges joining agent k's last pose to agent k+1's first).
 
 ``solve.json`` beside the estimate holds the method, options, iterations, chi2 (g2o convention,
 sum of e^T Omega e) at the dataset's initial values, after the initial guess and at the end, the
-wall time and, for ``gnc``, the loop closures it rejected. Outputs are staged and renamed.
+wall time and, for ``gnc``, the loop closures it rejected; for ``dgs`` (one robot per agent of a
+multi-g2o folder, ``robots`` contiguous runs of ids of a single g2o) its rounds and bytes in
+``notes`` and, with ground truth, ``ape_per_round``. Outputs are staged and renamed.
 """
 
 from __future__ import annotations
@@ -79,8 +81,12 @@ class SolveResult:
     """``gnc``: rows ``from_agent from_vertex to_agent to_vertex`` (0-based) of rejected closures."""
     solution: Solution
     rrd_path: Path | None = None
+    ape_per_round: dict[str, list[float]] | None = None
+    """``dgs`` with ground truth: the round numbers and the translation APE [m] (mean and RMSE,
+    ``first-pose`` and ``se3`` aligned) after each of them (round 0: the dataset's values)."""
 
     def to_dict(self) -> dict[str, Any]:
+        extra = {} if self.ape_per_round is None else {"ape_per_round": self.ape_per_round}
         return {
             "method": self.method,
             "options": dataclasses.asdict(self.options),
@@ -94,6 +100,7 @@ class SolveResult:
             "estimate": self.estimate_path.name,
             "rejected_loop_closures": None if self.rejected is None else self.rejected.tolist(),
             "notes": self.solution.notes,
+            **extra,
         }
 
 
@@ -107,6 +114,7 @@ def _planar_problem(p: Problem) -> Problem:
         se3_information_to_se2(p.information_upper),
         p.robust,
         p.anchor,
+        p.agent_of_vertex,
     )
 
 
@@ -135,6 +143,7 @@ def _flatten(graph: PoseGraph) -> tuple[Problem, np.ndarray]:
         np.concatenate(meas),
         np.concatenate(info),
         np.concatenate(robust),
+        agent_of_vertex=np.repeat(np.arange(len(sizes), dtype=np.int64), sizes),
     )
     return problem, offsets
 
@@ -256,12 +265,16 @@ def solve(
     dimension: Dimension = "auto",
     force: bool = False,
     rrd: PathLike | None = None,
+    robots: int = 0,
 ) -> SolveResult:
     """Optimize ``dataset`` with ``method`` and write the estimate and ``solve.json`` into the folder
     ``out`` (staged, renamed into place; an existing ``out`` is replaced only with ``force``).
 
     ``rrd`` also writes a Rerun recording of the run (every iteration on an ``iteration`` timeline,
-    beside the ground truth, with the cost per iteration)."""
+    beside the ground truth, with the cost per iteration).
+
+    ``robots``: ``dgs`` on a single g2o file, that many robots of contiguous vertex ids (a multi-g2o
+    folder's robots are its agents); with ground truth, ``dgs`` also scores every round (APE)."""
     from studio.io.atomic import staged_outputs
 
     entry = method_entry(method)
@@ -276,7 +289,9 @@ def solve(
         raise ConfigError(f"max_iterations: expected an integer in 1..10000, got {max_iterations!r}")
     if not (isinstance(relative_tolerance, (int, float)) and 0 <= relative_tolerance < 1):
         raise ConfigError(f"relative_tolerance: expected a number in [0, 1), got {relative_tolerance!r}")
-    options = SolveOptions(optimizer, init, max_iterations, float(relative_tolerance), command)  # type: ignore[arg-type]
+    if isinstance(robots, bool) or not isinstance(robots, int) or robots < 0:
+        raise ConfigError(f"robots: expected a whole number of robots (0: the default), got {robots!r}")
+    options = SolveOptions(optimizer, init, max_iterations, float(relative_tolerance), command, robots)  # type: ignore[arg-type]
     out = Path(out)
     rrd_path = None if rrd is None else Path(rrd)
     if rrd_path is not None and rrd_path.suffix != ".rrd":
@@ -286,10 +301,14 @@ def solve(
     problem = loaded.problem
     iterates: list[tuple[int, np.ndarray]] = []
     on_iteration: Iteration | None = None
-    if rrd_path is not None:
+    scorer = _RoundScorer.of(loaded) if entry.scores_rounds else None
+    if rrd_path is not None or scorer is not None:
 
         def on_iteration(k: int, poses: np.ndarray) -> None:
-            iterates.append((k, poses.copy()))
+            if rrd_path is not None:
+                iterates.append((k, poses.copy()))
+            if scorer is not None:
+                scorer.add(k, poses)
 
     try:
         solution = solver(problem, options, on_iteration)
@@ -318,6 +337,7 @@ def solve(
         rejected,
         solution,
         rrd_path,
+        None if scorer is None else scorer.rounds(solution),
     )
     stem = Path(dataset).stem
     with staged_outputs(out.parent, [out.name], force=force) as staging:
@@ -342,6 +362,42 @@ def solve(
             force=force,
         )
     return result
+
+
+@dataclass(eq=False)
+class _RoundScorer:
+    """The translation APE of each iterate (``first-pose`` and ``se3``), with evaluate's metric."""
+
+    loaded: Loaded
+    ground_truth: list[np.ndarray]
+    curve: dict[str, list[float]]
+
+    @classmethod
+    def of(cls, loaded: Loaded) -> _RoundScorer | None:
+        graph = loaded.graph
+        if graph is None or any(a.ground_truth is None for a in graph.agents):
+            return None
+        gt = [np.asarray(a.ground_truth) for a in graph.to_se3().agents]
+        keys = ("round", "first_pose_mean_m", "first_pose_rmse_m", "se3_mean_m", "se3_rmse_m")
+        return cls(loaded, gt, {k: [] for k in keys})
+
+    def rounds(self, solution: Solution) -> dict[str, list[float]]:
+        """The curve with ``round`` the dgs round of each iteration (iteration i >= 1: pose round i)."""
+        skip = int(solution.notes.get("rotation_rounds", 0))  # type: ignore[call-overload]
+        return {**self.curve, "round": [k + skip if k else 0 for k in self.curve["round"]]}
+
+    def add(self, k: int, poses: np.ndarray) -> None:
+        from studio.evaluate import ape_translation
+
+        if self.loaded.problem.kind is PoseKind.SE2:
+            poses = planar_poses_to_se3(poses)
+        offsets = self.loaded.offsets
+        per_agent = [poses[offsets[a] : offsets[a + 1]] for a in range(len(offsets) - 1)]
+        assert self.loaded.graph is not None
+        first = ape_translation(self.loaded.graph, self.ground_truth, per_agent, align="first-pose")
+        se3 = ape_translation(self.loaded.graph, self.ground_truth, per_agent, align="se3")
+        for key, value in zip(self.curve, (k, first.mean, first.rmse, se3.mean, se3.rmse)):
+            self.curve[key].append(value)
 
 
 def _json_default(value: Any) -> Any:

@@ -18,6 +18,7 @@ from typing import Any
 
 from studio.core.errors import ConfigError
 from studio.solvers.command import solve_command
+from studio.solvers.dgs import DEFAULT_MAX_ROUNDS, solve_dgs
 from studio.solvers.g2o_method import G2O_DEFAULT_ITERATIONS, solve_g2o
 from studio.solvers.gtsam_method import solve_gnc, solve_gtsam
 from studio.solvers.problem import Method, SolveOptions
@@ -50,6 +51,8 @@ class SolveMethod:
     """The :class:`SolveOptions` fields the method reads (the others are ignored by it)."""
     defaults: Mapping[str, Any] = field(default_factory=dict)
     """The method's own defaults for some of :attr:`options` (``SolveOptions``' defaults otherwise)."""
+    scores_rounds: bool = False
+    """A method that works in rounds (dgs): with ground truth, ``solve`` scores the APE after each."""
 
     def __post_init__(self) -> None:
         for key in (*self.options, *self.defaults):
@@ -81,6 +84,14 @@ METHODS: dict[str, SolveMethod] = {
         ),
         SolveMethod("gnc", solve_gnc, "robust: rejects outlier loop closures", _GTSAM_OPTIONS),
         SolveMethod("command", solve_command, "an external program", ("command",)),
+        SolveMethod(
+            "dgs",
+            solve_dgs,
+            "Distributed Gauss-Seidel: chordal rotations, then poses, each robot its own block, rounds counted",
+            ("max_iterations", "robots", "rotation_tol", "pose_tol", "rotation_gamma", "pose_gamma", "schedule"),
+            {"max_iterations": DEFAULT_MAX_ROUNDS},
+            scores_rounds=True,
+        ),
     )
 }
 

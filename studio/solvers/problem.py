@@ -35,6 +35,9 @@ class Problem:
     robust: np.ndarray
     """Per edge, True where a robust method may reject it (loop closures); odometry is trusted."""
     anchor: int = 0
+    agent_of_vertex: np.ndarray | None = None
+    """Per vertex, the index of the robot (agent) that owns it, when known (a multi-g2o dataset);
+    distributed methods (``dgs``) split the problem by it."""
 
     @property
     def num_vertices(self) -> int:
@@ -59,6 +62,20 @@ class SolveOptions:
     """Stop when the cost decreases by less than this fraction."""
     command: str = ""
     """``command`` method: the program to run, with ``{input}`` and ``{output}`` placeholders."""
+    robots: int = 0
+    """``dgs`` on a problem without robot identity (a single g2o): that many robots of contiguous
+    vertex ids (DPGO's split); 0: 8, or fewer if the graph has fewer vertices."""
+    rotation_tol: float = 1e-2
+    """``dgs``: the rotation stage stops when no rotation-matrix entry changes more in a round."""
+    pose_tol: float = 1e-2
+    """``dgs``: a pose-stage system stops when no update entry [m, rad] changes more in a round."""
+    rotation_gamma: float = 1.0
+    """``dgs``: over-relaxation of each robot's block update in the rotation stage (1: plain Gauss-Seidel)."""
+    pose_gamma: float = 1.9
+    """``dgs``: over-relaxation of each robot's block update in the pose stage (measured best of
+    1, 1.3, 1.6, 1.9 on kollagen's datasets, see docs/solve.md)."""
+    schedule: str = "gauss-seidel"
+    """``dgs``: robots update in turn (``gauss-seidel``) or all from the last round (``jacobi``)."""
 
 
 @dataclass(frozen=True, eq=False)
