@@ -46,9 +46,9 @@ from studio.core.geometry import (
     yaw_from_quat_xyzw,
 )
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
-from studio.core.progress import Progress  # the callback type of build_graph (re-exported)
 from studio.core.trajectory import Trajectory
 from studio.core.units import NS_PER_S
+from studio.runtime.progress import Progress  # the callback type of build_graph (re-exported)
 
 __all__ = [
     "GraphOptions",

@@ -16,8 +16,8 @@ import typer
 
 from studio.core.alignment import Alignment
 from studio.core.errors import StudioError
-from studio.core.progress import terminal_progress
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
+from studio.runtime.progress import terminal_progress
 
 app = typer.Typer(
     name="studio",
@@ -639,7 +639,7 @@ def sweep(
 def _tune_allocator() -> None:
     """glibc tuning for the commands that make many short-lived arrays (synth, convert); it keeps
     freed memory for reuse, so the other commands (solve: +80 MB peak) do without it."""
-    from studio.core.parallel import tune_allocator
+    from studio.runtime.parallel import tune_allocator
 
     tune_allocator()
 

@@ -35,9 +35,9 @@ import numpy as np
 from studio.core.alignment import Alignment
 from studio.core.errors import EvaluationError, OutputError
 from studio.core.model import PoseGraph
-from studio.core.progress import Progress, report
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
+from studio.runtime.progress import Progress, report
 
 if TYPE_CHECKING:
     from studio.core.trajectory import Trajectory

@@ -30,9 +30,7 @@ import numpy as np
 
 from studio.core.errors import FormatError, OutputError
 from studio.core.geometry import is_planar_se3
-from studio.core.interrupts import interrupts_deferred
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
-from studio.core.progress import Progress, report
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.io.atomic import check_not_overlapping, staged_outputs
@@ -64,6 +62,8 @@ from studio.recording.entities import (
     TIMELINE_TIME,
     WORLD,
 )
+from studio.runtime.interrupts import interrupts_deferred
+from studio.runtime.progress import Progress, report
 
 if TYPE_CHECKING:
     import rerun as rr
