@@ -32,7 +32,6 @@ from typing import Any
 
 import numpy as np
 
-from studio.core.checks import check_option
 from studio.core.errors import ConfigError
 from studio.core.geometry import (
     normalize_angle,
@@ -46,6 +45,7 @@ from studio.core.geometry import (
     yaw_from_quat_xyzw,
 )
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
+from studio.core.option_values import check_option
 from studio.core.trajectory import Trajectory
 from studio.core.units import NS_PER_S
 from studio.runtime.progress import Progress  # the callback type of build_graph (re-exported)

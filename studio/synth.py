@@ -7,9 +7,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from studio.core.checks import check_option
 from studio.core.errors import ConfigError
 from studio.core.model import PoseGraph
+from studio.core.option_values import check_option
 from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.generator.config import SynthConfig, estimate_resources

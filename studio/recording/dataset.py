@@ -14,7 +14,7 @@ and inter-agent loop closures so far. Dataset facts are recording properties (``
 Everything bulky goes through ``send_columns`` (never one ``log`` call per row). The content depends
 only on the dataset: the application id is fixed, the recording id is derived from the graph's
 columns, and no clock or host value is logged. Entity paths and timelines are in
-:mod:`studio.recording.entities`; exact checks in :mod:`studio.recording.checks`.
+:mod:`studio.recording.entities`; exact checks in :mod:`studio.recording.rrd_checks`.
 """
 
 from __future__ import annotations

@@ -31,7 +31,7 @@ def folder_bytes(root: Path) -> dict[str, bytes]:
 
 
 def rrd_fingerprint(root: Path) -> dict[str, str]:
-    from studio.recording.checks import fingerprint_rrd
+    from studio.recording.rrd_checks import fingerprint_rrd
 
     # the recording's name property is the folder's name; everything else must match
     return {

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from studio.recording.checks import fingerprint_rrd, read_fingerprint, rrd_compare, rrd_verify, write_fingerprint
+from studio.recording.rrd_checks import fingerprint_rrd, read_fingerprint, rrd_compare, rrd_verify, write_fingerprint
 from studio.synth import load_synth_config, synthesize
 
 REPO = Path(__file__).resolve().parent.parent.parent
