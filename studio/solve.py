@@ -35,6 +35,7 @@ from studio.core.geometry import is_planar_se3, planar_poses_to_se3, se3_informa
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
+from studio.core.units import MAX_MAGNITUDE as MAX_COORDINATE_M  # the one bound of every number
 from studio.solvers import DEFAULT_METHOD, get_method
 from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
 
@@ -177,10 +178,6 @@ def load_problem(dataset: PathLike, *, dimension: Dimension = "auto") -> Loaded:
         if planar:
             problem = _planar_problem(problem)
     return Loaded(problem, source_kind, graph, offsets, doc)
-
-
-#: Largest coordinate [m] a pose or a measurement may have: beyond it the optimizers' products overflow.
-MAX_COORDINATE_M = 1e9
 
 
 def _check_magnitudes(problem: Problem, path: Path) -> None:
