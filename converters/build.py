@@ -46,6 +46,7 @@ from studio.core.geometry import (
 )
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.option_values import check_option
+from studio.core.outliers import WrongVertexRule, plant_wrong_vertices
 from studio.core.trajectory import Trajectory
 from studio.core.units import NS_PER_S
 from studio.runtime.progress import Progress  # the callback type of build_graph (re-exported)
@@ -491,14 +492,15 @@ def build_graph(
         rng_out = _rng(opts.seed, _STREAM_OUTLIERS)
         k = int(round(opts.outlier_fraction * n_lc))
         chosen = np.sort(rng_out.choice(n_lc, size=k, replace=False))
-        for e in chosen.tolist():
-            # a wrong vertex of the same agent as the true one, at least 2R from it (and from i)
-            mask = (A == A[j[e]]) & (np.linalg.norm(P - P[j[e]], axis=1) >= 2 * opts.lc_radius)
-            mask &= np.linalg.norm(P - P[i[e]], axis=1) >= 2 * opts.lc_radius
-            cand = np.flatnonzero(mask)
-            if cand.size:
-                j_out[e] = cand[rng_out.integers(cand.size)]
-                outlier[e] = True
+        # a wrong vertex of the same agent as the true one, at least 2R from it and from the from vertex;
+        # a loop closure without such a vertex stays true
+        far = WrongVertexRule("far", min_to_m=2 * opts.lc_radius, min_from_m=2 * opts.lc_radius)
+        ends = np.column_stack([A[i], V[i], A[j], V[j]])
+        new_to, _ = plant_wrong_vertices(rng_out, ends, chosen.tolist(), [(far, k)], kf_pos)
+        first = np.cumsum([0] + [len(p) for p in kf_pos])  # each agent's first keyframe in P
+        for e, v in new_to.items():
+            j_out[e] = first[A[j[e]]] + v
+            outlier[e] = True
     agents = []
     kind = PoseKind.SE2 if planar else PoseKind.SE3
     for a, (name, st, init, gt, meas, info) in enumerate(agents_data):
