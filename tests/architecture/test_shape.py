@@ -85,3 +85,17 @@ def test_magnitude_bounds_are_defined_once():
     from studio.core import units
 
     assert (units.MAX_MAGNITUDE, units.MIN_MAGNITUDE, units.MAX_RECORDED_COORDINATE_M) == (1e9, 1e-9, 1e12)
+
+
+#: Test folders that follow no package: the cross-cutting suites and the fixtures.
+CROSS_CUTTING = {"architecture", "reliability", "fuzz", "data"}
+
+
+def test_the_test_tree_mirrors_the_packages():
+    """tests/<package>/ for every package (studio's subpackages, generator, converters); the
+    pipelines (modules directly in studio/) are tested in tests/studio/, and nothing else is."""
+    packages = {p.name for p in (REPO / "studio").iterdir() if (p / "__init__.py").is_file()}
+    packages |= {"generator", "converters"}
+    folders = {p.name for p in (REPO / "tests").iterdir() if p.is_dir() and not p.name.startswith((".", "_"))}
+    assert folders - CROSS_CUTTING == packages | {"studio"}
+    assert not [p for p in (REPO / "tests" / "studio").iterdir() if p.is_dir() and not p.name.startswith("_")]

@@ -5,7 +5,7 @@ Each entry of :data:`CANONICAL` makes one recording from scratch. The test check
 the regenerated file against that fingerprint (exact, per entity and component), and
 ``rerun rrd compare --unordered`` between the two files.
 
-After an intended change, rewrite the baseline with ``STUDIO_BLESS=1 pytest tests/studio/test_committed_recordings.py``
+After an intended change, rewrite the baseline with ``STUDIO_BLESS=1 pytest tests/recording/test_committed_recordings.py``
 and commit ``recordings/``.
 """
 
