@@ -32,7 +32,6 @@ from typing import Any
 
 import numpy as np
 
-from studio.core.checks import check_option
 from studio.core.errors import ConfigError
 from studio.core.geometry import (
     normalize_angle,
@@ -46,9 +45,11 @@ from studio.core.geometry import (
     yaw_from_quat_xyzw,
 )
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
-from studio.core.progress import Progress  # the callback type of build_graph (re-exported)
+from studio.core.option_values import check_option
+from studio.core.outliers import WrongVertexRule, plant_wrong_vertices
 from studio.core.trajectory import Trajectory
 from studio.core.units import NS_PER_S
+from studio.runtime.progress import Progress  # the callback type of build_graph (re-exported)
 
 __all__ = [
     "GraphOptions",
@@ -376,10 +377,32 @@ def build_graph(
 ) -> BuildResult:
     """Build the pose graph of ``trajectories`` (agent order kept); see the module docstring.
 
-    ``max_memory_gb`` bounds the loop-closure search, checked before it allocates anything.
+    ``max_memory_gb`` bounds the loop-closure search, checked before it allocates anything. The steps
+    of the module docstring, in order: the shared origin (1), each agent's keyframes and odometry (2,
+    3), the loop closures (4), the outliers (5), then the graph of their columns.
     """
     if not trajectories:
         raise ConfigError("no trajectories to convert")
+    _check_distinct_names(trajectories)
+    origin = trajectories[0].positions_xyz[0].copy()
+    if opts.planar:
+        origin[2] = 0.0
+    chains = _keyframe_chains(trajectories, origin, opts, progress)
+    loops = _loop_closures(chains, opts, progress, max_memory_gb)
+    j_out, outlier = _plant_outliers(chains, loops, opts)
+    graph = _assemble(chains, loops, j_out, opts.planar)
+    i, same = loops.i, loops.same
+    out_rows = np.column_stack([chains.A[i], chains.V[i], chains.A[j_out], chains.V[j_out]])[outlier]
+    counts = {
+        "candidate_pairs": loops.candidate_pairs,
+        "intra_loop_closures": int(np.count_nonzero(same)),
+        "inter_loop_closures": int(np.count_nonzero(~same)),
+        "outliers": int(np.count_nonzero(outlier)),
+    }
+    return BuildResult(graph, origin, chains.gaps, out_rows.astype(np.int64).reshape(-1, 4), counts)
+
+
+def _check_distinct_names(trajectories: Sequence[Trajectory]) -> None:
     names = [t.name for t in trajectories]
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
@@ -387,66 +410,121 @@ def build_graph(
         raise ConfigError(
             f"two agents are named {dup!r} ({' and '.join(files)}); rename one of the inputs (or its folder)"
         )
-    planar = opts.planar
-    origin = trajectories[0].positions_xyz[0].copy()
-    if planar:
-        origin[2] = 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class _AgentChain:
+    """One agent's keyframes and odometry (steps 2 and 3)."""
+
+    name: str
+    stamps_ns: np.ndarray
+    initial: np.ndarray
+    truth: np.ndarray
+    measurements: np.ndarray
+    information: np.ndarray
+    positions_xyz: np.ndarray
+    """(m, 3) true keyframe positions [m] (z = 0 when planar), for the loop-closure search."""
+    headings: np.ndarray
+    """(m,) yaw [rad] when planar, else (m, 4) quaternions ``xyzw``."""
+    gaps: list[Gap]
+
+
+@dataclass(frozen=True, eq=False)
+class _Chains:
+    """Every agent's chain and the keyframe columns of all agents, concatenated in agent order."""
+
+    agents: list[_AgentChain]
+    gaps: tuple[Gap, ...]
+    P: np.ndarray  # positions [m]
+    H: np.ndarray  # yaw (planar) or quaternion rows
+    S: np.ndarray  # stamps [ns]
+    A: np.ndarray  # agent of each keyframe
+    V: np.ndarray  # index of each keyframe in its agent
+
+
+def _keyframe_chains(
+    trajectories: Sequence[Trajectory], origin: np.ndarray, opts: GraphOptions, progress: Progress | None
+) -> _Chains:
+    """Steps 2 and 3 for every agent, in order (one odometry noise stream for all)."""
     rng_odo = _rng(opts.seed, _STREAM_ODOMETRY)
-    gaps: list[Gap] = []
-    kf_pos, kf_heading, kf_stamps, kf_agent, kf_index = [], [], [], [], []
-    agents_data = []
+    agents = []
     for a, traj in enumerate(trajectories):
         if progress:
             progress("keyframes and odometry", a, len(trajectories), "agents")
-        if planar:
-            # planar graphs are built in SE(2) from the start: x, y and the heading (ZYX yaw)
-            pos = traj.positions_xyz[:, 0:2] - origin[0:2]
-            yaw = yaw_from_quat_xyzw(traj.quat_xyzw)
-            kf, gap_after = select_keyframes(traj.stamps_ns, pos, np.abs(normalize_angle(np.diff(yaw))), opts)
-            gt = np.column_stack([pos[kf], yaw[kf]])
-            rel = _relative_se2(gt[:-1], gt[1:])
-            dist = np.linalg.norm(rel[:, 0:2], axis=1)
-            turn = np.abs(rel[:, 2])
-        else:
-            pos = traj.positions_xyz - origin
-            kf, gap_after = select_keyframes(traj.stamps_ns, pos, step_turns_rad(traj.quat_xyzw), opts)
-            p, q = pos[kf], quat_canonical(traj.quat_xyzw[kf])
-            t_rel, q_rel = _relative(p[:-1], q[:-1], p[1:], q[1:])
-            dist = np.linalg.norm(t_rel, axis=1)
-            turn = quat_angle(q_rel)
-        st = traj.stamps_ns[kf]
-        sigma_t = opts.odo_sigma_min_m + opts.odo_sigma_m_per_m * dist
-        sigma_r = opts.odo_sigma_min_rad + opts.odo_sigma_rad_per_rad * turn + opts.odo_sigma_rad_per_m * dist
-        bridge = gap_after[kf[:-1]]
-        dt = np.diff(st) / NS_PER_S
-        sigma_t = sigma_t + np.where(bridge, opts.gap_sigma_m_per_s * dt, 0.0)
-        sigma_r = sigma_r + np.where(bridge, opts.gap_sigma_rad_per_s * dt, 0.0)
-        if planar:
-            meas, info = _perturb_se2(rel, sigma_t, sigma_r, rng_odo)
-            init = _compose_se2(gt[0], meas)
-            kf_pos.append(np.column_stack([gt[:, 0:2], np.zeros(len(gt))]))
-            kf_heading.append(gt[:, 2])
-        else:
-            meas, info = _perturb(t_rel, q_rel, sigma_t, sigma_r, rng_odo)
-            init_p, init_q = _compose_chain(p[0], q[0], meas[:, :3], meas[:, 3:])
-            init, gt = np.column_stack([init_p, init_q]), np.column_stack([p, q])
-            kf_pos.append(p)
-            kf_heading.append(q)
-        for v in np.flatnonzero(bridge).tolist():
-            gaps.append(Gap(traj.name, int(v), int(st[v]), int(st[v + 1]), float(dist[v])))
-        m = len(kf)
-        agents_data.append((traj.name, st, init, gt, meas, info))
-        kf_stamps.append(st)
-        kf_agent.append(np.full(m, a, dtype=np.int64))
-        kf_index.append(np.arange(m, dtype=np.int64))
+        agents.append(_agent_chain(traj, origin, opts, rng_odo))
     if progress:
         progress("keyframes and odometry", len(trajectories), len(trajectories), "agents")
+    return _Chains(
+        agents,
+        tuple(g for c in agents for g in c.gaps),
+        np.concatenate([c.positions_xyz for c in agents]),
+        np.concatenate([c.headings for c in agents]),
+        np.concatenate([c.stamps_ns for c in agents]),
+        np.concatenate([np.full(len(c.stamps_ns), a, dtype=np.int64) for a, c in enumerate(agents)]),
+        np.concatenate([np.arange(len(c.stamps_ns), dtype=np.int64) for c in agents]),
+    )
+
+
+def _agent_chain(traj: Trajectory, origin: np.ndarray, opts: GraphOptions, rng_odo: np.random.Generator) -> _AgentChain:
+    """One agent's keyframes (step 2) and noisy odometry with its dead-reckoning estimate (step 3)."""
+    planar = opts.planar
+    if planar:
+        # planar graphs are built in SE(2) from the start: x, y and the heading (ZYX yaw)
+        pos = traj.positions_xyz[:, 0:2] - origin[0:2]
+        yaw = yaw_from_quat_xyzw(traj.quat_xyzw)
+        kf, gap_after = select_keyframes(traj.stamps_ns, pos, np.abs(normalize_angle(np.diff(yaw))), opts)
+        gt = np.column_stack([pos[kf], yaw[kf]])
+        rel = _relative_se2(gt[:-1], gt[1:])
+        dist = np.linalg.norm(rel[:, 0:2], axis=1)
+        turn = np.abs(rel[:, 2])
+    else:
+        pos = traj.positions_xyz - origin
+        kf, gap_after = select_keyframes(traj.stamps_ns, pos, step_turns_rad(traj.quat_xyzw), opts)
+        p, q = pos[kf], quat_canonical(traj.quat_xyzw[kf])
+        t_rel, q_rel = _relative(p[:-1], q[:-1], p[1:], q[1:])
+        dist = np.linalg.norm(t_rel, axis=1)
+        turn = quat_angle(q_rel)
+    st = traj.stamps_ns[kf]
+    sigma_t = opts.odo_sigma_min_m + opts.odo_sigma_m_per_m * dist
+    sigma_r = opts.odo_sigma_min_rad + opts.odo_sigma_rad_per_rad * turn + opts.odo_sigma_rad_per_m * dist
+    bridge = gap_after[kf[:-1]]
+    dt = np.diff(st) / NS_PER_S
+    sigma_t = sigma_t + np.where(bridge, opts.gap_sigma_m_per_s * dt, 0.0)
+    sigma_r = sigma_r + np.where(bridge, opts.gap_sigma_rad_per_s * dt, 0.0)
+    if planar:
+        meas, info = _perturb_se2(rel, sigma_t, sigma_r, rng_odo)
+        init = _compose_se2(gt[0], meas)
+        kf_pos, kf_heading = np.column_stack([gt[:, 0:2], np.zeros(len(gt))]), gt[:, 2]
+    else:
+        meas, info = _perturb(t_rel, q_rel, sigma_t, sigma_r, rng_odo)
+        init_p, init_q = _compose_chain(p[0], q[0], meas[:, :3], meas[:, 3:])
+        init, gt = np.column_stack([init_p, init_q]), np.column_stack([p, q])
+        kf_pos, kf_heading = p, q
+    gaps = [Gap(traj.name, int(v), int(st[v]), int(st[v + 1]), float(dist[v])) for v in np.flatnonzero(bridge).tolist()]
+    return _AgentChain(traj.name, st, init, gt, meas, info, kf_pos, kf_heading, gaps)
+
+
+@dataclass(frozen=True, eq=False)
+class _Loops:
+    """The accepted loop closures (step 4): keyframe pairs ``i -> j`` (indices into the columns)."""
+
+    i: np.ndarray
+    j: np.ndarray
+    same: np.ndarray
+    """True for an intra-agent pair."""
+    measurements: np.ndarray
+    information: np.ndarray
+    candidate_pairs: int
+    """Pairs within R, before the filters."""
+
+
+def _loop_closures(
+    chains: _Chains, opts: GraphOptions, progress: Progress | None, max_memory_gb: float | None
+) -> _Loops:
+    """Step 4: the pairs within R, filtered, accepted with ``p exp(-5 (d/R)^2)``, and measured."""
+    P, H, S, A, V = chains.P, chains.H, chains.S, chains.A, chains.V
+    if progress:
         progress("loop-closure search", 0, 0, "pairs")
-    P = np.concatenate(kf_pos)
-    H = np.concatenate(kf_heading)  # yaw (planar) or quaternion rows
-    S = np.concatenate(kf_stamps)
-    A = np.concatenate(kf_agent)
-    V = np.concatenate(kf_index)
     i, j, d = pairs_within(
         P,
         opts.lc_radius,
@@ -463,7 +541,7 @@ def build_graph(
     if opts.rendezvous > 0:
         ok &= same | (dt_ns <= int(round(opts.rendezvous * NS_PER_S)))
     if opts.lc_max_heading > 0:
-        if planar:
+        if opts.planar:
             cos_between = np.cos(H[j] - H[i])
         else:
             ex = np.zeros((len(i), 3))
@@ -478,41 +556,58 @@ def build_graph(
     i, j, same = i[accept], j[accept], same[accept]
     n_lc = len(i)
     sig_t, sig_r = np.full(n_lc, opts.lc_sigma_m), np.full(n_lc, opts.lc_sigma_rad)
-    if planar:
+    if opts.planar:
         meas_lc, info_lc = _perturb_se2(
             _relative_se2(np.column_stack([P[i, 0:2], H[i]]), np.column_stack([P[j, 0:2], H[j]])), sig_t, sig_r, rng_lc
         )
     else:
         t_rel, q_rel = _relative(P[i], H[i], P[j], H[j])
         meas_lc, info_lc = _perturb(t_rel, q_rel, sig_t, sig_r, rng_lc)
+    return _Loops(i, j, same, meas_lc, info_lc, int(len(ok)))
+
+
+def _plant_outliers(chains: _Chains, loops: _Loops, opts: GraphOptions) -> tuple[np.ndarray, np.ndarray]:
+    """Step 5: the ``to`` keyframe of every loop closure (a wrong one for the outliers) and which are
+    outliers."""
+    i, j = loops.i, loops.j
+    n_lc = len(i)
     j_out = j.copy()
     outlier = np.zeros(n_lc, dtype=bool)
     if opts.outlier_fraction > 0 and n_lc:
         rng_out = _rng(opts.seed, _STREAM_OUTLIERS)
         k = int(round(opts.outlier_fraction * n_lc))
         chosen = np.sort(rng_out.choice(n_lc, size=k, replace=False))
-        for e in chosen.tolist():
-            # a wrong vertex of the same agent as the true one, at least 2R from it (and from i)
-            mask = (A == A[j[e]]) & (np.linalg.norm(P - P[j[e]], axis=1) >= 2 * opts.lc_radius)
-            mask &= np.linalg.norm(P - P[i[e]], axis=1) >= 2 * opts.lc_radius
-            cand = np.flatnonzero(mask)
-            if cand.size:
-                j_out[e] = cand[rng_out.integers(cand.size)]
-                outlier[e] = True
-    agents = []
+        # a wrong vertex of the same agent as the true one, at least 2R from it and from the from vertex;
+        # a loop closure without such a vertex stays true
+        far = WrongVertexRule("far", min_to_m=2 * opts.lc_radius, min_from_m=2 * opts.lc_radius)
+        A, V = chains.A, chains.V
+        ends = np.column_stack([A[i], V[i], A[j], V[j]])
+        kf_pos = [c.positions_xyz for c in chains.agents]
+        new_to, _ = plant_wrong_vertices(rng_out, ends, chosen.tolist(), [(far, k)], kf_pos)
+        first = np.cumsum([0] + [len(p) for p in kf_pos])  # each agent's first keyframe in P
+        for e, v in new_to.items():
+            j_out[e] = first[A[j[e]]] + v
+            outlier[e] = True
+    return j_out, outlier
+
+
+def _assemble(chains: _Chains, loops: _Loops, j_out: np.ndarray, planar: bool) -> PoseGraph:
+    """The graph: each agent's odometry and intra-agent loop closures, then the inter-agent ones."""
+    A, V, i, same = chains.A, chains.V, loops.i, loops.same
     kind = PoseKind.SE2 if planar else PoseKind.SE3
-    for a, (name, st, init, gt, meas, info) in enumerate(agents_data):
+    agents = []
+    for a, c in enumerate(chains.agents):
         sel = same & (A[i] == a)
-        m = len(st)
+        m = len(c.stamps_ns)
         agents.append(
             AgentGraph(
-                name,
+                c.name,
                 kind,
-                st,
-                init,
-                gt,
-                Edges(kind, np.arange(m - 1), np.arange(1, m), meas, info),
-                Edges(kind, V[i[sel]], V[j_out[sel]], meas_lc[sel], info_lc[sel]),
+                c.stamps_ns,
+                c.initial,
+                c.truth,
+                Edges(kind, np.arange(m - 1), np.arange(1, m), c.measurements, c.information),
+                Edges(kind, V[i[sel]], V[j_out[sel]], loops.measurements[sel], loops.information[sel]),
             )
         )
     inter_sel = ~same
@@ -522,15 +617,7 @@ def build_graph(
         V[i[inter_sel]],
         A[j_out[inter_sel]],
         V[j_out[inter_sel]],
-        meas_lc[inter_sel],
-        info_lc[inter_sel],
+        loops.measurements[inter_sel],
+        loops.information[inter_sel],
     )
-    graph = PoseGraph(kind, tuple(agents), inter)
-    out_rows = np.column_stack([A[i], V[i], A[j_out], V[j_out]])[outlier].astype(np.int64).reshape(-1, 4)
-    counts = {
-        "candidate_pairs": int(len(ok)),
-        "intra_loop_closures": int(np.count_nonzero(same)),
-        "inter_loop_closures": int(np.count_nonzero(~same)),
-        "outliers": int(np.count_nonzero(outlier)),
-    }
-    return BuildResult(graph, origin, tuple(gaps), out_rows, counts)
+    return PoseGraph(kind, tuple(agents), inter)

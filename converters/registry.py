@@ -26,9 +26,9 @@ from studio.converters.kitti import read_kitti
 from studio.converters.s3e import is_s3e_sequence, read_s3e
 from studio.converters.tum import read_tum_sources
 from studio.core.errors import ConfigError
-from studio.core.progress import Progress
 from studio.core.trajectory import Trajectory, Warn
 from studio.core.types import PathLike
+from studio.runtime.progress import Progress
 
 __all__ = [
     "SourceReader",

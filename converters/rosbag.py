@@ -27,6 +27,7 @@ import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -339,6 +340,26 @@ def read_bag(
     name = ", ".join(str(p) for p in paths)
     if isinstance(specs, Mapping):
         specs = [parse_agent_spec(f"{k}={v}") for k, v in specs.items()]
+    is_ros1, plain_mcap = _check_bag_paths(paths, name)
+    store = typestore_for(ros1=is_ros1)
+    errors = _open_errors()
+    try:
+        with _PlainMcap(paths[0], store) if plain_mcap else AnyReader(paths, default_typestore=store) as reader:
+            topics = {t: info.msgtype for t, info in reader.topics.items()}
+            cols, by_topic = _collectors(specs, topics, name, skip_missing=skip_missing, ignore_case=ignore_case)
+            if not cols:  # every agent skipped (skip_missing): an empty filter would read everything
+                return []
+            _read_messages(reader, by_topic, progress)
+    except FormatError:
+        raise
+    except errors as err:
+        detail = str(err).strip().splitlines()[0][:200] if str(err).strip() else type(err).__name__
+        raise FormatError(f"{name}: cannot read the bag, corrupt or truncated? ({detail})") from None
+    return [_finish(col, name, warn) for col in cols]
+
+
+def _check_bag_paths(paths: list[Path], name: str) -> tuple[bool, bool]:
+    """Refuse what is not a bag before opening anything; returns (all ROS 1, one plain .mcap file)."""
     for p in paths:
         if not p.exists():
             raise FormatError(f"{p}: no such bag")
@@ -350,86 +371,90 @@ def read_bag(
     plain_mcap = len(paths) == 1 and paths[0].is_file() and paths[0].suffix == ".mcap"
     if not plain_mcap and any(p.suffix == ".mcap" for p in paths):
         raise FormatError(f"{name}: give one .mcap file at a time")
-    store = typestore_for(ros1=is_ros1)
-    errors = _open_errors()
-    try:
-        with _PlainMcap(paths[0], store) if plain_mcap else AnyReader(paths, default_typestore=store) as reader:
-            topics = {t: info.msgtype for t, info in reader.topics.items()}
+    return is_ros1, plain_mcap
 
-            def known(topic: str) -> bool:
-                return topic in topics
 
-            listing = ", ".join(f"{t} [{(m or '?').replace('/msg/', '/')}]" for t, m in sorted(topics.items()))
-            cols: list[_Collector] = []
-            by_topic: dict[str, list[tuple[_Collector, bool]]] = {}
-            if ignore_case:
-                lower = {t.lower(): t for t in topics}
+def _collectors(
+    specs: Sequence[AgentSpec],
+    topics: dict[str, str | None],
+    name: str,
+    *,
+    skip_missing: bool,
+    ignore_case: bool,
+) -> tuple[list[_Collector], dict[str, list[tuple[_Collector, bool]]]]:
+    """One collector per agent spec whose topics the bag has, and the collectors each topic feeds
+    (``True``: as the agent's heading topic)."""
+    listing = ", ".join(f"{t} [{(m or '?').replace('/msg/', '/')}]" for t, m in sorted(topics.items()))
+    if ignore_case:
+        lower = {t.lower(): t for t in topics}
 
-                def actual(t: str) -> str:
-                    return lower.get(t.lower(), t)
+        def actual(t: str) -> str:
+            return lower.get(t.lower(), t)
 
-                specs = [
-                    replace(
-                        sp,
-                        topic=actual(sp.topic),
-                        heading_topic=None if sp.heading_topic is None else actual(sp.heading_topic),
-                    )
-                    for sp in specs
-                ]
-            for spec in specs:
-                missing = [t for t in (spec.topic, spec.heading_topic) if t is not None and not known(t)]
-                if missing:
-                    if skip_missing:
-                        continue
-                    raise FormatError(f"{name}: no topic {missing[0]!r} for agent {spec.name} (topics: {listing})")
-                col = _Collector(spec)
-                col.kind = topics[spec.topic] or ""
-                if col.kind not in POSE_TYPES:
-                    raise FormatError(
-                        f"{name}: topic {spec.topic} has type {col.kind}, which is not supported "
-                        f"(supported: {', '.join(t.replace('/msg/', '/') for t in POSE_TYPES)})"
-                    )
-                if (col.kind == "tf2_msgs/msg/TFMessage") != (spec.parent_frame is not None):
-                    raise FormatError(
-                        f"{name}: topic {spec.topic} is {col.kind}; TF topics take "
-                        "/tf:PARENT:CHILD and only TF topics do"
-                    )
-                if spec.heading_topic is not None:
-                    if col.kind != "sensor_msgs/msg/NavSatFix":
-                        raise FormatError(
-                            f"{name}: a heading topic goes with a NavSatFix topic, {spec.topic} is {col.kind}"
-                        )
-                    htype = topics[spec.heading_topic]
-                    if htype not in HEADING_TYPES:
-                        raise FormatError(
-                            f"{name}: heading topic {spec.heading_topic} has type {htype}, which "
-                            f"is not supported (supported: "
-                            f"{', '.join(t.replace('/msg/', '/') for t in HEADING_TYPES)})"
-                        )
-                    by_topic.setdefault(spec.heading_topic, []).append((col, True))
-                by_topic.setdefault(spec.topic, []).append((col, False))
-                cols.append(col)
-            if not cols:  # every agent skipped (skip_missing): an empty filter would read everything
-                return []
-            conns = [c for c in reader.connections if c.topic in by_topic]
-            total = sum(c.msgcount for c in conns)
-            done = 0
-            for conn, _t, raw in reader.messages(connections=conns):
-                msg = reader.deserialize(raw, conn.msgtype)
-                for col, is_heading in by_topic[conn.topic]:
-                    if is_heading:
-                        _take_heading(col, conn.msgtype, msg)
-                    else:
-                        _take(col, conn.msgtype, msg)
-                done += 1
-                if progress is not None and (done % 20000 == 0 or done == total):
-                    progress("reading bag", done, total, "messages")
-    except FormatError:
-        raise
-    except errors as err:
-        detail = str(err).strip().splitlines()[0][:200] if str(err).strip() else type(err).__name__
-        raise FormatError(f"{name}: cannot read the bag, corrupt or truncated? ({detail})") from None
-    return [_finish(col, name, warn) for col in cols]
+        specs = [
+            replace(
+                sp,
+                topic=actual(sp.topic),
+                heading_topic=None if sp.heading_topic is None else actual(sp.heading_topic),
+            )
+            for sp in specs
+        ]
+    cols: list[_Collector] = []
+    by_topic: dict[str, list[tuple[_Collector, bool]]] = {}
+    for spec in specs:
+        missing = [t for t in (spec.topic, spec.heading_topic) if t is not None and t not in topics]
+        if missing:
+            if skip_missing:
+                continue
+            raise FormatError(f"{name}: no topic {missing[0]!r} for agent {spec.name} (topics: {listing})")
+        col = _Collector(spec)
+        col.kind = topics[spec.topic] or ""
+        _check_topic_types(spec, col.kind, topics, name)
+        if spec.heading_topic is not None:
+            by_topic.setdefault(spec.heading_topic, []).append((col, True))
+        by_topic.setdefault(spec.topic, []).append((col, False))
+        cols.append(col)
+    return cols, by_topic
+
+
+def _check_topic_types(spec: AgentSpec, kind: str, topics: dict[str, str | None], name: str) -> None:
+    """The agent's pose topic (and heading topic) have types the reader takes, in a combination it takes."""
+    if kind not in POSE_TYPES:
+        raise FormatError(
+            f"{name}: topic {spec.topic} has type {kind}, which is not supported "
+            f"(supported: {', '.join(t.replace('/msg/', '/') for t in POSE_TYPES)})"
+        )
+    if (kind == "tf2_msgs/msg/TFMessage") != (spec.parent_frame is not None):
+        raise FormatError(
+            f"{name}: topic {spec.topic} is {kind}; TF topics take /tf:PARENT:CHILD and only TF topics do"
+        )
+    if spec.heading_topic is not None:
+        if kind != "sensor_msgs/msg/NavSatFix":
+            raise FormatError(f"{name}: a heading topic goes with a NavSatFix topic, {spec.topic} is {kind}")
+        htype = topics[spec.heading_topic]
+        if htype not in HEADING_TYPES:
+            raise FormatError(
+                f"{name}: heading topic {spec.heading_topic} has type {htype}, which "
+                f"is not supported (supported: "
+                f"{', '.join(t.replace('/msg/', '/') for t in HEADING_TYPES)})"
+            )
+
+
+def _read_messages(reader: Any, by_topic: dict[str, list[tuple[_Collector, bool]]], progress: Any) -> None:
+    """One pass over the messages of the wanted topics, each fed to its collectors."""
+    conns = [c for c in reader.connections if c.topic in by_topic]
+    total = sum(c.msgcount for c in conns)
+    done = 0
+    for conn, _t, raw in reader.messages(connections=conns):
+        msg = reader.deserialize(raw, conn.msgtype)
+        for col, is_heading in by_topic[conn.topic]:
+            if is_heading:
+                _take_heading(col, conn.msgtype, msg)
+            else:
+                _take(col, conn.msgtype, msg)
+        done += 1
+        if progress is not None and (done % 20000 == 0 or done == total):
+            progress("reading bag", done, total, "messages")
 
 
 def read_bag_sources(

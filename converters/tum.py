@@ -13,10 +13,10 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from studio.converters.names import safe_agent_name
-from studio.core.parallel import parallel_map
 from studio.core.trajectory import Trajectory, Warn, clean_trajectory
 from studio.core.types import PathLike
 from studio.io.tum import read_tum_rows
+from studio.runtime.parallel import parallel_map
 
 __all__ = ["read_tum_trajectory", "read_tum_sources"]
 

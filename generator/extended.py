@@ -26,13 +26,13 @@ import numpy as np
 from studio.core.errors import ConfigError
 from studio.core.geometry import normalize_angle, relative_planar_pose
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
-from studio.core.progress import Progress
 from studio.generator.config import SynthConfig
 from studio.generator.extensions import NoiseModel, sample_noise
 from studio.generator.grid3d import generate_grid3d
 from studio.generator.kollagen import SingleG2oView, SynthOutput, effective_seeds, generate
 from studio.generator.outliers import PlantedOutliers, plant_outliers
 from studio.generator.seam import GeneratedDataset
+from studio.runtime.progress import Progress
 
 __all__ = [
     "StudioOutput",

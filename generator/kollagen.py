@@ -18,8 +18,6 @@ import numpy as np
 
 from studio.core.geometry import libm_cos_sin
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
-from studio.core.parallel import parallel_map
-from studio.core.progress import Progress, report
 from studio.core.units import NS_PER_S
 from studio.generator.config import SynthConfig
 from studio.generator.loop_closures import (
@@ -32,6 +30,8 @@ from studio.generator.loop_closures import (
 )
 from studio.generator.rng import MT19937Stream
 from studio.generator.walk import _dead_reckon, _random_walk, _round_to_int, _Walk
+from studio.runtime.parallel import parallel_map
+from studio.runtime.progress import Progress, report
 
 __all__ = [
     "SingleG2oView",
@@ -126,7 +126,7 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
     """Run kollagen's generator: walk, intra-agent loop closures, alignment, inter-agent loop closures.
 
     ``jobs`` processes share the agents' and the agent pairs' loop closures (default: the cores other
-    work leaves idle, see :func:`studio.core.parallel.default_jobs`); the output does not depend on it.
+    work leaves idle, see :func:`studio.runtime.parallel.default_jobs`); the output does not depend on it.
     """
     seeds = effective_seeds([a.random_number_generator_seed for a in cfg.agents])
     # the walks first (a tenth of the time; in a team every process makes them), so that one parallel

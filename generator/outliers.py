@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph
+from studio.core.outliers import WrongVertexRule, plant_wrong_vertices
 from studio.generator.extensions import OUTLIER_KINDS, OutlierConfig
 
 __all__ = ["PlantedOutliers", "plant_outliers", "local_patterns"]
@@ -83,10 +84,37 @@ def plant_outliers(
     """Replace the ``to`` vertex of some loop closures (see the module doc).
 
     ``positions[k]`` (n, 3) are agent k's ground-truth positions [m], ``cells[k]`` its (n, 3) integer
-    grid cells, ``headings[k]`` its heading in quarter turns.
+    grid cells, ``headings[k]`` its heading in quarter turns. The intra-agent loop closures are
+    chosen first, then the inter-agent ones (one random stream), then the graph is rewritten.
     """
     rng = np.random.default_rng([cfg.seed % 2**32, 21])
-    weights = dict(cfg.kinds)
+    rules = _rules(cells, headings, step_fragment, cfg)
+    agents = list(graph.agents)
+    intra_ends = _intra_ends(agents)
+    new_intra, kinds_intra, asked_intra = _choose(
+        rng, intra_ends, cfg.intra_fraction, dict(cfg.kinds), rules, positions
+    )
+    inter = graph.inter
+    inter_ends = np.column_stack([inter.from_agent, inter.from_index, inter.to_agent, inter.to_index]).reshape(-1, 4)
+    new_inter, kinds_inter, asked_inter = _choose(
+        rng, inter_ends, cfg.inter_fraction, dict(cfg.kinds), rules, positions
+    )
+
+    rows: list[tuple[int, int, int, int]] = []
+    kinds: list[str] = []
+    agents = _rewire_intra(agents, new_intra, kinds_intra, rows, kinds)
+    new_inter_edges = _rewire_inter(inter, new_inter, kinds_inter, rows, kinds)
+    out = PoseGraph(graph.kind, tuple(agents), new_inter_edges, dict(graph.metadata))
+    return PlantedOutliers(
+        out, np.array(rows, dtype=np.int64).reshape(-1, 4), tuple(kinds), {"intra": asked_intra, "inter": asked_inter}
+    )
+
+
+def _rules(
+    cells: list[np.ndarray], headings: list[np.ndarray], step_fragment: int, cfg: OutlierConfig
+) -> dict[str, WrongVertexRule]:
+    """The two kinds as rules of the shared planter; an agent's local patterns are computed once, when
+    an aliasing outlier first needs them."""
     patterns: dict[int, np.ndarray] = {}
 
     def pattern(a: int) -> np.ndarray:
@@ -94,47 +122,41 @@ def plant_outliers(
             patterns[a] = local_patterns(cells[a], headings[a], cfg.aliasing_window * step_fragment)
         return patterns[a]
 
-    def target(kind: str, a_from: int, v_from: int, a_to: int, v_to: int) -> int | None:
-        pos = positions[a_to]
-        d_to = np.linalg.norm(pos - pos[v_to], axis=1)
-        if kind == "random":
-            ok = (d_to >= cfg.random_min_radius) & (d_to <= cfg.random_radius)
-        else:
-            d_from = np.linalg.norm(pos - positions[a_from][v_from], axis=1)
-            pat = pattern(a_to)
-            ok = (pat == pat[v_to]) & (d_to >= cfg.aliasing_min_distance) & (d_from >= cfg.aliasing_min_distance)
-        if a_from == a_to:
-            ok[v_from] = False
-        cand = np.flatnonzero(ok)
-        return None if len(cand) == 0 else int(cand[rng.integers(len(cand))])
+    return {
+        "random": WrongVertexRule("random", min_to_m=cfg.random_min_radius, max_to_m=cfg.random_radius),
+        "aliasing": WrongVertexRule(
+            "aliasing",
+            min_to_m=cfg.aliasing_min_distance,
+            min_from_m=cfg.aliasing_min_distance,
+            look_alike=pattern,
+        ),
+    }
 
-    def choose(ends: np.ndarray, fraction: float) -> tuple[dict[int, int], dict[int, str], int]:
-        """``ends``: (n, 4) rows a_from v_from a_to v_to. Returns new ``to`` vertex and kind per edge."""
-        k = int(round(fraction * len(ends)))
-        quota = _split(k, weights) if k else {}
-        new_to: dict[int, int] = {}
-        kind_of: dict[int, str] = {}
-        order = rng.permutation(len(ends)).tolist()
-        # the rarer kind (aliasing needs a look-alike place) first; a kind's shortfall goes to the next
-        passes = [n for n in ("aliasing", "random") if n in quota]
-        passes += passes[:1]
-        deficit = 0
-        for kind in passes:
-            want = quota.pop(kind, 0) + deficit
-            for e in order:
-                if want == 0:
-                    break
-                if e in new_to:
-                    continue
-                t = target(kind, *ends[e].tolist())
-                if t is not None:
-                    new_to[e], kind_of[e] = t, kind
-                    want -= 1
-            deficit = want
-        return new_to, kind_of, k
 
-    agents = list(graph.agents)
-    intra_ends = (
+def _choose(
+    rng: np.random.Generator,
+    ends: np.ndarray,
+    fraction: float,
+    weights: dict[str, float],
+    rules: dict[str, WrongVertexRule],
+    positions: list[np.ndarray],
+) -> tuple[dict[int, int], dict[int, str], int]:
+    """``ends``: (n, 4) rows a_from v_from a_to v_to. Returns the new ``to`` vertex and the kind per
+    planted edge, and how many were asked for."""
+    k = int(round(fraction * len(ends)))
+    quota = _split(k, weights) if k else {}
+    order = rng.permutation(len(ends)).tolist()
+    # the rarer kind (aliasing needs a look-alike place) first; a kind's shortfall goes to the next,
+    # and the first kind takes what the last fell short of
+    names = [n for n in ("aliasing", "random") if n in quota]
+    passes = [(rules[n], quota[n]) for n in names] + [(rules[n], 0) for n in names[:1]]
+    new_to, kind_of = plant_wrong_vertices(rng, ends, order, passes, positions)
+    return new_to, kind_of, k
+
+
+def _intra_ends(agents: list[AgentGraph]) -> np.ndarray:
+    """(n, 4) rows ``k from k to`` of every agent's loop closures, agent by agent."""
+    return (
         np.concatenate(
             [
                 np.column_stack(
@@ -151,13 +173,17 @@ def plant_outliers(
         .astype(np.int64)
         .reshape(-1, 4)
     )
-    new_intra, kinds_intra, asked_intra = choose(intra_ends, cfg.intra_fraction)
-    inter = graph.inter
-    inter_ends = np.column_stack([inter.from_agent, inter.from_index, inter.to_agent, inter.to_index]).reshape(-1, 4)
-    new_inter, kinds_inter, asked_inter = choose(inter_ends, cfg.inter_fraction)
 
-    rows: list[tuple[int, int, int, int]] = []
-    kinds: list[str] = []
+
+def _rewire_intra(
+    agents: list[AgentGraph],
+    new_intra: dict[int, int],
+    kinds_intra: dict[int, str],
+    rows: list[tuple[int, int, int, int]],
+    kinds: list[str],
+) -> list[AgentGraph]:
+    """The agents with their planted loop closures' new ``to`` vertices; appends to ``rows``/``kinds``."""
+    out = list(agents)
     offset = 0
     for k, a in enumerate(agents):
         lc = a.loop_closures
@@ -169,7 +195,7 @@ def plant_outliers(
                 kinds.append(kinds_intra[offset + e])
         offset += len(lc)
         if len(lc):
-            agents[k] = AgentGraph(
+            out[k] = AgentGraph(
                 a.name,
                 a.kind,
                 a.stamps_ns,
@@ -179,12 +205,23 @@ def plant_outliers(
                 Edges(lc.kind, lc.from_index, to, lc.measurements, lc.information_upper),
                 a.ground_truth_se3,
             )
+    return out
+
+
+def _rewire_inter(
+    inter: InterAgentEdges,
+    new_inter: dict[int, int],
+    kinds_inter: dict[int, str],
+    rows: list[tuple[int, int, int, int]],
+    kinds: list[str],
+) -> InterAgentEdges:
+    """The inter-agent edges with their planted ``to`` vertices; appends to ``rows``/``kinds``."""
     to_index = inter.to_index.copy()
     for e in sorted(new_inter):
         to_index[e] = new_inter[e]
         rows.append((int(inter.from_agent[e]), int(inter.from_index[e]), int(inter.to_agent[e]), int(to_index[e])))
         kinds.append(kinds_inter[e])
-    new_inter_edges = InterAgentEdges(
+    return InterAgentEdges(
         inter.kind,
         inter.from_agent,
         inter.from_index,
@@ -192,8 +229,4 @@ def plant_outliers(
         to_index,
         inter.measurements,
         inter.information_upper,
-    )
-    out = PoseGraph(graph.kind, tuple(agents), new_inter_edges, dict(graph.metadata))
-    return PlantedOutliers(
-        out, np.array(rows, dtype=np.int64).reshape(-1, 4), tuple(kinds), {"intra": asked_intra, "inter": asked_inter}
     )

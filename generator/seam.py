@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol, TypeVar
 
 from studio.core.model import PoseGraph
-from studio.core.progress import Progress
+from studio.runtime.progress import Progress
 
 __all__ = ["Extra", "GeneratedDataset", "Generator"]
 
@@ -55,5 +55,5 @@ class Generator(Protocol[ConfigT_contra]):
         self, config: ConfigT_contra, *, jobs: int | None = None, progress: Progress | None = None
     ) -> GeneratedDataset:
         """Generate the dataset; ``jobs`` caps the processes, the result does not depend on it;
-        ``progress`` hears of the work done (studio.core.progress)."""
+        ``progress`` hears of the work done (studio.runtime.progress)."""
         ...

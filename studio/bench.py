@@ -38,10 +38,10 @@ from typing import Any
 
 from studio._callable import make_callable
 from studio.core.errors import ConfigError, StudioError
-from studio.core.progress import Progress, report
 from studio.core.types import PathLike
 from studio.io.atomic import write_replacing
 from studio.io.spec_file import check_spec_keys, read_spec_file
+from studio.runtime.progress import Progress, report
 
 __all__ = ["BenchSpec", "BenchResult", "Cell", "load_bench_spec", "bench", "PAPER_SPEC", "format_paper_table"]
 

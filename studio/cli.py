@@ -19,9 +19,9 @@ import typer
 from studio.converters.registry import SOURCES
 from studio.core.alignment import Alignment
 from studio.core.errors import StudioError
-from studio.core.progress import terminal_progress
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.generator.presets import PRESETS
+from studio.runtime.progress import terminal_progress
 from studio.solvers import DEFAULT_METHOD, METHODS
 from studio.solvers.problem import Init, Optimizer, SolveOptions
 
@@ -710,7 +710,7 @@ def sweep(
 def _tune_allocator() -> None:
     """glibc tuning for the commands that make many short-lived arrays (synth, convert); it keeps
     freed memory for reuse, so the other commands (solve: +80 MB peak) do without it."""
-    from studio.core.parallel import tune_allocator
+    from studio.runtime.parallel import tune_allocator
 
     tune_allocator()
 

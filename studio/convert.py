@@ -43,9 +43,9 @@ from studio.converters.transforms import (
     orientation_is_uninformative,
     split_trajectory,
 )
-from studio.core.checks import check_option
 from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.model import PoseGraph
+from studio.core.option_values import check_option
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB

@@ -36,9 +36,9 @@ from studio._callable import make_callable
 from studio.core.alignment import Alignment
 from studio.core.errors import ConfigError, EvaluationError, OutputError
 from studio.core.model import PoseGraph
-from studio.core.progress import Progress, report
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
+from studio.runtime.progress import Progress, report
 
 if TYPE_CHECKING:
     from studio.core.trajectory import Trajectory
@@ -355,86 +355,25 @@ def score(
 
     With ``by_time`` the estimate's poses are matched to the ground truth by timestamp (within
     ``tum_max_diff_s``); otherwise pose k of an agent is the estimate of its vertex k."""
-    from evo.core import metrics
-
-    align = check_alignment(align, align_per_agent)
-    if not (math.isfinite(rpe_delta_m) and rpe_delta_m > 0):
-        raise EvaluationError(f"the RPE distance must be a positive number of metres, got {rpe_delta_m!r}")
-    if rpe_delta_nodes < 1:
-        raise EvaluationError(f"the RPE node delta must be at least 1, got {rpe_delta_nodes}")
-    if estimate is not None and len(estimate) != len(graph.agents):
-        raise EvaluationError(f"the estimate has {len(estimate)} agents, the dataset {len(graph.agents)}")
+    align = _check_score_arguments(
+        graph, estimate, check_alignment(align, align_per_agent), rpe_delta_m, rpe_delta_nodes
+    )
     warnings: list[str] = []
     matched = _matched(graph, estimate, by_time, tum_max_diff_s, warnings)
     names = [a.name for a in graph.agents]
-    transforms = []
-    if align is Alignment.first_pose:
-        aligned = []
-        for gt, est, st, idx in matched:
-            r, t = _first_pose_transform(gt[0], est[0])
-            transforms.append((r, t, 1.0))
-            aligned.append((gt, _apply(est, r, t, 1.0), st, idx))
-        matched = aligned
-    elif align is not Alignment.none:
-        sim3 = align is Alignment.sim3
-        if align_per_agent:
-            aligned = []
-            for name, (gt, est, st, idx) in zip(names, matched):
-                r, t, s = _umeyama(est[:, 0:3], gt[:, 0:3], sim3, name)
-                transforms.append((r, t, s))
-                aligned.append((gt, _apply(est, r, t, s), st, idx))
-        else:
-            r, t, s = _umeyama(
-                np.concatenate([m[1][:, 0:3] for m in matched]),
-                np.concatenate([m[0][:, 0:3] for m in matched]),
-                sim3,
-                "all agents",
-            )
-            transforms.append((r, t, s))
-            aligned = [(gt, _apply(est, r, t, s), st, idx) for gt, est, st, idx in matched]
-        matched = aligned
-
-    # APE translation: evo's own metric, on all agents' poses pooled (kollagen's single TUM files).
-    gt_all = np.concatenate([m[0] for m in matched])
-    est_all = np.concatenate([m[1] for m in matched])
-    stamps_all = np.arange(len(gt_all), dtype=np.int64) * NS_PER_S
-    ape = metrics.APE(metrics.PoseRelation.translation_part)
-    ape.process_data((_trajectory(gt_all, stamps_all), _trajectory(est_all, stamps_all)))
-    bounds = np.cumsum([0] + [len(m[0]) for m in matched])
-    ape_t = [ape.error[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
-    ape_r = [_ape_rotation_deg(gt, est) for gt, est, *_ in matched]
-    rpe_m = [_rpe(gt, est, rpe_delta_m, metrics.Unit.meters) for gt, est, *_ in matched]
-    rpe_n = [_rpe(gt, est, rpe_delta_nodes, metrics.Unit.frames) for gt, est, *_ in matched]
-
-    for k, series in enumerate([*ape_t, *ape_r, *(r[0] for r in rpe_m), *(r[0] for r in rpe_n)]):
-        bad = np.flatnonzero(~np.isfinite(np.asarray(series, dtype=float)))
-        if len(bad):  # an estimate far beyond any map (e.g. a vertex at 1e200) overflows the errors
-            k %= len(names)
-            raise EvaluationError(
-                f"{estimate_label or 'estimate'}: agent {names[k]}: the error at pose {int(bad[0])} "
-                "is not finite (a pose beyond the finite range?)"
-            )
-
-    def row(name, n, at, ar, rm, rn) -> AgentScore:
-        ape_t, ape_r = ErrorStats.of(at), ErrorStats.of(ar)
-        assert ape_t is not None and ape_r is not None  # every scored agent has at least one pose
-        return AgentScore(
-            name,
-            n,
-            ape_t,
-            ape_r,
-            ErrorStats.of(rm[0]),
-            ErrorStats.of(rm[1]),
-            ErrorStats.of(rn[0]),
-            ErrorStats.of(rn[1]),
-        )
-
-    rows = tuple(row(names[k], len(matched[k][0]), ape_t[k], ape_r[k], rpe_m[k], rpe_n[k]) for k in range(len(names)))
+    matched, transforms = _aligned(matched, align, align_per_agent, names)
+    errors = _errors(matched, rpe_delta_m, rpe_delta_nodes)
+    _refuse_non_finite(errors, names, estimate_label)
+    ape_t, ape_r, rpe_m, rpe_n = errors.ape_t, errors.ape_r, errors.rpe_m, errors.rpe_n
+    rows = tuple(
+        _agent_score(names[k], len(matched[k][0]), ape_t[k], ape_r[k], rpe_m[k], rpe_n[k]) for k in range(len(names))
+    )
 
     def pool(series):
         return tuple(np.concatenate([s[c] for s in series]) for c in (0, 1))
 
-    overall = row("all", len(gt_all), ape.error, np.concatenate(ape_r), pool(rpe_m), pool(rpe_n))
+    n_all = sum(len(m[0]) for m in matched)
+    overall = _agent_score("all", n_all, errors.ape_t_all, np.concatenate(ape_r), pool(rpe_m), pool(rpe_n))
     return Evaluation(
         dataset=dataset or str(graph.metadata.get("source", "")),
         estimate=estimate_label or ("initial estimate" if estimate is None else "estimate"),
@@ -490,6 +429,121 @@ def ape_translation(
     if stats is None or not np.all(np.isfinite(errors)):
         raise EvaluationError("estimate: no finite translation error to score")
     return stats
+
+
+def _check_score_arguments(
+    graph: PoseGraph,
+    estimate: Sequence[Trajectory] | None,
+    align: Alignment | str,
+    rpe_delta_m: float,
+    rpe_delta_nodes: int,
+) -> Alignment:
+    """The alignment asked for; :class:`EvaluationError` for an unknown one, a bad RPE delta or an
+    estimate with another number of agents."""
+    try:
+        align = Alignment(align)
+    except ValueError:
+        raise EvaluationError(f"unknown alignment {align!r} (known: {', '.join(a.value for a in Alignment)})") from None
+    if not (math.isfinite(rpe_delta_m) and rpe_delta_m > 0):
+        raise EvaluationError(f"the RPE distance must be a positive number of metres, got {rpe_delta_m!r}")
+    if rpe_delta_nodes < 1:
+        raise EvaluationError(f"the RPE node delta must be at least 1, got {rpe_delta_nodes}")
+    if estimate is not None and len(estimate) != len(graph.agents):
+        raise EvaluationError(f"the estimate has {len(estimate)} agents, the dataset {len(graph.agents)}")
+    return align
+
+
+def _aligned(matched: list, align: Alignment, align_per_agent: bool, names: list[str]) -> tuple[list, list]:
+    """``matched`` with each estimate aligned to its ground truth, and the transforms ``(r, t, s)``
+    used: one per agent (first pose, or per-agent Umeyama), one for all agents, or none."""
+    transforms = []
+    if align is Alignment.first_pose:
+        aligned = []
+        for gt, est, st, idx in matched:
+            r, t = _first_pose_transform(gt[0], est[0])
+            transforms.append((r, t, 1.0))
+            aligned.append((gt, _apply(est, r, t, 1.0), st, idx))
+        return aligned, transforms
+    if align is Alignment.none:
+        return matched, transforms
+    sim3 = align is Alignment.sim3
+    if align_per_agent:
+        aligned = []
+        for name, (gt, est, st, idx) in zip(names, matched):
+            r, t, s = _umeyama(est[:, 0:3], gt[:, 0:3], sim3, name)
+            transforms.append((r, t, s))
+            aligned.append((gt, _apply(est, r, t, s), st, idx))
+        return aligned, transforms
+    r, t, s = _umeyama(
+        np.concatenate([m[1][:, 0:3] for m in matched]),
+        np.concatenate([m[0][:, 0:3] for m in matched]),
+        sim3,
+        "all agents",
+    )
+    transforms.append((r, t, s))
+    return [(gt, _apply(est, r, t, s), st, idx) for gt, est, st, idx in matched], transforms
+
+
+@dataclass(frozen=True, eq=False)
+class _Errors:
+    """Per-agent error series of the aligned estimate."""
+
+    ape_t_all: np.ndarray
+    """APE translation [m] of all agents' poses pooled, in agent order."""
+    ape_t: list[np.ndarray]
+    ape_r: list[np.ndarray]
+    rpe_m: list[tuple[np.ndarray, np.ndarray]]
+    """RPE (translation, rotation) over ``rpe_delta_m`` metres."""
+    rpe_n: list[tuple[np.ndarray, np.ndarray]]
+    """RPE (translation, rotation) over ``rpe_delta_nodes`` nodes."""
+
+
+def _errors(matched: list, rpe_delta_m: float, rpe_delta_nodes: int) -> _Errors:
+    """APE translation by evo's own metric, on all agents' poses pooled (kollagen's single TUM
+    files); APE rotation and both RPEs per agent."""
+    from evo.core import metrics
+
+    gt_all = np.concatenate([m[0] for m in matched])
+    est_all = np.concatenate([m[1] for m in matched])
+    stamps_all = np.arange(len(gt_all), dtype=np.int64) * NS_PER_S
+    ape = metrics.APE(metrics.PoseRelation.translation_part)
+    ape.process_data((_trajectory(gt_all, stamps_all), _trajectory(est_all, stamps_all)))
+    bounds = np.cumsum([0] + [len(m[0]) for m in matched])
+    return _Errors(
+        ape.error,
+        [ape.error[a:b] for a, b in zip(bounds[:-1], bounds[1:])],
+        [_ape_rotation_deg(gt, est) for gt, est, *_ in matched],
+        [_rpe(gt, est, rpe_delta_m, metrics.Unit.meters) for gt, est, *_ in matched],
+        [_rpe(gt, est, rpe_delta_nodes, metrics.Unit.frames) for gt, est, *_ in matched],
+    )
+
+
+def _refuse_non_finite(errors: _Errors, names: list[str], estimate_label: str) -> None:
+    """One line naming the agent and pose of the first error that is not finite."""
+    series_all = [*errors.ape_t, *errors.ape_r, *(r[0] for r in errors.rpe_m), *(r[0] for r in errors.rpe_n)]
+    for k, series in enumerate(series_all):
+        bad = np.flatnonzero(~np.isfinite(np.asarray(series, dtype=float)))
+        if len(bad):  # an estimate far beyond any map (e.g. a vertex at 1e200) overflows the errors
+            k %= len(names)
+            raise EvaluationError(
+                f"{estimate_label or 'estimate'}: agent {names[k]}: the error at pose {int(bad[0])} "
+                "is not finite (a pose beyond the finite range?)"
+            )
+
+
+def _agent_score(name: str, n: int, at, ar, rm, rn) -> AgentScore:
+    ape_t, ape_r = ErrorStats.of(at), ErrorStats.of(ar)
+    assert ape_t is not None and ape_r is not None  # every scored agent has at least one pose
+    return AgentScore(
+        name,
+        n,
+        ape_t,
+        ape_r,
+        ErrorStats.of(rm[0]),
+        ErrorStats.of(rm[1]),
+        ErrorStats.of(rn[0]),
+        ErrorStats.of(rn[1]),
+    )
 
 
 def evaluate(
@@ -574,7 +628,7 @@ def _header_lines(ev: Evaluation) -> list[str]:
     ]
 
 
-def _aligned(rows: list[list[str]]) -> list[str]:
+def _text_rows(rows: list[list[str]]) -> list[str]:
     """Rows of cells as lines: the first column left-aligned, the others right-aligned."""
     widths = [max(len(r[c]) for r in rows) for c in range(len(rows[0]))]
     return ["  ".join(r[0].ljust(widths[0]) if c == 0 else r[c].rjust(widths[c]) for c in range(len(r))) for r in rows]
@@ -586,7 +640,7 @@ def format_table(ev: Evaluation, *, width: int | None = None) -> str:
     as columns, in as many blocks of agents as it takes to fit."""
     head = ["agent"] + [c[0] for c in _COLUMNS]
     body = [_cells(a) for a in ev.agents] + [_cells(ev.overall)]
-    lines = _aligned([head] + body)
+    lines = _text_rows([head] + body)
     if width is None or len(lines[0]) <= width:
         rule = "-" * len(lines[0])
         return "\n".join(_header_lines(ev) + ["", lines[0], rule, *lines[1:-1], rule, lines[-1]]) + "\n"
@@ -602,10 +656,10 @@ def _turned(head: list[str], body: list[list[str]], width: int) -> list[str]:
         stop = start + 1
         while (
             stop < len(body)
-            and len(_aligned([[h] + [r[i] for r in body[start : stop + 1]] for i, h in enumerate(head)])[0]) <= width
+            and len(_text_rows([[h] + [r[i] for r in body[start : stop + 1]] for i, h in enumerate(head)])[0]) <= width
         ):
             stop += 1
-        block = _aligned([[h.ljust(label)] + [r[i] for r in body[start:stop]] for i, h in enumerate(head)])
+        block = _text_rows([[h.ljust(label)] + [r[i] for r in body[start:stop]] for i, h in enumerate(head)])
         out += ["", block[0], "-" * len(block[0]), *block[1:]]
         start = stop
     return out

@@ -38,6 +38,7 @@ from studio.core.geometry import is_planar_se3, planar_poses_to_se3, se3_informa
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
+from studio.core.units import MAX_MAGNITUDE as MAX_COORDINATE_M  # the one bound of every number
 from studio.solvers import DEFAULT_METHOD, method_entry
 from studio.solvers.problem import Init, Iteration, Optimizer, Problem, Solution, SolveOptions, graph_chi2
 
@@ -187,10 +188,6 @@ def load_problem(dataset: PathLike, *, dimension: Dimension = "auto") -> Loaded:
         if planar:
             problem = _planar_problem(problem)
     return Loaded(problem, source_kind, graph, offsets, doc)
-
-
-#: Largest coordinate [m] a pose or a measurement may have: beyond it the optimizers' products overflow.
-MAX_COORDINATE_M = 1e9
 
 
 def _check_magnitudes(problem: Problem, path: Path) -> None:

@@ -49,10 +49,10 @@ from typing import Any
 
 from studio._callable import make_callable
 from studio.core.errors import ConfigError, StudioError
-from studio.core.progress import Progress, report
 from studio.core.types import PathLike
 from studio.io.atomic import write_replacing
 from studio.io.spec_file import check_spec_keys, read_spec_file
+from studio.runtime.progress import Progress, report
 
 __all__ = [
     "SweepSpec",
@@ -421,7 +421,7 @@ def _client(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
                 return Client(scheduler, timeout="20s"), None
             except (OSError, TimeoutError, ValueError) as err:
                 raise ConfigError(f"scheduler: cannot connect to {scheduler} ({err})") from None
-        from studio.core.parallel import available_cores
+        from studio.runtime.parallel import available_cores
 
         n = workers or available_cores()
         # no dashboard; the scheduler's small HTTP server (health, metrics) on a free loopback port, not

@@ -8,11 +8,9 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from studio.core.checks import check_option
 from studio.core.errors import ConfigError
 from studio.core.model import PoseGraph
-from studio.core.parallel import default_jobs, parallel_map, run_team
-from studio.core.progress import Progress, report
+from studio.core.option_values import check_option
 from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.generator.config import SynthConfig, estimate_resources
@@ -26,6 +24,8 @@ from studio.io.multig2o import Records, multi_g2o_parts
 from studio.io.outliers_txt import write_outliers_txt
 from studio.io.singleg2o import write_single_g2o, write_single_tum
 from studio.io.synth_config import read_synth_config, synth_config_to_json
+from studio.runtime.parallel import default_jobs, parallel_map, run_team
+from studio.runtime.progress import Progress, report
 
 __all__ = [
     "EXTRA_WRITERS",
@@ -108,7 +108,7 @@ def write_outputs(
     see :func:`synthesize`). ``single_records`` are the g2o records of the extras' files.
 
     The files are independent writes (each file of an extra, an agent's folder, the inter-agent file),
-    shared between processes when ``jobs`` allows. Within a team (:func:`~studio.core.parallel.run_team`)
+    shared between processes when ``jobs`` allows. Within a team (:func:`~studio.runtime.parallel.run_team`)
     every process makes the folders (they may come first to them) and writes the files it claims.
     """
     tasks: list[Callable[[], None]] = []
@@ -169,7 +169,7 @@ def synthesize(
     and (unless ``rrd`` is false) the Rerun recording ``OUT/<name>.rrd``, all staged and renamed
     into place at the end. Existing outputs are replaced only with ``force``.
     ``jobs`` caps the processes used (default: the idle cores, see
-    :func:`~studio.core.parallel.default_jobs`); the bytes do not depend on it.
+    :func:`~studio.runtime.parallel.default_jobs`); the bytes do not depend on it.
     Configs estimated to need more memory or disk than the limits are refused before any work.
     ``progress`` hears of each agent, agent pair, written part and recorded agent.
     """

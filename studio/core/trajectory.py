@@ -12,14 +12,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from studio.core.errors import FormatError
+from studio.core.units import MAX_MAGNITUDE
 
-__all__ = ["Trajectory", "clean_trajectory", "Warn", "MAX_COORDINATE_M"]
+__all__ = ["Trajectory", "clean_trajectory", "Warn"]
 
 Warn = Callable[[str], None]
-
-#: Largest position coordinate [m] of a trajectory: UTM and ECEF coordinates stay under 1e7 m, and
-#: beyond this the graph builder's products overflow.
-MAX_COORDINATE_M = 1e9
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,12 +86,12 @@ def clean_trajectory(
     finite = np.isfinite(positions_xyz).all(axis=1) & np.isfinite(quat_xyzw).all(axis=1)
     if not finite.all():
         raise FormatError(f"{source}: pose {int(np.flatnonzero(~finite)[0])} is not finite")
-    far = np.abs(positions_xyz).max(axis=1, initial=0.0) > MAX_COORDINATE_M
+    far = np.abs(positions_xyz).max(axis=1, initial=0.0) > MAX_MAGNITUDE
     if far.any():
         k = int(np.flatnonzero(far)[0])
         raise FormatError(
             f"{source}: pose {k} has a coordinate of {np.abs(positions_xyz[k]).max():g} m, "
-            f"beyond the {MAX_COORDINATE_M:g} m a trajectory may reach"
+            f"beyond the {MAX_MAGNITUDE:g} m a trajectory may reach"
         )
     norms = np.linalg.norm(quat_xyzw, axis=1)
     if np.any(norms < 1e-9):

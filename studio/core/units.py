@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
-__all__ = ["NS_PER_S", "DEFAULT_MAX_MEMORY_GB", "DEFAULT_MAX_OUTPUT_GB"]
+__all__ = [
+    "NS_PER_S",
+    "DEFAULT_MAX_MEMORY_GB",
+    "DEFAULT_MAX_OUTPUT_GB",
+    "MAX_MAGNITUDE",
+    "MIN_MAGNITUDE",
+    "MAX_RECORDED_COORDINATE_M",
+]
 
 #: Nanoseconds per second: timestamps are int64 nanoseconds inside the studio.
 NS_PER_S = 1_000_000_000
@@ -11,3 +18,17 @@ NS_PER_S = 1_000_000_000
 DEFAULT_MAX_MEMORY_GB = 8.0
 #: Default limit [GB] of what ``studio synth`` may write.
 DEFAULT_MAX_OUTPUT_GB = 20.0
+
+#: Largest magnitude of any number the studio accepts from a user or an input file, in that number's
+#: own unit: a coordinate, length, radius or standard deviation [m], a time [s], a limit, a scale.
+#: Beyond it squares and products overflow the generator's, graph builder's and optimizers' float64
+#: maths, and it is a typo rather than a request (UTM and ECEF coordinates stay under 1e7 m;
+#: kollagen's paper configs use values under 10). One bound for all of them, so it carries no unit.
+MAX_MAGNITUDE = 1e9
+#: Smallest positive value of such a number (``--lc-radius 1e-300``, a stepsize): below it squares
+#: underflow and the computations it feeds divide by zero.
+MIN_MAGNITUDE = 1e-9
+#: Largest coordinate [m] a recording draws (``studio record``/``view``, any multi-g2o folder, also one
+#: the studio did not write): squares of positions overflow float64 in the viewer's maths beyond it.
+#: Wider than :data:`MAX_MAGNITUDE`, because it bounds only what the recording computes.
+MAX_RECORDED_COORDINATE_M = 1e12

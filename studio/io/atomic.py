@@ -34,8 +34,8 @@ from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from studio.core.errors import OutputError
-from studio.core.interrupts import interrupts_deferred
 from studio.core.types import PathLike
+from studio.runtime.interrupts import interrupts_deferred
 
 __all__ = [
     "staged_outputs",

@@ -25,6 +25,7 @@ from dataclasses import fields
 from typing import Any
 
 from studio.core.errors import ConfigError
+from studio.core.units import MAX_MAGNITUDE as _LIMIT  # the one bound of every number
 from studio.generator.extended import WALK_MODES, walk_mode
 from studio.generator.extensions import (
     EXTENSIONS_VERSION,
@@ -48,7 +49,6 @@ _MODEL_KEYS = {
     "laplace": ("model",),
     "mixture": ("model", "weights", "scales"),
 }
-_LIMIT = 1e9
 
 
 def _check_keys(obj: Any, path: str, known: tuple[str, ...], fail: Fail) -> dict:

@@ -5,9 +5,9 @@ Every problem is a :class:`~studio.core.errors.ConfigError` whose message names 
 them) but are reported through ``warn`` with the closest known key.
 
 Beyond kollagen's own rules, numbers whose arithmetic would overflow in the generator are refused:
-a length, standard deviation or probability over :data:`MAX_MAGNITUDE` (1e9), a stepsize or radius
-under :data:`MIN_LENGTH` (1e-9 m), more than :data:`MAX_AGENTS` agents, and JSON integers of more
-than 100 digits.
+a length, standard deviation or probability over :data:`~studio.core.units.MAX_MAGNITUDE` (1e9), a
+stepsize or radius under :data:`~studio.core.units.MIN_MAGNITUDE` (1e-9 m), more than
+:data:`MAX_AGENTS` agents, and JSON integers of more than 100 digits.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from typing import Any
 
 from studio.core.errors import ConfigError
 from studio.core.types import PathLike
+from studio.core.units import MAX_MAGNITUDE, MIN_MAGNITUDE
 from studio.generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
 from studio.io.studio_block import studio_block_to_json
 
@@ -29,18 +30,11 @@ __all__ = [
     "parse_synth_config",
     "synth_config_to_json",
     "MAX_CONFIG_BYTES",
-    "MAX_MAGNITUDE",
-    "MIN_LENGTH",
     "MAX_AGENTS",
 ]
 
 #: Larger files are refused before parsing (kollagen configs are a few kB).
 MAX_CONFIG_BYTES = 16 * 1024 * 1024
-#: Largest length [m], standard deviation or probability (scaling): beyond it the generator's
-#: squares and products overflow (kollagen's paper configs use values under 10).
-MAX_MAGNITUDE = 1e9
-#: Smallest stepsize or loop-closure radius [m]: a radius whose square underflows divides by zero.
-MIN_LENGTH = 1e-9
 #: Most agents a config may ask for (the paper's datasets have 5 and 8); a single ``agent_specific``
 #: entry is repeated for each, so a huge count would exhaust memory while parsing.
 MAX_AGENTS = 10_000
@@ -160,8 +154,8 @@ def _section(r: _Reader, obj: dict, path: str, names: tuple[str, ...]) -> dict:
             raise r.fail(p, f"a standard deviation cannot be negative, got {v!r}")
         if name in _RADII and v <= 0:
             raise r.fail(p, f"must be positive, got {v!r}")
-        if name in _RADII and v < MIN_LENGTH:
-            raise r.fail(p, f"{v!r} is under the smallest radius, {MIN_LENGTH!r} m")
+        if name in _RADII and v < MIN_MAGNITUDE:
+            raise r.fail(p, f"{v!r} is under the smallest radius, {MIN_MAGNITUDE!r} m")
         if (
             name in _STD_DEVS or name in _RADII or name in _PROBABILITIES or name.endswith("probability_scaling")
         ) and v > MAX_MAGNITUDE:
@@ -194,8 +188,8 @@ def parse_synth_config(
     stepsize = r.number(ap, "stepsize", "agent_parameters")
     if stepsize <= 0:
         raise r.fail("agent_parameters.stepsize", f"must be positive, got {stepsize!r}")
-    if not MIN_LENGTH <= stepsize <= MAX_MAGNITUDE:
-        raise r.fail("agent_parameters.stepsize", f"{stepsize!r} is outside [{MIN_LENGTH!r}, {MAX_MAGNITUDE!r}] m")
+    if not MIN_MAGNITUDE <= stepsize <= MAX_MAGNITUDE:
+        raise r.fail("agent_parameters.stepsize", f"{stepsize!r} is outside [{MIN_MAGNITUDE!r}, {MAX_MAGNITUDE!r}] m")
     frag = r.integer(ap, "step_fragment", "agent_parameters")
     if frag <= 0:
         raise r.fail("agent_parameters.step_fragment", f"must be at least 1, got {frag}")

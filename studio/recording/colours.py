@@ -2,7 +2,7 @@
 
 A recording is opened on the viewer's dark theme or on its light theme (the web viewer follows the
 operating system's preference), so each colour must show on both backgrounds. The rule, checked by
-``tests/studio/test_recording_colours.py`` for every colour listed in :func:`recording_colours`:
+``tests/recording/test_colours.py`` for every colour listed in :func:`recording_colours`:
 
 * an opaque colour has a WCAG 2 contrast ratio of at least :data:`MIN_CONTRAST_OPAQUE` (2.0)
   against both backgrounds;

@@ -14,7 +14,7 @@ and inter-agent loop closures so far. Dataset facts are recording properties (``
 Everything bulky goes through ``send_columns`` (never one ``log`` call per row). The content depends
 only on the dataset: the application id is fixed, the recording id is derived from the graph's
 columns, and no clock or host value is logged. Entity paths and timelines are in
-:mod:`studio.recording.entities`; exact checks in :mod:`studio.recording.checks`.
+:mod:`studio.recording.entities`; exact checks in :mod:`studio.recording.rrd_checks`.
 """
 
 from __future__ import annotations
@@ -30,11 +30,9 @@ import numpy as np
 
 from studio.core.errors import FormatError, OutputError
 from studio.core.geometry import is_planar_se3
-from studio.core.interrupts import interrupts_deferred
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
-from studio.core.progress import Progress, report
 from studio.core.types import PathLike
-from studio.core.units import NS_PER_S
+from studio.core.units import MAX_RECORDED_COORDINATE_M, NS_PER_S
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.recording.colours import (
     AGENT_PALETTE_RGB,
@@ -64,6 +62,8 @@ from studio.recording.entities import (
     TIMELINE_TIME,
     WORLD,
 )
+from studio.runtime.interrupts import interrupts_deferred
+from studio.runtime.progress import Progress, report
 
 if TYPE_CHECKING:
     import rerun as rr
@@ -660,12 +660,8 @@ def read_outliers(path: PathLike, graph: PoseGraph) -> np.ndarray:
     return np.array(rows, dtype=np.int64).reshape(-1, 4)
 
 
-#: Coordinates beyond this [m] are refused: squares of them overflow float64 in the viewer's maths.
-MAX_COORDINATE_M = 1e12
-
-
 def check_extent(graph: PoseGraph, dataset: Path) -> None:
-    """Refuse, naming the file and vertex, a pose whose position leaves ±MAX_COORDINATE_M."""
+    """Refuse, naming the file and vertex, a pose whose position leaves ±MAX_RECORDED_COORDINATE_M."""
     for a in graph.agents:
         for what, poses, rel in (
             ("vertex", a.initial, "posegraph.g2o"),
@@ -674,10 +670,10 @@ def check_extent(graph: PoseGraph, dataset: Path) -> None:
             if poses is None or not len(poses):
                 continue
             xyz = np.asarray(poses)[:, : (2 if poses.shape[1] == 3 else 3)]
-            bad = np.flatnonzero(~(np.abs(xyz) <= MAX_COORDINATE_M).all(axis=1))
+            bad = np.flatnonzero(~(np.abs(xyz) <= MAX_RECORDED_COORDINATE_M).all(axis=1))
             if len(bad):
                 raise FormatError(
-                    f"{dataset}: agent {a.name}: {what} {int(bad[0])} ({rel}) lies beyond {MAX_COORDINATE_M:g} m"
+                    f"{dataset}: agent {a.name}: {what} {int(bad[0])} ({rel}) lies beyond {MAX_RECORDED_COORDINATE_M:g} m"
                 )
 
 

@@ -19,7 +19,7 @@ The content depends only on the inputs: the recording id is derived from everyth
 shows (:func:`evaluation_recording_id`: the statistics table, which names the dataset, the estimate,
 the alignment and the RPE options, and every logged column), blueprint parts have ids derived from
 their role, and no clock value is logged. Two runs on the same inputs give the same fingerprint
-(:func:`studio.recording.checks.fingerprint_rrd`); the bytes differ only by Rerun's time-based
+(:func:`studio.recording.rrd_checks.fingerprint_rrd`); the bytes differ only by Rerun's time-based
 chunk and row ids (see docs/recordings.md).
 """
 

@@ -24,10 +24,10 @@ from pathlib import Path
 from typing import Any
 
 from studio.core.errors import ConfigError, FormatError, OutputError
-from studio.core.progress import Progress, report
 from studio.core.types import PathLike
 from studio.recording.colours import LIGHT_BACKGROUND_RGB
 from studio.recording.entities import TIMELINE_CELL, TIMELINE_ITERATION, TIMELINE_NODE
+from studio.runtime.progress import Progress, report
 
 __all__ = [
     "SnapshotResult",

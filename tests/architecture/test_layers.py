@@ -19,9 +19,12 @@ REPO = Path(__file__).resolve().parents[2]
 ROOTS = {"studio": "studio", "generator": "studio.generator", "converters": "studio.converters"}
 
 #: Layer of each package; a pipeline is a module directly in studio/ (rank 5), the CLI is rank 6 and
-#: the console script's entry point rank 7.
-RANKS = {
+#: the console script's entry point rank 7. The runtime sits beside the core in layer 0 (rank 0.5):
+#: it may import the core, and nothing else of ours; the core imports neither it nor anything else.
+RANKS: dict[str, float] = {
     "studio.core": 0,
+    # beside the core: may import it, the core may not import the runtime
+    "studio.runtime": 0.5,
     "studio.generator": 1,
     "studio.io": 2,
     "studio.converters": 3,
@@ -41,7 +44,7 @@ def _module_name(path: Path) -> str:
     return ".".join(p for p in ".".join(parts).split(".") if p)
 
 
-def _unit(module: str) -> tuple[str, int]:
+def _unit(module: str) -> tuple[str, float]:
     """The layer unit a module belongs to and its rank."""
     if module == "studio":
         return "studio", -1  # the package's __init__ (version only)
@@ -109,23 +112,42 @@ def test_imports_go_down(module):
     assert not bad, "\n".join(bad)
 
 
-def test_the_core_imports_no_heavy_library():
+def _library_imports(path: Path) -> list[str]:
+    """Every module name ``path`` imports (absolute names, ours and others')."""
+    names: list[str] = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            names += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and not node.level:
+            names.append(node.module or "")
+    return names
+
+
+def test_the_core_and_the_runtime_import_no_heavy_library():
     heavy = {"rerun", "evo", "rosbags", "typer", "gtsam", "g2o", "dask", "distributed", "pandas", "scipy"}
     bad = []
     for module, path in MODULES.items():
-        if _unit(module)[1] != 0:
+        if _unit(module)[0] not in ("studio.core", "studio.runtime"):
             continue
-        tree = ast.parse(path.read_text(encoding="utf-8"))
-        for node in ast.walk(tree):
-            names = (
-                [a.name for a in node.names]
-                if isinstance(node, ast.Import)
-                else [node.module or ""]
-                if isinstance(node, ast.ImportFrom)
-                else []
-            )
-            bad += [f"{module}: {n}" for n in names if n.split(".")[0] in heavy]
+        bad += [f"{module}: {n}" for n in _library_imports(path) if n.split(".")[0] in heavy]
     assert not bad, bad
+
+
+def test_the_core_holds_no_runtime_machinery():
+    """Processes, signals, threads and terminal output live in studio.runtime, not beside the model."""
+    machinery = {"multiprocessing", "signal", "threading", "ctypes", "subprocess", "rich", "concurrent"}
+    bad = []
+    for module, path in MODULES.items():
+        if _unit(module)[0] != "studio.core":
+            continue
+        bad += [f"{module}: {n}" for n in _library_imports(path) if n.split(".")[0] in machinery]
+    assert not bad, bad
+    assert "studio.runtime.parallel" in MODULES and "studio.runtime.progress" in MODULES
+
+
+def test_the_runtime_sits_beside_the_core():
+    assert _unit("studio.runtime.parallel")[1] > _unit("studio.core.model")[1]
+    assert _unit("studio.runtime.parallel")[1] < _unit("studio.generator.walk")[1]
 
 
 def test_only_cli_imports_typer():

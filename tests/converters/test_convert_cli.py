@@ -24,14 +24,14 @@ def run(*args):
 def folder_bytes(root: Path) -> dict[str, bytes]:
     """Every dataset file's bytes. The recording is left out: it is named after the folder and never
     byte-identical (chunk ids); its content is compared by fingerprint below and in
-    tests/studio/test_committed_recordings.py."""
+    tests/recording/test_committed_recordings.py."""
     return {
         str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file() and p.suffix != ".rrd"
     }
 
 
 def rrd_fingerprint(root: Path) -> dict[str, str]:
-    from studio.recording.checks import fingerprint_rrd
+    from studio.recording.rrd_checks import fingerprint_rrd
 
     # the recording's name property is the folder's name; everything else must match
     return {

@@ -32,7 +32,7 @@ def test_every_tiny_config_has_a_manifest():
 
 @pytest.mark.parametrize("name", CONFIGS)
 def test_tiny_configs_match_golden_digests(tmp_path, name):
-    # rrd=False: these are kollagen's bytes; a recording is compared by content (tests/studio/test_recording.py)
+    # rrd=False: these are kollagen's bytes; a recording is compared by content (tests/recording/test_recording.py)
     synthesize(load_synth_config(DATA / "configs" / f"{name}.json"), tmp_path, jobs=1, rrd=False)
     expected = _manifest(name)
     written = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_file() and p.suffix != ".json")

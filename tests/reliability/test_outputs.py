@@ -17,9 +17,9 @@ from typer.testing import CliRunner
 
 from studio.cli import app
 from studio.core.errors import OutputError
-from studio.core.parallel import parallel_map
 from studio.io import atomic
 from studio.io.atomic import LOCK_PREFIX, STAGING_PREFIX, staged_outputs, verify_rrd
+from studio.runtime.parallel import parallel_map
 from tests.reliability.test_generated_corpus import _dataset
 
 runner = CliRunner()
@@ -246,7 +246,7 @@ def test_ctrl_c_the_moment_a_staging_entry_appears_leaves_nothing(tmp_path, monk
 def test_a_process_that_ignores_ctrl_c_still_ignores_it_in_deferred_sections():
     import signal
 
-    from studio.core.interrupts import interrupts_deferred
+    from studio.runtime.interrupts import interrupts_deferred
 
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # as in the pool's workers
     try:

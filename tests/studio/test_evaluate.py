@@ -480,8 +480,8 @@ def test_evaluation_recording_is_the_same_for_the_same_inputs(small, graph, tmp_
     fingerprint. The bytes still differ: Rerun's chunk and row ids are time-based (docs/recordings.md)."""
     from rerun.chunk import RrdReader
 
-    from studio.recording.checks import fingerprint_rrd
     from studio.recording.dataset import recording_id_for
+    from studio.recording.rrd_checks import fingerprint_rrd
 
     _write_multi(tmp_path / "multi", graph, _perturbed(graph))
     args = ["evaluate", str(small.dataset_dir), "-e", str(tmp_path / "multi"), "--align", "se3"]

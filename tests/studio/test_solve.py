@@ -73,7 +73,7 @@ def test_g2o_method_matches_the_default_optimum(small, tmp_path):
 
 
 def test_solve_recording_has_every_iteration(small, tmp_path):
-    from studio.recording.checks import rrd_verify
+    from studio.recording.rrd_checks import rrd_verify
 
     res = solve(small.dataset_dir, tmp_path / "est", rrd=tmp_path / "run.rrd")
     rrd_verify(tmp_path / "run.rrd")
@@ -98,7 +98,7 @@ def test_solve_recording_is_the_same_for_the_same_run(small, tmp_path, source):
     g2o file, which has no dataset recording to join, gets an id derived from the run."""
     import rerun.chunk as rc
 
-    from studio.recording.checks import fingerprint_rrd
+    from studio.recording.rrd_checks import fingerprint_rrd
 
     dataset = small.dataset_dir if source == "folder" else small.single_dir / f"{small.config.name}.g2o"
     for name in ("a", "b"):

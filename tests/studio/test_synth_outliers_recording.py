@@ -11,7 +11,7 @@ from studio.recording.dataset import read_outliers
 from studio.recording.entities import LOOP_CLOSURES_OUTLIERS
 from studio.synth import synthesize
 from tests.generator.test_extensions import _small
-from tests.studio.test_recording import read_back
+from tests.recording.test_recording import read_back
 
 
 def test_synth_outliers_are_recorded_apart_and_flagged_by_check(tmp_path):

@@ -5,7 +5,7 @@ Each entry of :data:`CANONICAL` makes one recording from scratch. The test check
 the regenerated file against that fingerprint (exact, per entity and component), and
 ``rerun rrd compare --unordered`` between the two files.
 
-After an intended change, rewrite the baseline with ``STUDIO_BLESS=1 pytest tests/studio/test_committed_recordings.py``
+After an intended change, rewrite the baseline with ``STUDIO_BLESS=1 pytest tests/recording/test_committed_recordings.py``
 and commit ``recordings/``.
 """
 
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from studio.recording.checks import fingerprint_rrd, read_fingerprint, rrd_compare, rrd_verify, write_fingerprint
+from studio.recording.rrd_checks import fingerprint_rrd, read_fingerprint, rrd_compare, rrd_verify, write_fingerprint
 from studio.synth import load_synth_config, synthesize
 
 REPO = Path(__file__).resolve().parent.parent.parent

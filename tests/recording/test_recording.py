@@ -11,7 +11,6 @@ import pytest
 
 from studio.core.model import AgentGraph, PoseGraph
 from studio.generator.kollagen import generate
-from studio.recording.checks import fingerprint_rrd, read_fingerprint, rrd_compare, rrd_verify, write_fingerprint
 from studio.recording.dataset import STRIP_CHUNK_ROWS, inter_pair_path, record_graph, recording_id_for
 from studio.recording.entities import (
     APPLICATION_ID,
@@ -26,6 +25,7 @@ from studio.recording.entities import (
     TIMELINE_NODE,
     TIMELINE_TIME,
 )
+from studio.recording.rrd_checks import fingerprint_rrd, read_fingerprint, rrd_compare, rrd_verify, write_fingerprint
 from studio.synth import load_synth_config, synthesize
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "configs"

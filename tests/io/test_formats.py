@@ -18,7 +18,7 @@ from studio.io.multig2o import read_multi_g2o, write_multi_g2o
 from studio.io.synth_config import read_synth_config
 from studio.io.tum import read_tum, write_tum
 
-DATA = Path(__file__).resolve().parents[2] / "data"
+DATA = Path(__file__).resolve().parents[1] / "data"
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from studio.core import parallel
+from studio.runtime import parallel
 
 
 @pytest.mark.parametrize(
@@ -235,7 +235,7 @@ def test_team_workers_end_when_their_leader_is_killed(tmp_path):
     script = (
         "import os, signal, time\n"
         "from pathlib import Path\n"
-        "from studio.core import parallel\n"
+        "from studio.runtime import parallel\n"
         f"folder = Path({str(tmp_path)!r})\n"
         "leader = os.getpid()\n"
         "def item(k):\n"

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from studio.core.progress import report, terminal_progress
+from studio.runtime.progress import report, terminal_progress
 
 REPO = Path(__file__).resolve().parent.parent.parent
 CONFIG = REPO / "tests" / "data" / "configs" / "tiny_three.json"
@@ -110,7 +110,7 @@ def test_terminal_progress_is_none_off_a_terminal(capsys):
 def test_a_command_in_a_pipe_does_not_load_rich(tmp_path):
     code = (
         "import sys\n"
-        "from studio.core.progress import terminal_progress\n"
+        "from studio.runtime.progress import terminal_progress\n"
         "with terminal_progress() as p:\n"
         "    seen = (p is None, 'rich' in sys.modules)\n"
         "open('seen.txt', 'w').write(repr(seen))\n"

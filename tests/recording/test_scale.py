@@ -15,7 +15,7 @@ from studio.recording.dataset import (
     record_dataset,
 )
 from studio.recording.entities import LOOP_CLOSURES_OUTLIERS
-from tests.studio.test_recording import read_back
+from tests.recording.test_recording import read_back
 
 TRAJECTORIES = Path(__file__).resolve().parent.parent / "data" / "trajectories"
 
