@@ -81,6 +81,8 @@ class BackendRun:
     seconds: float
     """Wall time of the whole back-end run."""
     final_poses: np.ndarray
+    beliefs: tuple[np.ndarray, ...] = ()
+    """With a recording: per checkpoint, the ``(num_vertices, 3)`` float32 positions believed."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -208,7 +210,9 @@ def _checkpoints(num_ticks: int, every: int) -> np.ndarray:
     return ticks
 
 
-def _run(name: str, world: World, graph: PoseGraph, schedule: Schedule, checkpoints: np.ndarray) -> BackendRun:
+def _run(
+    name: str, world: World, graph: PoseGraph, schedule: Schedule, checkpoints: np.ndarray, *, keep_beliefs: bool
+) -> BackendRun:
     t0 = time.perf_counter()
     backend = get_backend(name)(world)
     kind = world.problem.kind
@@ -223,8 +227,9 @@ def _run(name: str, world: World, graph: PoseGraph, schedule: Schedule, checkpoi
     solver_s = np.zeros(len(checkpoints))
     previous = -1
     step = None
+    beliefs: list[np.ndarray] = []
     for c, tick in enumerate(checkpoints.tolist()):
-        linked = schedule.contact[previous + 1 : tick + 1].any(axis=0)
+        linked = np.asarray(schedule.contact[previous + 1 : tick + 1].any(axis=0))
         present = np.array([world.vertex_ns[offsets[r]] <= world.ticks_ns[tick] for r in range(n)])
         groups = _components(n, pairs, linked, present)
         step = backend.advance(tick, groups)
@@ -233,6 +238,8 @@ def _run(name: str, world: World, graph: PoseGraph, schedule: Schedule, checkpoi
             step = dataclasses.replace(last, solver_seconds=step.solver_seconds + last.solver_seconds)
         solver_s[c] = step.solver_seconds
         own = as_se3(step.own, kind)
+        if keep_beliefs:
+            beliefs.append(own[:, 0:3].astype(np.float32))
         t = world.ticks_ns[tick]
         fp_all, est_all, gt_all = [], [], []
         for r in range(n):
@@ -265,6 +272,7 @@ def _run(name: str, world: World, graph: PoseGraph, schedule: Schedule, checkpoi
         solver_s,
         time.perf_counter() - t0,
         final,
+        tuple(beliefs),
     )
 
 
@@ -406,6 +414,7 @@ def replay(
     relinearize_skip: int = 10,
     relinearize_threshold: float = 0.1,
     final_updates: int = 3,
+    polish: bool = True,
     force: bool = False,
     rrd: PathLike | None = None,
 ) -> ReplayResult:
@@ -457,20 +466,21 @@ def replay(
         times = measurement_times(graph, period_ns=None if period_s is None else round(period_s * NS_PER_S))
     except GraphError as err:
         raise FormatError(f"{dataset}: {err}") from None
-    settings = IsamSettings(float(relinearize_threshold), relinearize_skip, 0, final_updates)
+    settings = IsamSettings(float(relinearize_threshold), relinearize_skip, 0, final_updates, bool(polish))
     # refuse a bad output before any work
     from studio.io.atomic import check_not_overlapping
 
     check_not_overlapping([out] + ([rrd_path] if rrd_path else []), inputs)
-    if out.exists() and not force:
-        from studio.core.errors import OutputError
+    for target in [out] + ([rrd_path] if rrd_path is not None else []):
+        if target.exists() and not force:
+            from studio.core.errors import OutputError
 
-        raise OutputError(f"{out} already exists (use --force to overwrite)")
+            raise OutputError(f"{target} already exists (use --force to overwrite)")
     schedule = build_schedule(graph, times, model, step_ns=step_ns, seed=seed, bandwidth=band)
     report = comms_report(schedule)
     world = _world(loaded, graph, times, schedule, settings)
     checkpoints = _checkpoints(len(schedule.ticks_ns), every)
-    runs = tuple(_run(name, world, graph, schedule, checkpoints) for name in names)
+    runs = tuple(_run(name, world, graph, schedule, checkpoints, keep_beliefs=rrd_path is not None) for name in names)
     options = {
         "dataset": str(dataset),
         "comms": schedule.model,
@@ -517,13 +527,18 @@ def replay(
         write_replay_recording(
             rrd_path,
             graph,
-            kind=loaded.problem.kind,
+            name=f"{Path(dataset).name} replay ({schedule.model})",
+            force=force,
             ticks_ns=schedule.ticks_ns,
             contact=schedule.contact,
+            pairs=schedule.pairs,
             closure_from=schedule.closure_from,
+            closure_from_index=graph.inter.from_index,
             closure_to=schedule.closure_to,
+            closure_to_index=graph.inter.to_index,
             delivered_tick=schedule.delivered_tick,
-            runs=[(r.name, r.checkpoint_ticks, r.ape_team_se3_m) for r in runs],
-            force=force,
+            robots_in_contact=report.robots_in_contact,
+            runs=[(r.name, r.checkpoint_ticks, r.ape_team_se3_m, r.beliefs) for r in runs],
+            vertex_ns=world.vertex_ns,
         )
     return ReplayResult(out, schedule, report, runs, options, rrd_path)

@@ -144,6 +144,18 @@ def _add_known(solver: IncrementalSolver, vertices: np.ndarray, edges: np.ndarra
     return len(new_v), len(new_e)
 
 
+def _finish(solver: IncrementalSolver, own: np.ndarray, settings: IsamSettings) -> np.ndarray:
+    """The last estimate: more ISAM2 updates, then (``settings.polish``) Gauss-Newton to convergence."""
+    solver.refine(settings.final_updates)
+    ids = np.flatnonzero(solver.vertices)
+    if len(ids):
+        own[ids] = solver.solve()
+        if settings.polish:
+            solver.polish()
+            own[ids] = solver.estimate[ids]
+    return own
+
+
 class Centralized(_Base):
     def __init__(self, world: World) -> None:
         super().__init__(world)
@@ -157,9 +169,7 @@ class Centralized(_Base):
         return self._step([self.solver])
 
     def finish(self) -> Step:
-        self.solver.refine(self.world.settings.final_updates)
-        ids = np.flatnonzero(self.solver.vertices)
-        self.own[ids] = self.solver.solve()
+        self.own = _finish(self.solver, self.own, self.world.settings)
         return self._step([self.solver])
 
 
@@ -181,10 +191,7 @@ class Independent(_Base):
 
     def finish(self) -> Step:
         for solver in self.solvers:
-            solver.refine(self.world.settings.final_updates)
-            ids = np.flatnonzero(solver.vertices)
-            if len(ids):
-                self.own[ids] = solver.solve()
+            self.own = _finish(solver, self.own, self.world.settings)
         return self._step(self.solvers)
 
 
@@ -242,9 +249,7 @@ class Swarm(_Base):
         seconds = 0.0
         for solver in self.groups.values():
             before = solver.seconds
-            solver.refine(self.world.settings.final_updates)
-            ids = np.flatnonzero(solver.vertices)
-            self.own[ids] = solver.solve()
+            self.own = _finish(solver, self.own, self.world.settings)
             seconds += solver.seconds - before
         return Step(self.own.copy(), seconds)
 

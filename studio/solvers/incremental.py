@@ -49,6 +49,10 @@ class IsamSettings:
     """Further ``update()`` calls after each batch (more Gauss-Newton steps)."""
     final_updates: int = 3
     """Further ``update()`` calls at the end of the replay."""
+    polish: bool = True
+    """At the end, Gauss-Newton to convergence (at most 10 iterations) on the factors ISAM2 holds,
+    from its estimate: ISAM2 relinearizes only where a delta exceeds the threshold, which leaves
+    a big graph short of its optimum (Multi3500x8: chi2 0.2 % high, APE up to 40 % higher)."""
 
 
 def _gtsam() -> Any:
@@ -214,6 +218,20 @@ class IncrementalSolver:
         t0 = time.perf_counter()
         for _ in range(updates):
             self.isam.update()
+        self.seconds += time.perf_counter() - t0
+
+    def polish(self, max_iterations: int = 10) -> None:
+        """Gauss-Newton on every factor added, from ISAM2's estimate; the result is :attr:`estimate`
+        (ISAM2 itself is left as it was)."""
+        gtsam = self._gtsam
+        t0 = time.perf_counter()
+        ids = np.flatnonzero(self.vertices)
+        if len(ids):
+            params = gtsam.GaussNewtonParams()
+            params.setMaxIterations(max_iterations)
+            params.setRelativeErrorTol(1e-9)
+            opt = gtsam.GaussNewtonOptimizer(self.isam.getFactorsUnsafe(), self.isam.calculateEstimate(), params)
+            self.estimate[ids] = self._poses(opt.optimize())
         self.seconds += time.perf_counter() - t0
 
     def solve(self) -> np.ndarray:
