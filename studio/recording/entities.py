@@ -40,6 +40,7 @@ __all__ = [
     "SWEEP_TABLE",
     "SWEEP_SERIES",
     "TIMELINE_REPLAY",
+    "TIMELINE_REPLAY_TICK",
     "REPLAY",
     "REPLAY_WORLD",
     "REPLAY_ESTIMATE",
@@ -128,6 +129,8 @@ SWEEP_SERIES = "sweep/{metric}"
 # Replay -----------------------------------------------------------------------------------------------
 #: Duration timeline of a replay: seconds since its start (the robots' clock).
 TIMELINE_REPLAY = "replay_time"
+#: Sequence timeline of a replay: the tick index (kollagen's data: the pose index).
+TIMELINE_REPLAY_TICK = "tick"
 REPLAY = "replay"
 #: Root of the 3D view of a replay.
 REPLAY_WORLD = "replay/world"

@@ -6,7 +6,7 @@ back-end and checkpoint so a paper-size replay stays small), the links between r
 (segments between their ground-truth positions), the inter-agent closures delivered so far
 (ground-truth ends, at most :data:`MAX_CLOSURE_SEGMENTS`), and the team's APE per back-end; per tick
 the number of robots in contact and of closures delivered. Scrubbing the timeline shows the maps
-snapping together when robots meet. No wall clock is logged and blueprint ids are fixed, so the
+snapping together when robots meet; the blueprint gives each back-end a 3D view of its own. No wall clock is logged and blueprint ids are fixed, so the
 same replay gives the same fingerprint.
 """
 
@@ -35,6 +35,7 @@ from studio.recording.entities import (
     REPLAY_LINKS,
     REPLAY_WORLD,
     TIMELINE_REPLAY,
+    TIMELINE_REPLAY_TICK,
 )
 
 __all__ = ["log_replay", "write_replay_recording", "replay_blueprint", "MAX_POINTS_PER_SNAPSHOT"]
@@ -57,7 +58,27 @@ def replay_blueprint(backends: Sequence[str]) -> Any:
     return rrb.Blueprint(
         fixed(
             rrb.Horizontal(
-                fixed(rrb.Spatial3DView(name="the team's beliefs", origin=REPLAY_WORLD), "space"),
+                fixed(
+                    rrb.Grid(
+                        *(
+                            fixed(
+                                rrb.Spatial3DView(
+                                    name=f"{b}: the team's beliefs",
+                                    origin=REPLAY_WORLD,
+                                    contents=[
+                                        f"+ {REPLAY_WORLD}/ground_truth/**",
+                                        f"+ {REPLAY_WORLD}/{_escape(b)}/**",
+                                        f"+ {REPLAY_LINKS}",
+                                        f"+ {REPLAY_CLOSURES}",
+                                    ],
+                                ),
+                                f"space/{b}",
+                            )
+                            for b in backends
+                        )
+                    ),
+                    "space",
+                ),
                 fixed(
                     rrb.Vertical(
                         fixed(rrb.TimeSeriesView(name="team APE se3 [m]", origin=f"{REPLAY}/metrics/ape_se3_m"), "ape"),
@@ -73,6 +94,12 @@ def replay_blueprint(backends: Sequence[str]) -> Any:
         rrb.TimePanel(timeline=TIMELINE_REPLAY),
         collapse_panels=True,
     )
+
+
+def _escape(name: str) -> str:
+    import rerun as rr
+
+    return rr.escape_entity_path_part(name)
 
 
 def _stride(total: int) -> int:
@@ -114,9 +141,12 @@ def log_replay(
     rec.log(REPLAY_IN_CONTACT, rr.SeriesLines(names="robots in contact"), static=True)
     rec.log(REPLAY_DELIVERED, rr.SeriesLines(names="closures delivered"), static=True)
     times = rr.TimeColumn(TIMELINE_REPLAY, duration=(ticks_ns - t0) / NS_PER_S)
+    tick_index = rr.TimeColumn(TIMELINE_REPLAY_TICK, sequence=np.arange(len(ticks_ns)))
     delivered = np.cumsum(np.bincount(delivered_tick[delivered_tick >= 0], minlength=len(ticks_ns)))
-    rec.send_columns(REPLAY_IN_CONTACT, indexes=[times], columns=rr.Scalars.columns(scalars=robots_in_contact))
-    rec.send_columns(REPLAY_DELIVERED, indexes=[times], columns=rr.Scalars.columns(scalars=delivered))
+    rec.send_columns(
+        REPLAY_IN_CONTACT, indexes=[times, tick_index], columns=rr.Scalars.columns(scalars=robots_in_contact)
+    )
+    rec.send_columns(REPLAY_DELIVERED, indexes=[times, tick_index], columns=rr.Scalars.columns(scalars=delivered))
     stride = _stride(int(offsets[-1]))
     colours = [(*AGENT_PALETTE_RGB[k % len(AGENT_PALETTE_RGB)], 255) for k in range(len(names))]
     checkpoints = runs[0][1] if runs else np.zeros(0, dtype=np.int64)
@@ -127,6 +157,7 @@ def log_replay(
         )
     for c, tick in enumerate(checkpoints.tolist()):
         rec.set_time(TIMELINE_REPLAY, duration=(int(ticks_ns[tick]) - t0) / NS_PER_S)
+        rec.set_time(TIMELINE_REPLAY_TICK, sequence=int(tick))
         now = int(ticks_ns[tick])
         # where each robot is now (ground truth at its latest pose)
         here = []

@@ -378,8 +378,12 @@ def _plot(path: Path, runs: tuple[BackendRun, ...], schedule: Schedule, title: s
     fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     for run in runs:
         ts = (schedule.ticks_ns[run.checkpoint_ticks] - t0) / NS_PER_S
-        axes[0].plot(ts, run.ape_team_se3_m, label=f"{run.name} (se3)")
-        axes[0].plot(ts, run.ape_team_first_pose_m, linestyle="--", label=f"{run.name} (first-pose)")
+        # the first checkpoints (one pose per robot) score 0 or rounding noise: not on a log axis
+        few = run.poses_seen.sum(axis=1) <= 3 * len(schedule.robots)
+        se3 = np.where(few, np.nan, run.ape_team_se3_m)
+        fp = np.where(few, np.nan, run.ape_team_first_pose_m)
+        axes[0].plot(ts, se3, label=f"{run.name} (se3)")
+        axes[0].plot(ts, fp, linestyle="--", label=f"{run.name} (first-pose)")
     axes[0].set_ylabel("team APE mean [m]")
     axes[0].set_yscale("log")
     axes[0].legend(fontsize=7)
