@@ -2,12 +2,13 @@
 communication model, beside the batch optimum of `studio solve` and a plain per-step ISAM2 loop.
 
     python benchmarks/bench_replay.py [--preset multi3500x8] [--comms always range:5 ...]
-        [--backends centralized independent swarm] [--every 50] [--loop-steps 500] [--variants] [--out DIR]
+        [--backends centralized independent swarm] [--every 50] [--loop-steps 500] [--variants N] [--out DIR]
 
 Prints per run: wall time and peak resident memory of the whole `studio replay` process, the final
 team APE (first-pose and se3) and chi2 from its summary.csv, and the batch optimum's figures.
-`--variants` adds centralized runs that show what the incremental choices cost: relinearization
-checked every update (`--relinearize-skip 1`) and no final Gauss-Newton polish (`--no-polish`).
+`--variants N` adds the first N of these centralized runs, which show what the incremental choices
+cost: no final Gauss-Newton polish (`--no-polish`), relinearization checked every update
+(`--relinearize-skip 1`).
 
 The plain loop (one ISAM2 update per step, every factor at the step both its poses exist, GTSAM's
 default parameters, a prior on each robot's first pose) is run for its first `--loop-steps` steps
@@ -74,7 +75,7 @@ def main() -> None:
     ap.add_argument("--backends", nargs="*", default=["centralized", "independent", "swarm"])
     ap.add_argument("--every", type=int, default=50, help="ticks between checkpoints (default 50)")
     ap.add_argument("--loop-steps", type=int, default=500, help="steps of the plain per-step loop (0: skip)")
-    ap.add_argument("--variants", action="store_true", help="also centralized with skip 1 and without polish")
+    ap.add_argument("--variants", type=int, default=0, help="centralized variants: 1 no polish, 2 also skip 1")
     ap.add_argument("--out", type=Path, default=None, help="work folder (default: a temporary folder)")
     args = ap.parse_args()
     studio = shutil.which("studio") or str(Path(sys.executable).parent / "studio")
@@ -92,11 +93,8 @@ def main() -> None:
     print(f"{'run':44} {'wall s':>7} {'peak MiB':>8} {'APE 1st-pose':>12} {'APE se3':>8} {'chi2':>12}  load")
     print(f"{'batch optimum (studio solve)':44} {wall:7.1f} {peak:8.0f} {fp:12.6f} {se3:8.6f} {chi2:12.6g}", flush=True)
     runs = [(c, b, []) for c in args.comms for b in args.backends]
-    if args.variants:
-        runs += [
-            ("always", "centralized", ["--relinearize-skip", "1"]),
-            ("always", "centralized", ["--no-polish"]),
-        ]
+    variants = [("always", "centralized", ["--no-polish"]), ("always", "centralized", ["--relinearize-skip", "1"])]
+    runs += variants[: args.variants]
     for comms, backend, extra in runs:
         out = work / f"replay-{comms.replace(':', '_')}-{backend}-{len(extra)}{''.join(extra)}"
         cmd = [studio, "replay", str(dataset), "--comms", comms, "-b", backend, "--every", str(args.every)]
