@@ -31,6 +31,7 @@ __all__ = [
     "SOLVE_ESTIMATE_LINE",
     "SOLVE_ERROR_LOW_RGB",
     "SOLVE_ERROR_HIGH_RGB",
+    "REPLAY_LINK_COLOUR",
     "DARK_BACKGROUND_RGB",
     "LIGHT_BACKGROUND_RGB",
     "MIN_CONTRAST_OPAQUE",
@@ -112,6 +113,10 @@ def drawn_over(rgba: tuple[int, ...], background: RGB) -> tuple[float, float, fl
     return tuple(float(alpha * c + (1.0 - alpha) * b) for c, b in zip(rgba[:3], background))  # type: ignore[return-value]
 
 
+#: Links between robots in contact (studio replay): a dark orange, no agent's hue.
+REPLAY_LINK_COLOUR: RGBA = (214, 120, 0, 255)
+
+
 def recording_colours() -> dict[str, RGBA]:
     """Every colour a recording can hold, by role: what the contrast test checks. The evaluation's
     error scale is sampled between its stops as :func:`studio.recording.evaluation.error_colours`
@@ -132,6 +137,7 @@ def recording_colours() -> dict[str, RGBA]:
         r, g, b = (int(v) for v in np.rint(scale[lo] * (1.0 - (x - lo)) + scale[lo + 1] * (x - lo)))
         out[f"error scale at {t:.3f}"] = (r, g, b, 255)
     out["solve estimate path"] = SOLVE_ESTIMATE_LINE
+    out["replay links"] = REPLAY_LINK_COLOUR
     low, high = np.asarray(SOLVE_ERROR_LOW_RGB, float), np.asarray(SOLVE_ERROR_HIGH_RGB, float)
     for t in np.linspace(0.0, 1.0, 11):
         r, g, b = (int(v) for v in (low + t * (high - low)))

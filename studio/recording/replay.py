@@ -22,7 +22,13 @@ import numpy as np
 from studio.core.model import PoseGraph
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
-from studio.recording.colours import AGENT_PALETTE_RGB, GROUND_TRUTH_GREY, INTER_FAINT_ALPHA, INTER_FAINT_RGB
+from studio.recording.colours import (
+    AGENT_PALETTE_RGB,
+    GROUND_TRUTH_GREY,
+    INTER_FAINT_ALPHA,
+    INTER_FAINT_RGB,
+    REPLAY_LINK_COLOUR,
+)
 from studio.recording.entities import (
     APPLICATION_ID,
     REPLAY,
@@ -166,7 +172,7 @@ def log_replay(
             here.append(truth[k][max(seen - 1, 0)])
         up = contact[tick]
         segs = [np.stack([here[a], here[b]]) for (a, b), on in zip(pairs.tolist(), up.tolist()) if on]
-        rec.log(REPLAY_LINKS, rr.LineStrips3D(segs, colors=[(230, 160, 0, 255)], radii=-2.0))
+        rec.log(REPLAY_LINKS, rr.LineStrips3D(segs, colors=[REPLAY_LINK_COLOUR], radii=-2.0))
         got = order[(delivered_tick[order] >= 0) & (delivered_tick[order] <= tick)]
         if len(got) > MAX_CLOSURE_SEGMENTS:
             got = got[np.linspace(0, len(got) - 1, MAX_CLOSURE_SEGMENTS).astype(np.int64)]
