@@ -30,6 +30,7 @@ __all__ = [
     "ERROR_SCALE_RGB",
     "SOLVE_ESTIMATE_ALPHA",
     "error_colours",
+    "REPLAY_LINK_COLOUR",
     "DARK_BACKGROUND_RGB",
     "LIGHT_BACKGROUND_RGB",
     "MIN_CONTRAST_OPAQUE",
@@ -112,6 +113,10 @@ def drawn_over(rgba: tuple[int, ...], background: RGB) -> tuple[float, float, fl
     return tuple(float(alpha * c + (1.0 - alpha) * b) for c, b in zip(rgba[:3], background))  # type: ignore[return-value]
 
 
+#: Links between robots in contact (studio replay): a dark orange, no agent's hue.
+REPLAY_LINK_COLOUR: RGBA = (214, 120, 0, 255)
+
+
 def recording_colours() -> dict[str, RGBA]:
     """Every colour a recording can hold, by role: what the contrast test checks. The evaluation's
     error scale is sampled between its stops as :func:`studio.recording.evaluation.error_colours`
@@ -133,6 +138,7 @@ def recording_colours() -> dict[str, RGBA]:
         out[f"error scale at {t:.3f}"] = (r, g, b, 255)
     for k, (r, g, b) in enumerate(AGENT_PALETTE_RGB):
         out[f"agent {k + 1} solve estimate path"] = (r, g, b, SOLVE_ESTIMATE_ALPHA)
+    out["replay links"] = REPLAY_LINK_COLOUR
     return out
 
 

@@ -40,6 +40,17 @@ __all__ = [
     "TIMELINE_CELL",
     "SWEEP_TABLE",
     "SWEEP_SERIES",
+    "TIMELINE_REPLAY",
+    "TIMELINE_REPLAY_TICK",
+    "REPLAY",
+    "REPLAY_WORLD",
+    "REPLAY_ESTIMATE",
+    "REPLAY_GROUND_TRUTH",
+    "REPLAY_LINKS",
+    "REPLAY_CLOSURES",
+    "REPLAY_APE",
+    "REPLAY_IN_CONTACT",
+    "REPLAY_DELIVERED",
 ]
 
 #: Fixed application id of every recording the studio writes, so recordings of one dataset (its
@@ -117,3 +128,26 @@ TIMELINE_CELL = "cell"
 SWEEP_TABLE = "sweep/table"
 #: Scalar per cell of one numeric column (``{metric}``: the column's name).
 SWEEP_SERIES = "sweep/{metric}"
+
+# Replay -----------------------------------------------------------------------------------------------
+#: Duration timeline of a replay: seconds since its start (the robots' clock).
+TIMELINE_REPLAY = "replay_time"
+#: Sequence timeline of a replay: the tick index (kollagen's data: the pose index).
+TIMELINE_REPLAY_TICK = "tick"
+REPLAY = "replay"
+#: Root of the 3D view of a replay.
+REPLAY_WORLD = "replay/world"
+#: Line strip per checkpoint: what a robot believes of its own trajectory so far, per back-end.
+REPLAY_ESTIMATE = "replay/world/{backend}/{agent}"
+#: Static line strip: an agent's whole ground truth.
+REPLAY_GROUND_TRUTH = "replay/world/ground_truth/{agent}"
+#: Segments per checkpoint between the ground-truth positions of robots in contact.
+REPLAY_LINKS = "replay/world/links"
+#: Segments per checkpoint: the inter-agent closures delivered so far (ground-truth ends, decimated).
+REPLAY_CLOSURES = "replay/world/delivered_closures"
+#: Scalar per checkpoint: the team's APE (se3) of a back-end [m].
+REPLAY_APE = "replay/metrics/ape_se3_m/{backend}"
+#: Scalar per tick: robots with at least one neighbour.
+REPLAY_IN_CONTACT = "replay/metrics/robots_in_contact"
+#: Scalar per tick: inter-agent closures delivered so far.
+REPLAY_DELIVERED = "replay/metrics/closures_delivered"

@@ -1,0 +1,405 @@
+"""Communication models for a team of robots (pure numpy, deterministic, seeded; no I/O).
+
+Time runs on a regular grid of *ticks* (``start_ns + i * step_ns``). A model says, at every tick,
+which pairs of robots can talk (:func:`contacts`); :func:`deliver` then says when each inter-agent
+loop closure reaches its two robots: at the first tick, at or after the closure becomes measurable,
+at which its two robots are in contact and the link has room for it (a bandwidth limit per link
+queues the rest, oldest first, for the next ticks of contact). Both robots of a closure learn it at
+that tick (they are in contact); a closure whose robots never meet again is never delivered (-1).
+
+Models (``studio replay --comms``):
+
+* ``always``: every pair at every tick (the centralized upper bound).
+* ``never``: no pair ever (the independent lower bound).
+* ``range:R[,period=T][,p=P]``: robots whose ground-truth positions at the same time are within
+  ``R`` metres (MESA's ``comm_range``); with ``period`` only at the first tick of every ``T``
+  seconds (MESA's ``comm_freq`` is ``1/T``); with ``p`` each contact succeeds with probability
+  ``P``, drawn from the seed.
+* ``rendezvous:FILE``: Swarm-SLAM's simulated rendezvous, one line per robot
+  ``ROBOT_ID,start,end,start,end,...`` (robot ids 0-based in the dataset's agent order, times in
+  whole seconds from the replay's start, windows inclusive); two robots talk when both are inside
+  one of their windows (:mod:`studio.io.rendezvous_txt` reads and writes the file).
+
+Positions between ground-truth stamps are interpolated linearly; a robot is present from its first
+stamp and stays at its last position after its last one (it still talks).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from studio.core.errors import ConfigError
+from studio.core.units import NS_PER_S
+
+__all__ = [
+    "Always",
+    "Never",
+    "RangeLimited",
+    "Rendezvous",
+    "CommsModel",
+    "Bandwidth",
+    "Schedule",
+    "CommsReport",
+    "parse_comms",
+    "parse_bandwidth",
+    "robot_pairs",
+    "tick_grid",
+    "contacts",
+    "deliver",
+    "comms_report",
+    "check_windows",
+]
+
+
+@dataclass(frozen=True)
+class Always:
+    def spec(self) -> str:
+        return "always"
+
+
+@dataclass(frozen=True)
+class Never:
+    def spec(self) -> str:
+        return "never"
+
+
+@dataclass(frozen=True)
+class RangeLimited:
+    range_m: float
+    """Robots within this distance [m] (ground truth, same time) can talk."""
+    period_ns: int | None = None
+    """Contacts only at the first tick of every period (None: at every tick)."""
+    success_probability: float = 1.0
+    """Each possible contact succeeds with this probability (drawn from the replay's seed)."""
+
+    def spec(self) -> str:
+        out = f"range:{self.range_m:g}"
+        if self.period_ns is not None:
+            out += f",period={self.period_ns / NS_PER_S:g}"
+        if self.success_probability != 1.0:
+            out += f",p={self.success_probability:g}"
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class Rendezvous:
+    windows_s: tuple[np.ndarray, ...]
+    """Per robot, ``(k, 2)`` int64 ``[start, end]`` seconds from the replay's start, inclusive."""
+    source: str = ""
+    """Where the windows were read from (for the spec and messages)."""
+
+    def spec(self) -> str:
+        return f"rendezvous:{self.source}"
+
+
+CommsModel = Always | Never | RangeLimited | Rendezvous
+
+
+@dataclass(frozen=True)
+class Bandwidth:
+    """At most ``rate_per_s`` closures (``unit="measurements"``) or bytes per second on each link."""
+
+    rate_per_s: float
+    unit: Literal["measurements", "bytes"] = "measurements"
+
+    def spec(self) -> str:
+        return f"{self.rate_per_s:g}{'/s' if self.unit == 'measurements' else 'B/s'}"
+
+
+_NUMBER = r"[0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?"
+
+
+def _positive(text: str, what: str, spec: str, *, allow_zero: bool = False) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise ConfigError(f"comms: {what} in {spec!r} is not a number: {text!r}") from None
+    if not np.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
+        raise ConfigError(f"comms: {what} in {spec!r} must be {'>= 0' if allow_zero else '> 0'}, got {text}")
+    return value
+
+
+def parse_comms(spec: str) -> CommsModel | str:
+    """A model from its text (module doc); ``rendezvous:FILE`` gives back the FILE to read."""
+    text = spec.strip()
+    if text == "always":
+        return Always()
+    if text == "never":
+        return Never()
+    if text.startswith("rendezvous:"):
+        path = text[len("rendezvous:") :]
+        if not path:
+            raise ConfigError("comms: rendezvous needs a file: rendezvous:FILE")
+        return path
+    if text.startswith("range:"):
+        parts = text[len("range:") :].split(",")
+        range_m = _positive(parts[0], "the range [m]", spec)
+        period_ns: int | None = None
+        p = 1.0
+        for part in parts[1:]:
+            key, _, value = part.partition("=")
+            key = key.strip()
+            if key == "period":
+                period_ns = round(_positive(value, "period [s]", spec) * NS_PER_S)
+                if period_ns <= 0:
+                    raise ConfigError(f"comms: period in {spec!r} must be > 0")
+            elif key == "p":
+                p = _positive(value, "the success probability p", spec, allow_zero=True)
+                if p > 1:
+                    raise ConfigError(f"comms: the success probability p in {spec!r} must be in [0, 1], got {value}")
+            else:
+                raise ConfigError(f"comms: unknown option {key!r} in {spec!r} (known: period, p)")
+        return RangeLimited(range_m, period_ns, p)
+    raise ConfigError(f"comms: unknown model {spec!r} (known: always, never, range:R[,period=T,p=P], rendezvous:FILE)")
+
+
+def parse_bandwidth(spec: str) -> Bandwidth:
+    """``N/s`` (closures per second per link) or ``NB/s`` (bytes per second per link)."""
+    m = re.fullmatch(rf"\s*({_NUMBER})\s*(B?)/s\s*", spec)
+    if m is None:
+        raise ConfigError(f"bandwidth: expected N/s (measurements) or NB/s (bytes) per link, got {spec!r}")
+    rate = float(m.group(1))
+    if rate <= 0:
+        raise ConfigError(f"bandwidth: must be > 0, got {spec!r}")
+    return Bandwidth(rate, "bytes" if m.group(2) else "measurements")
+
+
+def check_windows(windows_s: tuple[np.ndarray, ...], where: list[str]) -> None:
+    """Raise a ConfigError naming ``where[k]`` (e.g. ``file:line``) for a robot whose windows have
+    negative times, end before they start, or are out of order or overlapping."""
+    for k, w in enumerate(windows_s):
+        for j in range(len(w)):
+            start, end = int(w[j, 0]), int(w[j, 1])
+            if start < 0 or end < 0:
+                raise ConfigError(f"{where[k]}: window {j + 1} has a negative time ({start}, {end})")
+            if end < start:
+                raise ConfigError(f"{where[k]}: window {j + 1} ends ({end}) before it starts ({start})")
+            if j and start <= int(w[j - 1, 1]):
+                raise ConfigError(
+                    f"{where[k]}: window {j + 1} ({start}, {end}) is out of order or overlaps window {j} "
+                    f"({int(w[j - 1, 0])}, {int(w[j - 1, 1])})"
+                )
+
+
+def robot_pairs(num_robots: int) -> np.ndarray:
+    """``(P, 2)`` pairs ``i < j``, lexicographic: the column order of every per-link array."""
+    i, j = np.triu_indices(num_robots, k=1)
+    return np.column_stack([i, j]).astype(np.int64).reshape(-1, 2)
+
+
+def tick_grid(start_ns: int, end_ns: int, step_ns: int) -> np.ndarray:
+    if step_ns <= 0:
+        raise ConfigError(f"step: must be a positive duration, got {step_ns} ns")
+    count = (end_ns - start_ns) // step_ns + 1
+    return start_ns + np.arange(count, dtype=np.int64) * np.int64(step_ns)
+
+
+def _positions_at(stamps_ns: np.ndarray, positions_xyz: np.ndarray, ticks_ns: np.ndarray) -> np.ndarray:
+    t = (stamps_ns - stamps_ns[0]).astype(np.float64)
+    q = (ticks_ns - stamps_ns[0]).astype(np.float64)
+    return np.column_stack([np.interp(q, t, positions_xyz[:, c]) for c in range(positions_xyz.shape[1])])
+
+
+def contacts(
+    model: CommsModel,
+    *,
+    ticks_ns: np.ndarray,
+    pose_ns: tuple[np.ndarray, ...],
+    positions_xyz: tuple[np.ndarray, ...] | None,
+    seed: int = 0,
+) -> np.ndarray:
+    """``(ticks, P)`` bool: which pairs (:func:`robot_pairs` order) can talk at each tick.
+
+    ``positions_xyz`` (per robot, ground truth at ``pose_ns``) is needed by ``range``."""
+    n = len(pose_ns)
+    pairs = robot_pairs(n)
+    m = len(ticks_ns)
+    present = np.column_stack([ticks_ns >= s[0] for s in pose_ns]) if n else np.zeros((m, 0), bool)
+    both = present[:, pairs[:, 0]] & present[:, pairs[:, 1]]
+    if isinstance(model, Always):
+        return both
+    if isinstance(model, Never):
+        return np.zeros_like(both)
+    if isinstance(model, RangeLimited):
+        if positions_xyz is None:
+            raise ConfigError("comms: range needs every robot's ground truth (this dataset has none)")
+        where = np.stack([_positions_at(s, p, ticks_ns) for s, p in zip(pose_ns, positions_xyz)], axis=1)
+        d = np.linalg.norm(where[:, pairs[:, 0]] - where[:, pairs[:, 1]], axis=2)
+        ok = both & (d <= model.range_m)
+        if model.period_ns is not None:
+            phase = (ticks_ns - ticks_ns[0]) // model.period_ns
+            first = np.concatenate([[True], phase[1:] != phase[:-1]])
+            ok &= first[:, None]
+        if model.success_probability < 1.0:
+            draws = np.random.default_rng(seed).random(ok.shape)
+            ok &= draws < model.success_probability
+        return ok
+    if isinstance(model, Rendezvous):
+        if len(model.windows_s) != n:
+            raise ConfigError(f"comms: {model.source} has windows for {len(model.windows_s)} robots, dataset {n}")
+        rel_s = (ticks_ns - ticks_ns[0]) / NS_PER_S
+        alive = np.zeros((m, n), dtype=bool)
+        for k, w in enumerate(model.windows_s):
+            for start, end in w.tolist():
+                alive[:, k] |= (rel_s >= start) & (rel_s <= end)
+        return both & alive[:, pairs[:, 0]] & alive[:, pairs[:, 1]]
+    raise ConfigError(f"comms: unknown model {model!r}")
+
+
+def deliver(
+    contact: np.ndarray,
+    *,
+    ticks_ns: np.ndarray,
+    closure_pair: np.ndarray,
+    measured_ns: np.ndarray,
+    bandwidth: Bandwidth | None = None,
+    closure_bytes: int = 0,
+    step_ns: int = NS_PER_S,
+) -> np.ndarray:
+    """Per closure, the index of the tick at which both its robots learn it, or -1 (module doc).
+
+    ``closure_pair`` is each closure's column in ``contact`` (-1: both ends on one robot, known at
+    once). With a bandwidth, each link carries ``rate x step`` closures (or bytes) per tick of
+    contact, fractions carried over while the link stays up; the oldest waiting go first."""
+    n = len(measured_ns)
+    first_tick = np.searchsorted(ticks_ns, measured_ns, side="left")
+    out = np.full(n, -1, dtype=np.int64)
+    own = closure_pair < 0
+    out[own] = np.minimum(first_tick[own], len(ticks_ns) - 1)
+    if bandwidth is not None:
+        per_tick = bandwidth.rate_per_s * step_ns / NS_PER_S
+        if bandwidth.unit == "bytes":
+            per_tick /= max(closure_bytes, 1)
+    for p in np.unique(closure_pair[~own]).tolist():
+        members = np.flatnonzero(closure_pair == p)
+        members = members[np.argsort(first_tick[members], kind="stable")]
+        up = np.flatnonzero(contact[:, p])
+        if bandwidth is None:
+            j = np.searchsorted(up, first_tick[members], side="left")
+            hit = j < len(up)
+            out[members[hit]] = up[j[hit]]
+            continue
+        ready = first_tick[members]
+        nxt = 0
+        credit = 0.0
+        previous = -2
+        for t in up.tolist():
+            if nxt >= len(members):
+                break
+            if t != previous + 1:
+                credit = 0.0  # the link dropped: what was left of its capacity is lost
+            previous = t
+            credit += per_tick
+            waiting = int(np.searchsorted(ready, t, side="right")) - nxt
+            take = min(int(credit + 1e-9), waiting)
+            if take > 0:
+                out[members[nxt : nxt + take]] = t
+                nxt += take
+                credit -= take
+            if waiting == take:
+                credit = min(credit, per_tick)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Schedule:
+    """When robots can talk and when each inter-agent closure reaches its robots."""
+
+    model: str
+    """The model's spec (``range:5,period=2``...)."""
+    robots: tuple[str, ...]
+    ticks_ns: np.ndarray
+    contact: np.ndarray
+    """``(ticks, P)`` bool, pairs in :func:`robot_pairs` order."""
+    closure_from: np.ndarray
+    """Per inter-agent closure, its two robots (0-based)."""
+    closure_to: np.ndarray
+    measured_ns: np.ndarray
+    delivered_tick: np.ndarray
+    """Per closure, the tick at which both robots learn it, -1 for never."""
+    seed: int = 0
+    bandwidth: str = ""
+    extras: dict = field(default_factory=dict)
+
+    @property
+    def pairs(self) -> np.ndarray:
+        return robot_pairs(len(self.robots))
+
+    @property
+    def delivered_ns(self) -> np.ndarray:
+        """Per closure, when both robots learn it, -1 for never."""
+        return np.where(self.delivered_tick >= 0, self.ticks_ns[np.maximum(self.delivered_tick, 0)], -1)
+
+    def windows(self) -> np.ndarray:
+        """``(W, 4)`` int64 rows ``robot_a, robot_b, first_tick, last_tick`` of every contact window
+        (a maximal run of ticks in contact), by pair then time."""
+        rows = []
+        pairs = self.pairs
+        for p in range(len(pairs)):
+            up = self.contact[:, p].astype(np.int8)
+            edges = np.diff(np.concatenate([[0], up, [0]]))
+            starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+            for s, e in zip(starts.tolist(), ends.tolist()):
+                rows.append((int(pairs[p, 0]), int(pairs[p, 1]), s, e))
+        return np.asarray(rows, dtype=np.int64).reshape(-1, 4)
+
+
+@dataclass(frozen=True, eq=False)
+class CommsReport:
+    """What a schedule means for the team (``report.md`` of a replay)."""
+
+    robots: tuple[str, ...]
+    contacts_per_pair: np.ndarray
+    """``(P,)`` number of contact windows of each pair."""
+    disconnections: np.ndarray
+    """Per robot: how often it went from at least one neighbour to none."""
+    connected_fraction: np.ndarray
+    """Per robot: the fraction of ticks with at least one neighbour."""
+    robots_in_contact: np.ndarray
+    """Per tick: how many robots have at least one neighbour."""
+    detected: np.ndarray
+    """Per tick: inter-agent closures measurable by then (cumulative)."""
+    delivered: np.ndarray
+    """Per tick: inter-agent closures delivered by then (cumulative)."""
+
+
+def neighbours_per_robot(schedule: Schedule) -> np.ndarray:
+    """``(ticks, robots)`` int: how many robots each one is in contact with at each tick."""
+    n = len(schedule.robots)
+    pairs = schedule.pairs
+    out = np.zeros((len(schedule.ticks_ns), n), dtype=np.int64)
+    c = schedule.contact.astype(np.int64)
+    for k in range(n):
+        cols = np.flatnonzero((pairs[:, 0] == k) | (pairs[:, 1] == k))
+        out[:, k] = c[:, cols].sum(axis=1)
+    return out
+
+
+def comms_report(schedule: Schedule) -> CommsReport:
+    m = len(schedule.ticks_ns)
+    windows = schedule.windows()
+    pairs = schedule.pairs
+    per_pair = np.zeros(len(pairs), dtype=np.int64)
+    if len(windows):
+        index = {(int(a), int(b)): k for k, (a, b) in enumerate(pairs.tolist())}
+        for a, b in windows[:, :2].tolist():
+            per_pair[index[(a, b)]] += 1
+    linked = neighbours_per_robot(schedule) > 0
+    drops = (linked[:-1] & ~linked[1:]).sum(axis=0) if m > 1 else np.zeros(len(schedule.robots), dtype=np.int64)
+    first = np.searchsorted(schedule.ticks_ns, schedule.measured_ns, side="left")
+    detected = np.cumsum(np.bincount(np.minimum(first, m - 1), minlength=m)) if m else np.zeros(0, np.int64)
+    got = schedule.delivered_tick[schedule.delivered_tick >= 0]
+    delivered = np.cumsum(np.bincount(got, minlength=m)) if m else np.zeros(0, np.int64)
+    return CommsReport(
+        schedule.robots,
+        per_pair,
+        drops.astype(np.int64),
+        linked.mean(axis=0) if m else np.zeros(len(schedule.robots)),
+        linked.sum(axis=1).astype(np.int64),
+        detected.astype(np.int64),
+        delivered.astype(np.int64),
+    )

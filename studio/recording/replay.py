@@ -1,0 +1,225 @@
+"""A replay as Rerun data, on the ``replay_time`` timeline (seconds since the replay's start).
+
+At each checkpoint: every back-end's belief of each robot's own trajectory so far (a line strip,
+in the frame the robot holds it, decimated to at most :data:`MAX_POINTS_PER_SNAPSHOT` points per
+back-end and checkpoint so a paper-size replay stays small), the links between robots in contact
+(segments between their ground-truth positions), the inter-agent closures delivered so far
+(ground-truth ends, at most :data:`MAX_CLOSURE_SEGMENTS`), and the team's APE per back-end; per tick
+the number of robots in contact and of closures delivered. Scrubbing the timeline shows the maps
+snapping together when robots meet; the blueprint gives each back-end a 3D view of its own. No wall clock is logged and blueprint ids are fixed, so the
+same replay gives the same fingerprint.
+"""
+
+from __future__ import annotations
+
+import uuid
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from studio.core.model import PoseGraph
+from studio.core.types import PathLike
+from studio.core.units import NS_PER_S
+from studio.recording.colours import (
+    AGENT_PALETTE_RGB,
+    GROUND_TRUTH_GREY,
+    INTER_FAINT_ALPHA,
+    INTER_FAINT_RGB,
+    REPLAY_LINK_COLOUR,
+)
+from studio.recording.entities import (
+    APPLICATION_ID,
+    REPLAY,
+    REPLAY_APE,
+    REPLAY_CLOSURES,
+    REPLAY_DELIVERED,
+    REPLAY_ESTIMATE,
+    REPLAY_GROUND_TRUTH,
+    REPLAY_IN_CONTACT,
+    REPLAY_LINKS,
+    REPLAY_WORLD,
+    TIMELINE_REPLAY,
+    TIMELINE_REPLAY_TICK,
+)
+
+__all__ = ["log_replay", "write_replay_recording", "replay_blueprint", "MAX_POINTS_PER_SNAPSHOT"]
+
+_NAMESPACE = uuid.UUID("5c3e2b1a-7d4f-4e8a-9b6c-1f2e3d4c5b6a")
+#: Points of one back-end's beliefs (all robots) drawn per checkpoint, at most.
+MAX_POINTS_PER_SNAPSHOT = 4000
+#: Delivered inter-agent closures drawn per checkpoint, at most.
+MAX_CLOSURE_SEGMENTS = 1500
+
+
+def replay_blueprint(backends: Sequence[str]) -> Any:
+    import rerun.blueprint as rrb
+
+    from studio.recording.dataset import fixed_id
+
+    def fixed(part: Any, label: str) -> Any:
+        return fixed_id(part, _NAMESPACE, f"blueprint/{label}")
+
+    return rrb.Blueprint(
+        fixed(
+            rrb.Horizontal(
+                fixed(
+                    rrb.Grid(
+                        *(
+                            fixed(
+                                rrb.Spatial3DView(
+                                    name=f"{b}: the team's beliefs",
+                                    origin=REPLAY_WORLD,
+                                    contents=[
+                                        f"+ {REPLAY_WORLD}/ground_truth/**",
+                                        f"+ {REPLAY_WORLD}/{_escape(b)}/**",
+                                        f"+ {REPLAY_LINKS}",
+                                        f"+ {REPLAY_CLOSURES}",
+                                    ],
+                                ),
+                                f"space/{b}",
+                            )
+                            for b in backends
+                        )
+                    ),
+                    "space",
+                ),
+                fixed(
+                    rrb.Vertical(
+                        fixed(rrb.TimeSeriesView(name="team APE se3 [m]", origin=f"{REPLAY}/metrics/ape_se3_m"), "ape"),
+                        fixed(rrb.TimeSeriesView(name="robots in contact", origin=REPLAY_IN_CONTACT), "contact"),
+                        fixed(rrb.TimeSeriesView(name="closures delivered", origin=REPLAY_DELIVERED), "delivered"),
+                    ),
+                    "plots",
+                ),
+                column_shares=[3, 1],
+            ),
+            "root",
+        ),
+        rrb.TimePanel(timeline=TIMELINE_REPLAY),
+        collapse_panels=True,
+    )
+
+
+def _escape(name: str) -> str:
+    import rerun as rr
+
+    return rr.escape_entity_path_part(name)
+
+
+def _stride(total: int) -> int:
+    return max(1, -(-total // MAX_POINTS_PER_SNAPSHOT))
+
+
+def log_replay(
+    rec: Any,
+    graph: PoseGraph,
+    *,
+    ticks_ns: np.ndarray,
+    contact: np.ndarray,
+    pairs: np.ndarray,
+    closure_from: np.ndarray,
+    closure_from_index: np.ndarray,
+    closure_to: np.ndarray,
+    closure_to_index: np.ndarray,
+    delivered_tick: np.ndarray,
+    robots_in_contact: np.ndarray,
+    runs: Sequence[tuple[str, np.ndarray, np.ndarray, Sequence[np.ndarray]]],
+    vertex_ns: np.ndarray,
+) -> None:
+    """``runs``: per back-end, its name, checkpoint ticks, team APE per checkpoint and the beliefs
+    (``(num_vertices, 7)`` SE(3) rows, global ids) at each checkpoint."""
+    import rerun as rr
+
+    g3 = graph.to_se3()
+    truth = [np.asarray(a.ground_truth)[:, 0:3] for a in g3.agents]
+    names = [rr.escape_entity_path_part(a.name) for a in graph.agents]
+    offsets = np.concatenate([[0], np.cumsum([a.num_poses for a in graph.agents])]).astype(np.int64)
+    flat_truth = np.concatenate(truth)
+    t0 = int(ticks_ns[0])
+    for k, name in enumerate(names):
+        rec.log(
+            REPLAY_GROUND_TRUTH.format(agent=name),
+            rr.LineStrips3D([truth[k]], colors=[GROUND_TRUTH_GREY], radii=-0.5),
+            static=True,
+        )
+    rec.log(REPLAY_IN_CONTACT, rr.SeriesLines(names="robots in contact"), static=True)
+    rec.log(REPLAY_DELIVERED, rr.SeriesLines(names="closures delivered"), static=True)
+    times = rr.TimeColumn(TIMELINE_REPLAY, duration=(ticks_ns - t0) / NS_PER_S)
+    tick_index = rr.TimeColumn(TIMELINE_REPLAY_TICK, sequence=np.arange(len(ticks_ns)))
+    delivered = np.cumsum(np.bincount(delivered_tick[delivered_tick >= 0], minlength=len(ticks_ns)))
+    rec.send_columns(
+        REPLAY_IN_CONTACT, indexes=[times, tick_index], columns=rr.Scalars.columns(scalars=robots_in_contact)
+    )
+    rec.send_columns(REPLAY_DELIVERED, indexes=[times, tick_index], columns=rr.Scalars.columns(scalars=delivered))
+    stride = _stride(int(offsets[-1]))
+    colours = [(*AGENT_PALETTE_RGB[k % len(AGENT_PALETTE_RGB)], 255) for k in range(len(names))]
+    checkpoints = runs[0][1] if runs else np.zeros(0, dtype=np.int64)
+    order = np.argsort(delivered_tick, kind="stable")
+    for name_b, _, _, _ in runs:
+        rec.log(
+            REPLAY_APE.format(backend=rr.escape_entity_path_part(name_b)), rr.SeriesLines(names=name_b), static=True
+        )
+    for c, tick in enumerate(checkpoints.tolist()):
+        rec.set_time(TIMELINE_REPLAY, duration=(int(ticks_ns[tick]) - t0) / NS_PER_S)
+        rec.set_time(TIMELINE_REPLAY_TICK, sequence=int(tick))
+        now = int(ticks_ns[tick])
+        # where each robot is now (ground truth at its latest pose)
+        here = []
+        for k in range(len(names)):
+            seen = int((vertex_ns[offsets[k] : offsets[k + 1]] <= now).sum())
+            here.append(truth[k][max(seen - 1, 0)])
+        up = contact[tick]
+        segs = [np.stack([here[a], here[b]]) for (a, b), on in zip(pairs.tolist(), up.tolist()) if on]
+        rec.log(REPLAY_LINKS, rr.LineStrips3D(segs, colors=[REPLAY_LINK_COLOUR], radii=-2.0))
+        got = order[(delivered_tick[order] >= 0) & (delivered_tick[order] <= tick)]
+        if len(got) > MAX_CLOSURE_SEGMENTS:
+            got = got[np.linspace(0, len(got) - 1, MAX_CLOSURE_SEGMENTS).astype(np.int64)]
+        ends_a = flat_truth[offsets[closure_from[got]] + closure_from_index[got]]
+        ends_b = flat_truth[offsets[closure_to[got]] + closure_to_index[got]]
+        rec.log(
+            REPLAY_CLOSURES,
+            rr.LineStrips3D(np.stack([ends_a, ends_b], axis=1), colors=[(*INTER_FAINT_RGB, INTER_FAINT_ALPHA)]),
+        )
+        for name_b, _, ape, beliefs in runs:
+            b = rr.escape_entity_path_part(name_b)
+            poses = beliefs[c]
+            for k, name in enumerate(names):
+                lo, hi = int(offsets[k]), int(offsets[k + 1])
+                seen = int((vertex_ns[lo:hi] <= now).sum())
+                keep = np.unique(np.concatenate([np.arange(0, seen, stride), [max(seen - 1, 0)]]))
+                rec.log(
+                    REPLAY_ESTIMATE.format(backend=b, agent=name),
+                    rr.LineStrips3D([poses[lo + keep, 0:3]], colors=[colours[k]], radii=-1.0),
+                )
+            rec.log(REPLAY_APE.format(backend=b), rr.Scalars(float(ape[c])))
+
+
+def write_replay_recording(
+    path: PathLike,
+    graph: PoseGraph,
+    *,
+    name: str,
+    force: bool = False,
+    **columns: Any,
+) -> Path:
+    """Write the replay to a new ``.rrd`` (staged, renamed into place); ``columns`` as
+    :func:`log_replay` takes them."""
+    import rerun as rr
+
+    from studio.io.atomic import staged_outputs
+    from studio.recording.dataset import recording_id_for
+
+    path = Path(path)
+    backends = [r[0] for r in columns["runs"]]
+    with staged_outputs(path.parent, [path.name], force=force) as staging:
+        rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id_for(graph), send_properties=False)
+        rec.set_log_time_enabled(False)
+        try:
+            rec.save(staging / path.name, default_blueprint=replay_blueprint(backends))
+            rec.send_recording_name(name)
+            log_replay(rec, graph, **columns)
+        finally:
+            rec.disconnect()
+    return path

@@ -1,0 +1,46 @@
+"""Scores of a replay's beliefs against the ground truth (numpy only).
+
+* per robot: APE translation mean [m] of its current estimate of its own trajectory so far against
+  its ground truth so far, its first estimated pose put on its first true pose (``first-pose``);
+* the team: the same over all robots' poses (each robot aligned by its first pose), and the team's
+  map as one piece: one rigid Umeyama transform over all robots' positions (``se3``), which is what
+  snaps down when robots meet.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from studio.core.geometry import planar_poses_to_se3
+from studio.core.model import PoseKind
+from studio.solvers.incremental import compose, inverse
+
+__all__ = ["as_se3", "first_pose_errors", "se3_errors"]
+
+
+def as_se3(poses: np.ndarray, kind: PoseKind) -> np.ndarray:
+    return planar_poses_to_se3(poses) if kind is PoseKind.SE2 else poses
+
+
+def first_pose_errors(estimate_se3: np.ndarray, truth_se3: np.ndarray) -> np.ndarray:
+    """Per pose, the translation error [m] once the first estimated pose is put on the first true one."""
+    if not len(estimate_se3):
+        return np.zeros(0)
+    move = compose(truth_se3[:1], inverse(estimate_se3[:1], PoseKind.SE3), PoseKind.SE3)
+    moved = compose(np.repeat(move, len(estimate_se3), axis=0), estimate_se3, PoseKind.SE3)
+    return np.linalg.norm(moved[:, 0:3] - truth_se3[:, 0:3], axis=1)
+
+
+def se3_errors(estimate_xyz: np.ndarray, truth_xyz: np.ndarray) -> np.ndarray:
+    """Per position, the error [m] after the rigid transform (Umeyama, no scale) that fits best."""
+    if len(estimate_xyz) < 3:
+        return np.linalg.norm(estimate_xyz - truth_xyz, axis=1) if len(estimate_xyz) else np.zeros(0)
+    mu_e, mu_t = estimate_xyz.mean(axis=0), truth_xyz.mean(axis=0)
+    cov = (truth_xyz - mu_t).T @ (estimate_xyz - mu_e) / len(estimate_xyz)
+    u, _, vt = np.linalg.svd(cov)
+    s = np.eye(3)
+    if np.linalg.det(u) * np.linalg.det(vt) < 0:
+        s[2, 2] = -1.0
+    r = u @ s @ vt
+    moved = (estimate_xyz - mu_e) @ r.T + mu_t
+    return np.linalg.norm(moved - truth_xyz, axis=1)

@@ -1,0 +1,196 @@
+"""studio replay: the pipeline on small synthetic datasets against the batch optimum, determinism,
+the CLI and bad input."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from studio.cli import app
+from studio.evaluate import evaluate
+from studio.replay import replay
+from studio.solve import solve
+from studio.synth import load_synth_config, synthesize
+
+pytest.importorskip("gtsam")
+
+DATA = Path(__file__).resolve().parent.parent / "data"
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    root = tmp_path_factory.mktemp("replay")
+    return synthesize(load_synth_config(DATA / "configs" / "small3x100.json"), root, rrd=False, jobs=1)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    root = tmp_path_factory.mktemp("replay-tiny")
+    return synthesize(load_synth_config(DATA / "configs" / "tiny_three.json"), root, rrd=False, jobs=1)
+
+
+@pytest.fixture(scope="module")
+def batch(small, tmp_path_factory):
+    out = tmp_path_factory.mktemp("batch") / "solved"
+    res = solve(small.dataset_dir, out)
+    fp = evaluate(small.dataset_dir, estimate=res.estimate_path, align="first-pose").overall.ape_translation_m.mean
+    se3 = evaluate(small.dataset_dir, estimate=res.estimate_path, align="se3").overall.ape_translation_m.mean
+    return res.chi2_final, fp, se3
+
+
+@pytest.fixture(scope="module")
+def always(small, tmp_path_factory):
+    return replay(small.dataset_dir, tmp_path_factory.mktemp("always") / "r", comms="always", every=20)
+
+
+def test_centralized_with_always_connected_comms_ends_at_the_batch_optimum(always, batch):
+    chi2, fp, se3 = batch
+    central = always.runs[0]
+    assert central.name == "centralized"
+    assert central.chi2_final == pytest.approx(chi2, rel=0.01)
+    assert central.ape_team_first_pose_m[-1] == pytest.approx(fp, rel=0.02)
+    assert central.ape_team_se3_m[-1] == pytest.approx(se3, rel=0.02)
+    # the metric is taken along the way: every 20 ticks and at the end
+    assert central.checkpoint_ticks.tolist()[:3] == [0, 20, 40]
+    assert central.checkpoint_ticks[-1] == len(always.schedule.ticks_ns) - 1
+    assert central.poses_seen[-1].tolist() == [401, 401, 401]
+
+
+def test_independent_is_worst_and_swarm_lies_between(always, small, tmp_path):
+    runs = {r.name: r for r in always.runs}
+    c, i, s = runs["centralized"], runs["independent"], runs["swarm"]
+    assert i.ape_team_se3_m[-1] > 5 * c.ape_team_se3_m[-1]
+    assert c.ape_team_se3_m[-1] * 0.98 <= s.ape_team_se3_m[-1] < i.ape_team_se3_m[-1]
+    ranged = {r.name: r for r in replay(small.dataset_dir, tmp_path / "r5", comms="range:5", every=20).runs}
+    c5, i5, s5 = ranged["centralized"], ranged["independent"], ranged["swarm"]
+    assert c5.ape_team_se3_m[-1] < s5.ape_team_se3_m[-1] < i5.ape_team_se3_m[-1]
+    # independent ignores the comms: the same beliefs under both models
+    assert np.array_equal(i5.final_poses, i.final_poses)
+    # fewer closures delivered at 5 m than with always-on links: the centralized optimum is worse
+    assert c5.chi2_final > c.chi2_final
+    # swarm exchanged graphs and estimates over the links it used
+    assert s.messages.sum() > 0 and s.bytes.sum() > s.messages.sum()
+
+
+def test_never_connected_leaves_every_back_end_on_its_own(tiny, tmp_path):
+    res = replay(tiny.dataset_dir, tmp_path / "never", comms="never", every=25)
+    assert (res.schedule.delivered_tick == -1).all()
+    runs = {r.name: r for r in res.runs}
+    assert runs["swarm"].ape_team_se3_m[-1] == pytest.approx(runs["independent"].ape_team_se3_m[-1], rel=1e-6)
+    assert runs["centralized"].ape_team_se3_m[-1] == pytest.approx(runs["independent"].ape_team_se3_m[-1], rel=1e-3)
+    assert runs["swarm"].messages.sum() == 0
+
+
+def test_the_same_dataset_model_and_seed_give_the_same_bytes(tiny, tmp_path):
+    files = ["schedule/contacts.csv", "schedule/closures.csv", "metrics.csv", "summary.csv", "links.csv"]
+    spec = "range:10,period=3,p=0.5"
+    a = replay(tiny.dataset_dir, tmp_path / "a", comms=spec, seed=4, every=10)
+    b = replay(tiny.dataset_dir, tmp_path / "b", comms=spec, seed=4, every=10)
+    c = replay(tiny.dataset_dir, tmp_path / "c", comms=spec, seed=5, every=10, backends=["centralized"])
+    for name in files:
+        assert (a.out_dir / name).read_bytes() == (b.out_dir / name).read_bytes(), name
+    assert (a.out_dir / "schedule/contacts.csv").read_bytes() != (c.out_dir / "schedule/contacts.csv").read_bytes()
+    info = json.loads((a.out_dir / "replay.json").read_text())
+    assert info["comms"] == spec and info["seed"] == 4 and info["clock"] == "dataset stamps"
+    header = (a.out_dir / "metrics.csv").read_text().splitlines()[0]
+    assert header == "backend,tick,time_s,robot,poses,ape_first_pose_m,ape_se3_m"
+
+
+def test_a_bandwidth_limit_delays_deliveries(tiny, tmp_path):
+    free = replay(tiny.dataset_dir, tmp_path / "free", comms="always", backends=["centralized"], every=50)
+    slow = replay(
+        tiny.dataset_dir, tmp_path / "slow", comms="always", backends=["centralized"], every=50, bandwidth="0.5/s"
+    )
+    got_free, got_slow = free.schedule.delivered_tick, slow.schedule.delivered_tick
+    assert (got_free >= 0).all()
+    delivered = got_slow >= 0
+    assert (got_slow[delivered] >= got_free[delivered]).all() and (got_slow[delivered] > got_free[delivered]).any()
+    # at most one closure per 2 s on each link
+    pairs = slow.schedule.closure_from * 10 + slow.schedule.closure_to
+    for p in np.unique(pairs):
+        ticks = np.sort(got_slow[(pairs == p) & delivered])
+        assert (np.diff(ticks) >= 2).all()
+
+
+def test_a_period_sets_the_clock_and_is_recorded(tiny, tmp_path):
+    res = replay(tiny.dataset_dir, tmp_path / "p", comms="always", backends=["independent"], period_s=0.5, every=40)
+    assert res.schedule.ticks_ns[-1] == 120_000_000_000  # 241 poses x 0.5 s: the last at 120 s
+    info = json.loads((res.out_dir / "replay.json").read_text())
+    assert info["period_s"] == 0.5 and info["clock"] == "pose index x period"
+
+
+def test_the_cli_replays_and_reports(tiny, tmp_path):
+    out = tmp_path / "cli"
+    r = runner.invoke(app, ["replay", str(tiny.dataset_dir), "--comms", "range:20", "-o", str(out), "--every", "30"])
+    assert r.exit_code == 0, r.output
+    assert "centralized: APE first-pose" in r.output and "swarm" in r.output
+    for name in ["metrics.csv", "summary.csv", "summary.md", "links.csv", "timings.csv", "report.md", "replay.json"]:
+        assert (out / name).is_file(), name
+    assert "% time connected" in (out / "report.md").read_text()
+    again = runner.invoke(app, ["replay", str(tiny.dataset_dir), "-o", str(out)])
+    assert again.exit_code == 2 and "already exists" in again.output
+
+
+def _fails(args: list[str], match: str, out: Path) -> None:
+    r = runner.invoke(app, args)
+    assert r.exit_code == 2, r.output
+    lines = [ln for ln in r.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and match in lines[0], r.output
+    assert "Traceback" not in r.output
+    assert not out.exists()
+
+
+def test_bad_input_is_one_line_exit_2_and_nothing_written(tiny, tmp_path):
+    ds = str(tiny.dataset_dir)
+    out = tmp_path / "never-written"
+    sched = tmp_path / "rdv.txt"
+    sched.write_text("0,0,10\n7,0,5\n")
+    _fails(["replay", ds, "--comms", f"rendezvous:{sched}", "-o", str(out)], f"{sched}:2: unknown robot 7", out)
+    sched.write_text("0,0,10,5,20\n")
+    _fails(["replay", ds, "--comms", f"rendezvous:{sched}", "-o", str(out)], f"{sched}:1: window 2", out)
+    _fails(["replay", ds, "--comms", "range:-5", "-o", str(out)], "must be > 0", out)
+    _fails(["replay", ds, "--comms", "range:5,period=-2", "-o", str(out)], "period", out)
+    _fails(["replay", ds, "--period", "-1", "-o", str(out)], "period", out)
+    _fails(["replay", ds, "--backend", "dpgo", "-o", str(out)], "unknown back-end 'dpgo'", out)
+    # a dataset whose stamps run backwards
+    broken = tmp_path / "broken"
+    import shutil
+
+    shutil.copytree(tiny.dataset_dir, broken)
+    tum = broken / "agent2" / "agent2_GT.tum"
+    rows = tum.read_text().splitlines()
+    rows[5], rows[6] = rows[6], rows[5]
+    tum.write_text("\n".join(rows) + "\n")
+    _fails(["replay", str(broken), "-o", str(out)], "agent2_GT.tum", out)
+
+
+def test_a_rendezvous_file_is_used_and_copied_beside_the_schedule(tiny, tmp_path):
+    sched = tmp_path / "rdv.txt"
+    sched.write_text("0,0,30,100,140\n1,20,120\n2,0,240\n")
+    res = replay(tiny.dataset_dir, tmp_path / "r", comms=f"rendezvous:{sched}", every=20)
+    assert (res.out_dir / "schedule" / "rendezvous.txt").read_text() == sched.read_text()
+    windows = res.schedule.windows()
+    assert [(s, e) for a, b, s, e in windows.tolist() if (a, b) == (0, 1)] == [(20, 30), (100, 120)]
+    assert res.report.connected_fraction[2] > res.report.connected_fraction[1]
+
+
+def test_the_recording_shows_beliefs_links_and_closures_and_has_a_stable_fingerprint(tiny, tmp_path):
+    from studio.recording.rrd_checks import fingerprint_rrd
+
+    a = replay(tiny.dataset_dir, tmp_path / "a", comms="range:10", every=30, rrd=tmp_path / "a.rrd")
+    replay(tiny.dataset_dir, tmp_path / "b", comms="range:10", every=30, rrd=tmp_path / "b.rrd")
+    assert a.rrd_path is not None and a.rrd_path.stat().st_size < 5_000_000
+    fa, fb = fingerprint_rrd(tmp_path / "a.rrd"), fingerprint_rrd(tmp_path / "b.rrd")
+    assert fa == fb
+    text = repr(fa)
+    for entity in ["replay/world/centralized/agent1", "replay/world/links", "replay/world/delivered_closures"]:
+        assert entity in text, entity
+    # an existing recording is refused before anything is written
+    with pytest.raises(Exception, match="already exists"):
+        replay(tiny.dataset_dir, tmp_path / "c", comms="never", rrd=tmp_path / "a.rrd")
+    assert not (tmp_path / "c").exists()
