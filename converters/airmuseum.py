@@ -22,6 +22,7 @@ from pathlib import Path
 from studio.converters.names import safe_agent_name
 from studio.converters.tum import read_tum_trajectory
 from studio.core.errors import FormatError
+from studio.core.progress import Progress
 from studio.core.trajectory import Trajectory, Warn
 from studio.core.types import PathLike
 
@@ -61,7 +62,11 @@ def find_ground_truth_files(root: Path) -> list[tuple[str, Path]]:
 
 
 def read_airmuseum(
-    inputs: Sequence[PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None, progress=None
+    inputs: Sequence[PathLike],
+    *,
+    agents: Sequence[str] = (),
+    warn: Warn | None = None,
+    progress: Progress | None = None,
 ) -> list[Trajectory]:
     """``studio convert airmuseum DIR``: every robot with a ground-truth file."""
     root = Path(inputs[0])

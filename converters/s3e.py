@@ -23,6 +23,7 @@ import numpy as np
 
 from studio.converters.tum import read_tum_trajectory
 from studio.core.errors import FormatError
+from studio.core.progress import Progress
 from studio.core.trajectory import Trajectory, Warn
 from studio.core.types import PathLike
 from studio.io.tum import read_tum_rows
@@ -43,7 +44,11 @@ def _candidates(root: Path) -> list[Path]:
 
 
 def read_s3e(
-    inputs: Sequence[PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None, progress=None
+    inputs: Sequence[PathLike],
+    *,
+    agents: Sequence[str] = (),
+    warn: Warn | None = None,
+    progress: Progress | None = None,
 ) -> list[Trajectory]:
     """``studio convert s3e DIR``: alpha, bob and carol (those present), in that order."""
     root = Path(inputs[0])

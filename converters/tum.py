@@ -12,6 +12,7 @@ from pathlib import Path
 
 from studio.converters.names import safe_agent_name
 from studio.core.parallel import parallel_map
+from studio.core.progress import Progress
 from studio.core.trajectory import Trajectory, Warn, clean_trajectory
 from studio.core.types import PathLike
 from studio.io.tum import read_tum_rows
@@ -31,7 +32,11 @@ def read_tum_trajectory(path: PathLike, *, name: str | None = None, warn: Warn |
 
 
 def read_tum_sources(
-    inputs: Sequence[PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None, progress=None
+    inputs: Sequence[PathLike],
+    *,
+    agents: Sequence[str] = (),
+    warn: Warn | None = None,
+    progress: Progress | None = None,
 ) -> list[Trajectory]:
     """``studio convert tum FILE...``: one agent per file, in the order given."""
     sizes = [Path(p).stat().st_size if Path(p).is_file() else 0 for p in inputs]
@@ -50,7 +55,7 @@ def read_tum_sources(
         return trajs
 
     # large files are parsed by several processes; their warnings are replayed here, in order
-    def read_one(k: int):
+    def read_one(k: int) -> tuple[Trajectory, list[str]]:
         messages: list[str] = []
         return read_tum_trajectory(inputs[k], warn=messages.append), messages
 

@@ -40,7 +40,8 @@ def _error_colours(err: np.ndarray, scale: float) -> np.ndarray:
     """Green (0) to red (``scale`` or more), RGBA bytes."""
     t = np.clip(err / max(scale, 1e-12), 0.0, 1.0)[:, None]
     green, red = np.array([*SOLVE_ERROR_LOW_RGB, 255.0]), np.array([*SOLVE_ERROR_HIGH_RGB, 255.0])
-    return (green + t * (red - green)).astype(np.uint8)
+    rgba: np.ndarray = (green + t * (red - green)).astype(np.uint8)
+    return rgba
 
 
 def solve_recording_id(
@@ -101,7 +102,7 @@ def log_solve(
     truth = None
     if graph is not None and all(a.ground_truth is not None for a in graph.agents):
         g3 = graph.to_se3()
-        truth = np.concatenate([a.ground_truth for a in g3.agents])  # type: ignore[misc]
+        truth = np.concatenate([a.ground_truth for a in g3.agents])
         for a in g3.agents:
             rec.log(
                 SOLVE_GROUND_TRUTH.format(agent=rr.escape_entity_path_part(a.name)),

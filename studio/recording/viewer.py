@@ -18,6 +18,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO, Any
 
 from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.progress import Progress, report
@@ -216,7 +217,7 @@ def snapshot(
         )
 
 
-def _light_backgrounds(client) -> None:
+def _light_backgrounds(client: Any) -> None:
     """Put the light theme's background behind every spatial view and plot of the blueprint on screen."""
     colour = "#{:02x}{:02x}{:02x}".format(*LIGHT_BACKGROUND_RGB)
     blueprint = client.get_blueprint().blueprint
@@ -298,7 +299,7 @@ def _snapshot_into(
         log.close()
 
 
-def _stop_group(proc: subprocess.Popen) -> None:
+def _stop_group(proc: subprocess.Popen[bytes]) -> None:
     """Stop the viewer and every process it started (SIGTERM, then SIGKILL after 10 s)."""
     import signal
 
@@ -319,7 +320,7 @@ def _stop_group(proc: subprocess.Popen) -> None:
     proc.wait()
 
 
-def _connect(client_cls, proc: subprocess.Popen, log, port: int, timeout_s: float):
+def _connect(client_cls: Any, proc: subprocess.Popen[bytes], log: IO[str], port: int, timeout_s: float) -> Any:
     deadline = time.monotonic() + timeout_s
     url = f"rerun+http://127.0.0.1:{port}/proxy"
     last: Exception | None = None
