@@ -24,6 +24,7 @@ from studio.converters.tum import read_tum_trajectory
 from studio.core.errors import FormatError
 from studio.core.trajectory import Trajectory, Warn
 from studio.core.types import PathLike
+from studio.runtime.progress import Progress
 
 __all__ = ["read_airmuseum", "find_ground_truth_files", "is_airmuseum_sequence", "BODY_FRAMES"]
 
@@ -72,7 +73,11 @@ def is_airmuseum_sequence(path: Path) -> bool:
 
 
 def read_airmuseum(
-    inputs: Sequence[PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None, progress=None
+    inputs: Sequence[PathLike],
+    *,
+    agents: Sequence[str] = (),
+    warn: Warn | None = None,
+    progress: Progress | None = None,
 ) -> list[Trajectory]:
     """``studio convert airmuseum DIR``: every robot with a ground-truth file."""
     root = Path(inputs[0])

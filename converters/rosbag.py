@@ -24,7 +24,7 @@ from __future__ import annotations
 import os
 import sqlite3
 import struct
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -36,6 +36,7 @@ from studio.core.errors import ConfigError, FormatError
 from studio.core.trajectory import Trajectory, Warn, clean_trajectory
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
+from studio.runtime.progress import Progress
 
 __all__ = [
     "typestore_for",
@@ -92,7 +93,7 @@ def parse_agent_spec(text: str) -> AgentSpec:
 _EXTRA_MSGS = {"tf2_msgs/msg/TFMessage": "geometry_msgs/TransformStamped[] transforms\n"}
 
 
-def typestore_for(*, ros1: bool):
+def typestore_for(*, ros1: bool) -> Any:
     """rosbags' ROS 1 Noetic or latest ROS 2 typestore, with tf2_msgs/TFMessage added."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -105,7 +106,7 @@ def typestore_for(*, ros1: bool):
     return store
 
 
-def _stamp(header) -> int:
+def _stamp(header: Any) -> int:
     return int(header.stamp.sec) * NS_PER_S + int(header.stamp.nanosec)
 
 
@@ -123,7 +124,7 @@ class _Collector:
         self.kind = ""
 
 
-def _pose_values(p) -> tuple[float, ...]:
+def _pose_values(p: Any) -> tuple[float, ...]:
     return (
         p.position.x,
         p.position.y,
@@ -135,7 +136,7 @@ def _pose_values(p) -> tuple[float, ...]:
     )
 
 
-def _take(col: _Collector, msgtype: str, msg) -> None:
+def _take(col: _Collector, msgtype: str, msg: Any) -> None:
     if msgtype == "geometry_msgs/msg/PoseStamped":
         col.stamps.append(_stamp(msg.header))
         col.values.append(_pose_values(msg.pose))
@@ -159,7 +160,7 @@ def _take(col: _Collector, msgtype: str, msg) -> None:
         col.values.append((msg.latitude, msg.longitude, msg.altitude))
 
 
-def _take_heading(col: _Collector, msgtype: str, msg) -> None:
+def _take_heading(col: _Collector, msgtype: str, msg: Any) -> None:
     q = msg.quaternion if msgtype == "geometry_msgs/msg/QuaternionStamped" else msg.orientation
     col.heading_stamps.append(_stamp(msg.header))
     col.headings.append((q.x, q.y, q.z, q.w))
@@ -249,12 +250,12 @@ class _PlainMcap:
     same interface as ``AnyReader``: ``topics``, ``connections``, ``messages()``, ``deserialize()``.
     Message definitions stored in the file are registered like ``AnyReader`` does."""
 
-    def __init__(self, path: Path, store):
+    def __init__(self, path: Path, store: Any) -> None:
         from rosbags.rosbag2.storage_mcap import McapReader
 
         self._reader = McapReader(path)
         self._store = store
-        self.connections: list = []
+        self.connections: list[Any] = []
 
     def __enter__(self) -> _PlainMcap:
         from rosbags.interfaces import MessageDefinitionFormat
@@ -281,12 +282,12 @@ class _PlainMcap:
         self._reader.close()
 
     @property
-    def topics(self) -> dict:
+    def topics(self) -> dict[str, Any]:
         from types import SimpleNamespace
 
         return {c.topic: SimpleNamespace(msgtype=c.msgtype) for c in self.connections}
 
-    def messages(self, connections):
+    def messages(self, connections: Any) -> Iterator[tuple[Any, int, bytes]]:
         from rosbags.rosbag2 import ReaderError
 
         try:
@@ -294,7 +295,7 @@ class _PlainMcap:
         except (TypeError, ValueError, IndexError, AssertionError) as err:
             raise ReaderError(f"malformed MCAP ({type(err).__name__}: {err})") from None
 
-    def deserialize(self, raw: bytes, msgtype: str):
+    def deserialize(self, raw: bytes, msgtype: str) -> Any:
         return self._store.deserialize_cdr(raw, msgtype)
 
 
@@ -325,7 +326,7 @@ def read_bag(
     *,
     warn: Warn | None = None,
     skip_missing: bool = False,
-    progress=None,
+    progress: Progress | None = None,
     ignore_case: bool = False,
 ) -> list[Trajectory]:
     """One trajectory per agent spec, read in one pass over the bag.
@@ -458,7 +459,11 @@ def _read_messages(reader: Any, by_topic: dict[str, list[tuple[_Collector, bool]
 
 
 def read_bag_sources(
-    inputs: Sequence[PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None, progress=None
+    inputs: Sequence[PathLike],
+    *,
+    agents: Sequence[str] = (),
+    warn: Warn | None = None,
+    progress: Progress | None = None,
 ) -> list[Trajectory]:
     """``studio convert bag BAG --agent NAME=SPEC ...``: agents in the order given."""
     if not inputs:

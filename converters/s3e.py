@@ -26,6 +26,7 @@ from studio.core.errors import FormatError
 from studio.core.trajectory import Trajectory, Warn
 from studio.core.types import PathLike
 from studio.io.tum import read_tum_rows
+from studio.runtime.progress import Progress
 
 __all__ = ["S3E_AGENTS", "read_s3e", "is_s3e_sequence"]
 
@@ -48,7 +49,11 @@ def is_s3e_sequence(path: Path) -> bool:
 
 
 def read_s3e(
-    inputs: Sequence[PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None, progress=None
+    inputs: Sequence[PathLike],
+    *,
+    agents: Sequence[str] = (),
+    warn: Warn | None = None,
+    progress: Progress | None = None,
 ) -> list[Trajectory]:
     """``studio convert s3e DIR``: alpha, bob and carol (those present), in that order."""
     root = Path(inputs[0])

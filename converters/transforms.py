@@ -34,7 +34,7 @@ def body_frame_rotation(code: str) -> np.ndarray:
     code = code.lower()
     if len(code) != 3 or any(c not in FRAME_LETTERS for c in code):
         raise ConfigError(f"body frame {code!r}: expected three letters of f, b, l, r, u, d (e.g. flu, ufl, fur)")
-    m = np.array([FRAME_LETTERS[c] for c in code], dtype=np.float64).T  # columns: body axes in FLU
+    m: np.ndarray = np.array([FRAME_LETTERS[c] for c in code], dtype=np.float64).T  # columns: body axes in FLU
     if abs(np.linalg.det(m) - 1.0) > 1e-9:
         raise ConfigError(f"body frame {code!r}: not a right-handed frame")
     return m

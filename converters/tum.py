@@ -17,6 +17,7 @@ from studio.core.trajectory import Trajectory, Warn, clean_trajectory
 from studio.core.types import PathLike
 from studio.io.tum import read_tum_rows
 from studio.runtime.parallel import parallel_map
+from studio.runtime.progress import Progress
 
 __all__ = ["read_tum_trajectory", "read_tum_sources"]
 
@@ -39,7 +40,11 @@ def agent_names(inputs: Sequence[PathLike]) -> list[str]:
 
 
 def read_tum_sources(
-    inputs: Sequence[PathLike], *, agents: Sequence[str] = (), warn: Warn | None = None, progress=None
+    inputs: Sequence[PathLike],
+    *,
+    agents: Sequence[str] = (),
+    warn: Warn | None = None,
+    progress: Progress | None = None,
 ) -> list[Trajectory]:
     """``studio convert tum FILE...``: one agent per file, in the order given."""
     sizes = [Path(p).stat().st_size if Path(p).is_file() else 0 for p in inputs]
@@ -59,7 +64,7 @@ def read_tum_sources(
         return trajs
 
     # large files are parsed by several processes; their warnings are replayed here, in order
-    def read_one(k: int):
+    def read_one(k: int) -> tuple[Trajectory, list[str]]:
         messages: list[str] = []
         return read_tum_trajectory(inputs[k], name=names[k], warn=messages.append), messages
 

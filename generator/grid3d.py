@@ -125,7 +125,7 @@ def _shift(walk: Walk3d, shift: np.ndarray, cell: np.ndarray) -> Walk3d:
     return Walk3d(cells, walk.heading, poses)
 
 
-def _hits(query: np.ndarray, table: np.ndarray, radius: float):
+def _hits(query: np.ndarray, table: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(k, m, d)`` of every query row k and table row m at most ``radius`` apart, sorted by (k, m)."""
     from scipy.spatial import cKDTree
 
@@ -157,7 +157,8 @@ def _probabilities(d: np.ndarray, same: float, scale: float, radius: float, eps:
 
 
 def _metric(cells: np.ndarray, cell: np.ndarray) -> np.ndarray:
-    return cells.astype(np.float64) * cell
+    metric: np.ndarray = cells.astype(np.float64) * cell
+    return metric
 
 
 def generate_grid3d(cfg: SynthConfig, seeds: tuple[int, ...]) -> tuple[PoseGraph, list[Walk3d]]:

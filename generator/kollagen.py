@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from studio.core.geometry import libm_cos_sin
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.units import NS_PER_S
-from studio.generator.config import SynthConfig
+from studio.generator.config import AgentConfig, SynthConfig
 from studio.generator.loop_closures import (
     _diag_information,
     _grid_cells,
@@ -95,7 +96,7 @@ def effective_seeds(seeds: list[int]) -> tuple[int, ...]:
     return tuple(out)
 
 
-def _exact_odometry_information(walk: _Walk, cfg: SynthConfig, agent) -> np.ndarray:
+def _exact_odometry_information(walk: _Walk, cfg: SynthConfig, agent: AgentConfig) -> np.ndarray:
     """kollagen's ``set_information_matrix`` (see its doc/information-matrix-derivation.pdf)."""
     d = cfg.stepsize / cfg.step_fragment
     sd = agent.std_dev_position
@@ -116,7 +117,8 @@ def _exact_odometry_information(walk: _Walk, cfg: SynthConfig, agent) -> np.ndar
             i13 = c / a
             rows[dt] = (st2 / a, 0.0, -i13 if dt == -1 else i13, 1.0 / e2, 0.0, e1 / a)
     table = np.array([rows[k] for k in (-1, 0, 1, 2)])
-    return table[walk.delta_theta + 1]
+    per_edge: np.ndarray = table[walk.delta_theta + 1]
+    return per_edge
 
 
 # --------------------------------------------------------------------------------------------------
@@ -139,7 +141,7 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
     pairs = _InterPairs(aligned, cells, cfg) if len(walks) > 1 else None
     n_agents, n_pairs = len(walks), len(pairs) if pairs is not None else 0
 
-    def task(i: int):
+    def task(i: int) -> tuple[Any, ...]:
         if i < n_agents:  # the agents' streams go on from where their walks left them
             lcs = _intra_loop_closures(streams[i], walks[i], cfg, cfg.agents[i])
             return lcs, _odometry_measurements(aligned[i]), _initial_estimate(walks[i], shifts[i])

@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
 
 import numpy as np
 
 from studio.core.geometry import relative_planar_pose
 from studio.core.model import Edges, InterAgentEdges, PoseKind
-from studio.generator.config import SynthConfig
+from studio.generator.config import AgentConfig, SynthConfig
 from studio.generator.rng import MT19937Stream, UniformTape, polar_normal
 from studio.generator.walk import _round_half_away, _round_to_int, _Walk
 
@@ -109,7 +109,9 @@ def _count_below(sorted_keys: np.ndarray, space: int, lookups: int) -> Callable[
     return lambda v: np.searchsorted(sorted_keys, v, side="left")
 
 
-def _hit_layout(qx, qy, tx, ty, circle: _CircleTable):
+def _hit_layout(
+    qx: np.ndarray, qy: np.ndarray, tx: np.ndarray, ty: np.ndarray, circle: _CircleTable
+) -> _HitLayout | None:
     """Where every hit of :func:`_enumerate_hits` comes from and where it goes, or None without hits.
 
     Returns a :class:`_HitLayout`: the table sorted by key is ``order``; query q's hits start at place
@@ -163,12 +165,23 @@ class _HitLayout:
     """:func:`_hit_layout`'s per-segment tables, expanded to per-hit columns a block of queries at a
     time (:meth:`blocks`), so that a block's dozen passes over its hits run in the CPU's cache."""
 
-    def __init__(self, order, skey, below, per_segment, query_first, same_hit, same_dest, columns, total):
+    def __init__(
+        self,
+        order: np.ndarray,
+        skey: np.ndarray,
+        below: Callable[[np.ndarray], np.ndarray],
+        per_segment: tuple[np.ndarray, ...],
+        query_first: np.ndarray,
+        same_hit: np.ndarray,
+        same_dest: np.ndarray,
+        columns: int,
+        total: int,
+    ) -> None:
         self.order, self.query_first, self.total = order, query_first, total
         self._skey, self._below, self._per_segment = skey, below, per_segment
         self._same_hit, self._same_dest, self._columns = same_hit, same_dest, columns
 
-    def blocks(self, max_hits: int):
+    def blocks(self, max_hits: int) -> Iterator[tuple[int, int, np.ndarray, np.ndarray, np.ndarray]]:
         """``(h0, h1, pos, offset, dest)`` per block of whole queries holding about ``max_hits`` hits
         (a query with more is a block of its own): its hits ``h0 <= e < h1`` (in the order the
         ranges are laid end to end), which also fill places ``h0 .. h1 - 1`` of the visiting order."""
@@ -199,7 +212,9 @@ _LAYOUT_BLOCK_HITS = 1 << 16
 """Hits per block of :meth:`_HitLayout.blocks` (each per-hit column then takes 512 KiB)."""
 
 
-def _enumerate_hits(qx, qy, tx, ty, circle: _CircleTable):
+def _enumerate_hits(
+    qx: np.ndarray, qy: np.ndarray, tx: np.ndarray, ty: np.ndarray, circle: _CircleTable
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every (query k, table m) pair whose cells are at most the circle's radius apart.
 
     Returns ``(k, m, rank)`` sorted in kollagen's visiting order: by query, then the same-cell check,
@@ -229,7 +244,15 @@ class _Hits:
     in visiting order is one scatter; the (k, m) columns of every hit are never made.
     """
 
-    def __init__(self, qx, qy, tx, ty, circle: _CircleTable, prob_by_rank: np.ndarray) -> None:
+    def __init__(
+        self,
+        qx: np.ndarray,
+        qy: np.ndarray,
+        tx: np.ndarray,
+        ty: np.ndarray,
+        circle: _CircleTable,
+        prob_by_rank: np.ndarray,
+    ) -> None:
         layout = _hit_layout(qx, qy, tx, ty, circle)
         if layout is None:
             self.probs = np.zeros(0)
@@ -266,7 +289,9 @@ _SPARE_UNIFORMS = 1024
 """Uniforms :func:`_sample` decodes beyond its estimate before it has to grow its buffer."""
 
 
-def _sample(tape: UniformTape, probs: np.ndarray, cached: float | None):
+def _sample(
+    tape: UniformTape, probs: np.ndarray, cached: float | None
+) -> tuple[np.ndarray, np.ndarray, float | None, int]:
     """Decide every hit with one uniform each, in order; an accepted hit draws three normals.
 
     kollagen accepts hit h when its probability exceeds the next uniform; each accepted hit then draws
@@ -332,7 +357,7 @@ def _sample(tape: UniformTape, probs: np.ndarray, cached: float | None):
     return np.array(accepted, dtype=np.int64), np.array(normals).reshape(-1, 3), cached, n_hits + d
 
 
-def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, agent):
+def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, agent: AgentConfig) -> Edges:
     cx, cy = _grid_cells(walk.x, walk.y, cfg)
     n = len(cx)
     radius = _round_to_int(agent.intra_loop_closure_radius * cfg.step_fragment / cfg.stepsize)
@@ -386,7 +411,9 @@ class _InterPairs:
     forked processes, alongside other work (see :func:`studio.generator.kollagen.generate`).
     """
 
-    def __init__(self, walks, cells, cfg: SynthConfig) -> None:
+    def __init__(
+        self, walks: Sequence[_Walk], cells: Sequence[tuple[np.ndarray, np.ndarray]], cfg: SynthConfig
+    ) -> None:
         p = cfg.inter
         self._inter = p
         self._walks, self._cells = walks, cells
@@ -402,7 +429,7 @@ class _InterPairs:
     def __len__(self) -> int:
         return len(self._pairs)
 
-    def __call__(self, index: int):
+    def __call__(self, index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         p = self._inter
         a, b = self._pairs[index]
         wa, wb = self._walks[a], self._walks[b]
@@ -425,7 +452,7 @@ class _InterPairs:
         )
         return np.full(len(acc), b), i_from, np.full(len(acc), a), j_to, meas.reshape(-1, 3)
 
-    def edges(self, done: list) -> InterAgentEdges:
+    def edges(self, done: Sequence[tuple[np.ndarray, ...]]) -> InterAgentEdges:
         """The pairs' results (in pair order) as kollagen's inter-agent loop closures."""
         p = self._inter
         cols = {c: [d[k] for d in done] for k, c in enumerate(("fa", "fi", "ta", "ti", "m"))}

@@ -18,6 +18,7 @@ the integer draws of the random walk) the uniforms can be decoded in bulk as a n
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -47,7 +48,7 @@ def canonical_doubles(words: np.ndarray, *, every_offset: bool = False) -> np.nd
     return out
 
 
-def polar_normal(uniforms, q: int) -> tuple[float, float, int]:
+def polar_normal(uniforms: Sequence[float] | memoryview | np.ndarray, q: int) -> tuple[float, float, int]:
     """One round of libstdc++'s polar method starting at uniform index ``q``.
 
     Returns ``(returned, cached, next_q)``: the value the call returns, the value it keeps for the next

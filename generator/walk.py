@@ -23,7 +23,8 @@ def _round_half_away(v: np.ndarray) -> np.ndarray:
     """C's ``round``: half away from zero (numpy's ``round`` goes half to even)."""
     t = np.trunc(v)
     frac = v - t
-    return (t + np.where(np.abs(frac) >= 0.5, np.sign(v), 0.0)).astype(np.int64)
+    rounded: np.ndarray = (t + np.where(np.abs(frac) >= 0.5, np.sign(v), 0.0)).astype(np.int64)
+    return rounded
 
 
 def _round_to_int(v: float) -> int:
@@ -63,7 +64,9 @@ _SPARE_WORDS = 4096
 read more."""
 
 
-def _walk_draws(stream: MT19937Stream, n_steps: int, frag: int, retro: bool):
+def _walk_draws(
+    stream: MT19937Stream, n_steps: int, frag: int, retro: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Turns and odometry normals in kollagen's draw order; leaves the stream after the last draw.
 
     Each step draws one integer (``uniform_int_distribution(-1, 1 + retro)``, Lemire's method) and
@@ -156,7 +159,7 @@ def _random_walk(stream: MT19937Stream, cfg: SynthConfig, agent: AgentConfig) ->
     return _Walk(x, y, theta, delta_theta, odom_pos, odom_ang)
 
 
-def _dead_reckon(odom_pos: np.ndarray, odom_ang: np.ndarray):
+def _dead_reckon(odom_pos: np.ndarray, odom_ang: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """kollagen's dead reckoning from the origin: the heading is wrapped after every step (a recurrence,
     run in Python); the positions are running sums, which numpy adds in kollagen's order.
 

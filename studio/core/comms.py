@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -195,7 +195,7 @@ def tick_grid(start_ns: int, end_ns: int, step_ns: int) -> np.ndarray:
     if step_ns <= 0:
         raise ConfigError(f"step: must be a positive duration, got {step_ns} ns")
     count = (end_ns - start_ns) // step_ns + 1
-    return start_ns + np.arange(count, dtype=np.int64) * np.int64(step_ns)
+    return np.asarray(start_ns + np.arange(count, dtype=np.int64) * np.int64(step_ns))
 
 
 def _positions_at(stamps_ns: np.ndarray, positions_xyz: np.ndarray, ticks_ns: np.ndarray) -> np.ndarray:
@@ -221,7 +221,7 @@ def contacts(
     present = np.column_stack([ticks_ns >= s[0] for s in pose_ns]) if n else np.zeros((m, 0), bool)
     both = present[:, pairs[:, 0]] & present[:, pairs[:, 1]]
     if isinstance(model, Always):
-        return both
+        return np.asarray(both)
     if isinstance(model, Never):
         return np.zeros_like(both)
     if isinstance(model, RangeLimited):
@@ -237,7 +237,7 @@ def contacts(
         if model.success_probability < 1.0:
             draws = np.random.default_rng(seed).random(ok.shape)
             ok &= draws < model.success_probability
-        return ok
+        return np.asarray(ok)
     if isinstance(model, Rendezvous):
         if len(model.windows_s) != n:
             raise ConfigError(f"comms: {model.source} has windows for {len(model.windows_s)} robots, dataset {n}")
@@ -246,7 +246,7 @@ def contacts(
         for k, w in enumerate(model.windows_s):
             for start, end in w.tolist():
                 alive[:, k] |= (rel_s >= start) & (rel_s <= end)
-        return both & alive[:, pairs[:, 0]] & alive[:, pairs[:, 1]]
+        return np.asarray(both & alive[:, pairs[:, 0]] & alive[:, pairs[:, 1]])
     raise ConfigError(f"comms: unknown model {model!r}")
 
 
@@ -323,7 +323,7 @@ class Schedule:
     """Per closure, the tick at which both robots learn it, -1 for never."""
     seed: int = 0
     bandwidth: str = ""
-    extras: dict = field(default_factory=dict)
+    extras: dict[str, Any] = field(default_factory=dict)
 
     @property
     def pairs(self) -> np.ndarray:

@@ -8,6 +8,7 @@ stored as their upper triangle, row by row.
 from __future__ import annotations
 
 import math
+from typing import overload
 
 import numpy as np
 
@@ -38,7 +39,11 @@ __all__ = [
 SE3_Z_INFORMATION = 1e6
 
 
-def normalize_angle(angle):
+@overload
+def normalize_angle(angle: np.ndarray) -> np.ndarray: ...
+@overload
+def normalize_angle(angle: float) -> float: ...
+def normalize_angle(angle: float | np.ndarray) -> float | np.ndarray:
     """Wrap to [-pi, pi) exactly as kollagen: ``a - floor((a + pi) / (2 pi)) * 2 * pi``."""
     if isinstance(angle, float):
         return angle - math.floor((angle + math.pi) / (2 * math.pi)) * 2.0 * math.pi
@@ -107,7 +112,8 @@ def yaw_from_quat_xyzw(q: np.ndarray) -> np.ndarray:
     For a pure yaw ``[0, 0, sin(t/2), cos(t/2)]`` it is ``t`` (to rounding)."""
     q = np.asarray(q, dtype=np.float64)
     x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    yaw: np.ndarray = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return yaw
 
 
 def se3_poses_to_planar(poses: np.ndarray) -> np.ndarray:
@@ -144,7 +150,14 @@ def libm_cos_sin(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (c, s) if spread is None else (c[spread], s[spread])
 
 
-def relative_planar_pose(x_from, y_from, th_from, x_to, y_to, th_to):
+def relative_planar_pose(
+    x_from: np.ndarray | float,
+    y_from: np.ndarray | float,
+    th_from: np.ndarray,
+    x_to: np.ndarray | float,
+    y_to: np.ndarray | float,
+    th_to: np.ndarray | float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Planar pose ``to`` in the frame of ``from``, columns ``(dx, dy, dtheta)``, evaluated in
     kollagen's order (``calculate_relative_transform``) so the bits match its files."""
     xdiff = np.asarray(x_to, dtype=np.float64) - x_from
@@ -199,7 +212,8 @@ def quat_from_rotvec(r: np.ndarray) -> np.ndarray:
 def quat_angle(q: np.ndarray) -> np.ndarray:
     """Rotation angle [rad] in [0, pi] of unit quaternions."""
     v = np.linalg.norm(q[..., :3], axis=-1)
-    return 2.0 * np.arctan2(v, np.abs(q[..., 3]))
+    angle: np.ndarray = 2.0 * np.arctan2(v, np.abs(q[..., 3]))
+    return angle
 
 
 def quat_canonical(q: np.ndarray) -> np.ndarray:

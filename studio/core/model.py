@@ -13,8 +13,10 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from studio.core.errors import GraphError
 from studio.core.geometry import planar_poses_to_se3, se2_information_to_se3
@@ -37,14 +39,14 @@ class PoseKind(str, enum.Enum):
         return 6 if self is PoseKind.SE2 else 21
 
 
-def _as_index(a, name: str) -> np.ndarray:
+def _as_index(a: npt.ArrayLike, name: str) -> np.ndarray:
     arr = np.ascontiguousarray(a, dtype=np.int64)
     if arr.ndim != 1:
         raise GraphError(f"{name} must be one-dimensional, got shape {arr.shape}")
     return arr
 
 
-def _as_rows(a, width: int, name: str) -> np.ndarray:
+def _as_rows(a: npt.ArrayLike, width: int, name: str) -> np.ndarray:
     arr = np.ascontiguousarray(a, dtype=np.float64)
     if arr.ndim == 1 and arr.size == 0:
         arr = arr.reshape(0, width)
@@ -257,7 +259,7 @@ class PoseGraph:
     kind: PoseKind
     agents: tuple[AgentGraph, ...]
     inter: InterAgentEdges
-    metadata: dict = field(default_factory=dict)
+    metadata: dict[str, Any] = field(default_factory=dict)
     """Free-form facts about the dataset (config that made it, source files); not compared."""
 
     def __post_init__(self) -> None:
@@ -302,7 +304,7 @@ class PoseGraph:
         """The same graph with SE(3) poses (planar poses lifted; computed once, then cached)."""
         if self.kind is PoseKind.SE3:
             return self
-        cached = self.__dict__.get("_se3")
+        cached: PoseGraph | None = self.__dict__.get("_se3")
         if cached is not None:
             return cached
         lifted = PoseGraph(
@@ -312,10 +314,11 @@ class PoseGraph:
         return lifted
 
 
-def _same(a, b) -> bool:
+def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
     if a is None or b is None:
         return a is None and b is None
-    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+    same: bool = a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+    return same
 
 
 def graphs_equal(a: PoseGraph, b: PoseGraph) -> bool:

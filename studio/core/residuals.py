@@ -76,7 +76,8 @@ def chi2_terms(errors: np.ndarray, information_upper: np.ndarray) -> np.ndarray:
     """``e^T Omega e`` of every edge."""
     d = errors.shape[1]
     omega = upper_to_matrix(information_upper, d)
-    return np.einsum("ni,nij,nj->n", errors, omega, errors)
+    terms: np.ndarray = np.einsum("ni,nij,nj->n", errors, omega, errors)
+    return terms
 
 
 def chi2_parts(errors: np.ndarray, information_upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -32,6 +32,7 @@ import os
 import shutil
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
+from typing import IO
 
 from studio.core.errors import OutputError
 from studio.core.types import PathLike
@@ -133,7 +134,7 @@ def verify_rrd(path: PathLike) -> None:
         raise OutputError(f"{path}: the recording cannot be read back ({str(err).splitlines()[0][:120]})") from None
 
 
-def start_writeback(f) -> None:
+def start_writeback(f: IO[bytes]) -> None:
     """Flush the open binary file ``f`` and ask the kernel to start writing its pages to disk now,
     without waiting (Linux's ``posix_fadvise(POSIX_FADV_DONTNEED)`` starts the writeback of dirty
     pages and drops the clean ones from the cache). The fsync of :func:`staged_outputs` still

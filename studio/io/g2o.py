@@ -130,7 +130,7 @@ _BOMS = (
 )
 
 
-def _open_text(source) -> tuple[str, str]:
+def _open_text(source: PathLike | IO[str]) -> tuple[str, str]:
     """The text of a path or an open text stream, and the name errors use.
 
     Files are UTF-8 (ASCII in practice; a UTF-8 byte-order mark is skipped). A file over
@@ -170,7 +170,7 @@ def _row_norms(values: np.ndarray) -> np.ndarray:
     """Euclidean norm of each row (as ``np.linalg.norm``), without overflow: rows with 1e300-sized
     entries give 1.4e300, not inf and a RuntimeWarning."""
     with np.errstate(over="ignore", under="ignore", invalid="ignore"):
-        norms = np.linalg.norm(values, axis=1)
+        norms: np.ndarray = np.linalg.norm(values, axis=1)
     big = ~np.isfinite(norms)
     if big.any():
         rows = values[big]
@@ -252,7 +252,7 @@ def _check_quats(poses: np.ndarray, lines: list[int], name: str) -> None:
         raise FormatError(f"{name}:{lines[bad[0]]}: quaternion is not unit length (norm {norms[bad[0]]:.6g})")
 
 
-def _ints(rows, a, b, lines, name) -> np.ndarray:
+def _ints(rows: list[list[str]], a: int, b: int, lines: list[int], name: str) -> np.ndarray:
     width = b - a
     if not rows:
         return np.zeros((0, width), dtype=np.int64)
@@ -270,7 +270,7 @@ def _ints(rows, a, b, lines, name) -> np.ndarray:
         raise
 
 
-def _floats(rows, a, b, lines, name) -> np.ndarray:
+def _floats(rows: list[list[str]], a: int, b: int | None, lines: list[int], name: str) -> np.ndarray:
     if not rows:
         width = (b - a) if b is not None else 0
         return np.zeros((0, width))

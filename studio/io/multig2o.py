@@ -66,7 +66,7 @@ AGENTS_FILE = "agents.json"
 _AGENTS_FORMAT = "cslam-studio agents 1"
 
 
-def _natural_key(name: str):
+def _natural_key(name: str) -> list[int | str]:
     return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", name)]
 
 
@@ -177,7 +177,7 @@ def _read_agents_file(folder: Path) -> list[tuple[str, str]] | None:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
         raise FormatError(f"{path}: not a readable agents file ({err})") from None
     entries = data.get("agents") if isinstance(data, dict) else None
-    if data.get("format") != _AGENTS_FORMAT or not isinstance(entries, list) or not entries:  # type: ignore[union-attr]
+    if data.get("format") != _AGENTS_FORMAT or not isinstance(entries, list) or not entries:
         raise FormatError(f'{path}: expected {{"format": "{_AGENTS_FORMAT}", "agents": [...]}}')
     out = []
     for k, e in enumerate(entries):
@@ -271,7 +271,9 @@ def read_multi_g2o(folder: PathLike, *, edges: bool = True) -> PoseGraph:
         chain = (fr == np.arange(len(fr))) & (to == np.arange(len(fr)) + 1)
         n_odo = int(np.argmin(chain)) if not chain.all() else len(fr)
 
-        def edge_slice(sl, kind=kind, fr=fr, to=to, doc=doc):
+        def edge_slice(
+            sl: slice, kind: PoseKind = kind, fr: np.ndarray = fr, to: np.ndarray = to, doc: G2oDocument = doc
+        ) -> Edges:
             return Edges(kind, fr[sl], to[sl], doc.edge_measurements[sl], doc.edge_information_upper[sl])
 
         gt_path = sub / f"{sub.name}_GT.tum"

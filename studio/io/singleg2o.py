@@ -9,6 +9,7 @@ the concatenated ids as timestamps.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -48,7 +49,7 @@ def write_single_g2o(
     *,
     records: Records = "2d",
     connector_information: np.ndarray,
-    odometry_information=None,
+    odometry_information: Sequence[np.ndarray] | None = None,
 ) -> None:
     """Write the single g2o file. ``graph`` must be planar with ground truth (kollagen's data).
 

@@ -51,7 +51,7 @@ _MODEL_KEYS = {
 }
 
 
-def _check_keys(obj: Any, path: str, known: tuple[str, ...], fail: Fail) -> dict:
+def _check_keys(obj: Any, path: str, known: tuple[str, ...], fail: Fail) -> dict[str, Any]:
     if not isinstance(obj, dict):
         raise fail(path, "must be a JSON object")
     for key in obj:
@@ -63,7 +63,7 @@ def _check_keys(obj: Any, path: str, known: tuple[str, ...], fail: Fail) -> dict
 
 
 def _number(
-    obj: dict, key: str, path: str, fail: Fail, default: float, lo: float, hi: float, *, open_lo: bool = False
+    obj: dict[str, Any], key: str, path: str, fail: Fail, default: float, lo: float, hi: float, *, open_lo: bool = False
 ) -> float:
     if key not in obj:
         return default
@@ -77,7 +77,7 @@ def _number(
     return v
 
 
-def _choice(obj: dict, key: str, path: str, fail: Fail, default: str, choices: tuple[str, ...]) -> str:
+def _choice(obj: dict[str, Any], key: str, path: str, fail: Fail, default: str, choices: tuple[str, ...]) -> str:
     if key not in obj:
         return default
     v = obj[key]
@@ -197,7 +197,7 @@ def parse_studio_block(obj: Any, *, fail: Fail, exact: bool) -> StudioExtensions
     )
 
 
-def studio_block_to_json(ext: StudioExtensions) -> dict:
+def studio_block_to_json(ext: StudioExtensions) -> dict[str, Any]:
     """The block as written in the effective config (every key, defaults included)."""
     out: dict[str, Any] = {"version": ext.version, "walk": ext.walk}
     if walk_mode(ext.walk).block == "grid3d":

@@ -17,7 +17,7 @@ import json
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from studio.core.errors import ConfigError
 from studio.core.types import PathLike
@@ -74,7 +74,7 @@ class _Reader:
         where = f"{self.source}: {path}" if path else self.source
         return ConfigError(f"{where}: {msg}")
 
-    def obj(self, value: Any, path: str, known: tuple[str, ...]) -> dict:
+    def obj(self, value: Any, path: str, known: tuple[str, ...]) -> dict[str, Any]:
         if not isinstance(value, dict):
             raise self.fail(path, f"must be a JSON object, got {_kind(value)}")
         if self.warn is not None:
@@ -85,12 +85,12 @@ class _Reader:
                     self.warn(f"{self.source}: {_join(path, key)}: unknown key, ignored{hint}")
         return value
 
-    def get(self, obj: dict, key: str, path: str) -> Any:
+    def get(self, obj: dict[str, Any], key: str, path: str) -> Any:
         if key not in obj:
             raise self.fail(_join(path, key), "missing key")
         return obj[key]
 
-    def number(self, obj: dict, key: str, path: str) -> float:
+    def number(self, obj: dict[str, Any], key: str, path: str) -> float:
         v = self.get(obj, key, path)
         p = _join(path, key)
         if isinstance(v, bool) or not isinstance(v, (int, float)):
@@ -103,7 +103,7 @@ class _Reader:
             raise self.fail(p, "must be finite")
         return v
 
-    def integer(self, obj: dict, key: str, path: str) -> int:
+    def integer(self, obj: dict[str, Any], key: str, path: str) -> int:
         v = self.get(obj, key, path)
         p = _join(path, key)
         if isinstance(v, bool) or not isinstance(v, (int, float)):
@@ -117,7 +117,7 @@ class _Reader:
             raise self.fail(p, f"{shown} does not fit kollagen's 32-bit int")
         return v
 
-    def boolean(self, obj: dict, key: str, path: str) -> bool:
+    def boolean(self, obj: dict[str, Any], key: str, path: str) -> bool:
         v = self.get(obj, key, path)
         if not isinstance(v, bool):
             raise self.fail(_join(path, key), f"must be true or false, got {_kind(v)}")
@@ -142,7 +142,7 @@ def _kind(v: Any) -> str:
     return "an object"
 
 
-def _section(r: _Reader, obj: dict, path: str, names: tuple[str, ...]) -> dict:
+def _section(r: _Reader, obj: dict[str, Any], path: str, names: tuple[str, ...]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for name in names:
         p = _join(path, name)
@@ -274,7 +274,7 @@ def read_synth_config(path: PathLike, *, warn: Callable[[str], None] | None = No
     return parse_synth_config(data, source=str(path), name=name, warn=warn)
 
 
-def _reject_constant(name: str):
+def _reject_constant(name: str) -> NoReturn:
     raise ValueError(f"{name} is not valid JSON")
 
 
@@ -284,10 +284,10 @@ def _parse_int(text: str) -> int:
     return int(text)
 
 
-def synth_config_to_json(cfg: SynthConfig) -> dict:
+def synth_config_to_json(cfg: SynthConfig) -> dict[str, Any]:
     """The config as kollagen's JSON document (one ``agent_specific`` entry per agent)."""
 
-    def fields(obj) -> dict:
+    def fields(obj: Any) -> dict[str, Any]:
         return {k: getattr(obj, k) for k in obj.__dataclass_fields__}
 
     return {

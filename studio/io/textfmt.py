@@ -523,7 +523,8 @@ def join_array(columns: Sequence[TextColumn], *, sep: str = " ", end: str = "\n"
     if n == 0 or any(len(c) == 0 for c in columns):
         return np.zeros(0, dtype=np.uint8)
     chars = _layout(columns, n, sep.encode("ascii"), end.encode("ascii"))
-    return chars[chars != 0]
+    text: np.ndarray = chars[chars != 0]
+    return text
 
 
 def join_columns(columns: Sequence[TextColumn], *, sep: str = " ", end: str = "\n") -> bytes:

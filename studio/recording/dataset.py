@@ -208,7 +208,8 @@ def _edge_keys(
     f = a_from.astype(np.int64) * n_nodes + v_from
     t = a_to.astype(np.int64) * n_nodes + v_to
     lo, hi = np.minimum(f, t), np.maximum(f, t)
-    return lo * (n_agents * n_nodes) + hi
+    keys: np.ndarray = lo * (n_agents * n_nodes) + hi
+    return keys
 
 
 def _outlier_masks(graph: PoseGraph, outliers: np.ndarray | None) -> tuple[list[np.ndarray], np.ndarray]:
@@ -239,7 +240,7 @@ def _reference(agent: AgentGraph) -> np.ndarray:
 # Logging, one function per kind of data (the graph is SE3 here)
 
 
-def _index_columns(agent: AgentGraph, rows: np.ndarray, real_time: bool) -> list:
+def _index_columns(agent: AgentGraph, rows: np.ndarray, real_time: bool) -> list[Any]:
     import rerun as rr
 
     cols = [rr.TimeColumn(TIMELINE_NODE, sequence=rows)]

@@ -14,6 +14,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 from studio.core.errors import FormatError
 from studio.core.types import PathLike
@@ -25,8 +26,14 @@ __all__ = ["fingerprint_rrd", "read_fingerprint", "write_fingerprint", "rrd_veri
 #: the wall-clock ``log_time`` of the ``save`` call (the recording itself has no clock values).
 _VOLATILE_COLUMNS = ("rerun.controls.RowId", "log_time")
 
+#: One logged row of a column: its index values ``((index name, value), ...)`` and its exact bytes.
+_Row = tuple[tuple[tuple[str, int], ...], bytes]
 
-def _column_digest(parts: list) -> str:
+# Rerun's chunk API and the pyarrow columns and fields it hands out carry no type information: they
+# are ``Any`` below.
+
+
+def _column_digest(parts: list[list[_Row]]) -> str:
     """Hash the rows ``(index, value)`` of one column, sorted by index then value."""
     rows = [row for part in parts for row in part]
     rows.sort()
@@ -39,16 +46,16 @@ def _column_digest(parts: list) -> str:
     return h.hexdigest()
 
 
-def _value_bytes(col) -> list[bytes | None]:
+def _value_bytes(col: Any) -> list[bytes | None]:
     """Exact text per row: JSON of the Python values (floats print with ``repr``, which round-trips,
     so one ulp changes the text), with the arrow type in front; None for a null row."""
     typ = str(col.type).encode() + b"|"
     return [None if v is None else typ + json.dumps(v, sort_keys=True, default=repr).encode() for v in col.to_pylist()]
 
 
-def _store_digests(chunks, prefix: str) -> dict[str, str]:
+def _store_digests(chunks: Any, prefix: str) -> dict[str, str]:
     """``{'<prefix> <entity> <component>': sha256}`` over every chunk of one store."""
-    groups: dict[str, list] = {}
+    groups: dict[str, list[list[_Row]]] = {}
     for chunk in chunks:
         batch = chunk.to_record_batch()
         names = batch.schema.names
@@ -70,16 +77,17 @@ def _store_digests(chunks, prefix: str) -> dict[str, str]:
     return {k: _column_digest(v) for k, v in sorted(groups.items())}
 
 
-def _field_kind(field) -> str:
+def _field_kind(field: Any) -> str:
     md = field.metadata or {}
-    return md.get(b"rerun:kind", b"").decode()
+    kind: str = md.get(b"rerun:kind", b"").decode()
+    return kind
 
 
-def _is_index(field) -> bool:
+def _is_index(field: Any) -> bool:
     return _field_kind(field) in ("index", "time")
 
 
-def _is_volatile(field) -> bool:
+def _is_volatile(field: Any) -> bool:
     return _field_kind(field) == "control"
 
 
@@ -132,7 +140,7 @@ def read_fingerprint(path: PathLike) -> dict[str, str]:
 # Rerun's own checks
 
 
-def _rerun_cli(*args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
+def _rerun_cli(*args: str, timeout: float = 300.0) -> subprocess.CompletedProcess[str]:
     env = dict(os.environ, RERUN_ANALYTICS="0")
     env.setdefault("CI", "true")
     return subprocess.run(

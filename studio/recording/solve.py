@@ -108,7 +108,7 @@ def log_solve(
     truth = None
     if graph is not None and all(a.ground_truth is not None for a in graph.agents):
         g3 = graph.to_se3()
-        truth = np.concatenate([a.ground_truth for a in g3.agents])  # type: ignore[misc]
+        truth = np.concatenate([a.ground_truth for a in g3.agents])
         for a in g3.agents:
             rec.log(
                 SOLVE_GROUND_TRUTH.format(agent=rr.escape_entity_path_part(a.name)),

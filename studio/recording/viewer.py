@@ -21,7 +21,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.types import PathLike
@@ -291,7 +291,7 @@ def snapshot(
         )
 
 
-def _light_backgrounds(client) -> None:
+def _light_backgrounds(client: Any) -> None:
     """Put the light theme's background behind every spatial view and plot of the blueprint on screen."""
     colour = "#{:02x}{:02x}{:02x}".format(*LIGHT_BACKGROUND_RGB)
     blueprint = client.get_blueprint().blueprint
@@ -334,9 +334,9 @@ def _steady_picture(client: Any, timeout_s: float) -> bytes:
         time.sleep(1.0)
         again = client.take_screenshot()
         if np.array_equal(pixels(again), pixels(shot)):
-            return again
+            return bytes(again)
         shot = again
-    return shot
+    return bytes(shot)
 
 
 def _trim_top(png: Path) -> None:
@@ -452,7 +452,7 @@ def opened_at(rrd: PathLike, *, timeout_s: float = 60.0) -> tuple[str | None, in
         return rec.current_timeline, rec.current_time
 
 
-def _stop_group(proc: subprocess.Popen) -> None:
+def _stop_group(proc: subprocess.Popen[bytes]) -> None:
     """Stop the viewer and every process it started (SIGTERM, then SIGKILL after 10 s)."""
     import signal
 
@@ -473,7 +473,7 @@ def _stop_group(proc: subprocess.Popen) -> None:
     proc.wait()
 
 
-def _connect(client_cls, proc: subprocess.Popen, log, port: int, timeout_s: float):
+def _connect(client_cls: Any, proc: subprocess.Popen[bytes], log: IO[str], port: int, timeout_s: float) -> Any:
     deadline = time.monotonic() + timeout_s
     url = f"rerun+http://127.0.0.1:{port}/proxy"
     last: Exception | None = None

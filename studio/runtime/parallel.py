@@ -463,7 +463,7 @@ _M_TOP_PAD = -2
 _M_MMAP_THRESHOLD = -3
 
 
-def _libc():
+def _libc() -> ctypes.CDLL | None:
     """glibc, or None where it cannot be loaded (not Linux, or another C library)."""
     if not sys.platform.startswith("linux"):
         return None

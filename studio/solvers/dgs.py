@@ -233,7 +233,7 @@ def _rotations(kind: PoseKind, poses: np.ndarray) -> np.ndarray:
         return np.stack([np.stack([c, -s], axis=1), np.stack([s, c], axis=1)], axis=1)
     from scipy.spatial.transform import Rotation
 
-    return Rotation.from_quat(poses[:, 3:7]).as_matrix()
+    return np.asarray(Rotation.from_quat(poses[:, 3:7]).as_matrix())
 
 
 def _project_so(m: np.ndarray) -> np.ndarray:
@@ -245,7 +245,7 @@ def _project_so(m: np.ndarray) -> np.ndarray:
     u, _, vt = np.linalg.svd(m)
     det = np.linalg.det(u @ vt)
     u[:, :, -1] *= np.where(det < 0, -1.0, 1.0)[:, None]
-    return u @ vt
+    return np.asarray(u @ vt)
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
@@ -263,7 +263,7 @@ def _jr_inv(phi: np.ndarray) -> np.ndarray:
     small = theta < 1e-6
     t = np.where(small, 1.0, theta)
     coef = np.where(small, 1.0 / 12.0, 1.0 / t**2 - (1.0 + np.cos(t)) / (2.0 * t * np.sin(t)))
-    return np.eye(3)[None] + 0.5 * k + coef[:, None, None] * (k @ k)
+    return np.asarray(np.eye(3)[None] + 0.5 * k + coef[:, None, None] * (k @ k))
 
 
 def _rotation_weights(problem: Problem) -> np.ndarray:
@@ -273,7 +273,7 @@ def _rotation_weights(problem: Problem) -> np.ndarray:
         w = omega[:, 2, 2]
     else:
         w = np.trace(omega[:, 3:6, 3:6], axis1=1, axis2=2) / 3.0
-    return np.maximum(w, 0.0)
+    return np.asarray(np.maximum(w, 0.0))
 
 
 def _pose_linearization(problem: Problem, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -329,7 +329,7 @@ def _retract(kind: PoseKind, poses: np.ndarray, delta: np.ndarray) -> np.ndarray
     if kind is PoseKind.SE2:
         out = poses + delta
         out[:, 2] = normalize_angle(out[:, 2])
-        return out
+        return np.asarray(out)
     from scipy.spatial.transform import Rotation
 
     q = (Rotation.from_rotvec(delta[:, 3:6]) * Rotation.from_quat(poses[:, 3:7])).as_quat()

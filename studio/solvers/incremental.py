@@ -162,7 +162,7 @@ class IncrementalSolver:
             last = int(mine[-1])
             base = compose(self.estimate[last : last + 1], inverse(p.initial[last : last + 1], self.kind), self.kind)
             out[rows] = compose(np.repeat(base, len(rows), axis=0), p.initial[new[rows]], self.kind)
-        return out
+        return np.asarray(out)
 
     def add(
         self,
@@ -257,4 +257,4 @@ class IncrementalSolver:
         if len(ids):
             self.estimate[ids] = self._poses(self.isam.calculateEstimate())
         self.seconds += time.perf_counter() - t0
-        return self.estimate[ids]
+        return np.asarray(self.estimate[ids])

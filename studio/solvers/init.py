@@ -13,6 +13,8 @@ Spanning tree: breadth-first from the anchor over all edges, composing measureme
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from studio.core.geometry import normalize_angle, quat_conj, quat_mul, quat_rotate, upper_to_matrix
@@ -22,10 +24,12 @@ from studio.solvers.problem import Problem
 __all__ = ["chordal_se2", "spanning_tree"]
 
 
-def _solve_normal(a, b):  # type: ignore[no-untyped-def]
+def _solve_normal(a: Any, b: np.ndarray) -> np.ndarray:
+    """The least-squares solution of ``a x = b`` for a scipy sparse ``a`` (scipy is untyped: ``Any``)."""
     import scipy.sparse.linalg as spla
 
-    return spla.splu((a.T @ a).tocsc()).solve(a.T @ b)
+    x: np.ndarray = spla.splu((a.T @ a).tocsc()).solve(a.T @ b)
+    return x
 
 
 def chordal_se2(problem: Problem) -> np.ndarray:
@@ -106,7 +110,7 @@ def spanning_tree(problem: Problem) -> np.ndarray:
     _, first = np.unique(rows * n + cols, return_index=True)
     adj = sp.csr_matrix((vals[first], (rows[first], cols[first])), shape=(n, n))
     order, pred = breadth_first_order(abs(adj), problem.anchor, directed=True, return_predecessors=True)
-    poses = problem.initial.copy()
+    poses: np.ndarray = problem.initial.copy()
     depth = np.zeros(n, dtype=np.int64)
     for v in order[1:]:
         depth[v] = depth[pred[v]] + 1
