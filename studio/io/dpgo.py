@@ -1,0 +1,218 @@
+"""DPGO's inputs (mit-acl/dpgo): the single g2o its examples read and its logger's ``measurements.csv``.
+
+* ``read_g2o_file`` (``src/DPGO_utils.cpp``) reads ``EDGE_SE2`` and ``EDGE_SE3:QUAT`` lines, skips
+  ``VERTEX_*`` lines and stops on any other token (dpgo#3: ``FIX``); it keeps no information matrix
+  but two precisions per edge, computed from its blocks (:func:`tau_kappa`)::
+
+      SE(2): tau = 2 / tr(I_tt^-1),  kappa = I_33
+      SE(3): tau = 3 / tr(I_tt^-1),  kappa = 3 / (2 tr(I_rr^-1))
+
+  ``examples/MultiRobotExample.cpp`` gives robot ``r`` of ``R`` the ids
+  ``[r * floor(n/R), (r+1) * floor(n/R))``, the last robot the rest (:func:`contiguous_split`).
+  The studio writes the ids ``0..n-1`` in robot order, so that split gives back the studio's robots
+  exactly when all robots but the last have ``floor(n/R)`` poses.
+* ``PGOLogger::logMeasurements`` (``src/PGOLogger.cpp``) writes 3D measurements as CSV with the header
+  :data:`CSV_HEADER`; robots and poses are 0-based, the quaternion comes first, ``is_known_inlier``
+  is 1 for odometry. The studio writes one file per robot (``robotR/measurements.csv``): its odometry,
+  its loop closures and every inter-robot loop closure it takes part in (in both robots' files), the
+  numbers with ``%.17g``; planar graphs are written lifted to 3D, as the logger writes only 3D.
+
+Reading a CSV gives back isotropic information, the only kind these files hold:
+``tau * I`` on the translation and ``2 kappa * I`` on the quaternion's vector part (g2o's convention,
+for which DPGO's rule gives back ``kappa``).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from studio.core.errors import FormatError
+from studio.core.model import PoseGraph, PoseKind
+from studio.core.types import PathLike
+from studio.core.units import NS_PER_S
+from studio.io.g2o import G2oDocument, _open_text, write_g2o
+from studio.io.graph_table import AgentPoses, EdgeTable, assemble_graph, graph_edge_table, information_matrix
+from studio.io.textfmt import format_float
+
+__all__ = [
+    "CSV_HEADER",
+    "tau_kappa",
+    "contiguous_split",
+    "dpgo_g2o_document",
+    "write_measurements_csv",
+    "write_dpgo_csv_folder",
+    "read_measurements_csv_files",
+    "isotropic_information",
+]
+
+CSV_HEADER = "robot_src,pose_src,robot_dst,pose_dst,qx,qy,qz,qw,tx,ty,tz,kappa,tau,is_known_inlier,weight"
+
+
+def tau_kappa(kind: PoseKind, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """DPGO's isotropic precisions of each edge (see the module doc)."""
+    info = information_matrix(kind, upper)
+    d = 2 if kind is PoseKind.SE2 else 3
+    tt = info[:, :d, :d]
+    tau = d / np.trace(np.linalg.inv(tt), axis1=1, axis2=2)
+    if kind is PoseKind.SE2:
+        kappa = info[:, 2, 2].copy()
+    else:
+        kappa = 3.0 / (2.0 * np.trace(np.linalg.inv(info[:, 3:, 3:]), axis1=1, axis2=2))
+    return tau, kappa
+
+
+def isotropic_information(kind: PoseKind, tau: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+    """Information upper triangles whose DPGO precisions are ``tau`` and ``kappa``."""
+    n = len(tau)
+    if kind is PoseKind.SE2:
+        out = np.zeros((n, 6))
+        out[:, 0] = out[:, 3] = tau
+        out[:, 5] = kappa
+        return out
+    out = np.zeros((n, 21))
+    diag = np.cumsum([0, 6, 5, 4, 3, 2])
+    for k in range(3):
+        out[:, diag[k]] = tau
+        out[:, diag[k + 3]] = 2.0 * kappa
+    return out
+
+
+def contiguous_split(n: int, robots: int) -> np.ndarray:
+    """The robot of each id ``0..n-1`` under DPGO's split (``MultiRobotExample.cpp``)."""
+    per = n // robots
+    return np.minimum(np.arange(n) // max(per, 1), robots - 1).astype(np.int64)
+
+
+def dpgo_g2o_document(graph: PoseGraph) -> G2oDocument:
+    """Every edge of ``graph`` with the ids ``offset_r + i`` (robots in order), no vertices."""
+    table = graph_edge_table(graph)
+    starts = np.cumsum([0] + [a.num_poses for a in graph.agents])
+    return G2oDocument(
+        graph.kind,
+        np.zeros(0, dtype=np.int64),
+        np.zeros((0, graph.kind.pose_width)),
+        starts[table.from_agent] + table.from_index,
+        starts[table.to_agent] + table.to_index,
+        table.measurements,
+        table.information_upper,
+    )
+
+
+def _csv_lines(table: EdgeTable, rows: np.ndarray, tau: np.ndarray, kappa: np.ndarray) -> str:
+    out = [CSV_HEADER]
+    inlier = (table.from_agent == table.to_agent) & (table.to_index == table.from_index + 1)
+    for e in rows.tolist():
+        x, y, z, qx, qy, qz, qw = table.measurements[e].tolist()
+        nums = (qx, qy, qz, qw, x, y, z, float(kappa[e]), float(tau[e]))
+        out.append(
+            f"{int(table.from_agent[e])},{int(table.from_index[e])},{int(table.to_agent[e])},{int(table.to_index[e])},"
+            + ",".join(format_float(v) for v in nums)
+            + f",{int(inlier[e])},1"
+        )
+    return "\n".join(out) + "\n"
+
+
+def write_measurements_csv(path: PathLike, graph: PoseGraph, robot: int) -> None:
+    """Robot ``robot``'s ``measurements.csv`` (see the module doc)."""
+    write_dpgo_csv_folder(graph, Path(path).parent, robots=[robot], names={robot: Path(path).name})
+
+
+def write_dpgo_csv_folder(
+    graph: PoseGraph, folder: PathLike, *, robots: Sequence[int] | None = None, names: dict[int, str] | None = None
+) -> list[str]:
+    """``robotR/measurements.csv`` for every robot (or those of ``robots``) inside ``folder``."""
+    folder = Path(folder)
+    se3 = graph.to_se3()
+    table = graph_edge_table(se3)
+    tau, kappa = tau_kappa(PoseKind.SE3, table.information_upper)
+    written = []
+    for r in robots if robots is not None else range(len(graph.agents)):
+        rows = np.flatnonzero((table.from_agent == r) | (table.to_agent == r))
+        if names and r in names:
+            target = folder / names[r]
+        else:
+            (folder / f"robot{r}").mkdir(exist_ok=True)
+            target = folder / f"robot{r}" / "measurements.csv"
+        with open(target, "w", encoding="utf-8", newline="\n") as f:
+            f.write(_csv_lines(table, rows, tau, kappa))
+        written.append(str(target.relative_to(folder)))
+    return written
+
+
+def write_dpgo_g2o(path: PathLike, graph: PoseGraph) -> None:
+    write_g2o(path, dpgo_g2o_document(graph))
+
+
+def read_measurements_csv_files(paths: Sequence[PathLike]) -> PoseGraph:
+    """Read DPGO ``measurements.csv`` files (one per robot, or one for all) into a graph of
+    ``robot0..robotR-1``: poses ``0..max`` per robot, the initial estimate by dead reckoning along
+    the odometry, stamps the poses' indices in seconds. An edge in several files is taken once."""
+    if not paths:
+        raise FormatError("no measurements.csv files given")
+    cols: list[list] = [[] for _ in range(13)]
+    seen: set[tuple[int, int, int, int]] = set()
+    where = str(Path(paths[0]).parent) if len(paths) > 1 else str(paths[0])
+    for p in paths:
+        text, name = _open_text(p)
+        lines = text.splitlines()
+        if not lines or lines[0].strip() != CSV_HEADER:
+            got = lines[0].strip()[:80] if lines else "nothing"
+            raise FormatError(f"{name}:1: expected DPGO's header {CSV_HEADER!r}, got {got!r}")
+        for lineno, fields in enumerate(csv.reader(io.StringIO("\n".join(lines[1:]))), start=2):
+            if not fields or not "".join(fields).strip():
+                continue
+            if len(fields) != 15:
+                raise FormatError(f"{name}:{lineno}: expected 15 comma-separated fields, found {len(fields)}")
+            try:
+                ids = tuple(int(v) for v in fields[:4])
+                nums = [float(v) for v in fields[4:13]]
+                int(fields[13])
+                float(fields[14])
+            except ValueError:
+                raise FormatError(f"{name}:{lineno}: a field is not a number") from None
+            if min(ids) < 0:
+                raise FormatError(f"{name}:{lineno}: robot and pose ids must not be negative")
+            if not np.all(np.isfinite(nums)):
+                raise FormatError(f"{name}:{lineno}: value is not finite")
+            qn = float(np.linalg.norm(nums[0:4]))
+            if abs(qn - 1.0) > 1e-6:
+                raise FormatError(f"{name}:{lineno}: quaternion is not unit length (norm {qn:.6g})")
+            if nums[7] <= 0 or nums[8] <= 0:
+                raise FormatError(f"{name}:{lineno}: kappa and tau must be positive")
+            key = (ids[0], ids[1], ids[2], ids[3])
+            if key in seen and ids[0] != ids[2]:
+                continue  # a shared loop closure, in both robots' files
+            seen.add(key)
+            for c, v in enumerate((*ids, *nums)):
+                cols[c].append(v)
+    if not cols[0]:
+        raise FormatError(f"{where}: no measurements")
+    ra, pa, rb, pb = (np.array(cols[c], dtype=np.int64) for c in range(4))
+    quat = np.array(cols[4:8], dtype=np.float64).T
+    trans = np.array(cols[8:11], dtype=np.float64).T
+    kappa = np.array(cols[11], dtype=np.float64)
+    tau = np.array(cols[12], dtype=np.float64)
+    n_robots = int(max(ra.max(), rb.max())) + 1
+    sizes = np.zeros(n_robots, dtype=np.int64)
+    np.maximum.at(sizes, ra, pa + 1)
+    np.maximum.at(sizes, rb, pb + 1)
+    if np.any(sizes == 0):
+        raise FormatError(f"{where}: robot {int(np.flatnonzero(sizes == 0)[0])} has no measurements")
+    agents = [
+        AgentPoses(f"robot{r}", np.arange(int(sizes[r]), dtype=np.int64) * NS_PER_S, None) for r in range(n_robots)
+    ]
+    table = EdgeTable(
+        PoseKind.SE3,
+        ra,
+        pa,
+        rb,
+        pb,
+        np.hstack([trans, quat]),
+        isotropic_information(PoseKind.SE3, tau, kappa),
+    )
+    return assemble_graph(agents, table, where=where, metadata={"source": where})
