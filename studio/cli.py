@@ -467,6 +467,42 @@ def _with_graph_options(command: Any) -> Any:
 _with_graph_options(convert)
 
 
+# --- studio export ------------------------------------------------------------------------------
+# The formats are the entries of studio.export.EXPORT_FORMATS (choices and help built from them).
+
+
+def _export_format_help() -> str:
+    from studio.export import EXPORT_FORMATS
+
+    return "; ".join(f"{name}: {spec.help}" for name, spec in EXPORT_FORMATS.items())
+
+
+@app.command()
+@cli_errors
+def export(
+    dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder (ours or kollagen's)."),
+    format: str = typer.Option(..., "--format", "-f", help="jrl, dpgo or symbols (see docs/formats.md)."),
+    out: Path = typer.Option(..., "-o", "--out", help="The file (jrl) or folder (dpgo, symbols) to write."),
+    name: str = typer.Option(None, "--name", help="The dataset's name inside the files (default: DATASET's)."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing output."),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
+) -> None:
+    """Write a dataset in a distributed back-end's format: jrl (JRL/MESA), dpgo (DPGO's g2o and
+    measurements.csv), symbols (GTSAM-Symbol g2o per robot: DGS, Kimera-Multi).
+
+    Example: studio export out/multi3500x8 --format symbols -o out/multi3500x8_symbols
+    """
+    from studio.core.errors import ConfigError
+    from studio.export import EXPORT_FORMATS, export_dataset
+
+    if format not in EXPORT_FORMATS:
+        raise ConfigError(f"--format: expected one of {', '.join(EXPORT_FORMATS)}, got {format!r}")
+    t0 = time.perf_counter()
+    res = export_dataset(dataset, out, format=format, force=force, name=name, warn=_warn)
+    if not quiet:
+        typer.echo(f"{res.path}: {format}, {len(res.files)} files in {time.perf_counter() - t0:.2f} s")
+
+
 class MethodChoice(str, enum.Enum):
     gtsam = "gtsam"
     g2o = "g2o"

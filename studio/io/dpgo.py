@@ -37,7 +37,7 @@ from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.io.g2o import G2oDocument, _open_text, write_g2o
 from studio.io.graph_table import AgentPoses, EdgeTable, assemble_graph, graph_edge_table, information_matrix
-from studio.io.textfmt import format_float
+from studio.io.textfmt import float_columns, int_column, join_array, literal
 
 __all__ = [
     "CSV_HEADER",
@@ -103,18 +103,22 @@ def dpgo_g2o_document(graph: PoseGraph) -> G2oDocument:
     )
 
 
-def _csv_lines(table: EdgeTable, rows: np.ndarray, tau: np.ndarray, kappa: np.ndarray) -> str:
-    out = [CSV_HEADER]
+def _csv_bytes(table: EdgeTable, rows: np.ndarray, tau: np.ndarray, kappa: np.ndarray) -> bytes:
     inlier = (table.from_agent == table.to_agent) & (table.to_index == table.from_index + 1)
-    for e in rows.tolist():
-        x, y, z, qx, qy, qz, qw = table.measurements[e].tolist()
-        nums = (qx, qy, qz, qw, x, y, z, float(kappa[e]), float(tau[e]))
-        out.append(
-            f"{int(table.from_agent[e])},{int(table.from_index[e])},{int(table.to_agent[e])},{int(table.to_index[e])},"
-            + ",".join(format_float(v) for v in nums)
-            + f",{int(inlier[e])},1"
-        )
-    return "\n".join(out) + "\n"
+    if not len(rows):
+        return (CSV_HEADER + "\n").encode("ascii")
+    m = table.measurements[rows]
+    nums = np.column_stack([m[:, 3:7], m[:, 0:3], kappa[rows], tau[rows]])
+    cols = [
+        int_column(table.from_agent[rows]),
+        int_column(table.from_index[rows]),
+        int_column(table.to_agent[rows]),
+        int_column(table.to_index[rows]),
+        *float_columns(nums, ["%.17g"] * 9),
+        int_column(inlier[rows].astype(np.int64)),
+        literal("1"),
+    ]
+    return (CSV_HEADER + "\n").encode("ascii") + join_array(cols, sep=",").tobytes()
 
 
 def write_measurements_csv(path: PathLike, graph: PoseGraph, robot: int) -> None:
@@ -138,8 +142,8 @@ def write_dpgo_csv_folder(
         else:
             (folder / f"robot{r}").mkdir(exist_ok=True)
             target = folder / f"robot{r}" / "measurements.csv"
-        with open(target, "w", encoding="utf-8", newline="\n") as f:
-            f.write(_csv_lines(table, rows, tau, kappa))
+        with open(target, "wb") as f:
+            f.write(_csv_bytes(table, rows, tau, kappa))
         written.append(str(target.relative_to(folder)))
     return written
 
