@@ -16,10 +16,15 @@ from pathlib import Path
 from typing import Protocol
 
 from studio.converters.airmuseum import read_airmuseum
+from studio.converters.dpgo import read_dpgo_graph, read_dpgo_trajectories
 from studio.converters.euroc import euroc_ground_truth, read_euroc
+from studio.converters.g2o import read_g2o_graph, read_g2o_trajectories
+from studio.converters.graph_split import GraphImportOptions, ImportedGraph
+from studio.converters.jrl import read_jrl_graph, read_jrl_trajectories
 from studio.converters.kimera_multi import kimera_files, read_kimera_multi
 from studio.converters.kitti import read_kitti
 from studio.converters.s3e import read_s3e
+from studio.converters.symbols import read_symbols_graph, read_symbols_trajectories
 from studio.converters.tum import read_tum_sources
 from studio.core.errors import ConfigError
 from studio.core.progress import Progress
@@ -28,6 +33,7 @@ from studio.core.types import PathLike
 
 __all__ = [
     "SourceReader",
+    "GraphReader",
     "Source",
     "SOURCES",
     "READERS",
@@ -52,6 +58,15 @@ class SourceReader(Protocol):
     ) -> list[Trajectory]: ...
 
 
+class GraphReader(Protocol):
+    """Read a graph source's inputs (a JRL file, a folder of Symbol-keyed g2o files, DPGO CSVs, a
+    single g2o) into its pose graph and labelled outliers, measurements as they are."""
+
+    def __call__(
+        self, inputs: Sequence[PathLike], *, warn: Warn | None = None, options: GraphImportOptions | None = None
+    ) -> ImportedGraph: ...
+
+
 @dataclass(frozen=True)
 class Source:
     read: SourceReader
@@ -63,6 +78,9 @@ class Source:
     """Exactly one input (a sequence folder), else one or more."""
     takes_agents: bool = False
     """Takes ``--agent NAME=SPEC`` (bags)."""
+    read_graph: GraphReader | None = None
+    """Graph sources: the reader of the graph itself, which ``studio convert`` writes as it is (then
+    ``read`` gives the graph's ground truth as trajectories, for :func:`studio.convert.convert`)."""
 
 
 def _read_bag(
@@ -85,6 +103,33 @@ SOURCES: dict[str, Source] = {
     "euroc": Source(read_euroc, "sequence folders (e.g. MH_01_easy)", "their sequences"),
     "kitti": Source(read_kitti, "poses files (e.g. poses/00.txt)", "their files"),
     "kimera-multi": Source(read_kimera_multi, "a ground-truth folder", "the robots' files"),
+    "jrl": Source(
+        read_jrl_trajectories,
+        "one JRL file",
+        "its robots (the names it keeps)",
+        one_input=True,
+        read_graph=read_jrl_graph,
+    ),
+    "symbols": Source(
+        read_symbols_trajectories,
+        "one folder of Symbol-keyed g2o files (0.g2o, 1.g2o, ... or fullGraph.g2o)",
+        "their Symbol characters",
+        one_input=True,
+        read_graph=read_symbols_graph,
+    ),
+    "dpgo": Source(
+        read_dpgo_trajectories,
+        "a folder of measurements.csv files, or the files",
+        "robot0..",
+        read_graph=read_dpgo_graph,
+    ),
+    "g2o": Source(
+        read_g2o_trajectories,
+        "one .g2o file",
+        "the file (robot0.. with --split)",
+        one_input=True,
+        read_graph=read_g2o_graph,
+    ),
 }
 #: Each source's reader.
 READERS: dict[str, SourceReader] = {name: src.read for name, src in SOURCES.items()}
@@ -123,6 +168,16 @@ def _kind_of(path: Path) -> str | None:
 
     if path.suffix in (".bag", ".mcap") or (path.is_dir() and (path / "metadata.yaml").is_file()):
         return "bag"
+    if path.suffix == ".jrl" and path.is_file():
+        return "jrl"
+    if path.suffix == ".g2o" and path.is_file():
+        return "g2o"
+    if path.name == "measurements.csv" and path.is_file():
+        return "dpgo"
+    if path.is_dir() and ((path / "fullGraph.g2o").is_file() or (path / "0.g2o").is_file()):
+        return "symbols"
+    if path.is_dir() and any((q / "measurements.csv").is_file() for q in path.iterdir() if q.is_dir()):
+        return "dpgo"
     if path.is_dir():
         if euroc_ground_truth(path) is not None:
             return "euroc"

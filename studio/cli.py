@@ -302,7 +302,8 @@ def convert(
         None,
         metavar="[FORMAT]",
         show_default=False,
-        help="Source format: tum, s3e, airmuseum, bag, euroc, kitti, kimera-multi; "
+        help="Source format: tum, s3e, airmuseum, bag, euroc, kitti, kimera-multi (trajectories), "
+        "jrl, symbols, dpgo, g2o (graphs, written as they are); "
         "guessed from the inputs when left out and unambiguous.",
     ),
     inputs: list[Path] = typer.Argument(
@@ -353,6 +354,17 @@ def convert(
         help="agents: folders agent1..agentN with agents.json (kollagen's reader); "
         "robots: folders named after the robots.",
     ),
+    partition: str = typer.Option(
+        "contiguous",
+        "--partition",
+        help="g2o with --split: contiguous (DPGO's split), metis (balanced, fewest cut edges) or time.",
+    ),
+    ground_truth: str = typer.Option(
+        "auto",
+        "--ground-truth",
+        help="g2o: auto (<stem>_GT.tum beside the file), vertices (the file's vertices; initial "
+        "estimate from the odometry) or none.",
+    ),
     **graph_options: Any,
 ) -> None:
     """Turn real trajectories into a multi-g2o dataset with synthetic odometry and loop closures.
@@ -399,6 +411,14 @@ def convert(
     if source is not None and source not in source_names():
         inputs = [Path(source), *(inputs or [])]  # no FORMAT given: the first input
         source = guess_source(inputs)
+    from studio.graph_import import graph_source_names
+
+    if source in graph_source_names() and config is None:
+        _convert_graph(ctx, source, inputs or [], out, force, rrd, quiet, split, overlap, partition, ground_truth)
+        return
+    for flag, value in (("--partition", partition != "contiguous"), ("--ground-truth", ground_truth != "auto")):
+        if value:
+            raise ConfigError(f"{flag} is for graph sources ({', '.join(graph_source_names())})")
     if config is not None:
         base = read_convert_config(config)
         overrides = {k: graph_options[k] for k in option_names if k in given}
@@ -440,6 +460,58 @@ def convert(
             )
         for gap in res.build.gaps:
             typer.echo(f"  gap: {gap.agent} vertex {gap.vertex}: {gap.seconds:.3f} s, {gap.metres:.2f} m bridged")
+
+
+def _convert_graph(
+    ctx: typer.Context,
+    source: str,
+    inputs: list[Path],
+    out: Path,
+    force: bool,
+    rrd: bool,
+    quiet: bool,
+    split: int,
+    overlap: float,
+    partition: str,
+    ground_truth: str,
+) -> None:
+    """``studio convert`` of a graph source: its graph written as it is (studio.graph_import)."""
+    import dataclasses
+
+    from studio.converters.build import GraphOptions
+    from studio.converters.graph_split import GraphImportOptions
+    from studio.core.errors import ConfigError
+    from studio.graph_import import import_graph
+
+    given = {
+        name
+        for name in ctx.params
+        if getattr(ctx.get_parameter_source(name), "name", "") in ("COMMANDLINE", "ENVIRONMENT")
+    }
+    synthetic = {f.name for f in dataclasses.fields(GraphOptions)} | {
+        "agent",
+        "orientation",
+        "heading_window_m",
+        "body_frame",
+        "folder_names",
+        "max_memory_gb",
+    }
+    if given & synthetic:
+        flag = "--" + sorted(given & synthetic)[0].replace("_", "-")
+        raise ConfigError(f"{flag}: {source} inputs hold their own measurements; the option is for trajectory sources")
+    options = GraphImportOptions(split=split, partition=partition, overlap_s=overlap, ground_truth=ground_truth)
+    t0 = time.perf_counter()
+    with terminal_progress(not quiet) as progress:
+        res = import_graph(source, inputs, out, options=options, force=force, rrd=rrd, warn=_warn, progress=progress)
+    if not quiet:
+        g = res.graph
+        counts = g.edge_counts()
+        typer.echo(
+            f"{res.dataset_dir.name}: {len(g.agents)} agents, {g.num_poses} poses, {counts['odometry']} odometry "
+            f"edges, {counts['intra_loop_closures']} intra-agent and {counts['inter_loop_closures']} inter-agent "
+            f"loop closures ({len(res.outliers)} labelled outliers) from {source}, in "
+            f"{time.perf_counter() - t0:.2f} s\n  {res.dataset_dir}"
+        )
 
 
 def _with_graph_options(command: Any) -> Any:

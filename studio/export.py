@@ -35,7 +35,7 @@ from studio.io.dpgo import contiguous_split, write_dpgo_csv_folder, write_dpgo_g
 from studio.io.graph_table import graph_edge_table, information_matrix
 from studio.io.jrl import write_jrl
 from studio.io.multig2o import read_multi_g2o
-from studio.io.outliers_txt import read_outlier_kinds
+from studio.io.outliers_txt import read_outlier_kinds, write_outliers_txt
 from studio.io.symbol_g2o import robot_prefix, write_symbol_g2o_folder
 from studio.io.tum import write_tum
 
@@ -116,6 +116,7 @@ def _write_dpgo(
     inlier = np.count_nonzero((table.from_agent != table.to_agent) & (gj == gi + 1))
     if inlier:
         warn(f"dpgo: {inlier} inter-robot loop closures join ids i and i+1, which DPGO's g2o reader takes as odometry")
+    files += _write_outliers(target, outliers)
     if graph.kind is PoseKind.SE2:
         warn("dpgo: measurements.csv holds 3D measurements only (DPGO's logger): the planar graph is written lifted")
     return files
@@ -125,7 +126,16 @@ def _write_symbols(
     graph: PoseGraph, target: Path, name: str, outliers: np.ndarray, warn: Callable[[str], None]
 ) -> list[str]:
     target.mkdir()
-    return write_symbol_g2o_folder(graph, target)
+    return write_symbol_g2o_folder(graph, target) + _write_outliers(target, outliers)
+
+
+def _write_outliers(target: Path, outliers: np.ndarray) -> list[str]:
+    """The labelled outliers beside a folder export (the formats have no place for them), in the
+    studio's ``outliers.txt`` (agents 1-based: robot ``r`` is agent ``r + 1``)."""
+    if not len(outliers):
+        return []
+    write_outliers_txt(target / "outliers.txt", outliers, ["labelled"] * len(outliers))
+    return ["outliers.txt"]
 
 
 #: The export formats, by name.

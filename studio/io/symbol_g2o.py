@@ -68,7 +68,7 @@ def robot_prefix(k: int) -> str:
     return ROBOT_PREFIXES[k]
 
 
-def symbol_key(prefix: str, index: np.ndarray) -> np.ndarray:
+def symbol_key(prefix: str, index: np.ndarray | int) -> np.ndarray:
     """The keys ``ord(prefix) << 56 | index`` (int64: every character used is below 128)."""
     return (np.int64(ord(prefix)) << np.int64(INDEX_BITS)) | np.asarray(index, dtype=np.int64)
 
@@ -235,9 +235,9 @@ def read_symbol_g2o_folder(folder: PathLike) -> PoseGraph:
                 pos_c = np.minimum(pos, len(known) - 1)
                 missing = known[pos_c] != index_col[sel]
                 if missing.any():
-                    bad = int(index_col[sel][np.flatnonzero(missing)[0]])
+                    missing_index = int(index_col[sel][np.flatnonzero(missing)[0]])
                     raise FormatError(
-                        f"{p}: an edge reaches {chr(c)}{bad}, which {owner[c].name} does not define as a vertex"
+                        f"{p}: an edge reaches {chr(c)}{missing_index}, which {owner[c].name} does not define as a vertex"
                     )
                 local[sel] = pos
             out_a.append(agent)
