@@ -81,7 +81,7 @@ def _metis(graph: SingleGraph, parts: int) -> np.ndarray:
     try:
         import pymetis
     except ImportError:
-        raise ConfigError("--partition metis needs pymetis (pip install pymetis)") from None
+        raise ConfigError("--partition metis needs pymetis>=2025.2 (pip install pymetis)") from None
     n = graph.num_poses
     i, j = graph.from_index, graph.to_index
     keep = i != j
@@ -93,7 +93,10 @@ def _metis(graph: SingleGraph, parts: int) -> np.ndarray:
     xadj = np.zeros(n + 1, dtype=np.int64)
     np.add.at(xadj, src + 1, 1)
     xadj = np.cumsum(xadj)
-    _, membership = pymetis.part_graph(parts, xadj=xadj.tolist(), adjncy=dst.tolist())
+    # a fixed seed: the same file and options give the same robots
+    _, membership = pymetis.part_graph(
+        parts, adjacency=pymetis.CSRAdjacency(xadj.tolist(), dst.tolist()), options=pymetis.Options(seed=0)
+    )
     part = np.asarray(membership, dtype=np.int64)
     # robots in the order of their first vertex
     firsts = {p: int(np.flatnonzero(part == p)[0]) for p in np.unique(part).tolist()}
