@@ -24,8 +24,8 @@ for which DPGO's rule gives back ``kappa``).
 
 from __future__ import annotations
 
-import csv
 import io
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -152,55 +152,92 @@ def write_dpgo_g2o(path: PathLike, graph: PoseGraph) -> None:
     write_g2o(path, dpgo_g2o_document(graph))
 
 
+def _lines(body: str) -> list[tuple[int, list[str]]]:
+    return [(n, line.split(",")) for n, line in enumerate(body.split("\n"), start=2) if line.strip()]
+
+
+def _locate_csv_error(body: str, name: str) -> None:
+    """Raise the FormatError naming the first bad line of a CSV body (the slow path)."""
+    for lineno, fields in _lines(body):
+        if len(fields) != 15:
+            raise FormatError(f"{name}:{lineno}: expected 15 comma-separated fields, found {len(fields)}")
+        try:
+            [int(v) for v in fields[:4]]
+            [float(v) for v in fields[4:]]
+        except ValueError:
+            raise FormatError(f"{name}:{lineno}: a field is not a number") from None
+    raise FormatError(f"{name}: not a DPGO measurements table")
+
+
+def _check_csv_rows(table: np.ndarray, body: str, name: str) -> None:
+    line_of = [n for n, _ in _lines(body)]
+
+    def fail(k: int, what: str) -> None:
+        raise FormatError(f"{name}:{line_of[k]}: {what}")
+
+    bad = np.flatnonzero(~np.isfinite(table).all(axis=1))
+    if bad.size:
+        fail(int(bad[0]), "value is not finite")
+    ids = table[:, :4]
+    bad = np.flatnonzero((ids != np.round(ids)).any(axis=1) | (ids < 0).any(axis=1) | (ids >= 2**31).any(axis=1))
+    if bad.size:
+        fail(int(bad[0]), "robot and pose ids must be non-negative integers")
+    norms = np.linalg.norm(table[:, 4:8], axis=1)
+    bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-6)
+    if bad.size:
+        fail(int(bad[0]), f"quaternion is not unit length (norm {norms[bad[0]]:.6g})")
+    bad = np.flatnonzero((table[:, 11] <= 0) | (table[:, 12] <= 0))
+    if bad.size:
+        fail(int(bad[0]), "kappa and tau must be positive")
+
+
 def read_measurements_csv_files(paths: Sequence[PathLike]) -> PoseGraph:
     """Read DPGO ``measurements.csv`` files (one per robot, or one for all) into a graph of
     ``robot0..robotR-1``: poses ``0..max`` per robot, the initial estimate by dead reckoning along
     the odometry, stamps the poses' indices in seconds. An edge in several files is taken once."""
     if not paths:
         raise FormatError("no measurements.csv files given")
-    cols: list[list] = [[] for _ in range(13)]
-    seen: set[tuple[int, int, int, int]] = set()
+    blocks = []
     where = str(Path(paths[0]).parent) if len(paths) > 1 else str(paths[0])
     for p in paths:
         text, name = _open_text(p)
-        lines = text.splitlines()
-        if not lines or lines[0].strip() != CSV_HEADER:
-            got = lines[0].strip()[:80] if lines else "nothing"
+        first, _, body = text.partition("\n")
+        if first.strip() != CSV_HEADER:
+            got = first.strip()[:80] or "nothing"
             raise FormatError(f"{name}:1: expected DPGO's header {CSV_HEADER!r}, got {got!r}")
-        for lineno, fields in enumerate(csv.reader(io.StringIO("\n".join(lines[1:]))), start=2):
-            if not fields or not "".join(fields).strip():
-                continue
-            if len(fields) != 15:
-                raise FormatError(f"{name}:{lineno}: expected 15 comma-separated fields, found {len(fields)}")
-            try:
-                ids = tuple(int(v) for v in fields[:4])
-                nums = [float(v) for v in fields[4:13]]
-                int(fields[13])
-                float(fields[14])
-            except ValueError:
-                raise FormatError(f"{name}:{lineno}: a field is not a number") from None
-            if min(ids) < 0:
-                raise FormatError(f"{name}:{lineno}: robot and pose ids must not be negative")
-            if not np.all(np.isfinite(nums)):
-                raise FormatError(f"{name}:{lineno}: value is not finite")
-            qn = float(np.linalg.norm(nums[0:4]))
-            if abs(qn - 1.0) > 1e-6:
-                raise FormatError(f"{name}:{lineno}: quaternion is not unit length (norm {qn:.6g})")
-            if nums[7] <= 0 or nums[8] <= 0:
-                raise FormatError(f"{name}:{lineno}: kappa and tau must be positive")
-            key = (ids[0], ids[1], ids[2], ids[3])
-            if key in seen and ids[0] != ids[2]:
-                continue  # a shared loop closure, in both robots' files
-            seen.add(key)
-            for c, v in enumerate((*ids, *nums)):
-                cols[c].append(v)
-    if not cols[0]:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")  # an empty body is no rows, not a warning
+                parsed = (
+                    np.loadtxt(io.StringIO(body), delimiter=",", dtype=np.float64, ndmin=2) if body.strip() else None
+                )
+        except (ValueError, UserWarning):
+            parsed = None
+            _locate_csv_error(body, name)
+        if parsed is None:
+            continue
+        if parsed.shape[1] != 15:
+            _locate_csv_error(body, name)
+        _check_csv_rows(parsed, body, name)
+        blocks.append(parsed)
+    if not blocks:
         raise FormatError(f"{where}: no measurements")
-    ra, pa, rb, pb = (np.array(cols[c], dtype=np.int64) for c in range(4))
-    quat = np.array(cols[4:8], dtype=np.float64).T
-    trans = np.array(cols[8:11], dtype=np.float64).T
-    kappa = np.array(cols[11], dtype=np.float64)
-    tau = np.array(cols[12], dtype=np.float64)
+    allrows = np.concatenate(blocks)
+    ids = allrows[:, :4].astype(np.int64)
+    # a loop closure between two robots is in both robots' files: keep its first row
+    inter = ids[:, 0] != ids[:, 2]
+    keep = np.ones(len(ids), dtype=bool)
+    if inter.any():
+        rows = np.flatnonzero(inter)
+        _, first_rows = np.unique(ids[rows], axis=0, return_index=True)
+        keep[rows] = False
+        keep[rows[first_rows]] = True
+    allrows, ids = allrows[keep], ids[keep]
+    ra, pa, rb, pb = ids.T
+    quat = allrows[:, 4:8]
+    trans = allrows[:, 8:11]
+    kappa = allrows[:, 11]
+    tau = allrows[:, 12]
     n_robots = int(max(ra.max(), rb.max())) + 1
     sizes = np.zeros(n_robots, dtype=np.int64)
     np.maximum.at(sizes, ra, pa + 1)

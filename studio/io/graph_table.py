@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from studio.core.errors import FormatError, GraphError
-from studio.core.geometry import quat_conj, quat_mul, quat_rotate, upper_to_matrix
+from studio.core.geometry import upper_to_matrix
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 
 __all__ = [
@@ -175,14 +175,30 @@ def _compose(kind: PoseKind, a: list[float], z: list[float], inverse: bool) -> l
         c, s = math.cos(th), math.sin(th)
         t = th + dth
         return [x + c * dx - s * dy, y + s * dx + c * dy, math.atan2(math.sin(t), math.cos(t))]
-    p, q = np.array(a[:3]), np.array(a[3:])
-    dp, dq = np.array(z[:3]), np.array(z[3:])
-    if inverse:
-        dq = quat_conj(dq)
-        dp = -quat_rotate(dq, dp)
-    q2 = quat_mul(q, dq)
-    q2 = q2 / np.linalg.norm(q2)
-    return [*(p + quat_rotate(q, dp)).tolist(), *q2.tolist()]
+    px, py, pz, qx, qy, qz, qw = a
+    tx, ty, tz, bx, by, bz, bw = z
+    if inverse:  # z^-1 = (-R^T t, q*)
+        bx, by, bz = -bx, -by, -bz
+        tx, ty, tz = _rotate(bx, by, bz, bw, -tx, -ty, -tz)
+    rx, ry, rz = _rotate(qx, qy, qz, qw, tx, ty, tz)
+    cx = qw * bx + qx * bw + qy * bz - qz * by
+    cy = qw * by - qx * bz + qy * bw + qz * bx
+    cz = qw * bz + qx * by - qy * bx + qz * bw
+    cw = qw * bw - qx * bx - qy * by - qz * bz
+    norm = math.sqrt(cx * cx + cy * cy + cz * cz + cw * cw)
+    return [px + rx, py + ry, pz + rz, cx / norm, cy / norm, cz / norm, cw / norm]
+
+
+def _rotate(qx: float, qy: float, qz: float, qw: float, vx: float, vy: float, vz: float) -> tuple[float, float, float]:
+    """``v`` rotated by the unit quaternion ``q`` (``v + 2w (u x v) + 2 u x (u x v)``)."""
+    tx = 2.0 * (qy * vz - qz * vy)
+    ty = 2.0 * (qz * vx - qx * vz)
+    tz = 2.0 * (qx * vy - qy * vx)
+    return (
+        vx + qw * tx + (qy * tz - qz * ty),
+        vy + qw * ty + (qz * tx - qx * tz),
+        vz + qw * tz + (qx * ty - qy * tx),
+    )
 
 
 def dead_reckoning(

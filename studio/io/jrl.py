@@ -39,7 +39,7 @@ skipped. Missing keys, robots not in ``robots``, keys of unknown robots and mixe
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -220,7 +220,7 @@ class _Reader:
         return FormatError(f"{self.where}: {path}: {what}")
 
     def get(self, obj: Any, key: str, path: str) -> Any:
-        if not isinstance(obj, Mapping):
+        if type(obj) is not dict:
             raise self.fail(path, "expected a JSON object")
         if key not in obj:
             raise self.fail(path, f"missing key {key!r}")
@@ -312,6 +312,7 @@ def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> 
     cov_rows: list[list[float]] = []
     edge_stamps: list[int] = []
     factor_ids: dict[tuple[str, int, int], int] = {}
+    paths: list[str] = []
     first_stamp: dict[int, int] = {}
 
     def decode(key: int, path: str) -> tuple[int, int]:
@@ -349,14 +350,17 @@ def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> 
                     raise r.fail(f"{fpath}.type", f"{tag} mixed with {_BETWEEN[kind]} measurements")
                 a, i = decode(r.uint(r.get(factor, "key1", fpath), f"{fpath}.key1"), f"{fpath}.key1")
                 b, j = decode(r.uint(r.get(factor, "key2", fpath), f"{fpath}.key2"), f"{fpath}.key2")
-                dim = 3 if kind is PoseKind.SE2 else 6
-                meas_rows.append(r.pose(kind, r.get(factor, "measurement", fpath), f"{fpath}.measurement"))
-                cov_rows.append(r.numbers(r.get(factor, "covariance", fpath), dim * dim, f"{fpath}.covariance"))
+                meas_rows.append(r.get(factor, "measurement", fpath))
+                cov_rows.append(r.get(factor, "covariance", fpath))
                 factor_ids[(c, e, m)] = len(rows)
+                paths.append(fpath)
                 rows.append((a, i, b, j))
                 edge_stamps.append(stamp)
     if kind is None:
         raise FormatError(f"{where}: measurements: no BetweenFactorPose2 or BetweenFactorPose3")
+    dim = 3 if kind is PoseKind.SE2 else 6
+    meas = _pose_array(r, kind, meas_rows, [f"{p}.measurement" for p in paths])
+    cov = _number_array(r, cov_rows, dim * dim, [f"{p}.covariance" for p in paths]).reshape(-1, dim, dim)
     if skipped and warn is not None:
         warn(
             f"{where}: skipped factors the studio's pose graphs do not hold: "
@@ -372,14 +376,18 @@ def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> 
             items = vals.values() if isinstance(vals, dict) else vals
             if not isinstance(items, (list, type({}.values()))):
                 raise r.fail(f"{section}.{c}", "expected a list of values")
-            for n, v in enumerate(items):
-                vpath = f"{section}.{c}[{n}]"
+            items = list(items)
+            vpaths = [f"{section}.{c}[{n}]" for n in range(len(items))]
+            decoded = []
+            for v, vpath in zip(items, vpaths):
                 key = r.uint(r.get(v, "key", vpath), f"{vpath}.key")
                 vtype = r.get(v, "type", vpath)
                 if vtype != _VALUE[kind]:  # type: ignore[index]
                     raise r.fail(f"{vpath}.type", f"expected {_VALUE[kind]} values, got {str(vtype)[:40]!r}")  # type: ignore[index]
-                a, i = decode(key, f"{vpath}.key")
-                out.setdefault(a, {})[i] = r.pose(kind, v, vpath)  # type: ignore[arg-type]
+                decoded.append(decode(key, f"{vpath}.key"))
+            poses = _pose_array(r, kind, items, vpaths).tolist()  # type: ignore[arg-type]
+            for (a, i), pose in zip(decoded, poses):
+                out.setdefault(a, {})[i] = pose
         return out
 
     init = values("initialization")
@@ -421,8 +429,6 @@ def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> 
         del n
     fi = np.array([local[a][i] for a, i in zip(edge[:, 0].tolist(), edge[:, 1].tolist())], dtype=np.int64)
     ti = np.array([local[a][i] for a, i in zip(edge[:, 2].tolist(), edge[:, 3].tolist())], dtype=np.int64)
-    dim = 3 if kind is PoseKind.SE2 else 6
-    cov = np.array(cov_rows, dtype=np.float64).reshape(-1, dim, dim)
     sign, _ = np.linalg.slogdet(cov)
     if np.any(sign <= 0):
         bad = int(np.flatnonzero(sign <= 0)[0])
@@ -434,7 +440,7 @@ def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> 
         fi,
         edge[:, 2],
         ti,
-        np.array(meas_rows, dtype=np.float64).reshape(-1, kind.pose_width),
+        meas,
         covariance_to_information(kind, cov),
     )
     graph = assemble_graph(agents, table, where=where, metadata={"source": where, "name": str(name)})
@@ -450,6 +456,40 @@ def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> 
                 raise r.fail(f"outlier_factors.{c}[{n}]", f"no pose-graph measurement {pair} in measurements.{c}")
             outliers.append((int(edge[row, 0]), int(fi[row]), int(edge[row, 2]), int(ti[row])))
     return JrlGraph(graph, np.array(outliers, dtype=np.int64).reshape(-1, 4), str(name), skipped)
+
+
+def _number_array(r: _Reader, values: list[Any], width: int, paths: list[str]) -> np.ndarray:
+    """``(n, width)`` floats of JSON number lists; a bad one is named by its path (slow path)."""
+    try:
+        arr = np.array(values, dtype=np.float64)
+        if arr.shape == (len(values), width) and np.isfinite(arr).all():
+            return arr.reshape(len(values), width)
+    except (TypeError, ValueError):
+        pass
+    for row, path in zip(values, paths):
+        r.numbers(row, width, path)
+    raise AssertionError("unreachable: the slow path names the bad value")
+
+
+def _pose_array(r: _Reader, kind: PoseKind, values: list[Any], paths: list[str]) -> np.ndarray:
+    """``(n, pose_width)`` poses of JSON Pose2/Pose3 objects (``x y theta``; ``x y z qx qy qz qw``)."""
+    try:
+        if kind is PoseKind.SE2:
+            flat = [[v["x"], v["y"], v["theta"]] for v in values]
+            arr = _number_array(r, flat, 3, paths)
+        else:
+            flat = [[*v["translation"], *v["rotation"]] for v in values]
+            arr = _number_array(r, flat, 7, paths)[:, [0, 1, 2, 4, 5, 6, 3]]
+            norms = np.linalg.norm(arr[:, 3:], axis=1)
+            bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-6)
+            if bad.size:
+                raise r.fail(f"{paths[bad[0]]}.rotation", f"quaternion is not unit length (norm {norms[bad[0]]:.6g})")
+        return arr
+    except (KeyError, TypeError, FormatError):
+        pass
+    for v, path in zip(values, paths):
+        r.pose(kind, v, path)
+    raise AssertionError("unreachable: the slow path names the bad value")
 
 
 def _stamps(
