@@ -33,7 +33,7 @@ _BASELINE = (
     "from pathlib import Path\n"
     "from studio.io.multig2o import read_multi_g2o, write_multi_g2o\n"
     "g = read_multi_g2o(sys.argv[1])\n"
-    "Path(sys.argv[2]).mkdir()\n"
+    "import shutil; shutil.rmtree(sys.argv[2], ignore_errors=True); Path(sys.argv[2]).mkdir()\n"
     "write_multi_g2o(g, sys.argv[2], precision='full')\n"
 )
 
