@@ -19,11 +19,16 @@ from typing import Protocol
 
 from studio.converters.airmuseum import BODY_FRAMES as AIRMUSEUM_BODY_FRAMES
 from studio.converters.airmuseum import is_airmuseum_sequence, read_airmuseum
+from studio.converters.dpgo import read_dpgo_graph, read_dpgo_trajectories
 from studio.converters.euroc import euroc_ground_truth, read_euroc
+from studio.converters.g2o import read_g2o_graph, read_g2o_trajectories
+from studio.converters.graph_split import GraphImportOptions, ImportedGraph
+from studio.converters.jrl import read_jrl_graph, read_jrl_trajectories
 from studio.converters.kimera_multi import SUFFIX as KIMERA_SUFFIX
 from studio.converters.kimera_multi import kimera_files, read_kimera_multi
 from studio.converters.kitti import read_kitti
 from studio.converters.s3e import is_s3e_sequence, read_s3e
+from studio.converters.symbols import read_symbols_graph, read_symbols_trajectories
 from studio.converters.tum import read_tum_sources
 from studio.core.errors import ConfigError
 from studio.core.trajectory import Trajectory, Warn
@@ -32,6 +37,7 @@ from studio.runtime.progress import Progress
 
 __all__ = [
     "SourceReader",
+    "GraphReader",
     "Source",
     "SOURCES",
     "READERS",
@@ -63,6 +69,15 @@ class Detect(Protocol):
     def __call__(self, path: Path) -> bool: ...
 
 
+class GraphReader(Protocol):
+    """Read a graph source's inputs (a JRL file, a folder of Symbol-keyed g2o files, DPGO CSVs, a
+    single g2o) into its pose graph and labelled outliers, measurements as they are."""
+
+    def __call__(
+        self, inputs: Sequence[PathLike], *, warn: Warn | None = None, options: GraphImportOptions | None = None
+    ) -> ImportedGraph: ...
+
+
 @dataclass(frozen=True)
 class Source:
     """One source format as the registry declares it: the whole declaration of a source."""
@@ -82,6 +97,9 @@ class Source:
     """Recognises an input path of this source, for :func:`guess_source` (None: never guessed)."""
     body_frames: Mapping[str, str] = field(default_factory=dict)
     """Default body frames (``FLU`` codes) of the agents, by lower-case agent name; ``--body-frame`` wins."""
+    read_graph: GraphReader | None = None
+    """Graph sources: the reader of the graph itself, which ``studio convert`` writes as it is (then
+    ``read`` gives the graph's ground truth as trajectories, for :func:`studio.convert.convert`)."""
 
 
 def _read_bag(
@@ -128,6 +146,24 @@ def _is_kimera_multi(path: Path) -> bool:
     return bool(kimera_files(path)) if path.is_dir() else path.name.endswith(KIMERA_SUFFIX)
 
 
+def _is_jrl(path: Path) -> bool:
+    return path.suffix == ".jrl" and path.is_file()
+
+
+def _is_g2o(path: Path) -> bool:
+    return path.suffix == ".g2o" and path.is_file()
+
+
+def _is_symbols(path: Path) -> bool:
+    return path.is_dir() and ((path / "fullGraph.g2o").is_file() or (path / "0.g2o").is_file())
+
+
+def _is_dpgo(path: Path) -> bool:
+    if path.is_file():
+        return path.name == "measurements.csv"
+    return path.is_dir() and any((q / "measurements.csv").is_file() for q in path.iterdir() if q.is_dir())
+
+
 SOURCES: dict[str, Source] = {
     "tum": Source(
         read_tum_sources, "trajectory files", "their files", "TUM trajectories, one agent per file", detect=_is_tum
@@ -169,6 +205,41 @@ SOURCES: dict[str, Source] = {
         "the robots' files",
         "Kimera-Multi ground truth (<robot>_gt_odom.csv)",
         detect=_is_kimera_multi,
+    ),
+    "jrl": Source(
+        read_jrl_trajectories,
+        "one JRL file",
+        "its robots (the names it keeps)",
+        "a JRL file (MESA, COSMO-Bench), the graph as it is",
+        one_input=True,
+        read_graph=read_jrl_graph,
+        detect=_is_jrl,
+    ),
+    "symbols": Source(
+        read_symbols_trajectories,
+        "one folder of Symbol-keyed g2o files (0.g2o, 1.g2o, ... or fullGraph.g2o)",
+        "their Symbol characters",
+        "per-robot g2o files with GTSAM Symbol keys (DGS, Kimera-Multi)",
+        one_input=True,
+        read_graph=read_symbols_graph,
+        detect=_is_symbols,
+    ),
+    "dpgo": Source(
+        read_dpgo_trajectories,
+        "a folder of measurements.csv files, or the files",
+        "robot0..",
+        "DPGO's per-robot measurements.csv",
+        read_graph=read_dpgo_graph,
+        detect=_is_dpgo,
+    ),
+    "g2o": Source(
+        read_g2o_trajectories,
+        "one .g2o file",
+        "the file (robot0.. with --split)",
+        "any single g2o graph, split into robots with --split/--partition",
+        one_input=True,
+        read_graph=read_g2o_graph,
+        detect=_is_g2o,
     ),
 }
 #: Each source's reader.

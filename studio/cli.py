@@ -376,6 +376,17 @@ def convert(
         DEFAULT_MAX_MEMORY_GB, "--max-memory-gb", help="Refuse a loop-closure search estimated to need more memory."
     ),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
+    partition: str = typer.Option(
+        "contiguous",
+        "--partition",
+        help="g2o with --split: contiguous (DPGO's split), metis (balanced, fewest cut edges) or time.",
+    ),
+    ground_truth: str = typer.Option(
+        "auto",
+        "--ground-truth",
+        help="g2o: auto (<stem>_GT.tum beside the file), vertices (the file's vertices; initial "
+        "estimate from the odometry) or none.",
+    ),
     **options: Any,
 ) -> None:
     """Turn real trajectories into a multi-g2o dataset with synthetic odometry and loop closures.
@@ -411,6 +422,26 @@ def convert(
     if source is not None and source not in source_names():
         inputs = [Path(source), *(inputs or [])]  # no FORMAT given: the first input
         source = guess_source(inputs)
+    from studio.graph_import import graph_source_names
+
+    if source in graph_source_names() and config is None:
+        _convert_graph(
+            ctx,
+            source,
+            inputs or [],
+            out,
+            force,
+            rrd,
+            quiet,
+            options["split"],
+            options["overlap_s"],
+            partition,
+            ground_truth,
+        )
+        return
+    for flag, value in (("--partition", partition != "contiguous"), ("--ground-truth", ground_truth != "auto")):
+        if value:
+            raise ConfigError(f"{flag} is for graph sources ({', '.join(graph_source_names())})")
     if config is not None:
         base = read_convert_config(config)
         overrides = {k: graph_options[k] for k in option_names if k in given}
@@ -453,6 +484,58 @@ def convert(
             )
         for gap in res.build.gaps:
             typer.echo(f"  gap: {gap.agent} vertex {gap.vertex}: {gap.seconds:.3f} s, {gap.metres:.2f} m bridged")
+
+
+def _convert_graph(
+    ctx: typer.Context,
+    source: str,
+    inputs: list[Path],
+    out: Path,
+    force: bool,
+    rrd: bool,
+    quiet: bool,
+    split: int,
+    overlap: float,
+    partition: str,
+    ground_truth: str,
+) -> None:
+    """``studio convert`` of a graph source: its graph written as it is (studio.graph_import)."""
+    import dataclasses
+
+    from studio.converters.build import GraphOptions
+    from studio.converters.graph_split import GraphImportOptions
+    from studio.core.errors import ConfigError
+    from studio.graph_import import import_graph
+
+    given = {
+        name
+        for name in ctx.params
+        if getattr(ctx.get_parameter_source(name), "name", "") in ("COMMANDLINE", "ENVIRONMENT")
+    }
+    synthetic = {f.name for f in dataclasses.fields(GraphOptions)} | {
+        "agent",
+        "orientation",
+        "heading_window_m",
+        "body_frame",
+        "folder_names",
+        "max_memory_gb",
+    }
+    if given & synthetic:
+        flag = "--" + sorted(given & synthetic)[0].replace("_", "-")
+        raise ConfigError(f"{flag}: {source} inputs hold their own measurements; the option is for trajectory sources")
+    options = GraphImportOptions(split=split, partition=partition, overlap_s=overlap, ground_truth=ground_truth)
+    t0 = time.perf_counter()
+    with terminal_progress(not quiet) as progress:
+        res = import_graph(source, inputs, out, options=options, force=force, rrd=rrd, warn=_warn, progress=progress)
+    if not quiet:
+        g = res.graph
+        counts = g.edge_counts()
+        typer.echo(
+            f"{res.dataset_dir.name}: {len(g.agents)} agents, {g.num_poses} poses, {counts['odometry']} odometry "
+            f"edges, {counts['intra_loop_closures']} intra-agent and {counts['inter_loop_closures']} inter-agent "
+            f"loop closures ({len(res.outliers)} labelled outliers) from {source}, in "
+            f"{time.perf_counter() - t0:.2f} s\n  {res.dataset_dir}"
+        )
 
 
 def _with_graph_options(command: Any) -> Any:
@@ -512,6 +595,42 @@ def _with_convert_options(command: Any) -> Any:
 
 _with_convert_options(convert)
 _with_graph_options(convert)
+
+
+# --- studio export ------------------------------------------------------------------------------
+# The formats are the entries of studio.export.EXPORT_FORMATS (choices and help built from them).
+
+
+def _export_format_help() -> str:
+    from studio.export import EXPORT_FORMATS
+
+    return "; ".join(f"{name}: {spec.help}" for name, spec in EXPORT_FORMATS.items())
+
+
+@app.command()
+@cli_errors
+def export(
+    dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder (ours or kollagen's)."),
+    format: str = typer.Option(..., "--format", "-f", help=_export_format_help() + " (docs/formats.md)."),
+    out: Path = typer.Option(..., "-o", "--out", help="The file (jrl) or folder (dpgo, symbols) to write."),
+    name: str = typer.Option(None, "--name", help="The dataset's name inside the files (default: DATASET's)."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing output."),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
+) -> None:
+    """Write a dataset in a distributed back-end's format: jrl (JRL/MESA), dpgo (DPGO's g2o and
+    measurements.csv), symbols (GTSAM-Symbol g2o per robot: DGS, Kimera-Multi).
+
+    Example: studio export out/multi3500x8 --format symbols -o out/multi3500x8_symbols
+    """
+    from studio.core.errors import ConfigError
+    from studio.export import EXPORT_FORMATS, export_dataset
+
+    if format not in EXPORT_FORMATS:
+        raise ConfigError(f"--format: expected one of {', '.join(EXPORT_FORMATS)}, got {format!r}")
+    t0 = time.perf_counter()
+    res = export_dataset(dataset, out, format=format, force=force, name=name, warn=_warn)
+    if not quiet:
+        typer.echo(f"{res.path}: {format}, {len(res.files)} files in {time.perf_counter() - t0:.2f} s")
 
 
 # --- studio solve -------------------------------------------------------------------------------

@@ -187,11 +187,20 @@ _WIDTH = {  # tokens after the tag
 }
 
 
-def read_g2o(source: PathLike | IO[str], *, edges: bool = True) -> G2oDocument:
+def read_g2o(
+    source: PathLike | IO[str],
+    *,
+    edges: bool = True,
+    unknown: dict[str, int] | None = None,
+    dangling: bool = False,
+) -> G2oDocument:
     """Parse a g2o file; errors name ``file:line``.
 
     ``edges=False`` skips edge records unparsed (the document then has no edges): reading only the
-    vertices of a large file is several times faster.
+    vertices of a large file is several times faster. ``unknown``, where given, counts the records
+    of other types (``EDGE_SE2_XY``, ``VERTEX_XY``) by tag instead of refusing them. ``dangling``
+    accepts edges to vertices the file does not define (files of edges only; a robot's file that
+    omits the separator vertices of its inter-robot edges).
     """
     text, name = _open_text(source)
     groups: dict[str, tuple[list[int], list[list[str]]]] = {}
@@ -204,6 +213,9 @@ def read_g2o(source: PathLike | IO[str], *, edges: bool = True) -> G2oDocument:
             continue
         tag = parts[0]
         if tag not in _WIDTH:
+            if unknown is not None:
+                unknown[tag[:40]] = unknown.get(tag[:40], 0) + 1
+                continue
             if tag.startswith(("FIX", "PARAMS")):
                 continue
             raise FormatError(f"{name}:{lineno}: unknown record {tag[:40]!r}")
@@ -232,7 +244,7 @@ def read_g2o(source: PathLike | IO[str], *, edges: bool = True) -> G2oDocument:
         dup = int(uniq[np.argmax(counts > 1)])
         where = [ln for ln, v in zip(vlines, vids.tolist()) if v == dup][1]
         raise FormatError(f"{name}:{where}: vertex {dup} is defined twice")
-    if len(eids):
+    if len(eids) and not dangling:
         known = np.isin(eids, vids)
         if not known.all():
             r, c = np.argwhere(~known)[0]

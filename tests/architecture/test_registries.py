@@ -202,6 +202,12 @@ def test_detection_sees_each_source(tmp_path):
     (tmp_path / "ros2" / "metadata.yaml").write_text("x\n")
     (tmp_path / "poses.txt").write_text(" ".join(["0"] * 12) + "\n")
     (tmp_path / "traj.txt").write_text("# comment\n" + " ".join(["0"] * 8) + "\n")
+    (tmp_path / "m.jrl").write_text("{}\n")
+    (tmp_path / "m.g2o").write_text("VERTEX_SE2 0 0 0 0\n")
+    (tmp_path / "dgs").mkdir()
+    (tmp_path / "dgs" / "fullGraph.g2o").write_text("VERTEX_SE2 0 0 0 0\n")
+    (tmp_path / "dpgo" / "robot0").mkdir(parents=True)
+    (tmp_path / "dpgo" / "robot0" / "measurements.csv").write_text("robot_src\n")
     expected = {
         "seq": "euroc",
         "s3e": "s3e",
@@ -210,6 +216,10 @@ def test_detection_sees_each_source(tmp_path):
         "ros2": "bag",
         "poses.txt": "kitti",
         "traj.txt": "tum",
+        "m.jrl": "jrl",
+        "m.g2o": "g2o",
+        "dgs": "symbols",
+        "dpgo": "dpgo",
     }
     for name, source in expected.items():
         assert guess_source([tmp_path / name]) == source, name

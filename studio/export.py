@@ -1,0 +1,217 @@
+"""``studio export`` as a library function: a multi-g2o dataset out in a distributed back-end's format.
+
+The formats are the entries of :data:`EXPORT_FORMATS` (the one place an export format is declared;
+the CLI's choices and help come from it):
+
+* ``jrl``: one JRL file (``studio.io.jrl``) for JRL, MESA and COSMO-Bench tooling;
+* ``dpgo``: a folder with ``NAME.g2o`` (edges only, ids ``0..n-1`` in robot order) for DPGO's
+  examples, ``robotR/measurements.csv`` per robot in its logger's format (``studio.io.dpgo``) and
+  ``robotR/robotR_GT.tum``;
+* ``symbols``: a folder of Symbol-keyed g2o files, one per robot plus ``fullGraph.g2o``
+  (``studio.io.symbol_g2o``), for DGS / distributed-mapper, Kimera-Multi and anything on
+  ``gtsam.readG2o``.
+
+Folder exports hold ``export.json``: the format, the source dataset, each agent's robot id and
+Symbol character, and the warnings (what the format loses). Everything is written through
+:func:`studio.io.atomic.staged_outputs`: nothing appears unless all of it was written, and an existing
+output is replaced only with ``force``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from studio.core.errors import ConfigError, FormatError, GraphError
+from studio.core.model import PoseGraph, PoseKind
+from studio.core.trajectory import Trajectory
+from studio.core.types import PathLike
+from studio.io.atomic import staged_outputs
+from studio.io.dpgo import contiguous_split, write_dpgo_csv_folder, write_dpgo_g2o
+from studio.io.graph_table import graph_edge_table, information_matrix
+from studio.io.jrl import write_jrl
+from studio.io.multig2o import read_multi_g2o
+from studio.io.outliers_txt import read_outlier_kinds, write_outliers_txt
+from studio.io.symbol_g2o import robot_prefix, write_symbol_g2o_folder
+from studio.io.tum import write_tum
+
+__all__ = ["ExportFormat", "EXPORT_FORMATS", "ExportResult", "export_dataset", "read_dataset_outliers"]
+
+_EXPORT_FORMAT = "cslam-studio export 1"
+
+
+@dataclass(frozen=True)
+class ExportFormat:
+    """One export format: its help line, whether it writes a file or a folder, and its writer
+    ``write(graph, target, name, outliers, warn) -> [files written]``."""
+
+    help: str
+    folder: bool
+    write: Callable[[PoseGraph, Path, str, np.ndarray, Callable[[str], None]], list[str]]
+
+
+@dataclass(frozen=True)
+class ExportResult:
+    format: str
+    path: Path
+    files: tuple[str, ...]
+    """Files written, relative to ``path`` for folder exports."""
+    warnings: tuple[str, ...] = field(default_factory=tuple)
+
+
+def _write_jrl(
+    graph: PoseGraph, target: Path, name: str, outliers: np.ndarray, warn: Callable[[str], None]
+) -> list[str]:
+    write_jrl(target, graph, name=name, outliers=outliers)
+    return [target.name]
+
+
+def _anisotropic(graph: PoseGraph) -> int:
+    """How many edges have information that DPGO's tau/kappa do not keep (not isotropic per block)."""
+    se3 = graph.to_se3()
+    info = information_matrix(PoseKind.SE3, graph_edge_table(se3).information_upper)
+    tt, rr = info[:, :3, :3], info[:, 3:, 3:]
+    off = np.abs(info[:, :3, 3:]).max(axis=(1, 2)) if len(info) else np.zeros(0)
+    iso = (
+        np.all(np.isclose(tt, tt[:, :1, :1] * np.eye(3), rtol=1e-12, atol=0), axis=(1, 2))
+        & np.all(np.isclose(rr, rr[:, :1, :1] * np.eye(3), rtol=1e-12, atol=0), axis=(1, 2))
+        & (off == 0)
+    )
+    return int(np.count_nonzero(~iso))
+
+
+def _write_dpgo(
+    graph: PoseGraph, target: Path, name: str, outliers: np.ndarray, warn: Callable[[str], None]
+) -> list[str]:
+    target.mkdir()
+    files = [f"{name}.g2o"]
+    write_dpgo_g2o(target / files[0], graph)
+    files += write_dpgo_csv_folder(graph, target)
+    for r, a in enumerate(graph.agents):
+        truth = a.se3_poses(ground_truth=True)
+        if truth is not None:
+            rel = f"robot{r}/robot{r}_GT.tum"
+            write_tum(target / rel, Trajectory.from_poses(a.name, a.stamps_ns, truth))
+            files.append(rel)
+    sizes = [a.num_poses for a in graph.agents]
+    split = np.bincount(contiguous_split(sum(sizes), len(sizes)), minlength=len(sizes)).tolist()
+    if split != sizes:
+        warn(
+            f"dpgo: the robots have {sizes} poses, but DPGO's contiguous split of {name}.g2o into {len(sizes)} "
+            f"robots gives {split}: give DPGO the robots' measurements.csv files, not the single g2o"
+        )
+    lost = _anisotropic(graph)
+    if lost:
+        warn(
+            f"dpgo: {lost} of {sum(graph.edge_counts().values())} edges have anisotropic information, which "
+            "DPGO reduces to the isotropic tau and kappa (its rule, docs/formats.md)"
+        )
+    table = graph_edge_table(graph)
+    starts = np.cumsum([0] + sizes)
+    gi, gj = starts[table.from_agent] + table.from_index, starts[table.to_agent] + table.to_index
+    inlier = np.count_nonzero((table.from_agent != table.to_agent) & (gj == gi + 1))
+    if inlier:
+        warn(f"dpgo: {inlier} inter-robot loop closures join ids i and i+1, which DPGO's g2o reader takes as odometry")
+    files += _write_outliers(target, outliers)
+    if graph.kind is PoseKind.SE2:
+        warn("dpgo: measurements.csv holds 3D measurements only (DPGO's logger): the planar graph is written lifted")
+    return files
+
+
+def _write_symbols(
+    graph: PoseGraph, target: Path, name: str, outliers: np.ndarray, warn: Callable[[str], None]
+) -> list[str]:
+    target.mkdir()
+    return write_symbol_g2o_folder(graph, target) + _write_outliers(target, outliers)
+
+
+def _write_outliers(target: Path, outliers: np.ndarray) -> list[str]:
+    """The labelled outliers beside a folder export (the formats have no place for them), in the
+    studio's ``outliers.txt`` (agents 1-based: robot ``r`` is agent ``r + 1``)."""
+    if not len(outliers):
+        return []
+    write_outliers_txt(target / "outliers.txt", outliers, ["labelled"] * len(outliers))
+    return ["outliers.txt"]
+
+
+#: The export formats, by name.
+EXPORT_FORMATS: dict[str, ExportFormat] = {
+    "jrl": ExportFormat("one JRL file (JRL, MESA, COSMO-Bench)", False, _write_jrl),
+    "dpgo": ExportFormat("DPGO's single g2o and a measurements.csv per robot", True, _write_dpgo),
+    "symbols": ExportFormat(
+        "one GTSAM-Symbol g2o per robot and fullGraph.g2o (DGS, Kimera-Multi, gtsam.readG2o)", True, _write_symbols
+    ),
+}
+
+
+def read_dataset_outliers(dataset: PathLike, graph: PoseGraph) -> np.ndarray:
+    """The labelled outliers of a dataset folder (``outliers.txt``), ``(k, 4)`` rows with 0-based
+    agents; none when the dataset lists none. Rows naming no edge of ``graph`` are refused."""
+    path = Path(dataset) / "outliers.txt"
+    if not path.is_file():
+        return np.zeros((0, 4), dtype=np.int64)
+    rows, _ = read_outlier_kinds(path)
+    table = graph_edge_table(graph).rows()
+    have = {tuple(r) for r in table.tolist()}
+    for k, r in enumerate(rows.tolist()):
+        if tuple(r) not in have:
+            raise FormatError(f"{path}: row {k + 1} ({r[0] + 1} {r[1]} {r[2] + 1} {r[3]}) names no edge of the dataset")
+    return rows
+
+
+def export_dataset(
+    dataset: PathLike,
+    out: PathLike,
+    *,
+    format: str,
+    force: bool = False,
+    name: str | None = None,
+    warn: Callable[[str], None] | None = None,
+) -> ExportResult:
+    """Write the multi-g2o dataset ``dataset`` in ``format`` (a name of :data:`EXPORT_FORMATS`) to
+    ``out`` (a file for ``jrl``, a folder otherwise). ``name`` (default: the dataset folder's name)
+    names the dataset inside the files."""
+    if format not in EXPORT_FORMATS:
+        raise ConfigError(f"unknown export format {format!r} (known: {', '.join(EXPORT_FORMATS)})", option="format")
+    spec = EXPORT_FORMATS[format]
+    dataset = Path(dataset)
+    out = Path(out).absolute()
+    if out.name in ("", ".", ".."):
+        raise ConfigError(f"{out}: -o must name the {'folder' if spec.folder else 'file'} to write")
+    graph = read_multi_g2o(dataset)
+    outliers = read_dataset_outliers(dataset, graph)
+    label = name or dataset.resolve().name
+    warnings: list[str] = []
+
+    def _warn(msg: str) -> None:
+        warnings.append(msg)
+        if warn is not None:
+            warn(msg)
+
+    if len(graph.agents) > 52:
+        robot_prefix(len(graph.agents) - 1)  # raises: Symbol characters name 52 robots at most
+    with staged_outputs(out.parent, [out.name], force=force, inputs=[dataset]) as staging:
+        target = staging / out.name
+        try:
+            files = spec.write(graph, target, label, outliers, _warn)
+        except GraphError as err:
+            raise FormatError(f"{dataset}: {err}") from None
+        if spec.folder:
+            meta = {
+                "format": _EXPORT_FORMAT,
+                "export": format,
+                "dataset": label,
+                "agents": [
+                    {"name": a.name, "robot": k, "symbol": robot_prefix(k), "poses": a.num_poses}
+                    for k, a in enumerate(graph.agents)
+                ],
+                "outliers": len(outliers),
+                "warnings": warnings,
+            }
+            (target / "export.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
+            files.append("export.json")
+    return ExportResult(format, out, tuple(files), tuple(warnings))

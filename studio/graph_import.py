@@ -1,0 +1,139 @@
+"""``studio convert`` of a graph source (jrl, symbols, dpgo, g2o): the graph itself into a dataset.
+
+A trajectory source gets synthetic measurements (:mod:`studio.convert`); a graph source already holds
+its measurements, and they are written as they are::
+
+    OUT/
+    ├── agentK/posegraph.g2o, agentK/agentK_GT.tum   # 3D records (2D for planar graphs), %.17g
+    ├── agents.json                                  # agentK -> the robots' names
+    ├── inter_agent_lc.dat
+    ├── outliers.txt                                 # the labelled outliers (JRL's outlier_factors)
+    ├── import.json                                  # source, inputs, options, counts, warnings
+    └── OUT.rrd                                      # the recording (unless rrd=False)
+
+so that ``studio record``, ``check``, ``solve`` and ``evaluate`` take it like any other dataset.
+``split`` cuts a single-robot graph (``studio convert g2o``) into robots
+(:mod:`studio.converters.graph_split`). Everything is staged and renamed into place; nothing is
+written when an input is bad.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from studio.converters.graph_split import GraphImportOptions
+from studio.converters.registry import check_inputs, get_source
+from studio.core.errors import ConfigError, FormatError, OutputError
+from studio.core.model import PoseGraph, PoseKind
+from studio.core.types import PathLike
+from studio.io.atomic import check_not_overlapping, staged_outputs
+from studio.io.multig2o import write_multi_g2o
+from studio.io.outliers_txt import write_outliers_txt
+from studio.runtime.progress import Progress
+
+__all__ = ["ImportResult", "import_graph", "graph_source_names", "IMPORT_NAME"]
+
+IMPORT_NAME = "import.json"
+_FORMAT = "studio-import/1"
+
+
+@dataclass(frozen=True, eq=False)
+class ImportResult:
+    source: str
+    dataset_dir: Path
+    graph: PoseGraph
+    outliers: np.ndarray
+    warnings: tuple[str, ...]
+    rrd_path: Path | None
+
+
+def graph_source_names() -> list[str]:
+    from studio.converters.registry import SOURCES
+
+    return [name for name, src in SOURCES.items() if src.read_graph is not None]
+
+
+def import_graph(
+    source: str,
+    inputs: Sequence[PathLike],
+    out: PathLike,
+    *,
+    options: GraphImportOptions | None = None,
+    force: bool = False,
+    rrd: bool = True,
+    warn: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
+) -> ImportResult:
+    """Read the graph source ``source`` (a name of ``converters.registry.SOURCES`` with a graph
+    reader) and write its dataset folder ``out`` (see the module doc)."""
+    options = options or GraphImportOptions()
+    src = get_source(source)
+    if src.read_graph is None:
+        raise ConfigError(f"{source} is not a graph source (graph sources: {', '.join(graph_source_names())})")
+    out = Path(out).absolute()
+    if out.name in ("", ".", ".."):
+        raise OutputError(f"{out}: -o must name the dataset folder itself")
+    if (out.exists() or out.is_symlink()) and not force:
+        raise OutputError(f"{out} already exists (use --force to overwrite)")
+    paths = []
+    for p in inputs:
+        if not Path(p).exists():
+            raise FormatError(f"{p}: no such file or folder")
+        paths.append(str(Path(p).resolve()))
+    check_inputs(source, paths, ())
+    check_not_overlapping([out], paths)
+    warnings: list[str] = []
+
+    def _warn(msg: str) -> None:
+        warnings.append(msg)
+        if warn is not None:
+            warn(msg)
+
+    if progress:
+        progress("reading", 0, 1, "inputs")
+    with np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
+        try:
+            imported = src.read_graph(paths, warn=_warn, options=options)
+        except FloatingPointError as err:
+            raise FormatError(
+                f"{', '.join(Path(p).name for p in paths)}: numbers out of the finite range ({err})"
+            ) from None
+        except np.linalg.LinAlgError as err:
+            raise FormatError(f"{', '.join(Path(p).name for p in paths)}: a singular matrix ({err})") from None
+    graph, outliers = imported.graph, imported.outliers
+    meta = {
+        "format": _FORMAT,
+        "source": source,
+        "inputs": [Path(p).name for p in paths],
+        "options": asdict(options),
+        "agents": [
+            {"folder": f"agent{k + 1}", "name": a.name, "poses": a.num_poses} for k, a in enumerate(graph.agents)
+        ],
+        "counts": {**graph.edge_counts(), "outliers": len(outliers)},
+        "warnings": warnings,
+    }
+    with staged_outputs(out.parent, [out.name], force=force, inputs=paths) as staging:
+        ds = staging / out.name
+        ds.mkdir()
+        write_multi_g2o(
+            graph, ds, records="2d" if graph.kind is PoseKind.SE2 else "3d", precision="full", folder_names="agents"
+        )
+        write_outliers_txt(ds / "outliers.txt", outliers, [f"labelled in the {source} input"] * len(outliers))
+        (ds / IMPORT_NAME).write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
+        if rrd:
+            from studio.recording.dataset import record_graph
+
+            record_graph(
+                graph,
+                ds / f"{out.name}.rrd",
+                name=out.name,
+                config_json=json.dumps(meta, sort_keys=True),
+                outliers=outliers,
+                progress=progress,
+            )
+    return ImportResult(source, out, graph, outliers, tuple(warnings), out / f"{out.name}.rrd" if rrd else None)

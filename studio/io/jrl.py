@@ -1,0 +1,527 @@
+"""JRL ("JSON Robot Log", DanMcGann/jrl ``format/*.md``; MESA's and COSMO-Bench's format).
+
+What the studio writes, following jrl's ``Writer`` and ``Parser`` (``src/Writer.cpp``,
+``src/Parser.cpp``, ``include/jrl/IOMeasurements.h``)::
+
+    {"name": NAME,
+     "robots": ["a", "b", ...],                   # robot k's character: studio.io.symbol_g2o
+     "measurements": {"a": [{"stamp": 12, "measurements": [FACTOR, ...]}, ...], ...},
+     "groundtruth":    {"a": [{"key": K, "type": "Pose3", "translation": [x, y, z],
+                               "rotation": [w, x, y, z]}, ...], ...},
+     "initialization": {"a": [...], ...},
+     "potential_outlier_factors": {"a": [[entry, measurement], ...], ...},
+     "outlier_factors":           {"a": [[entry, measurement], ...], ...},
+     "studio": {"format": "cslam-studio jrl 1", "agents": [NAME, ...], "stamps_ns": {"a": [...]}}}
+
+* Keys are GTSAM Symbols ``ord(robot) << 56 | index``.
+* A FACTOR is ``{"type": "BetweenFactorPose3", "key1", "key2", "measurement": POSE,
+  "covariance": [36 values, row-major]}`` (``BetweenFactorPose2`` with ``{"x", "y", "theta"}`` and 9
+  values for planar graphs). The covariance is over GTSAM's tangent order, rotation first for Pose3
+  (``rx ry rz x y z``, the rotation as a rotation vector): the studio's g2o-convention information
+  (``x y z`` then the quaternion's vector part) is converted (``J^T I J`` with
+  ``J = diag(1, 1, 1, 1/2, 1/2, 1/2)``, reordered, inverted) and converted back on reading.
+* Each measurement is an entry of the robot that owns it at its stamp (int64 nanoseconds inside the
+  studio, written as they are): odometry and intra-robot loop closures at the later pose's stamp,
+  inter-robot loop closures in the ``from`` robot's entries at the later of the two stamps.
+* Every inter-robot loop closure (and every labelled outlier) is a potential outlier; the dataset's
+  labelled outliers (``outliers.txt``) are the outlier factors. FactorIds are per robot, as jrl's
+  ``Parser`` reads them.
+* JRL values carry no stamps: the poses' stamps and the agents' names are in the ``studio`` block,
+  which jrl's parser ignores. Without it (a file from elsewhere), pose ``k > 0`` takes the stamp of
+  the entry holding the odometry into it.
+
+Reading accepts ``BetweenFactorPose2/3`` and ``PriorFactorPose2/3`` (priors are dropped: the studio's
+graphs have no priors); range, bearing-range and point factors are counted in one warning and
+skipped. Missing keys, robots not in ``robots``, keys of unknown robots and mixed Pose2/Pose3 are a
+:class:`FormatError` naming the JSON path.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from studio.core.errors import FormatError, GraphError
+from studio.core.model import PoseGraph, PoseKind
+from studio.core.types import PathLike
+from studio.core.units import NS_PER_S
+from studio.io.g2o import MAX_TEXT_BYTES
+from studio.io.graph_table import (
+    AgentPoses,
+    EdgeTable,
+    assemble_graph,
+    graph_edge_table,
+    information_matrix,
+    matrix_to_upper,
+)
+from studio.io.symbol_g2o import INDEX_BITS, robot_prefix
+
+__all__ = [
+    "JrlGraph",
+    "jrl_document",
+    "write_jrl",
+    "read_jrl",
+    "information_to_covariance",
+    "covariance_to_information",
+    "STUDIO_BLOCK_FORMAT",
+]
+
+STUDIO_BLOCK_FORMAT = "cslam-studio jrl 1"
+_INDEX_MASK = (1 << INDEX_BITS) - 1
+#: GTSAM's Pose3 tangent (rx ry rz x y z) from the studio's order (x y z rx ry rz).
+_PERM = np.array([3, 4, 5, 0, 1, 2])
+_HALF = np.array([1.0, 1.0, 1.0, 0.5, 0.5, 0.5])
+_BETWEEN = {PoseKind.SE2: "BetweenFactorPose2", PoseKind.SE3: "BetweenFactorPose3"}
+_PRIOR = {PoseKind.SE2: "PriorFactorPose2", PoseKind.SE3: "PriorFactorPose3"}
+_VALUE = {PoseKind.SE2: "Pose2", PoseKind.SE3: "Pose3"}
+_SKIPPED_TYPES = (
+    "RangeFactor",
+    "BearingRangeFactor",
+    "BetweenFactorPoint",
+    "PriorFactorPoint",
+)
+
+
+def information_to_covariance(kind: PoseKind, upper: np.ndarray) -> np.ndarray:
+    """``(n, d, d)`` GTSAM covariances of the studio's information upper triangles."""
+    info = information_matrix(kind, upper)
+    if kind is PoseKind.SE3:
+        info = info * _HALF[None, :, None] * _HALF[None, None, :]
+        info = info[:, _PERM][:, :, _PERM]
+    sign, _ = np.linalg.slogdet(info)
+    if np.any(sign <= 0):
+        k = int(np.flatnonzero(sign <= 0)[0])
+        raise GraphError(f"edge {k}: its information is not positive definite, so it has no covariance")
+    return np.linalg.inv(info)
+
+
+def covariance_to_information(kind: PoseKind, cov: np.ndarray) -> np.ndarray:
+    """The studio's information upper triangles of ``(n, d, d)`` GTSAM covariances."""
+    info = np.linalg.inv(cov)
+    if kind is PoseKind.SE3:
+        back = np.argsort(_PERM)
+        info = info[:, back][:, :, back]
+        info = info / _HALF[None, :, None] / _HALF[None, None, :]
+    return matrix_to_upper(info)
+
+
+def _pose_values(kind: PoseKind, poses: np.ndarray) -> list[dict[str, Any]]:
+    if kind is PoseKind.SE2:
+        return [{"x": x, "y": y, "theta": t} for x, y, t in poses.tolist()]
+    return [{"translation": [x, y, z], "rotation": [qw, qx, qy, qz]} for x, y, z, qx, qy, qz, qw in poses.tolist()]
+
+
+def _values(kind: PoseKind, prefix: str, poses: np.ndarray) -> list[dict[str, Any]]:
+    base = ord(prefix) << INDEX_BITS
+    return [{"key": base + i, "type": _VALUE[kind], **v} for i, v in enumerate(_pose_values(kind, poses))]
+
+
+def jrl_document(graph: PoseGraph, *, name: str, outliers: np.ndarray | None = None) -> dict[str, Any]:
+    """The JRL object of ``graph`` (see the module doc). ``outliers``: ``(k, 4)`` rows
+    ``agent_from vertex_from agent_to vertex_to`` (0-based agents) of the labelled outliers."""
+    kind = graph.kind
+    prefixes = [robot_prefix(k) for k in range(len(graph.agents))]
+    for a in graph.agents:
+        if len(a.stamps_ns) and int(a.stamps_ns[0]) < 0:
+            raise GraphError(f"{a.name}: JRL stamps are unsigned; the first stamp is {int(a.stamps_ns[0])} ns")
+    table = graph_edge_table(graph)
+    base = np.array([ord(p) << INDEX_BITS for p in prefixes], dtype=np.int64)
+    key1 = (base[table.from_agent] + table.from_index).tolist()
+    key2 = (base[table.to_agent] + table.to_index).tolist()
+    starts = np.cumsum([0] + [a.num_poses for a in graph.agents])
+    all_stamps = np.concatenate([a.stamps_ns for a in graph.agents])
+    stamp = np.maximum(
+        all_stamps[starts[table.from_agent] + table.from_index], all_stamps[starts[table.to_agent] + table.to_index]
+    )
+    try:
+        cov = information_to_covariance(kind, table.information_upper)
+    except GraphError as err:
+        raise GraphError(f"JRL: {err}") from None
+    cov_lists = cov.reshape(len(table), -1).tolist()
+    meas = _pose_values(kind, table.measurements)
+    tag = _BETWEEN[kind]
+    inter = table.from_agent != table.to_agent
+    label = np.zeros(len(table), dtype=bool)
+    if outliers is not None and len(outliers):
+        rows = table.rows()
+        view = np.ascontiguousarray(rows).view([("", np.int64)] * 4).ravel()
+        wanted = np.ascontiguousarray(np.asarray(outliers, dtype=np.int64)).view([("", np.int64)] * 4).ravel()
+        label = np.isin(view, wanted)
+    measurements: dict[str, list[dict[str, Any]]] = {}
+    potential: dict[str, list[list[int]]] = {}
+    labelled: dict[str, list[list[int]]] = {}
+    for k, p in enumerate(prefixes):
+        mine = np.flatnonzero(table.from_agent == k)
+        order = mine[np.argsort(stamp[mine], kind="stable")]
+        entries: list[dict[str, Any]] = []
+        pot: list[list[int]] = []
+        out: list[list[int]] = []
+        last = None
+        for e in order.tolist():
+            s = int(stamp[e])
+            if s != last:
+                entries.append({"stamp": s, "measurements": []})
+                last = s
+            factors = entries[-1]["measurements"]
+            if inter[e] or label[e]:
+                pot.append([len(entries) - 1, len(factors)])
+            if label[e]:
+                out.append([len(entries) - 1, len(factors)])
+            factors.append(
+                {"type": tag, "key1": key1[e], "key2": key2[e], "measurement": meas[e], "covariance": cov_lists[e]}
+            )
+        measurements[p] = entries
+        potential[p] = pot
+        labelled[p] = out
+    doc: dict[str, Any] = {"name": name, "robots": prefixes, "measurements": measurements}
+    if all(a.ground_truth is not None for a in graph.agents):
+        doc["groundtruth"] = {p: _values(kind, p, a.ground_truth) for p, a in zip(prefixes, graph.agents)}  # type: ignore[arg-type]
+    doc["initialization"] = {p: _values(kind, p, a.initial) for p, a in zip(prefixes, graph.agents)}
+    doc["potential_outlier_factors"] = potential
+    doc["outlier_factors"] = labelled
+    doc["studio"] = {
+        "format": STUDIO_BLOCK_FORMAT,
+        "agents": [a.name for a in graph.agents],
+        "stamps_ns": {p: a.stamps_ns.tolist() for p, a in zip(prefixes, graph.agents)},
+    }
+    return doc
+
+
+def write_jrl(path: PathLike, graph: PoseGraph, *, name: str, outliers: np.ndarray | None = None) -> None:
+    """Write ``graph`` as a JRL file (compact JSON, numbers as Python's shortest round-trip repr)."""
+    text = json.dumps(jrl_document(graph, name=name, outliers=outliers), separators=(",", ":"))
+    with open(path, "w", encoding="utf-8", newline="\n") as f:
+        f.write(text)
+        f.write("\n")
+
+
+@dataclass(frozen=True, eq=False)
+class JrlGraph:
+    """A JRL file read: the graph, its labelled outliers and what was skipped."""
+
+    graph: PoseGraph
+    outliers: np.ndarray
+    """``(k, 4)`` rows ``agent_from vertex_from agent_to vertex_to`` (0-based agents)."""
+    name: str
+    skipped: dict[str, int]
+    """Factor types skipped (range, bearing-range, point factors, priors), with their counts."""
+
+
+class _Reader:
+    def __init__(self, where: str) -> None:
+        self.where = where
+
+    def fail(self, path: str, what: str) -> FormatError:
+        return FormatError(f"{self.where}: {path}: {what}")
+
+    def get(self, obj: Any, key: str, path: str) -> Any:
+        if type(obj) is not dict:
+            raise self.fail(path, "expected a JSON object")
+        if key not in obj:
+            raise self.fail(path, f"missing key {key!r}")
+        return obj[key]
+
+    def number(self, value: Any, path: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(path, f"expected a number, got {json.dumps(value)[:40]}")
+        v = float(value)
+        if not np.isfinite(v):
+            raise self.fail(path, "not a finite number")
+        return v
+
+    def numbers(self, value: Any, n: int, path: str) -> list[float]:
+        if not isinstance(value, list) or len(value) != n:
+            raise self.fail(path, f"expected a list of {n} numbers")
+        return [self.number(v, f"{path}[{i}]") for i, v in enumerate(value)]
+
+    def uint(self, value: Any, path: str) -> int:
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0 or value >= 1 << 64:
+            raise self.fail(path, f"expected an unsigned 64-bit integer, got {json.dumps(value)[:40]}")
+        return value
+
+    def pose(self, kind: PoseKind, obj: Any, path: str) -> list[float]:
+        if kind is PoseKind.SE2:
+            return [self.number(self.get(obj, k, path), f"{path}.{k}") for k in ("x", "y", "theta")]
+        t = self.numbers(self.get(obj, "translation", path), 3, f"{path}.translation")
+        w, x, y, z = self.numbers(self.get(obj, "rotation", path), 4, f"{path}.rotation")
+        norm = float(np.sqrt(w * w + x * x + y * y + z * z))
+        if abs(norm - 1.0) > 1e-6:
+            raise self.fail(f"{path}.rotation", f"quaternion is not unit length (norm {norm:.6g})")
+        return [*t, x, y, z, w]
+
+
+def _load(source: PathLike) -> tuple[Any, str]:
+    path = Path(source)
+    try:
+        if path.is_dir():
+            raise FormatError(f"{path}: is a folder, not a JRL file")
+        if path.stat().st_size > MAX_TEXT_BYTES:
+            raise FormatError(f"{path}: over the {MAX_TEXT_BYTES} byte (1 GiB) limit of text inputs")
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise FormatError(f"{path}: no such file") from None
+    except UnicodeDecodeError:
+        raise FormatError(f"{path}: not UTF-8 text") from None
+    except OSError as err:
+        raise FormatError(f"{path}: cannot read ({err.strerror})") from None
+    try:
+        return json.loads(text), str(path)
+    except json.JSONDecodeError as err:
+        raise FormatError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
+    except RecursionError:
+        raise FormatError(f"{path}: JSON nested too deeply") from None
+
+
+def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> JrlGraph:
+    """Read a JRL file (see the module doc); ``warn`` hears about skipped factors."""
+    data, where = _load(source)
+    r = _Reader(where)
+    if not isinstance(data, dict):
+        raise FormatError(f"{where}: expected a JSON object at the top")
+    name = r.get(data, "name", "$")
+    robots = r.get(data, "robots", "$")
+    if not isinstance(robots, list) or not robots or not all(isinstance(c, str) and len(c) == 1 for c in robots):
+        raise r.fail("robots", "expected a non-empty list of one-character robot ids")
+    if len(set(robots)) != len(robots):
+        raise r.fail("robots", "a robot id is listed twice")
+    position = {ord(c): k for k, c in enumerate(robots)}
+    measurements = r.get(data, "measurements", "$")
+    if not isinstance(measurements, dict):
+        raise r.fail("measurements", "expected an object from robot id to entries")
+    for section in ("measurements", "groundtruth", "initialization", "potential_outlier_factors", "outlier_factors"):
+        block = data.get(section)
+        if isinstance(block, dict):
+            for c in block:
+                if c not in robots:
+                    raise r.fail(f"{section}.{c}", f"robot {c!r} is not in robots {robots}")
+        elif block is not None and section in ("groundtruth", "initialization"):
+            raise r.fail(section, "expected an object from robot id to values")
+    studio = data.get("studio") if isinstance(data.get("studio"), dict) else None
+    if studio is not None and studio.get("format") != STUDIO_BLOCK_FORMAT:
+        studio = None
+
+    kind: PoseKind | None = None
+    skipped: dict[str, int] = {}
+    rows: list[tuple[int, int, int, int]] = []
+    meas_rows: list[list[float]] = []
+    cov_rows: list[list[float]] = []
+    edge_stamps: list[int] = []
+    factor_ids: dict[tuple[str, int, int], int] = {}
+    paths: list[str] = []
+    first_stamp: dict[int, int] = {}
+
+    def decode(key: int, path: str) -> tuple[int, int]:
+        c = key >> INDEX_BITS
+        if c not in position:
+            shown = chr(c) if 0 < c < 0x110000 else "?"
+            raise r.fail(path, f"key {key} (Symbol {shown!r}) names no robot in robots {robots}")
+        return position[c], key & _INDEX_MASK
+
+    for c in robots:
+        entries = measurements.get(c, [])
+        if not isinstance(entries, list):
+            raise r.fail(f"measurements.{c}", "expected a list of entries")
+        for e, entry in enumerate(entries):
+            path = f"measurements.{c}[{e}]"
+            stamp = r.uint(r.get(entry, "stamp", path), f"{path}.stamp")
+            first_stamp.setdefault(position[ord(c)], stamp)
+            factors = entry.get("measurements", []) if isinstance(entry, dict) else []
+            if not isinstance(factors, list):
+                raise r.fail(f"{path}.measurements", "expected a list of measurements")
+            for m, factor in enumerate(factors):
+                fpath = f"{path}.measurements[{m}]"
+                tag = r.get(factor, "type", fpath)
+                if not isinstance(tag, str):
+                    raise r.fail(f"{fpath}.type", "expected a type tag")
+                if tag in _PRIOR.values() or tag.startswith(_SKIPPED_TYPES):
+                    skipped[tag] = skipped.get(tag, 0) + 1
+                    continue
+                fkind = {v: k for k, v in _BETWEEN.items()}.get(tag)
+                if fkind is None:
+                    raise r.fail(f"{fpath}.type", f"unknown measurement type {tag[:40]!r}")
+                if kind is None:
+                    kind = fkind
+                elif fkind is not kind:
+                    raise r.fail(f"{fpath}.type", f"{tag} mixed with {_BETWEEN[kind]} measurements")
+                a, i = decode(r.uint(r.get(factor, "key1", fpath), f"{fpath}.key1"), f"{fpath}.key1")
+                b, j = decode(r.uint(r.get(factor, "key2", fpath), f"{fpath}.key2"), f"{fpath}.key2")
+                meas_rows.append(r.get(factor, "measurement", fpath))
+                cov_rows.append(r.get(factor, "covariance", fpath))
+                factor_ids[(c, e, m)] = len(rows)
+                paths.append(fpath)
+                rows.append((a, i, b, j))
+                edge_stamps.append(stamp)
+    if kind is None:
+        raise FormatError(f"{where}: measurements: no BetweenFactorPose2 or BetweenFactorPose3")
+    dim = 3 if kind is PoseKind.SE2 else 6
+    meas = _pose_array(r, kind, meas_rows, [f"{p}.measurement" for p in paths])
+    cov = _number_array(r, cov_rows, dim * dim, [f"{p}.covariance" for p in paths]).reshape(-1, dim, dim)
+    if skipped and warn is not None:
+        warn(
+            f"{where}: skipped factors the studio's pose graphs do not hold: "
+            + ", ".join(f"{n} {t}" for t, n in sorted(skipped.items()))
+        )
+
+    def values(section: str) -> dict[int, dict[int, list[float]]] | None:
+        block = data.get(section)
+        if block is None:
+            return None
+        out: dict[int, dict[int, list[float]]] = {}
+        for c, vals in block.items():
+            items = vals.values() if isinstance(vals, dict) else vals
+            if not isinstance(items, (list, type({}.values()))):
+                raise r.fail(f"{section}.{c}", "expected a list of values")
+            items = list(items)
+            vpaths = [f"{section}.{c}[{n}]" for n in range(len(items))]
+            decoded = []
+            for v, vpath in zip(items, vpaths):
+                key = r.uint(r.get(v, "key", vpath), f"{vpath}.key")
+                vtype = r.get(v, "type", vpath)
+                if vtype != _VALUE[kind]:  # type: ignore[index]
+                    raise r.fail(f"{vpath}.type", f"expected {_VALUE[kind]} values, got {str(vtype)[:40]!r}")  # type: ignore[index]
+                decoded.append(decode(key, f"{vpath}.key"))
+            poses = _pose_array(r, kind, items, vpaths).tolist()  # type: ignore[arg-type]
+            for (a, i), pose in zip(decoded, poses):
+                out.setdefault(a, {})[i] = pose
+        return out
+
+    init = values("initialization")
+    truth = values("groundtruth")
+    edge = np.array(rows, dtype=np.int64).reshape(-1, 4)
+    # each robot's pose indices: every index a value or a measurement names, renumbered 0..n-1
+    agents = []
+    local: list[dict[int, int]] = []
+    names = list(robots)
+    if studio is not None and isinstance(studio.get("agents"), list) and len(studio["agents"]) == len(robots):
+        names = [str(n) for n in studio["agents"]]
+    stamps_block = studio.get("stamps_ns") if studio is not None else None
+    for k, c in enumerate(robots):
+        seen = set(edge[edge[:, 0] == k, 1].tolist()) | set(edge[edge[:, 2] == k, 3].tolist())
+        for block in (init, truth):
+            if block is not None:
+                seen |= set(block.get(k, {}))
+        if not seen:
+            raise r.fail(f"robots[{k}]", f"robot {c!r} has no poses")
+        index = sorted(seen)
+        local.append({v: n for n, v in enumerate(index)})
+        n = len(index)
+        stamps = _stamps(r, c, k, index, edge, edge_stamps, first_stamp, stamps_block)
+        poses_init = None
+        if init is not None:
+            have = init.get(k, {})
+            missing = [v for v in index if v not in have]
+            if missing:
+                raise r.fail(f"initialization.{c}", f"no value for pose {c}{missing[0]}")
+            poses_init = np.array([have[v] for v in index], dtype=np.float64)
+        gt = None
+        if truth is not None:
+            have = truth.get(k, {})
+            missing = [v for v in index if v not in have]
+            if missing:
+                raise r.fail(f"groundtruth.{c}", f"no value for pose {c}{missing[0]}")
+            gt = np.array([have[v] for v in index], dtype=np.float64)
+        agents.append(AgentPoses(names[k], stamps, poses_init, gt))
+        del n
+    fi = np.array([local[a][i] for a, i in zip(edge[:, 0].tolist(), edge[:, 1].tolist())], dtype=np.int64)
+    ti = np.array([local[a][i] for a, i in zip(edge[:, 2].tolist(), edge[:, 3].tolist())], dtype=np.int64)
+    sign, _ = np.linalg.slogdet(cov)
+    if np.any(sign <= 0):
+        bad = int(np.flatnonzero(sign <= 0)[0])
+        (c, e, m) = next(key for key, v in factor_ids.items() if v == bad)
+        raise r.fail(f"measurements.{c}[{e}].measurements[{m}].covariance", "not positive definite")
+    table = EdgeTable(
+        kind,
+        edge[:, 0],
+        fi,
+        edge[:, 2],
+        ti,
+        meas,
+        covariance_to_information(kind, cov),
+    )
+    graph = assemble_graph(agents, table, where=where, metadata={"source": where, "name": str(name)})
+    outliers = []
+    for c, ids in (data.get("outlier_factors") or {}).items():
+        if not isinstance(ids, list):
+            raise r.fail(f"outlier_factors.{c}", "expected a list of [entry, measurement] pairs")
+        for n, pair in enumerate(ids):
+            if not (isinstance(pair, list) and len(pair) == 2 and all(isinstance(x, int) for x in pair)):
+                raise r.fail(f"outlier_factors.{c}[{n}]", "expected [entry, measurement]")
+            row = factor_ids.get((c, pair[0], pair[1]))
+            if row is None:
+                raise r.fail(f"outlier_factors.{c}[{n}]", f"no pose-graph measurement {pair} in measurements.{c}")
+            outliers.append((int(edge[row, 0]), int(fi[row]), int(edge[row, 2]), int(ti[row])))
+    return JrlGraph(graph, np.array(outliers, dtype=np.int64).reshape(-1, 4), str(name), skipped)
+
+
+def _number_array(r: _Reader, values: list[Any], width: int, paths: list[str]) -> np.ndarray:
+    """``(n, width)`` floats of JSON number lists; a bad one is named by its path (slow path)."""
+    try:
+        arr = np.array(values, dtype=np.float64)
+        if arr.shape == (len(values), width) and np.isfinite(arr).all():
+            return arr.reshape(len(values), width)
+    except (TypeError, ValueError):
+        pass
+    for row, path in zip(values, paths):
+        r.numbers(row, width, path)
+    raise AssertionError("unreachable: the slow path names the bad value")
+
+
+def _pose_array(r: _Reader, kind: PoseKind, values: list[Any], paths: list[str]) -> np.ndarray:
+    """``(n, pose_width)`` poses of JSON Pose2/Pose3 objects (``x y theta``; ``x y z qx qy qz qw``)."""
+    try:
+        if kind is PoseKind.SE2:
+            flat = [[v["x"], v["y"], v["theta"]] for v in values]
+            arr = _number_array(r, flat, 3, paths)
+        else:
+            flat = [[*v["translation"], *v["rotation"]] for v in values]
+            arr = _number_array(r, flat, 7, paths)[:, [0, 1, 2, 4, 5, 6, 3]]
+            norms = np.linalg.norm(arr[:, 3:], axis=1)
+            bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-6)
+            if bad.size:
+                raise r.fail(f"{paths[bad[0]]}.rotation", f"quaternion is not unit length (norm {norms[bad[0]]:.6g})")
+        return arr
+    except (KeyError, TypeError, FormatError):
+        pass
+    for v, path in zip(values, paths):
+        r.pose(kind, v, path)
+    raise AssertionError("unreachable: the slow path names the bad value")
+
+
+def _stamps(
+    r: _Reader,
+    c: str,
+    k: int,
+    index: list[int],
+    edge: np.ndarray,
+    edge_stamps: list[int],
+    first_stamp: dict[int, int],
+    block: Any,
+) -> np.ndarray:
+    """The poses' stamps: the studio block's, else those of the odometry entries (see the module doc)."""
+    n = len(index)
+    if isinstance(block, dict) and c in block:
+        stamps = block[c]
+        if not (isinstance(stamps, list) and len(stamps) == n and all(isinstance(s, int) for s in stamps)):
+            raise r.fail(f"studio.stamps_ns.{c}", f"expected {n} integer stamps, one per pose")
+        out = np.array(stamps, dtype=np.int64)
+        if n > 1 and np.any(np.diff(out) <= 0):
+            raise r.fail(f"studio.stamps_ns.{c}", "stamps must increase")
+        return out
+    position = {v: p for p, v in enumerate(index)}
+    out = np.full(n, -1, dtype=np.int64)
+    stamps_arr = np.array(edge_stamps, dtype=np.int64)
+    odo = np.flatnonzero((edge[:, 0] == k) & (edge[:, 2] == k) & (edge[:, 3] == edge[:, 1] + 1))
+    for e in odo[::-1].tolist():
+        out[position[int(edge[e, 3])]] = stamps_arr[e]
+    if n > 1 and out[1] >= 0:
+        out[0] = min(first_stamp.get(k, out[1] - 1), out[1] - 1)
+    if n > 1 and (np.any(out < 0) or np.any(np.diff(out) <= 0)):
+        return np.arange(n, dtype=np.int64) * NS_PER_S
+    if n == 1:
+        return np.zeros(1, dtype=np.int64)
+    return out

@@ -1,0 +1,256 @@
+"""Per-robot g2o files with GTSAM ``Symbol`` keys, as DGS (CogRob/distributed-mapper) and
+Kimera-Multi / Kimera-RPGO read them.
+
+A GTSAM ``Symbol('a', 5)`` is the 64-bit key ``ord('a') << 56 | 5``: the robot's character in the top
+byte, the pose's index in the low 56 bits. Robot ``k`` (0-based, in the dataset's agent order) gets
+the character :data:`ROBOT_PREFIXES` ``[k]``: ``a..j`` for the first ten (Kimera-Multi's robot ids
+0-9), then ``k..z`` and ``A..Z`` (52 robots at most)::
+
+    OUT/
+    ├── 0.g2o           # robot a: its vertices, then the separator vertices (the other robots' poses
+    │                   # its inter-robot edges reach), its odometry and loop closures, then every
+    │                   # inter-robot edge it takes part in
+    ├── 1.g2o ...
+    ├── fullGraph.g2o   # every vertex and every edge once
+    └── 0_GT.tum ...    # ground truth of each robot's own poses, with the dataset's stamps
+
+The keys are written as full decimal integers (``6989586621679009792`` is ``a0``): GTSAM's own
+``writeG2o`` drops the Symbol's character (gtsam#1279), the studio does not, and ``gtsam.readG2o``
+reads every key back. Records and information are the g2o ones of :mod:`studio.io.g2o`.
+
+Reading (:func:`read_symbol_g2o_folder`) takes such a folder, or DGS's own (whose robot files omit
+the separator vertices and whose indices need not be contiguous: distributed-mapper#8): each robot
+file's own character is the one of its first vertex; indices are renumbered ``0..n-1`` in increasing
+order; an inter-robot edge in both robots' files is taken once. Without robot files, ``fullGraph.g2o``
+is split by the keys' characters.
+"""
+
+from __future__ import annotations
+
+import re
+import string
+from pathlib import Path
+
+import numpy as np
+
+from studio.core.errors import ConfigError, FormatError
+from studio.core.model import PoseGraph, PoseKind
+from studio.core.trajectory import Trajectory
+from studio.core.types import PathLike
+from studio.core.units import NS_PER_S
+from studio.io.g2o import G2oDocument, read_g2o, write_g2o
+from studio.io.graph_table import AgentPoses, EdgeTable, assemble_graph, graph_edge_table
+from studio.io.tum import read_tum, write_tum
+
+__all__ = [
+    "ROBOT_PREFIXES",
+    "INDEX_BITS",
+    "symbol_key",
+    "symbol_parts",
+    "symbol_name",
+    "write_symbol_g2o_folder",
+    "read_symbol_g2o_folder",
+    "FULL_GRAPH",
+]
+
+#: The character of robot k (Kimera-Multi: robot ids 0-9 are a..j).
+ROBOT_PREFIXES = string.ascii_lowercase + string.ascii_uppercase
+#: A Symbol's index takes the low 56 bits of its key.
+INDEX_BITS = 56
+_INDEX_MASK = (1 << INDEX_BITS) - 1
+FULL_GRAPH = "fullGraph.g2o"
+_ROBOT_FILE = re.compile(r"^(\d+)\.g2o$")
+
+
+def robot_prefix(k: int) -> str:
+    if not 0 <= k < len(ROBOT_PREFIXES):
+        raise ConfigError(f"Symbol keys name at most {len(ROBOT_PREFIXES)} robots (a..z, A..Z); robot {k} has none")
+    return ROBOT_PREFIXES[k]
+
+
+def symbol_key(prefix: str, index: np.ndarray | int) -> np.ndarray:
+    """The keys ``ord(prefix) << 56 | index`` (int64: every character used is below 128)."""
+    return (np.int64(ord(prefix)) << np.int64(INDEX_BITS)) | np.asarray(index, dtype=np.int64)
+
+
+def symbol_parts(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The characters' codes and the indices of ``keys``."""
+    keys = np.asarray(keys, dtype=np.int64)
+    return keys >> np.int64(INDEX_BITS), keys & np.int64(_INDEX_MASK)
+
+
+def symbol_name(key: int) -> str:
+    """``a5`` for ``Symbol('a', 5)`` (GTSAM's key formatter)."""
+    return f"{chr(key >> INDEX_BITS)}{key & _INDEX_MASK}"
+
+
+def write_symbol_g2o_folder(graph: PoseGraph, folder: PathLike) -> list[str]:
+    """Write ``graph`` into the existing ``folder`` (layout in the module doc); returns the file names."""
+    folder = Path(folder)
+    prefixes = [robot_prefix(k) for k in range(len(graph.agents))]
+    table = graph_edge_table(graph)
+    offsets = [symbol_key(p, 0) for p in prefixes]
+    keys_from = np.array(offsets, dtype=np.int64)[table.from_agent] + table.from_index
+    keys_to = np.array(offsets, dtype=np.int64)[table.to_agent] + table.to_index
+    all_keys = np.concatenate([symbol_key(p, np.arange(a.num_poses)) for p, a in zip(prefixes, graph.agents)])
+    all_poses = np.concatenate([a.initial for a in graph.agents])
+    starts = np.cumsum([0] + [a.num_poses for a in graph.agents])
+    names = []
+    for k, a in enumerate(graph.agents):
+        edge_rows = np.flatnonzero((table.from_agent == k) | (table.to_agent == k))
+        inter = edge_rows[table.from_agent[edge_rows] != table.to_agent[edge_rows]]
+        other = np.where(table.from_agent[inter] == k, table.to_agent[inter], table.from_agent[inter])
+        other_index = np.where(table.from_agent[inter] == k, table.to_index[inter], table.from_index[inter])
+        sep = np.unique(starts[other] + other_index)
+        own = np.arange(starts[k], starts[k + 1])
+        vertices = np.concatenate([own, sep])
+        doc = G2oDocument(
+            graph.kind,
+            all_keys[vertices],
+            all_poses[vertices],
+            keys_from[edge_rows],
+            keys_to[edge_rows],
+            table.measurements[edge_rows],
+            table.information_upper[edge_rows],
+        )
+        write_g2o(folder / f"{k}.g2o", doc)
+        names.append(f"{k}.g2o")
+        truth = a.se3_poses(ground_truth=True)
+        if truth is not None:
+            write_tum(folder / f"{k}_GT.tum", Trajectory.from_poses(a.name, a.stamps_ns, truth))
+            names.append(f"{k}_GT.tum")
+    full = G2oDocument(graph.kind, all_keys, all_poses, keys_from, keys_to, table.measurements, table.information_upper)
+    write_g2o(folder / FULL_GRAPH, full)
+    names.append(FULL_GRAPH)
+    return names
+
+
+def _robot_files(folder: Path) -> list[tuple[int, Path]]:
+    found = [(int(m.group(1)), p) for p in folder.iterdir() if (m := _ROBOT_FILE.match(p.name)) and p.is_file()]
+    return sorted(found)
+
+
+def read_symbol_g2o_folder(folder: PathLike) -> PoseGraph:
+    """Read a folder of Symbol-keyed g2o files (see the module doc) into a :class:`PoseGraph`; the
+    agents are named after their characters (``a``, ``b``...)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FormatError(f"{folder}: not a folder")
+    files = _robot_files(folder)
+    docs: list[tuple[Path, G2oDocument]] = []
+    if files:
+        docs = [(p, read_g2o(p, dangling=True)) for _, p in files]
+    elif (folder / FULL_GRAPH).is_file():
+        docs = [(folder / FULL_GRAPH, read_g2o(folder / FULL_GRAPH, dangling=True))]
+    else:
+        raise FormatError(f"{folder}: no robot files (0.g2o, 1.g2o, ...) and no {FULL_GRAPH}")
+    kind = docs[0][1].kind
+    for p, d in docs:
+        if d.kind is not kind:
+            raise FormatError(f"{p}: {d.kind.value} records after {kind.value} ones in {docs[0][0].name}")
+        for col in (d.vertex_ids, d.edge_from, d.edge_to):
+            bad = np.flatnonzero((col >> np.int64(INDEX_BITS)) <= 0)
+            if bad.size:
+                raise FormatError(f"{p}: key {int(col[bad[0]])} is not a GTSAM Symbol (no character in its top byte)")
+    # each robot's own character and vertices
+    owner: dict[int, Path] = {}
+    own: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    if files:
+        for p, d in docs:
+            if not len(d.vertex_ids):
+                raise FormatError(f"{p}: no vertices (its first vertex gives the robot's Symbol character)")
+            c = int(d.vertex_ids[0] >> np.int64(INDEX_BITS))
+            if c in owner:
+                raise FormatError(
+                    f"{p}: its Symbol character {chr(c)!r} (key {int(d.vertex_ids[0])}) collides with the robot "
+                    f"of {owner[c].name}: two robots with one character"
+                )
+            owner[c] = p
+            chars, index = symbol_parts(d.vertex_ids)
+            own[c] = (index[chars == c], d.vertex_poses[chars == c])
+    else:
+        p, d = docs[0]
+        chars, index = symbol_parts(d.vertex_ids)
+        for c in dict.fromkeys(chars.tolist()):
+            owner[c] = p
+            own[c] = (index[chars == c], d.vertex_poses[chars == c])
+    codes = list(owner)
+    position = {c: k for k, c in enumerate(codes)}
+    agents = []
+    renumber: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    for c in codes:
+        index, poses = own[c]
+        order = np.argsort(index, kind="stable")
+        index, poses = index[order], poses[order]
+        if np.any(np.diff(index) == 0):
+            dup = int(index[np.flatnonzero(np.diff(index) == 0)[0]])
+            raise FormatError(f"{owner[c]}: Symbol key {chr(c)}{dup} is defined twice")
+        renumber[c] = (index, poses)
+        gt_path = owner[c].with_name(f"{owner[c].stem}_GT.tum") if files else None
+        stamps = np.arange(len(index), dtype=np.int64) * NS_PER_S
+        truth = None
+        if gt_path is not None and gt_path.is_file():
+            traj = read_tum(gt_path)
+            if len(traj) != len(index):
+                raise FormatError(f"{gt_path}: {len(traj)} poses for the {len(index)} vertices of {owner[c].name}")
+            stamps, truth = traj.stamps_ns, traj.poses_xyz_quat_xyzw
+            if kind is PoseKind.SE2:
+                from studio.core.geometry import se3_poses_to_planar
+
+                truth = se3_poses_to_planar(truth)
+        agents.append(AgentPoses(chr(c), stamps, poses, truth))
+    # the edges: inside a robot from its file; between robots once (the from-robot's file first)
+    parts = []
+    seen_inter: set[tuple[int, int]] = set()
+    for p, d in docs:
+        fc, fi = symbol_parts(d.edge_from)
+        tc, ti = symbol_parts(d.edge_to)
+        for codes_col, keys in ((fc, d.edge_from), (tc, d.edge_to)):
+            unknown = ~np.isin(codes_col, codes)
+            if unknown.any():
+                k = int(np.flatnonzero(unknown)[0])
+                raise FormatError(
+                    f"{p}: edge {k} reaches {symbol_name(int(keys[k]))} (key {int(keys[k])}), a character of no robot"
+                )
+        keep = np.ones(len(fc), dtype=bool)
+        inter = np.flatnonzero(fc != tc)
+        pairs = list(zip(d.edge_from[inter].tolist(), d.edge_to[inter].tolist()))
+        file_pairs = set(pairs)
+        for r, pair in zip(inter.tolist(), pairs):
+            if pair in seen_inter:
+                keep[r] = False
+        seen_inter |= file_pairs
+        parts.append(
+            (p, fc[keep], fi[keep], tc[keep], ti[keep], d.edge_measurements[keep], d.edge_information_upper[keep])
+        )
+    cols: list[list[np.ndarray]] = [[], [], [], [], [], []]
+    for p, fc, fi, tc, ti, meas, info in parts:
+        for codes_col, index_col, out_a, out_i in ((fc, fi, cols[0], cols[1]), (tc, ti, cols[2], cols[3])):
+            agent = np.array([position[c] for c in codes_col.tolist()], dtype=np.int64)
+            local = np.zeros(len(index_col), dtype=np.int64)
+            for c in np.unique(codes_col).tolist():
+                sel = codes_col == c
+                known = renumber[c][0]
+                pos = np.searchsorted(known, index_col[sel])
+                pos_c = np.minimum(pos, len(known) - 1)
+                missing = known[pos_c] != index_col[sel]
+                if missing.any():
+                    missing_index = int(index_col[sel][np.flatnonzero(missing)[0]])
+                    raise FormatError(
+                        f"{p}: an edge reaches {chr(c)}{missing_index}, which {owner[c].name} does not define as a vertex"
+                    )
+                local[sel] = pos
+            out_a.append(agent)
+            out_i.append(local)
+        cols[4].append(meas)
+        cols[5].append(info)
+    table = EdgeTable(
+        kind,
+        np.concatenate(cols[0]),
+        np.concatenate(cols[1]),
+        np.concatenate(cols[2]),
+        np.concatenate(cols[3]),
+        np.concatenate(cols[4]).reshape(-1, kind.pose_width),
+        np.concatenate(cols[5]).reshape(-1, kind.information_width),
+    )
+    return assemble_graph(agents, table, where=str(folder), metadata={"source": str(folder)})
