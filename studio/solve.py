@@ -21,8 +21,10 @@ wall time and, for ``gnc``, the loop closures it rejected. Outputs are staged an
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,11 +32,12 @@ from typing import Any, Literal
 
 import numpy as np
 
-from studio.core.errors import ConfigError, FormatError
+from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.geometry import is_planar_se3, planar_poses_to_se3, se3_information_to_se2, se3_poses_to_planar
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
+from studio.io.names import safe_file_name, safe_file_names
 from studio.solvers import DEFAULT_METHOD, get_method
 from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
 
@@ -200,7 +203,7 @@ def _agent_rows(offsets: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.nd
     return agent, ids - offsets[agent]
 
 
-def _write_estimate(loaded: Loaded, poses: np.ndarray, staging: Path, stem: str) -> str:
+def _write_estimate(loaded: Loaded, poses: np.ndarray, staging: Path, stem: str, tum_names: list[str]) -> str:
     """Write the estimate into ``staging``; return the name of the file or folder evaluate takes."""
     from studio.io.g2o import G2oDocument, write_g2o
     from studio.io.multig2o import write_multi_g2o
@@ -237,8 +240,8 @@ def _write_estimate(loaded: Loaded, poses: np.ndarray, staging: Path, stem: str)
     tum = folder / "tum"
     tum.mkdir()
     lifted3 = estimate.to_se3()
-    for a in lifted3.agents:
-        write_tum(tum / f"{a.name}.tum", Trajectory.from_poses(a.name, a.stamps_ns, a.initial))
+    for a, file_name in zip(lifted3.agents, tum_names, strict=True):
+        write_tum(tum / file_name, Trajectory.from_poses(a.name, a.stamps_ns, a.initial))
     return "estimate"
 
 
@@ -280,8 +283,11 @@ def solve(
     rrd_path = None if rrd is None else Path(rrd)
     if rrd_path is not None and rrd_path.suffix != ".rrd":
         raise ConfigError(f"rrd: {rrd_path} must end in .rrd")
+    inputs = dataset_inputs(dataset)
+    _check_solve_outputs(out, rrd_path, inputs, force)  # every refusal before any work
     t0 = time.perf_counter()
     loaded = load_problem(dataset, dimension=dimension)
+    tum_names = _tum_names(loaded, dataset)
     problem = loaded.problem
     iterates: list[tuple[int, np.ndarray]] = []
     on_iteration: Iteration | None = None
@@ -318,29 +324,66 @@ def solve(
         solution,
         rrd_path,
     )
-    stem = Path(dataset).stem
-    with staged_outputs(out.parent, [out.name], force=force) as staging:
+    stem = safe_file_name(Path(dataset).stem, fallback="graph")
+    with contextlib.ExitStack() as stack:
+        # the recording is staged inside the estimate's guard: a failure of either leaves neither
+        staging = stack.enter_context(staged_outputs(out.parent, [out.name], force=force, inputs=inputs))
+        if rrd_path is not None:
+            from studio.recording.solve import write_solve_recording
+
+            write_solve_recording(
+                rrd_path,
+                loaded.graph,
+                loaded.offsets,
+                problem.kind,
+                iterates,
+                solution.chi2_history,
+                name=f"{stem} ({method})",
+                force=force,
+                inputs=[*inputs, out],
+            )
         folder = staging / out.name
         folder.mkdir()
-        name = _write_estimate(loaded, solution.poses, folder, stem)
+        name = _write_estimate(loaded, solution.poses, folder, stem, tum_names)
         result = dataclasses.replace(result, estimate_path=out / name)
         (folder / SOLVE_JSON).write_text(
-            json.dumps(result.to_dict(), indent=2, default=_json_default) + "\n", encoding="utf-8"
-        )
-    if rrd_path is not None:
-        from studio.recording.solve import write_solve_recording
-
-        write_solve_recording(
-            rrd_path,
-            loaded.graph,
-            loaded.offsets,
-            problem.kind,
-            iterates,
-            solution.chi2_history,
-            name=f"{stem} ({method})",
-            force=force,
+            json.dumps(result.to_dict(), indent=2, default=_json_default, allow_nan=False) + "\n", encoding="utf-8"
         )
     return result
+
+
+def dataset_inputs(dataset: PathLike) -> list[Path]:
+    """The paths a solve of ``dataset`` reads or that belong to it: the multi-g2o folder, or the
+    single g2o file with the files of kollagen's single view beside it (``<stem>_GT.tum``,
+    ``<stem>.tum``), which no output may replace."""
+    path = Path(dataset)
+    if path.is_dir():
+        return [path]
+    return [path, path.with_name(f"{path.stem}_GT.tum"), path.with_name(f"{path.stem}.tum")]
+
+
+def _check_solve_outputs(out: Path, rrd: Path | None, inputs: list[Path], force: bool) -> None:
+    from studio.io.atomic import check_outputs
+
+    if out.name in ("", ".", ".."):
+        raise OutputError(
+            f"{out}: name the folder to write (e.g. {out / 'solved'}), not the current or a parent folder"
+        )
+    check_outputs(out.parent, [out.name], force=force, inputs=inputs)
+    if rrd is None:
+        return
+    real_rrd, real_out = Path(os.path.realpath(rrd)), Path(os.path.realpath(out))
+    if real_rrd == real_out or real_out in real_rrd.parents:
+        raise OutputError(f"{rrd}: the recording would sit inside {out}, which solve writes; choose another path")
+    check_outputs(rrd.parent, [rrd.name], force=force, inputs=[*inputs, out])
+
+
+def _tum_names(loaded: Loaded, dataset: PathLike) -> list[str]:
+    """The estimate's TUM file names, one per agent, made from the agents' names (which come from
+    the data: ``agents.json``) by :func:`studio.io.names.safe_file_name`."""
+    if loaded.graph is None:
+        return []
+    return [f"{n}.tum" for n in safe_file_names([a.name for a in loaded.graph.agents], where=str(dataset))]
 
 
 def _json_default(value: Any) -> Any:

@@ -142,8 +142,10 @@ def write_solve_recording(
     *,
     name: str,
     force: bool = False,
+    inputs: Sequence[PathLike] = (),
 ) -> Path:
-    """Write the run to a new ``.rrd`` (staged, renamed into place)."""
+    """Write the run to a new ``.rrd`` (staged, renamed into place; refused when it overlaps one of
+    ``inputs``, the dataset and the solve's other outputs)."""
     import rerun as rr
 
     from studio.io.atomic import staged_outputs
@@ -152,7 +154,7 @@ def write_solve_recording(
     path = Path(path)
     rid = recording_id_for(graph) if graph is not None else solve_recording_id(offsets, kind, iterates, chi2_history)
     names = [a.name for a in graph.agents] if graph is not None else ["graph"]
-    with staged_outputs(path.parent, [path.name], force=force) as staging:
+    with staged_outputs(path.parent, [path.name], force=force, inputs=inputs) as staging:
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)
         rec.set_log_time_enabled(False)  # no wall clock in the data: the same run, the same content
         try:
