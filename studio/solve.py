@@ -367,7 +367,7 @@ def _check_solve_outputs(out: Path, rrd: Path | None, inputs: list[Path], force:
 
     if out.name in ("", ".", ".."):
         raise OutputError(
-            f"{out}: name the folder to write (e.g. {out / 'solved'}), not the current or a parent folder"
+            f"{out}: an output cannot be the current folder or one of its parents; name the folder to write"
         )
     check_outputs(out.parent, [out.name], force=force, inputs=inputs)
     if rrd is None:

@@ -1,0 +1,309 @@
+"""One output guard for every command (issue 23): one shared set of output cases run against every
+command that writes, the data-loss cases of solve, bench and sweep, and names from data that must
+not become paths. Every refusal is one line, exit 2, and leaves every byte of the inputs' tree as it
+was (nothing written, nothing removed)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from studio.cli import app
+from studio.synth import load_synth_config, synthesize
+from tests.conftest import DATA
+
+runner = CliRunner()
+
+
+def _tree(root: Path) -> dict[str, str]:
+    """Every entry under ``root``: a file's sha256, a link's target, a folder's ``dir``."""
+    out = {}
+    for p in sorted(root.rglob("*")):
+        rel = str(p.relative_to(root))
+        if p.is_symlink():
+            out[rel] = "-> " + os.readlink(p)
+        elif p.is_file():
+            out[rel] = hashlib.sha256(p.read_bytes()).hexdigest()
+        else:
+            out[rel] = "dir"
+    return out
+
+
+def refused_intact(args: list, root: Path, match: str) -> str:
+    """Run the CLI; exit 2, one ``error:`` line holding ``match``, nothing on stdout, and every
+    entry under ``root`` (the inputs and everything beside them) byte for byte as before."""
+    before = _tree(root)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = runner.invoke(app, [str(a) for a in args])
+    assert res.exit_code == 2, (args, res.exit_code, res.stdout, res.stderr, res.exception)
+    err = res.stderr
+    assert len(err.splitlines()) == 1 and err.startswith("error: "), (args, err)
+    assert "Traceback" not in err and match in err, (args, match, err)
+    assert res.stdout == "", res.stdout
+    after = _tree(root)
+    assert after == before, (args, set(after.items()) ^ set(before.items()))
+    return err
+
+
+@pytest.fixture(scope="module")
+def made(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("guard")
+    synthesize(load_synth_config(DATA / "configs" / "tiny_three.json"), root, rrd=False, jobs=1)
+    return root
+
+
+@pytest.fixture
+def world(made, tmp_path, monkeypatch) -> Path:
+    """A working folder holding a synth dataset ``ds``, its single view ``single/tiny_three.g2o``,
+    two TUM files, a bench spec and a sweep spec; the current folder."""
+    shutil.copytree(made / "tiny_three", tmp_path / "ds")
+    shutil.copytree(made / "tiny_three_singleg2o", tmp_path / "single")
+    shutil.copy(DATA / "configs" / "tiny_three.json", tmp_path / "tiny_three.json")
+    for name in ("alpha", "bob"):
+        shutil.copy(DATA / "trajectories" / f"{name}.tum", tmp_path / f"{name}.tum")
+    (tmp_path / "bench.toml").write_text(f'datasets = ["{tmp_path / "ds"}"]\nmethods = ["gtsam"]\n')
+    (tmp_path / "s.toml").write_text(f'base = "{tmp_path / "tiny_three.json"}"\n[grid]\nseed = [0, 1]\n')
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+# --------------------------------------------------------------------------- one set of output cases
+#: Every command that writes, as ``(args with OUT, an input the output must stay out of)``.
+COMMANDS: dict[str, Callable[[Path], tuple[list, Path]]] = {
+    "solve": lambda w: (["solve", w / "ds", "-o", "OUT"], w / "ds"),
+    "solve --rrd": lambda w: (["solve", w / "ds", "-o", w / "est", "--rrd", "OUT.rrd"], w / "ds"),
+    "solve single": lambda w: (
+        ["solve", w / "single" / "tiny_three.g2o", "-o", "OUT"],
+        w / "single" / "tiny_three.g2o",
+    ),
+    "record": lambda w: (["record", w / "ds", "-o", "OUT.rrd"], w / "ds"),
+    "evaluate --rrd": lambda w: (["evaluate", w / "ds", "--rrd", "OUT.rrd"], w / "ds"),
+    "convert": lambda w: (["convert", "tum", w / "alpha.tum", w / "bob.tum", "-o", "OUT", "--no-rrd"], w / "bob.tum"),
+    "bench": lambda w: (["bench", w / "bench.toml", "-o", "OUT", "-q"], w / "ds"),
+    "sweep": lambda w: (["sweep", w / "s.toml", "-o", "OUT", "-q"], w / "s.toml"),
+}
+
+
+def _force(command: str) -> list[str]:
+    """``--force`` where the command has it (bench and sweep resume their folder instead)."""
+    return [] if command in ("bench", "sweep") else ["--force"]
+
+
+def _with_out(args: list, out: Path | str) -> list:
+    return [str(out) + a.removeprefix("OUT") if isinstance(a, str) and a.startswith("OUT") else a for a in args]
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_an_output_inside_an_input_is_refused(world, command):
+    args, inp = COMMANDS[command](world)
+    if inp.is_dir():
+        refused_intact(_with_out(args, inp / "sub"), world, "inside the input")
+    elif "OUT.rrd" not in args:  # a file input: the output may not be it
+        refused_intact(_with_out(args, inp) + _force(command), world, "is the input")
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_an_output_inside_an_input_through_a_symlink_is_refused(world, command):
+    args, inp = COMMANDS[command](world)
+    (world / "alias").symlink_to(inp)
+    if inp.is_dir():
+        refused_intact(_with_out(args, world / "alias" / "sub"), world, "inside the input")
+    elif "OUT.rrd" not in args:
+        refused_intact(_with_out(args, world / "alias") + _force(command), world, "the input")
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_an_output_that_is_the_current_folder_or_holds_the_inputs_is_refused(world, command):
+    args, _ = COMMANDS[command](world)
+    if "OUT.rrd" in args:
+        pytest.skip("a recording is a file: it cannot be a folder")
+    refused_intact(_with_out(args, ".") + _force(command), world, "current folder")
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_a_folder_of_the_users_files_is_never_written_into_or_replaced(world, command):
+    args, _ = COMMANDS[command](world)
+    mine = world / "mine"
+    mine.mkdir()
+    for name in ("bench.md", "bench.csv", "sweep.csv", "notes.txt"):
+        (mine / name).write_text("the user's own file\n")
+    if "OUT.rrd" in args:
+        (world / "mine.rrd").mkdir()
+        (world / "mine.rrd" / "notes.txt").write_text("the user's own file\n")
+    target = _with_out(args, mine) + _force(command)
+    err = refused_intact(target, world, "mine")
+    assert "did not" in err or "is a folder" in err, err
+
+
+@pytest.mark.parametrize("command", ["solve", "solve --rrd", "solve single", "record", "evaluate --rrd", "convert"])
+def test_an_existing_output_is_refused_without_force(world, command):
+    args, _ = COMMANDS[command](world)
+    out = world / ("old.rrd" if "OUT.rrd" in args else "old")
+    if out.suffix == ".rrd":
+        out.write_bytes(b"an old recording")
+    else:
+        out.mkdir()
+    refused_intact(_with_out(args, world / "old"), world, "already exists")
+
+
+# --------------------------------------------------------------------------- solve: the data-loss cases
+def test_solve_never_replaces_or_writes_into_its_dataset(world):
+    ds, g2o = world / "ds", world / "single" / "tiny_three.g2o"
+    refused_intact(["solve", ds, "-o", ds, "--force"], world, "is the input")
+    refused_intact(["solve", g2o, "-o", world / "single", "--force"], world, "contains the input")
+    refused_intact(["solve", g2o, "-o", g2o, "--force"], world, "is the input")
+    refused_intact(["solve", g2o, "-o", world / "single" / "tiny_three_GT.tum", "--force"], world, "is the input")
+    refused_intact(["solve", ds, "-o", ds / "solved"], world, "sits inside the input")
+    refused_intact(["solve", ds, "-o", world / "est", "--rrd", ds / "run.rrd"], world, "sits inside the input")
+    refused_intact(["solve", ds, "-o", world / "est", "--rrd", world / "est" / "run.rrd"], world, "inside")
+    refused_intact(["solve", ds, "-o", "."], world, "current")
+
+
+def test_solve_refuses_an_existing_recording_before_writing_the_estimate(world):
+    (world / "run.rrd").write_bytes(b"old")
+    refused_intact(["solve", world / "ds", "-o", world / "est", "--rrd", world / "run.rrd"], world, "already exists")
+
+
+def test_solve_writes_the_estimate_and_recording_together(world):
+    res = runner.invoke(app, ["solve", "ds", "-o", "est", "--rrd", "run.rrd"])
+    assert res.exit_code == 0, res.stderr
+    assert (world / "est" / "solve.json").is_file() and (world / "run.rrd").is_file()
+    again = runner.invoke(app, ["solve", "ds", "-o", "est", "--rrd", "run.rrd", "--force"])
+    assert again.exit_code == 0, again.stderr  # its own outputs are replaced
+
+
+# --------------------------------------------------------------------------- bench and sweep folders
+def test_bench_and_sweep_refuse_the_working_folder_and_a_spec_inside_the_output(world):
+    refused_intact(["bench", "bench.toml", "-o", ".", "-q"], world, "current folder")
+    refused_intact(["sweep", "s.toml", "-o", ".", "-q"], world, "current folder")
+    (world / "specs").mkdir()
+    shutil.copy(world / "s.toml", world / "specs" / "s.toml")
+    refused_intact(["sweep", "specs/s.toml", "-o", "specs", "-q"], world, "contains the input")
+
+
+def test_a_bench_folder_is_not_a_sweep_folder(world, tmp_path):
+    from studio.io.atomic import output_workspace
+
+    with output_workspace(world / "b", kind="bench"):
+        (world / "b" / "bench.csv").write_text("x\n")
+    refused_intact(["sweep", "s.toml", "-o", "b", "-q"], world, "another studio command's output")
+
+
+def test_sweep_refuses_a_bad_or_closed_scheduler_at_once_before_any_work(world):
+    import socket
+    import time
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]  # closed once the block ends
+    for address, match in (
+        ("tls://127.0.0.1:8786", "TLS"),
+        ("notaurl", "not an address"),
+        ("tcp://127.0.0.1:99999", "not an address"),
+        (f"tcp://127.0.0.1:{port}", "cannot connect"),
+    ):
+        t0 = time.perf_counter()
+        refused_intact(["sweep", "s.toml", "-o", "out", "-q", "--scheduler", address], world, match)
+        assert time.perf_counter() - t0 < 3.0, address
+
+
+def test_sweep_rerun_lines_are_quoted_shell_words():
+    import shlex
+
+    from studio.sweep import CellTask, SweepSpec, _command
+
+    task = CellTask("s-1", "synth", {}, {}, "/o", ("solve",), {"solve": {"method": "g2o; rm -rf ~"}})
+    line = _command(task, Path("/my out"), SweepSpec("s", "b", {}))
+    first, second = line.split(" && ")
+    assert shlex.split(first) == ["studio", "synth", "/my out/configs/s-1.json", "-o", "DIR", "--no-rrd"]
+    assert shlex.split(second)[-2:] == ["--method", "g2o; rm -rf ~"]
+
+
+def test_bench_cells_are_keyed_by_their_whole_identity(tmp_path):
+    from studio.bench import BenchSpec, Cell, cell_key
+
+    for d in ("x", "y"):
+        (tmp_path / d / "ds").mkdir(parents=True)
+    a, b = Cell(str(tmp_path / "x" / "ds"), "as-is", "gtsam"), Cell(str(tmp_path / "y" / "ds"), "as-is", "gtsam")
+    spec = BenchSpec("s", (a.dataset, b.dataset))
+    assert cell_key(a, spec) != cell_key(b, spec)
+    other = BenchSpec("s", (a.dataset,), options={"gtsam": {"max_iterations": 3}})
+    assert cell_key(a, spec) != cell_key(a, other)
+    assert cell_key(a, spec) == cell_key(a, BenchSpec("t", (a.dataset,)))
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    (tmp_path / "a" / "x.json").write_text("{}")
+    (tmp_path / "b" / "x.json").write_text("{ }")
+    ka = cell_key(Cell(str(tmp_path / "a" / "x.json"), "diagonal", "g2o"), spec)
+    kb = cell_key(Cell(str(tmp_path / "b" / "x.json"), "diagonal", "g2o"), spec)
+    assert ka != kb and ka.startswith("x-diagonal-g2o-")
+
+
+def test_a_failed_bench_cell_runs_again(tmp_path):
+    from studio.bench import _finished
+
+    (tmp_path / "cell.json").write_text(json.dumps({"method": "g2o", "error": "bad"}))
+    assert _finished(tmp_path / "cell.json") is None
+    (tmp_path / "cell.json").write_text(json.dumps({"method": "g2o", "ape_se3_m": 0.1}))
+    assert _finished(tmp_path / "cell.json") == {"method": "g2o", "ape_se3_m": 0.1}
+
+
+# --------------------------------------------------------------------------- names from data
+@pytest.mark.parametrize("hostile", ["../../../../escaped", "/tmp/studio-guard-escaped", "..", ".hidden", ""])
+def test_agent_names_from_agents_json_never_become_paths(world, hostile):
+    from studio.io.names import safe_file_name
+
+    ds = world / "ds"
+    names = [hostile or "x", "bob", "carol"]
+    agents = [{"folder": f"agent{k + 1}", "name": n} for k, n in enumerate(names)]
+    (ds / "agents.json").write_text(json.dumps({"format": "cslam-studio agents 1", "agents": agents}))
+    before = _tree(world)
+    res = runner.invoke(app, ["solve", "ds", "-o", "est"])
+    assert res.exit_code == 0, res.stderr
+    made = set(_tree(world)) - set(before)
+    assert all(m.startswith("est") for m in made), made
+    tums = sorted(p.name for p in (world / "est" / "estimate" / "tum").iterdir())
+    assert tums == sorted(f"{safe_file_name(n)}.tum" for n in names)
+    assert not Path("/tmp/studio-guard-escaped.tum").exists()
+    ev = runner.invoke(app, ["evaluate", "ds", "--estimate", "est/estimate/tum"])
+    assert ev.exit_code == 0, ev.stderr  # the hand-off: evaluate finds each agent's file
+
+
+def test_safe_file_name():
+    from studio.io.names import safe_file_name
+
+    assert safe_file_name("alpha") == "alpha"
+    assert safe_file_name("../../../../escaped") == "escaped"
+    assert safe_file_name("/etc/passwd") == "etc_passwd"
+    assert safe_file_name("..") == "agent" and safe_file_name("") == "agent"
+    assert safe_file_name("a b/c") == "a_b_c"
+    assert len(safe_file_name("x" * 1000)) == 100
+
+
+def test_agents_whose_names_meet_in_one_file_are_refused(world):
+    ds = world / "ds"
+    agents = [{"folder": f"agent{k + 1}", "name": n} for k, n in enumerate(["a b", "a/b", "c"])]
+    (ds / "agents.json").write_text(json.dumps({"format": "cslam-studio agents 1", "agents": agents}))
+    refused_intact(["solve", "ds", "-o", "est"], world, "give the same file name")
+
+
+def test_convert_then_solve_then_evaluate_by_tum_files(world):
+    """``convert tum a.tum a_b.tum``: agents ``a`` and ``a_b``; solve's TUM files score back."""
+    shutil.copy(world / "alpha.tum", world / "a.tum")
+    shutil.copy(world / "bob.tum", world / "a_b.tum")
+    for args in (
+        ["convert", "tum", "a.tum", "a_b.tum", "-o", "c", "--no-rrd"],
+        ["solve", "c", "-o", "solved"],
+        ["evaluate", "c", "--estimate", "solved/estimate/tum"],
+    ):
+        res = runner.invoke(app, args)
+        assert res.exit_code == 0, (args, res.stderr)
