@@ -508,6 +508,8 @@ def write_replacing(path: PathLike, write: Callable[[Path], object]) -> Path:
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
         write(tmp)
+        if path.suffix == ".rrd":
+            verify_rrd(tmp)  # a recording Rerun could not finish (a full disk) is never put in place
         if tmp.exists():
             fd = os.open(tmp, os.O_RDONLY)
             try:

@@ -57,7 +57,7 @@ def refused_intact(args: list, root: Path, match: str) -> str:
 @pytest.fixture(scope="module")
 def made(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("guard")
-    synthesize(load_synth_config(DATA / "configs" / "tiny_three.json"), root, rrd=False, jobs=1)
+    synthesize(load_synth_config(DATA / "configs" / "tiny_three.json"), root, rrd=True, jobs=1)
     return root
 
 
@@ -67,6 +67,7 @@ def world(made, tmp_path, monkeypatch) -> Path:
     two TUM files, a bench spec and a sweep spec; the current folder."""
     shutil.copytree(made / "tiny_three", tmp_path / "ds")
     shutil.copytree(made / "tiny_three_singleg2o", tmp_path / "single")
+    shutil.copy(made / "tiny_three.rrd", tmp_path / "ds.rrd")
     shutil.copy(DATA / "configs" / "tiny_three.json", tmp_path / "tiny_three.json")
     for name in ("alpha", "bob"):
         shutil.copy(DATA / "trajectories" / f"{name}.tum", tmp_path / f"{name}.tum")
@@ -88,9 +89,15 @@ COMMANDS: dict[str, Callable[[Path], tuple[list, Path]]] = {
     "record": lambda w: (["record", w / "ds", "-o", "OUT.rrd"], w / "ds"),
     "evaluate --rrd": lambda w: (["evaluate", w / "ds", "--rrd", "OUT.rrd"], w / "ds"),
     "convert": lambda w: (["convert", "tum", w / "alpha.tum", w / "bob.tum", "-o", "OUT", "--no-rrd"], w / "bob.tum"),
+    "snapshot": lambda w: (["snapshot", w / "ds.rrd", "-o", "OUT.png"], w / "ds.rrd"),
     "bench": lambda w: (["bench", w / "bench.toml", "-o", "OUT", "-q"], w / "ds"),
     "sweep": lambda w: (["sweep", w / "s.toml", "-o", "OUT", "-q"], w / "s.toml"),
 }
+
+
+def _file_output(args: list) -> bool:
+    """The output is a file (``OUT.rrd``, ``OUT.png``), not a folder."""
+    return any(isinstance(a, str) and a.startswith("OUT.") for a in args)
 
 
 def _force(command: str) -> list[str]:
@@ -107,7 +114,7 @@ def test_an_output_inside_an_input_is_refused(world, command):
     args, inp = COMMANDS[command](world)
     if inp.is_dir():
         refused_intact(_with_out(args, inp / "sub"), world, "inside the input")
-    elif "OUT.rrd" not in args:  # a file input: the output may not be it
+    elif not _file_output(args):  # a file input: the output may not be it
         refused_intact(_with_out(args, inp) + _force(command), world, "is the input")
 
 
@@ -117,14 +124,14 @@ def test_an_output_inside_an_input_through_a_symlink_is_refused(world, command):
     (world / "alias").symlink_to(inp)
     if inp.is_dir():
         refused_intact(_with_out(args, world / "alias" / "sub"), world, "inside the input")
-    elif "OUT.rrd" not in args:
+    elif not _file_output(args):
         refused_intact(_with_out(args, world / "alias") + _force(command), world, "the input")
 
 
 @pytest.mark.parametrize("command", sorted(COMMANDS))
 def test_an_output_that_is_the_current_folder_or_holds_the_inputs_is_refused(world, command):
     args, _ = COMMANDS[command](world)
-    if "OUT.rrd" in args:
+    if _file_output(args):
         pytest.skip("a recording is a file: it cannot be a folder")
     refused_intact(_with_out(args, ".") + _force(command), world, "current folder")
 
@@ -136,20 +143,22 @@ def test_a_folder_of_the_users_files_is_never_written_into_or_replaced(world, co
     mine.mkdir()
     for name in ("bench.md", "bench.csv", "sweep.csv", "notes.txt"):
         (mine / name).write_text("the user's own file\n")
-    if "OUT.rrd" in args:
-        (world / "mine.rrd").mkdir()
-        (world / "mine.rrd" / "notes.txt").write_text("the user's own file\n")
+    if _file_output(args):
+        suffix = next(a for a in args if isinstance(a, str) and a.startswith("OUT."))[3:]
+        (world / f"mine{suffix}").mkdir()
+        (world / f"mine{suffix}" / "notes.txt").write_text("the user's own file\n")
     target = _with_out(args, mine) + _force(command)
     err = refused_intact(target, world, "mine")
     assert "did not" in err or "is a folder" in err, err
 
 
-@pytest.mark.parametrize("command", ["solve", "solve --rrd", "solve single", "record", "evaluate --rrd", "convert"])
+@pytest.mark.parametrize("command", sorted(set(COMMANDS) - {"bench", "sweep"}))
 def test_an_existing_output_is_refused_without_force(world, command):
     args, _ = COMMANDS[command](world)
-    out = world / ("old.rrd" if "OUT.rrd" in args else "old")
-    if out.suffix == ".rrd":
-        out.write_bytes(b"an old recording")
+    suffix = next((a[3:] for a in args if isinstance(a, str) and a.startswith("OUT.")), "")
+    out = world / f"old{suffix}"
+    if suffix:
+        out.write_bytes(b"an old output")
     else:
         out.mkdir()
     refused_intact(_with_out(args, world / "old"), world, "already exists")
