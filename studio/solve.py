@@ -40,6 +40,7 @@ from studio.core.types import PathLike
 from studio.io.names import safe_file_name, safe_file_names
 from studio.solvers import DEFAULT_METHOD, get_method
 from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
+from studio.solvers.validate import check_problem, check_solution
 
 __all__ = ["SolveResult", "solve", "load_problem", "Dimension", "SOLVE_JSON"]
 
@@ -296,6 +297,15 @@ def solve(
         def on_iteration(k: int, poses: np.ndarray) -> None:
             iterates.append((k, poses.copy()))
 
+    names = [a.name for a in loaded.graph.agents] if loaded.graph is not None else None
+
+    def vertex_name(v: int) -> str:
+        if names is None:
+            return f"vertex {v}"
+        k = int(np.searchsorted(loaded.offsets, v, side="right") - 1)
+        return f"{names[k]} vertex {v - int(loaded.offsets[k])}"
+
+    check_problem(problem, str(dataset), vertex_name)
     try:
         solution = solver(problem, options, on_iteration)
     except RuntimeError as err:  # GTSAM's and g2o's own failures (e.g. an indeterminate system)
@@ -309,6 +319,8 @@ def solve(
         ta, tv = _agent_rows(loaded.offsets, problem.edge_to[ids])
         rejected = np.column_stack([fa, fv, ta, tv]).astype(np.int64).reshape(-1, 4)
     chi2_initial = solution.chi2_history[0] if solution.chi2_history else graph_chi2(problem, problem.initial)
+    chi2_final = graph_chi2(problem, solution.poses) if np.isfinite(solution.poses).all() else float("nan")
+    check_solution(problem, solution, chi2_initial, chi2_final, method=method, where=str(dataset))
     result = SolveResult(
         out,
         out,
@@ -317,7 +329,7 @@ def solve(
         solution.iterations,
         graph_chi2(problem, problem.initial),
         chi2_initial,
-        graph_chi2(problem, solution.poses),
+        chi2_final,
         seconds,
         problem.kind is PoseKind.SE2 and loaded.source_kind is PoseKind.SE3,
         rejected,
