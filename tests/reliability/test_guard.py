@@ -316,3 +316,61 @@ def test_convert_then_solve_then_evaluate_by_tum_files(world):
     ):
         res = runner.invoke(app, args)
         assert res.exit_code == 0, (args, res.stderr)
+
+
+# --------------------------------------------------------------------------- results that cannot lie
+def _edit_first_edge(g2o: Path, column: int, value: str) -> None:
+    lines = g2o.read_text().splitlines()
+    k = next(i for i, ln in enumerate(lines) if ln.startswith("EDGE"))
+    parts = lines[k].split()
+    parts[column] = value
+    lines[k] = " ".join(parts)
+    g2o.write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.parametrize("method", ["gtsam", "g2o", "gnc"])
+def test_negative_information_is_refused_by_every_method(world, method):
+    _edit_first_edge(world / "ds" / "agent1" / "posegraph.g2o", 10, "-100")
+    refused_intact(["solve", "ds", "-o", "est", "-m", method], world, "is not positive definite")
+
+
+def test_an_external_solution_far_away_is_not_a_success(world):
+    far = world / "far.py"
+    far.write_text(
+        "import sys\n"
+        "out = []\n"
+        "for ln in open(sys.argv[1]):\n"
+        "    p = ln.split()\n"
+        "    if p and p[0].startswith('VERTEX'):\n"
+        "        p[2] = '1e300'\n"
+        "    out.append(' '.join(p))\n"
+        "open(sys.argv[2], 'w').write('\\n'.join(out) + '\\n')\n"
+    )
+    import sys
+
+    cmd = f"{sys.executable} {far} {{input}} {{output}}"
+    refused_intact(["solve", "ds", "-o", "est", "-m", "command", "--command", cmd], world, "not finite or lie beyond")
+
+
+def test_a_solution_with_a_higher_chi2_is_not_a_success():
+    import numpy as np
+
+    from studio.core.errors import FormatError
+    from studio.core.model import PoseKind
+    from studio.solvers.problem import Problem, Solution
+    from studio.solvers.validate import check_solution
+
+    p = Problem(
+        PoseKind.SE2,
+        np.zeros((2, 3)),
+        np.array([0]),
+        np.array([1]),
+        np.array([[1.0, 0, 0]]),
+        np.array([[1.0, 0, 0, 1, 0, 1]]),
+        np.array([False]),
+    )
+    with pytest.raises(FormatError, match=r"made chi2 worse \(1 -> 2\)"):
+        check_solution(p, Solution(np.zeros((2, 3)), 3), 1.0, 2.0, method="x", where="ds")
+    check_solution(p, Solution(np.zeros((2, 3)), 3), 2.0, 1.0, method="x", where="ds")
+    robust = Solution(np.zeros((2, 3)), 3, rejected=np.array([True]))
+    check_solution(p, robust, 1.0, 2.0, method="gnc", where="ds")  # a robust method let an outlier go
