@@ -468,6 +468,10 @@ def sweep(
         return _sweep(spec, out, tasks, scheduler, workers, progress, retries)
 
 
+def _write_text(tmp: Path, *, text: str) -> None:
+    tmp.write_text(text, encoding="utf-8")
+
+
 def sweep_inputs(spec: SweepSpec) -> list[Path]:
     """The files a sweep reads: its spec file and its base (a kollagen JSON or a convert.json), and
     for a convert.json base the inputs it names."""
@@ -532,7 +536,7 @@ def _sweep(
         path = out / "configs" / f"{t.name}.json"
         text = json.dumps(t.config, indent=4) + "\n"
         if not path.is_file() or path.read_text(encoding="utf-8") != text:
-            write_replacing(path, lambda tmp, text=text: tmp.write_text(text, encoding="utf-8"))
+            write_replacing(path, functools.partial(_write_text, text=text))
     rows: dict[str, dict[str, Any]] = {}
     todo = []
     for t in tasks:

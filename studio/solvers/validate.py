@@ -44,7 +44,7 @@ def indefinite_information(information_upper: np.ndarray, dim: int) -> np.ndarra
     upper = np.asarray(information_upper, dtype=np.float64).reshape(len(information_upper), -1)
     if not len(upper):
         return np.zeros(0, dtype=np.int64)
-    finite = np.isfinite(upper).all(axis=1)
+    finite: np.ndarray = np.asarray(np.isfinite(upper).all(axis=1))
     mats = upper_to_matrix(np.where(finite[:, None], upper, 0.0), dim)
     smallest = np.linalg.eigvalsh(mats)[:, 0]
     return np.flatnonzero(~finite | ~(smallest > 0)).astype(np.int64)

@@ -374,3 +374,33 @@ def test_a_solution_with_a_higher_chi2_is_not_a_success():
     check_solution(p, Solution(np.zeros((2, 3)), 3), 2.0, 1.0, method="x", where="ds")
     robust = Solution(np.zeros((2, 3)), 3, rejected=np.array([True]))
     check_solution(p, robust, 1.0, 2.0, method="gnc", where="ds")  # a robust method let an outlier go
+
+
+# --------------------------------------------------------------------------- check and outliers.txt
+@pytest.mark.parametrize(
+    "row, match",
+    [
+        (b"9 0 1 0\n", "agent 9 is not in 1..3"),
+        (b"0 0 1 0\n", "agent 0 is not in 1..3"),
+        (b"-1 0 1 0\n", "agent -1 is not in 1..3"),
+        (b"1 99999999999999999999 2 0\n", "expected four integers"),
+        (b"1 0 2 \xe9\n", "not UTF-8"),
+    ],
+)
+@pytest.mark.parametrize("command", ["check", "record"])
+def test_check_and_record_read_outliers_txt_alike(world, row, match, command):
+    (world / "ds" / "outliers.txt").write_bytes(b"# kind: random\n" + row)
+    args = ["check", "ds"] if command == "check" else ["record", "ds", "-o", "x.rrd"]
+    err = refused_intact(args, world, match)
+    assert "outliers.txt:2" in err
+
+
+def test_check_refuses_indefinite_information(world):
+    _edit_first_edge(world / "ds" / "agent1" / "posegraph.g2o", 10, "-100")
+    refused_intact(["check", "ds"], world, "is not positive definite")
+
+
+def test_check_json_is_strict(world):
+    res = runner.invoke(app, ["check", "ds", "--json"])
+    assert res.exit_code == 0, res.stderr
+    json.loads(res.stdout, parse_constant=lambda c: pytest.fail(f"non-strict JSON constant {c}"))
