@@ -26,6 +26,7 @@ import dataclasses
 import json
 import os
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -307,7 +308,8 @@ def solve(
 
     check_problem(problem, str(dataset), vertex_name)
     try:
-        solution = solver(problem, options, on_iteration)
+        with native_stdout_silenced():  # GTSAM's notices (gnc's setMaxIterations) are not our output
+            solution = solver(problem, options, on_iteration)
     except RuntimeError as err:  # GTSAM's and g2o's own failures (e.g. an indeterminate system)
         first = next((ln.strip() for ln in str(err).splitlines() if ln.strip()), type(err).__name__)
         raise FormatError(f"{dataset}: method {method} failed: {first} (is the graph connected?)") from None
@@ -362,6 +364,30 @@ def solve(
             json.dumps(result.to_dict(), indent=2, default=_json_default, allow_nan=False) + "\n", encoding="utf-8"
         )
     return result
+
+
+@contextlib.contextmanager
+def native_stdout_silenced() -> Iterator[None]:
+    """Send what native code (GTSAM, g2o) prints on the process's stdout (file descriptor 1) to
+    /dev/null while the block runs: a command's stdout holds its own output only (``--json``)."""
+    import ctypes
+    import sys
+
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (OSError, ValueError, AttributeError):
+        yield
+        return
+    libc = ctypes.CDLL(None)
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 1)
+        yield
+    finally:
+        libc.fflush(None)  # C stdio (std::cout shares it) drained into /dev/null, not into our output
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def dataset_inputs(dataset: PathLike) -> list[Path]:

@@ -404,3 +404,27 @@ def test_check_json_is_strict(world):
     res = runner.invoke(app, ["check", "ds", "--json"])
     assert res.exit_code == 0, res.stderr
     json.loads(res.stdout, parse_constant=lambda c: pytest.fail(f"non-strict JSON constant {c}"))
+
+
+# --------------------------------------------------------------------------- bounded specs, quiet stdout
+@pytest.mark.parametrize("command", ["bench", "sweep"])
+@pytest.mark.parametrize("suffix", [".toml", ".json"])
+def test_specs_nested_100000_deep_are_one_line(world, command, suffix):
+    spec = world / f"deep{suffix}"
+    deep = "[" * 100_000 + "]" * 100_000
+    spec.write_text(f"datasets = {deep}\n" if suffix == ".toml" else f'{{"datasets": {deep}}}')
+    refused_intact([command, spec, "-o", "out"], world, "over the limit of 64")
+
+
+def test_solve_json_under_gnc_is_the_json_alone(world):
+    """GTSAM prints a notice on the process's stdout (file descriptor 1) when gnc sets its
+    iterations; ``--json`` must print strict JSON and nothing else."""
+    import subprocess
+    import sys
+
+    env = dict(os.environ, CI="true", RERUN_ANALYTICS="0")
+    cmd = [sys.executable, "-c", "from studio.cli import main; main()", "solve", "ds", "-o", "est", "-m", "gnc"]
+    res = subprocess.run([*cmd, "--json"], capture_output=True, text=True, env=env, timeout=300, cwd=world)
+    assert res.returncode == 0, res.stderr
+    json.loads(res.stdout, parse_constant=lambda c: pytest.fail(f"non-strict JSON constant {c}"))
+    assert res.stderr == ""
