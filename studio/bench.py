@@ -276,9 +276,25 @@ def _odometry_row(name: str, case: str, dataset: Path, spec: BenchSpec) -> dict[
     return row
 
 
+def _end_with_parent(parent: int) -> None:
+    """In a cell's worker: be killed when the bench process dies (Linux ``PR_SET_PDEATHSIG``), so a
+    killed bench leaves no worker finishing its cell and then blocking on a pipe nobody reads."""
+    import ctypes
+    import signal
+
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1: PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:  # the parent died before the call: nobody is waiting
+        os._exit(1)
+
+
 def _in_fresh_process(func: Callable[..., dict[str, Any]], *args: Any) -> dict[str, Any]:
     ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
-    with concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx) as pool:
+    with concurrent.futures.ProcessPoolExecutor(
+        1, mp_context=ctx, initializer=_end_with_parent, initargs=(os.getpid(),)
+    ) as pool:
         return pool.submit(func, *args).result()
 
 

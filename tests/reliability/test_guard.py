@@ -428,3 +428,57 @@ def test_solve_json_under_gnc_is_the_json_alone(world):
     assert res.returncode == 0, res.stderr
     json.loads(res.stdout, parse_constant=lambda c: pytest.fail(f"non-strict JSON constant {c}"))
     assert res.stderr == ""
+
+
+# --------------------------------------------------------------------------- no orphans
+def test_a_killed_bench_leaves_no_cell_worker(world):
+    """SIGKILL of ``studio bench`` while a cell runs: its worker ends with it."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    slow = world / "slow.py"
+    slow.write_text("import time, shutil, sys\ntime.sleep(20)\nshutil.copy(sys.argv[1], sys.argv[2])\n")
+    (world / "slow.toml").write_text(
+        f'datasets = ["{world / "ds"}"]\nmethods = ["command"]\ninput = "multi-g2o"\n'
+        f'[options.command]\ncommand = "{sys.executable} {slow} {{input}} {{output}}"\n'
+    )
+    env = dict(os.environ, CI="true", RERUN_ANALYTICS="0")
+    cmd = [sys.executable, "-c", "from studio.cli import main; main()", "bench", "slow.toml", "-o", "b", "-q"]
+    bench = subprocess.Popen(cmd, env=env, cwd=world, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+    def children(pid: int) -> list[int]:
+        try:
+            return [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+        except OSError:
+            return []
+
+    try:
+        deadline = time.monotonic() + 120
+        workers: list[int] = []
+        while time.monotonic() < deadline and not workers:
+            # the cell's worker is the Python child that has started the slow command
+            workers = [c for c in children(bench.pid) if any(children(c))]
+            time.sleep(0.2)
+        assert workers, "the cell never started"
+        grandchildren = [g for w in workers for g in children(w)]
+        bench.send_signal(signal.SIGKILL)
+        bench.wait(timeout=10)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and any(Path(f"/proc/{w}").exists() for w in workers):
+            time.sleep(0.1)
+        alive = [w for w in workers if Path(f"/proc/{w}").exists() and "Z" not in _state(w)]
+        assert not alive, alive
+    finally:
+        bench.kill()
+        for g in grandchildren if "grandchildren" in locals() else []:
+            with __import__("contextlib").suppress(ProcessLookupError):
+                os.kill(g, signal.SIGKILL)
+
+
+def _state(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return "Z"
