@@ -470,8 +470,10 @@ def staged_outputs(
                         _check_replaceable(parent / name, staging / name)
                 _replace_all(staging, parent, made_names)
                 finished = True
-            except OSError as err:
-                msg = os_error_message(err)
+            except (OSError, OutputError) as err:
+                # one line naming the real target, never the staging folder (a full disk, a recording
+                # Rerun could not finish)
+                msg = os_error_message(err) if isinstance(err, OSError) else str(err)
                 raise OutputError(
                     msg.replace(str(staging) + os.sep, str(parent) + os.sep).replace(str(staging), str(parent))
                 ) from None

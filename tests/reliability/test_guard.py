@@ -482,3 +482,35 @@ def _state(pid: int) -> str:
         return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
     except OSError:
         return "Z"
+
+
+# --------------------------------------------------------------------------- a full disk under solve --rrd
+@pytest.mark.slow
+def test_solve_rrd_onto_a_full_disk_never_hangs_and_is_one_line(world, tmp_path):
+    """Rerun's file sink on a full disk once hung ``disconnect()`` (3 runs of 6 by hand) after three
+    ANSI log lines naming the staging path. Each run now ends in one line naming the target, and
+    leaves nothing on the disk (``--runslow``: it runs the command-line 6 times)."""
+    import subprocess
+    import sys
+
+    from tests.reliability.test_outputs import _tmpfs
+
+    env = dict(os.environ, CI="true", RERUN_ANALYTICS="0")
+    with _tmpfs(tmp_path / "disk", "size=1m") as disk:
+        (disk / "filler").write_bytes(b"\0" * 990_000)
+        cmd = [sys.executable, "-c", "from studio.cli import main; main()", "solve", "ds", "--rrd", disk / "run.rrd"]
+        for k in range(6):
+            res = subprocess.run(
+                [str(c) for c in [*cmd, "-o", f"est{k}"]],
+                capture_output=True,
+                text=True,
+                env=env,
+                timeout=120,
+                cwd=world,
+            )
+            assert res.returncode == 2, res.stderr
+            lines = res.stderr.splitlines()
+            assert len(lines) == 1 and lines[0].startswith(f"error: {disk / 'run.rrd'}: Rerun could not write"), lines
+            assert lines[0].endswith("(No space left on device)"), lines
+            assert sorted(p.name for p in disk.iterdir()) == ["filler"]
+            assert not (world / f"est{k}").exists()
