@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import re
-
 from studio.core.errors import ConfigError
+from studio.io.names import safe_file_name
 
 __all__ = ["safe_agent_name", "check_agent_name", "RESERVED_NAMES"]
 
 #: Names an agent folder may not take: the files written beside the agent folders.
 RESERVED_NAMES = frozenset({"convert.json", "report.json", "outliers.txt", "inter_agent_lc.dat"})
-_SAFE = re.compile(r"[^A-Za-z0-9_.+-]+")
 
 
 def safe_agent_name(raw: str) -> str:
@@ -19,13 +17,7 @@ def safe_agent_name(raw: str) -> str:
     The result never holds a path separator, never starts with a dot (so never ``.`` or ``..``) and
     is never empty or one of :data:`RESERVED_NAMES`.
     """
-    name = _SAFE.sub("_", re.sub(r"\.{2,}", "_", raw))
-    name = re.sub(r"_{2,}", "_", name).strip("_").lstrip(".")
-    if not name:
-        name = "agent"
-    if name in RESERVED_NAMES:
-        name = f"agent_{name}"
-    return name[:100]
+    return safe_file_name(raw, fallback="agent", reserved=RESERVED_NAMES)
 
 
 def check_agent_name(name: str, where: str) -> str:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import dataclasses
+import hashlib
 import json
 import math
 import multiprocessing
@@ -39,7 +40,8 @@ from typing import Any
 from studio._callable import make_callable
 from studio.core.errors import ConfigError, StudioError
 from studio.core.types import PathLike
-from studio.io.atomic import write_replacing
+from studio.io.atomic import check_workspace, output_workspace, write_replacing
+from studio.io.names import safe_file_name
 from studio.io.spec_file import check_spec_keys, read_spec_file
 from studio.runtime.progress import Progress, report
 
@@ -96,10 +98,36 @@ class Cell:
     method: str
 
     @property
-    def key(self) -> str:
+    def label(self) -> str:
+        """The readable part of the cell's folder name (not its identity: see :func:`cell_key`)."""
         stem = Path(self.dataset).name if os.sep in self.dataset or self.dataset.endswith(".json") else self.dataset
-        stem = stem.removesuffix(".json")
-        return f"{stem}-{self.case}-{self.method}"
+        return safe_file_name(f"{stem.removesuffix('.json')}-{self.case}-{self.method}", fallback="cell")
+
+
+def cell_identity(cell: Cell, spec: BenchSpec) -> dict[str, Any]:
+    """Everything a cell's row depends on: the dataset (a file or folder by its resolved path and,
+    for a file, a hash of its bytes; a preset by name), the case, the method, the input, the
+    alignments and the method's options. Two cells share results only when all of it is equal."""
+    path = Path(cell.dataset)
+    dataset: dict[str, Any] = {"name": cell.dataset}
+    if path.exists():
+        dataset = {"path": os.path.realpath(path)}
+        if path.is_file():
+            dataset["sha256"] = hashlib.sha256(path.read_bytes()).hexdigest()
+    return {
+        "dataset": dataset,
+        "case": cell.case,
+        "method": cell.method,
+        "input": spec.input,
+        "alignments": list(spec.alignments),
+        "options": dict(spec.options.get(cell.method, {})) if cell.method != "odometry" else {},
+    }
+
+
+def cell_key(cell: Cell, spec: BenchSpec) -> str:
+    """The cell's folder name under ``OUT/runs``: its label and a hash of :func:`cell_identity`."""
+    text = json.dumps(cell_identity(cell, spec), sort_keys=True, default=str)
+    return f"{cell.label}-{hashlib.sha256(text.encode()).hexdigest()[:12]}"
 
 
 @dataclass(frozen=True, eq=False)
@@ -260,9 +288,25 @@ def _odometry_row(name: str, case: str, dataset: Path, spec: BenchSpec) -> dict[
     return row
 
 
+def _end_with_parent(parent: int) -> None:
+    """In a cell's worker: be killed when the bench process dies (Linux ``PR_SET_PDEATHSIG``), so a
+    killed bench leaves no worker finishing its cell and then blocking on a pipe nobody reads."""
+    import ctypes
+    import signal
+
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1: PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:  # the parent died before the call: nobody is waiting
+        os._exit(1)
+
+
 def _in_fresh_process(func: Callable[..., dict[str, Any]], *args: Any) -> dict[str, Any]:
     ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
-    with concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx) as pool:
+    with concurrent.futures.ProcessPoolExecutor(
+        1, mp_context=ctx, initializer=_end_with_parent, initargs=(os.getpid(),)
+    ) as pool:
         return pool.submit(func, *args).result()
 
 
@@ -275,15 +319,27 @@ def bench(spec: BenchSpec, out_dir: PathLike, *, progress: Progress | None = Non
     ``isolate`` runs each cell in a fresh process (its own peak memory); tests may turn it off.
     """
     out = Path(out_dir)
+    from studio.synth import load_synth_config
+
+    for d in spec.datasets:
+        if not _is_folder_dataset(d):
+            load_synth_config(d)  # bad names fail before any work
+    inputs = bench_inputs(spec)
+    check_workspace(out, kind="bench", inputs=inputs)  # refused before any work
+    with output_workspace(out, kind="bench", inputs=inputs):
+        return _bench(spec, out, progress, isolate)
+
+
+def bench_inputs(spec: BenchSpec) -> list[Path]:
+    """The files and folders a bench reads: its spec file, and its datasets given as paths."""
+    paths = [Path(spec.source)] if Path(spec.source).is_file() else []
+    return paths + [Path(d) for d in spec.datasets if Path(d).exists()]
+
+
+def _bench(spec: BenchSpec, out: Path, progress: Progress | None, isolate: bool) -> BenchResult:
     datasets_dir, runs_dir = out / "datasets", out / "runs"
     runs_dir.mkdir(parents=True, exist_ok=True)
     datasets_dir.mkdir(parents=True, exist_ok=True)
-    for d in spec.datasets:
-        if _is_folder_dataset(d):
-            continue
-        from studio.synth import load_synth_config
-
-        load_synth_config(d)  # bad names fail before any work
     cells = [
         Cell(d, c if not _is_folder_dataset(d) else "as-is", m)
         for d in spec.datasets
@@ -304,24 +360,27 @@ def bench(spec: BenchSpec, out_dir: PathLike, *, progress: Progress | None = Non
                 if not _is_folder_dataset(cell.dataset)
                 else (Path(cell.dataset), None)
             )
-            odo_path = runs_dir / f"{Cell(cell.dataset, cell.case, 'odometry').key}.json"
-            if odo_path.is_file():
-                rows.append(json.loads(odo_path.read_text(encoding="utf-8")))
+            odo_path = runs_dir / f"{cell_key(Cell(cell.dataset, cell.case, 'odometry'), spec)}.json"
+            odo_row = _finished(odo_path)
+            if odo_row is not None:
+                rows.append(odo_row)
             else:
                 row = _odometry_row(cell.dataset, cell.case, prepared[pair][0], spec)
                 _write_json(odo_path, row)
                 rows.append(row)
         dataset, single = prepared[pair]
-        done = runs_dir / cell.key / "cell.json"
-        if done.is_file():
-            rows.append(json.loads(done.read_text(encoding="utf-8")))
+        key = cell_key(cell, spec)
+        done = runs_dir / key / "cell.json"
+        finished = _finished(done)
+        if finished is not None:
+            rows.append(finished)
             continue
         args = (
             cell,
             spec,
             str(dataset),
             None if single is None else str(single),
-            str(runs_dir / cell.key / "estimate"),
+            str(runs_dir / key / "estimate"),
         )
         try:
             row = _in_fresh_process(_run_cell, *args) if isolate else _run_cell(*args)
@@ -340,11 +399,22 @@ def bench(spec: BenchSpec, out_dir: PathLike, *, progress: Progress | None = Non
     return _write_tables(spec, out, rows, computed)
 
 
+def _finished(path: Path) -> dict[str, Any] | None:
+    """The row of a cell an earlier run finished, or None when it must run (again): no file, a file
+    that does not read back, or a cell that failed (its spec or data may have been fixed since)."""
+    try:
+        row = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(row, dict) or "error" in row:
+        return None
+    return row
+
+
 def _write_json(path: Path, row: Mapping[str, Any]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(row, indent=2, sort_keys=True, default=float) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
+    text = json.dumps(row, indent=2, sort_keys=True, default=float) + "\n"
+    write_replacing(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
 # ------------------------------------------------------------------------------------------- output

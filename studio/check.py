@@ -45,6 +45,7 @@ from studio.core.geometry import is_planar_se3, se3_information_to_se2
 from studio.core.model import PoseKind
 from studio.core.residuals import Convention, chi2_parts, chi2_terms, edge_errors
 from studio.core.types import PathLike
+from studio.solvers.validate import indefinite_information
 
 __all__ = ["ClassCheck", "CheckReport", "check", "format_check", "CONSISTENT_TOLERANCE", "SIGNIFICANCE"]
 
@@ -155,23 +156,29 @@ class CheckReport:
         }
 
     def to_json(self) -> str:
-        return json.dumps(self.to_dict(), indent=2)
+        return json.dumps(_strict(self.to_dict()), indent=2, allow_nan=False)
 
 
-def _read_listed_outliers(folder: Path) -> np.ndarray | None:
+def _read_listed_outliers(folder: Path, agent_sizes: list[int] | None) -> np.ndarray | None:
+    """``outliers.txt`` through the one reader (:mod:`studio.io.outliers_txt`), checked against the
+    dataset's agents and vertices as ``studio record`` checks it."""
+    from studio.io.outliers_txt import read_outliers_txt
+
     path = folder / "outliers.txt"
     if not path.is_file():
         return None
-    rows = []
-    for lineno, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
-        if not line.strip() or line.lstrip().startswith("#"):
-            continue
-        parts = line.split()
-        if len(parts) != 4 or not all(p.lstrip("-").isdigit() for p in parts):
-            raise FormatError(f"{path}:{lineno}: expected 'agent_from vertex_from agent_to vertex_to'")
-        a, b, c, d = (int(p) for p in parts)
-        rows.append((a - 1, b, c - 1, d))
-    return np.array(rows, dtype=np.int64).reshape(-1, 4)
+    return read_outliers_txt(path, agent_sizes)[0]
+
+
+def _strict(value: Any) -> Any:
+    """``value`` with every non-finite float as None: the JSON printed is strict (no NaN, Infinity)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _strict(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_strict(v) for v in value]
+    return value
 
 
 #: Edge classes in report order (``loop closures``: a single g2o file cannot tell intra from inter).
@@ -250,6 +257,7 @@ def check(dataset: PathLike, *, convention: Convention = "g2o") -> CheckReport:
     else:
         loaded = _multi_g2o(read_multi_g2o(folder), folder)
     kind, truth, edge_sets, names = loaded
+    listed = _read_listed_outliers(folder, [len(t) for t in truth]) if folder.is_dir() else None
     notes = []
     planar = (
         kind is PoseKind.SE3
@@ -278,6 +286,14 @@ def check(dataset: PathLike, *, convention: Convention = "g2o") -> CheckReport:
             stacked[offsets[a_from] + v_from], stacked[offsets[a_to] + v_to], rows(meas), convention=convention
         )
         up = se3_information_to_se2(upper) if planar else upper
+        bad = indefinite_information(up, d)
+        if len(bad):
+            k = int(bad[0])
+            raise FormatError(
+                f"{folder}: {name} edge {names[int(np.asarray(a_from)[k])]} vertex {int(v_from[k])} -> "
+                f"{names[int(np.asarray(a_to)[k])]} vertex {int(v_to[k])}: the information matrix is not positive "
+                f"definite ({len(bad)} such edges); chi2 cannot judge it"
+            )
         t, r = chi2_parts(e, up)
         cls.append(np.full(len(e), name))
         agent_of.append(np.asarray(a_from))
@@ -335,7 +351,6 @@ def check(dataset: PathLike, *, convention: Convention = "g2o") -> CheckReport:
                 )
             )
 
-    listed = _read_listed_outliers(folder)
     listed_n = listed_flagged = None
     if listed is not None:
         listed_n = len(listed)

@@ -23,9 +23,12 @@ multi-g2o folder, ``robots`` contiguous runs of ids of a single g2o) its rounds 
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
+import os
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, get_args
@@ -33,14 +36,16 @@ from typing import Any, Literal, get_args
 import numpy as np
 
 from studio._callable import make_callable
-from studio.core.errors import ConfigError, FormatError
+from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.geometry import is_planar_se3, planar_poses_to_se3, se3_information_to_se2, se3_poses_to_planar
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE as MAX_COORDINATE_M  # the one bound of every number
+from studio.io.names import safe_file_name, safe_file_names
 from studio.solvers import DEFAULT_METHOD, method_entry
 from studio.solvers.problem import Init, Iteration, Optimizer, Problem, Solution, SolveOptions, graph_chi2
+from studio.solvers.validate import check_problem, check_solution
 
 __all__ = ["SolveResult", "solve", "load_problem", "Dimension", "SOLVE_JSON"]
 
@@ -207,7 +212,7 @@ def _agent_rows(offsets: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.nd
     return agent, ids - offsets[agent]
 
 
-def _write_estimate(loaded: Loaded, poses: np.ndarray, staging: Path, stem: str) -> str:
+def _write_estimate(loaded: Loaded, poses: np.ndarray, staging: Path, stem: str, tum_names: list[str]) -> str:
     """Write the estimate into ``staging``; return the name of the file or folder evaluate takes."""
     from studio.io.g2o import G2oDocument, write_g2o
     from studio.io.multig2o import write_multi_g2o
@@ -244,8 +249,8 @@ def _write_estimate(loaded: Loaded, poses: np.ndarray, staging: Path, stem: str)
     tum = folder / "tum"
     tum.mkdir()
     lifted3 = estimate.to_se3()
-    for a in lifted3.agents:
-        write_tum(tum / f"{a.name}.tum", Trajectory.from_poses(a.name, a.stamps_ns, a.initial))
+    for a, file_name in zip(lifted3.agents, tum_names, strict=True):
+        write_tum(tum / file_name, Trajectory.from_poses(a.name, a.stamps_ns, a.initial))
     return "estimate"
 
 
@@ -293,8 +298,11 @@ def solve(
     rrd_path = None if rrd is None else Path(rrd)
     if rrd_path is not None and rrd_path.suffix != ".rrd":
         raise ConfigError(f"rrd: {rrd_path} must end in .rrd")
+    inputs = dataset_inputs(dataset)
+    _check_solve_outputs(out, rrd_path, inputs, force)  # every refusal before any work
     t0 = time.perf_counter()
     loaded = load_problem(dataset, dimension=dimension)
+    tum_names = _tum_names(loaded, dataset)
     problem = loaded.problem
     iterates: list[tuple[int, np.ndarray]] = []
     on_iteration: Iteration | None = None
@@ -307,8 +315,18 @@ def solve(
             if scorer is not None:
                 scorer.add(k, poses)
 
+    names = [a.name for a in loaded.graph.agents] if loaded.graph is not None else None
+
+    def vertex_name(v: int) -> str:
+        if names is None:
+            return f"vertex {v}"
+        k = int(np.searchsorted(loaded.offsets, v, side="right") - 1)
+        return f"{names[k]} vertex {v - int(loaded.offsets[k])}"
+
+    check_problem(problem, str(dataset), vertex_name)
     try:
-        solution = solver(problem, options, on_iteration)
+        with native_stdout_silenced():  # GTSAM's notices (gnc's setMaxIterations) are not our output
+            solution = solver(problem, options, on_iteration)
     except RuntimeError as err:  # GTSAM's and g2o's own failures (e.g. an indeterminate system)
         first = next((ln.strip() for ln in str(err).splitlines() if ln.strip()), type(err).__name__)
         raise FormatError(f"{dataset}: method {method} failed: {first} (is the graph connected?)") from None
@@ -320,6 +338,8 @@ def solve(
         ta, tv = _agent_rows(loaded.offsets, problem.edge_to[ids])
         rejected = np.column_stack([fa, fv, ta, tv]).astype(np.int64).reshape(-1, 4)
     chi2_initial = solution.chi2_history[0] if solution.chi2_history else graph_chi2(problem, problem.initial)
+    chi2_final = graph_chi2(problem, solution.poses) if np.isfinite(solution.poses).all() else float("nan")
+    check_solution(problem, solution, chi2_initial, chi2_final, method=method, where=str(dataset))
     result = SolveResult(
         out,
         out,
@@ -328,7 +348,7 @@ def solve(
         solution.iterations,
         graph_chi2(problem, problem.initial),
         chi2_initial,
-        graph_chi2(problem, solution.poses),
+        chi2_final,
         seconds,
         problem.kind is PoseKind.SE2 and loaded.source_kind is PoseKind.SE3,
         rejected,
@@ -336,27 +356,30 @@ def solve(
         rrd_path,
         None if scorer is None else scorer.rounds(solution),
     )
-    stem = Path(dataset).stem
-    with staged_outputs(out.parent, [out.name], force=force) as staging:
+    stem = safe_file_name(Path(dataset).stem, fallback="graph")
+    with contextlib.ExitStack() as stack:
+        # the recording is staged inside the estimate's guard: a failure of either leaves neither
+        staging = stack.enter_context(staged_outputs(out.parent, [out.name], force=force, inputs=inputs))
+        if rrd_path is not None:
+            from studio.recording.solve import write_solve_recording
+
+            write_solve_recording(
+                rrd_path,
+                loaded.graph,
+                loaded.offsets,
+                problem.kind,
+                iterates,
+                solution.chi2_history,
+                name=f"{stem} ({method})",
+                force=force,
+                inputs=[*inputs, out],
+            )
         folder = staging / out.name
         folder.mkdir()
-        name = _write_estimate(loaded, solution.poses, folder, stem)
+        name = _write_estimate(loaded, solution.poses, folder, stem, tum_names)
         result = dataclasses.replace(result, estimate_path=out / name)
         (folder / SOLVE_JSON).write_text(
-            json.dumps(result.to_dict(), indent=2, default=_json_default) + "\n", encoding="utf-8"
-        )
-    if rrd_path is not None:
-        from studio.recording.solve import write_solve_recording
-
-        write_solve_recording(
-            rrd_path,
-            loaded.graph,
-            loaded.offsets,
-            problem.kind,
-            iterates,
-            solution.chi2_history,
-            name=f"{stem} ({method})",
-            force=force,
+            json.dumps(result.to_dict(), indent=2, default=_json_default, allow_nan=False) + "\n", encoding="utf-8"
         )
     return result
 
@@ -395,6 +418,64 @@ class _RoundScorer:
         se3 = ape_translation(self.loaded.graph, self.ground_truth, per_agent, align="se3")
         for key, value in zip(self.curve, (k, first.mean, first.rmse, se3.mean, se3.rmse)):
             self.curve[key].append(value)
+
+
+@contextlib.contextmanager
+def native_stdout_silenced() -> Iterator[None]:
+    """Send what native code (GTSAM, g2o) prints on the process's stdout (file descriptor 1) to
+    /dev/null while the block runs: a command's stdout holds its own output only (``--json``)."""
+    import ctypes
+    import sys
+
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (OSError, ValueError, AttributeError):
+        yield
+        return
+    libc = ctypes.CDLL(None)
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 1)
+        yield
+    finally:
+        libc.fflush(None)  # C stdio (std::cout shares it) drained into /dev/null, not into our output
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+def dataset_inputs(dataset: PathLike) -> list[Path]:
+    """The paths a solve of ``dataset`` reads or that belong to it: the multi-g2o folder, or the
+    single g2o file with the files of kollagen's single view beside it (``<stem>_GT.tum``,
+    ``<stem>.tum``), which no output may replace."""
+    path = Path(dataset)
+    if path.is_dir():
+        return [path]
+    return [path, path.with_name(f"{path.stem}_GT.tum"), path.with_name(f"{path.stem}.tum")]
+
+
+def _check_solve_outputs(out: Path, rrd: Path | None, inputs: list[Path], force: bool) -> None:
+    from studio.io.atomic import check_outputs
+
+    if out.name in ("", ".", ".."):
+        raise OutputError(
+            f"{out}: an output cannot be the current folder or one of its parents; name the folder to write"
+        )
+    check_outputs(out.parent, [out.name], force=force, inputs=inputs)
+    if rrd is None:
+        return
+    real_rrd, real_out = Path(os.path.realpath(rrd)), Path(os.path.realpath(out))
+    if real_rrd == real_out or real_out in real_rrd.parents:
+        raise OutputError(f"{rrd}: the recording would sit inside {out}, which solve writes; choose another path")
+    check_outputs(rrd.parent, [rrd.name], force=force, inputs=[*inputs, out])
+
+
+def _tum_names(loaded: Loaded, dataset: PathLike) -> list[str]:
+    """The estimate's TUM file names, one per agent, made from the agents' names (which come from
+    the data: ``agents.json``) by :func:`studio.io.names.safe_file_name`."""
+    if loaded.graph is None:
+        return []
+    return [f"{n}.tum" for n in safe_file_names([a.name for a in loaded.graph.agents], where=str(dataset))]
 
 
 def _json_default(value: Any) -> Any:

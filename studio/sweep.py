@@ -50,7 +50,8 @@ from typing import Any
 from studio._callable import make_callable
 from studio.core.errors import ConfigError, StudioError
 from studio.core.types import PathLike
-from studio.io.atomic import write_replacing
+from studio.io.atomic import check_workspace, output_workspace, write_replacing
+from studio.io.names import safe_file_name
 from studio.io.spec_file import check_spec_keys, read_spec_file
 from studio.runtime.progress import Progress, report
 
@@ -241,9 +242,13 @@ def _apply(kind: str, base: dict[str, Any], params: Mapping[str, Any], where: st
     return doc
 
 
-def cell_name(spec_name: str, params: Mapping[str, Any]) -> str:
-    digest = hashlib.sha256(json.dumps(params, sort_keys=True, default=str).encode()).hexdigest()[:10]
-    return f"{spec_name}-{digest}"
+def cell_name(spec_name: str, params: Mapping[str, Any], identity: Mapping[str, Any] | None = None) -> str:
+    """``<sweep>-<hash>``: the hash covers the cell's parameters and, given ``identity``, everything
+    else its row depends on (the effective config, the steps and their options), so that a changed
+    base or option makes a new cell instead of reusing the old one's results."""
+    whole = {"params": params, **({"identity": identity} if identity is not None else {})}
+    text = json.dumps(whole if identity is not None else params, sort_keys=True, default=str)
+    return f"{safe_file_name(spec_name, fallback='sweep')}-{hashlib.sha256(text.encode()).hexdigest()[:10]}"
 
 
 def expand(spec: SweepSpec, out: PathLike) -> list[CellTask]:
@@ -258,7 +263,8 @@ def expand(spec: SweepSpec, out: PathLike) -> list[CellTask]:
     for k, params in enumerate(combos):
         where = f"{spec.source}: cell {k + 1}"
         doc = _apply(kind, base, params, where)
-        name = cell_name(spec.name, params)
+        identity = {"kind": kind, "config": doc, "steps": list(spec.steps), "options": spec.options}
+        name = cell_name(spec.name, params, identity)
         if name in seen:
             continue
         seen.add(name)
@@ -388,9 +394,8 @@ def run_cell(task: CellTask) -> dict[str, Any]:
         row["error"] = one_line_error(err)
         return row
     row["cell_s"] = time.perf_counter() - t0
-    tmp = done.with_name(RESULT + ".tmp")
-    tmp.write_text(json.dumps(row, indent=2, sort_keys=True, default=float) + "\n", encoding="utf-8")
-    os.replace(tmp, done)
+    text = json.dumps(row, indent=2, sort_keys=True, default=float) + "\n"
+    write_replacing(done, lambda tmp: tmp.write_text(text, encoding="utf-8"))
     return row
 
 
@@ -448,16 +453,87 @@ def sweep(
     retries: int = 2,
 ) -> SweepResult:
     """Run every cell of ``spec`` not finished yet (see the module docstring); returns the table."""
-    out = Path(out).resolve()
+    out = Path(os.path.abspath(out))
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ConfigError(f"workers: expected a positive integer, got {workers!r}")
+    if scheduler:
+        check_scheduler(scheduler)
+    inputs = sweep_inputs(spec)
+    check_workspace(out, kind="sweep", inputs=inputs)  # every refusal before any work
     tasks = expand(spec, out)
+    with output_workspace(out, kind="sweep", inputs=inputs):
+        return _sweep(spec, out, tasks, scheduler, workers, progress, retries)
+
+
+def _write_text(tmp: Path, *, text: str) -> None:
+    tmp.write_text(text, encoding="utf-8")
+
+
+def sweep_inputs(spec: SweepSpec) -> list[Path]:
+    """The files a sweep reads: its spec file and its base (a kollagen JSON or a convert.json), and
+    for a convert.json base the inputs it names."""
+    paths = [Path(p) for p in (spec.source, spec.base) if Path(p).is_file()]
+    if Path(spec.base).is_file():
+        try:
+            doc = json.loads(Path(spec.base).read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, ValueError):
+            doc = None
+        if isinstance(doc, dict) and isinstance(doc.get("inputs"), list):
+            paths += [Path(i) for i in doc["inputs"] if isinstance(i, str) and i]
+    return paths
+
+
+#: Seconds to wait for a scheduler's port to answer before the sweep is refused (a closed port
+#: answers at once; a slow network may need more: the ``STUDIO_SCHEDULER_TIMEOUT_S`` variable).
+SCHEDULER_CONNECT_TIMEOUT_S = 5.0
+
+
+def check_scheduler(scheduler: str) -> None:
+    """Refuse, in one line and before any work, a scheduler address the sweep cannot use: not
+    ``tcp://host:port`` (``tls://`` needs certificates, which the sweep does not take), a port out
+    of range, or a port that does not answer within the timeout (a closed port: at once)."""
+    import socket
+    from urllib.parse import urlsplit
+
+    where = f"scheduler: {scheduler}"
+    try:
+        parts = urlsplit(scheduler)
+        port = parts.port
+    except ValueError as err:
+        raise ConfigError(f"{where}: not an address tcp://HOST:PORT ({err})") from None
+    if parts.scheme == "tls":
+        raise ConfigError(f"{where}: TLS schedulers need certificates, which studio sweep does not take; use tcp://")
+    if parts.scheme != "tcp" or not parts.hostname or port is None or parts.path not in ("", "/"):
+        raise ConfigError(f"{where}: not an address tcp://HOST:PORT (e.g. tcp://127.0.0.1:8786)")
+    try:
+        timeout = float(os.environ.get("STUDIO_SCHEDULER_TIMEOUT_S", SCHEDULER_CONNECT_TIMEOUT_S))
+    except ValueError:
+        raise ConfigError("STUDIO_SCHEDULER_TIMEOUT_S: expected a number of seconds") from None
+    if not (math.isfinite(timeout) and 0 < timeout <= 3600):
+        raise ConfigError("STUDIO_SCHEDULER_TIMEOUT_S: expected a number of seconds in (0, 3600]")
+    try:
+        with socket.create_connection((parts.hostname, port), timeout=timeout):
+            pass
+    except OSError as err:
+        cause = "no answer" if isinstance(err, TimeoutError) else (err.strerror or str(err) or type(err).__name__)
+        raise ConfigError(f"{where}: cannot connect ({cause})") from None
+
+
+def _sweep(
+    spec: SweepSpec,
+    out: Path,
+    tasks: list[CellTask],
+    scheduler: str | None,
+    workers: int | None,
+    progress: Progress | None,
+    retries: int,
+) -> SweepResult:
     (out / "configs").mkdir(parents=True, exist_ok=True)
     for t in tasks:
         path = out / "configs" / f"{t.name}.json"
         text = json.dumps(t.config, indent=4) + "\n"
         if not path.is_file() or path.read_text(encoding="utf-8") != text:
-            path.write_text(text, encoding="utf-8")
+            write_replacing(path, functools.partial(_write_text, text=text))
     rows: dict[str, dict[str, Any]] = {}
     todo = []
     for t in tasks:
@@ -497,17 +573,21 @@ def sweep(
 
 
 def _command(task: CellTask, out: Path, spec: SweepSpec) -> str:
-    cfg = out / "configs" / f"{task.name}.json"
+    """The shell line that remakes the cell alone (``DIR``: a folder of the user's choice); every
+    word is quoted (:func:`shlex.join`), so a pasted line runs the cell's own values and no more."""
+    import shlex
+
+    cfg = str(out / "configs" / f"{task.name}.json")
+    dataset = f"DIR/{task.name}"
     if task.kind == "synth":
-        cmd = f"studio synth {cfg} -o DIR" + ("" if "record" in task.steps else " --no-rrd")
-        dataset = f"DIR/{task.name}"
+        words = ["studio", "synth", cfg, "-o", "DIR"] + ([] if "record" in task.steps else ["--no-rrd"])
     else:
-        cmd = f"studio convert --config {cfg} -o DIR/{task.name}"
-        dataset = f"DIR/{task.name}"
+        words = ["studio", "convert", "--config", cfg, "-o", dataset]
+    cmd = shlex.join(words)
     if "solve" in task.steps:
         opts = task.options.get("solve", {})
-        flags = "".join(f" --{k.replace('_', '-')} {v}" for k, v in sorted(opts.items()))
-        cmd += f" && studio solve {dataset} -o DIR/solved{flags}"
+        flags = [w for k, v in sorted(opts.items()) for w in (f"--{k.replace('_', '-')}", str(v))]
+        cmd += " && " + shlex.join(["studio", "solve", dataset, "-o", "DIR/solved", *flags])
     return cmd
 
 

@@ -9,6 +9,8 @@ __all__ = [
     "MAX_MAGNITUDE",
     "MIN_MAGNITUDE",
     "MAX_RECORDED_COORDINATE_M",
+    "MAX_SOLUTION_M",
+    "CHI2_RISE_TOLERANCE",
 ]
 
 #: Nanoseconds per second: timestamps are int64 nanoseconds inside the studio.
@@ -32,3 +34,8 @@ MIN_MAGNITUDE = 1e-9
 #: the studio did not write): squares of positions overflow float64 in the viewer's maths beyond it.
 #: Wider than :data:`MAX_MAGNITUDE`, because it bounds only what the recording computes.
 MAX_RECORDED_COORDINATE_M = 1e12
+#: Largest coordinate [m] an optimizer's answer may have (inputs are held to :data:`MAX_MAGNITUDE`;
+#: an answer 1000 times farther is a diverged optimizer, e.g. an external command printing 1e300).
+MAX_SOLUTION_M = 1e12
+#: Relative rise of chi2 over a solve tolerated as rounding (this fraction of the start, plus as much).
+CHI2_RISE_TOLERANCE = 1e-9

@@ -40,8 +40,11 @@ from studio.runtime.interrupts import interrupts_deferred
 
 __all__ = [
     "staged_outputs",
+    "check_outputs",
+    "output_workspace",
     "write_replacing",
     "check_not_overlapping",
+    "check_workspace",
     "verify_rrd",
     "os_error_message",
     "start_writeback",
@@ -276,24 +279,35 @@ def _target_lock(parent: Path, name: str) -> Iterator[None]:
             os.close(fd)
 
 
-def _mark(folder: Path) -> None:
+_OUTPUT = "output"  # the marker of a folder written in one go (``--force`` may replace it)
+_WORKSPACE = "workspace:"  # the marker of a folder a resumable command fills run after run
+
+
+def _mark(folder: Path, value: str = _OUTPUT) -> None:
     """Mark ``folder`` as written by studio: an extended attribute (invisible, so the dataset layout
     stays kollagen's), or a ``.studio-output`` file where the file system has no user attributes."""
     try:
-        os.setxattr(folder, MARKER_XATTR, b"output")
+        os.setxattr(folder, MARKER_XATTR, value.encode())
     except (OSError, AttributeError):
-        (folder / MARKER_NAME).write_text(
-            "written by cslam-studio; `--force` may replace this folder\n", encoding="utf-8"
-        )
+        note = "`--force` may replace this folder" if value == _OUTPUT else "a studio command keeps its runs here"
+        (folder / MARKER_NAME).write_text(f"written by cslam-studio; {note}\n{value}\n", encoding="utf-8")
+
+
+def _marker(folder: Path) -> str | None:
+    """The folder's marker value (``output``, ``workspace:bench``...), or None where it has none."""
+    try:
+        return os.getxattr(folder, MARKER_XATTR).decode("utf-8", "replace")
+    except (OSError, AttributeError):
+        pass
+    try:
+        lines = (folder / MARKER_NAME).read_text(encoding="utf-8", errors="replace").splitlines()
+    except OSError:
+        return None
+    return lines[1].strip() if len(lines) > 1 and lines[1].strip() else _OUTPUT
 
 
 def _is_marked(folder: Path) -> bool:
-    try:
-        if os.getxattr(folder, MARKER_XATTR) == b"output":
-            return True
-    except (OSError, AttributeError):
-        pass
-    return (folder / MARKER_NAME).is_file()
+    return _marker(folder) == _OUTPUT
 
 
 def _check_replaceable(dst: Path, staged: Path | None) -> None:
@@ -315,6 +329,98 @@ def _check_replaceable(dst: Path, staged: Path | None) -> None:
         raise OutputError(f"{dst} is a file, the output is a folder; remove it yourself")
 
 
+def _check_names(parent: Path, names: list[str]) -> None:
+    if not names:
+        raise OutputError(f"{parent}: no output named")
+    for name in names:
+        if Path(name).name != name or name in ("", ".", ".."):
+            shown = parent / name if name not in ("", ".") else parent
+            raise OutputError(f"{shown}: not a plain file or folder name to write (name the output itself)")
+        if name.endswith(".rrd") is False and name.lower().endswith(".rrd"):
+            raise OutputError(f"{parent / name}: a recording must end in .rrd (lower case)")
+
+
+def check_outputs(parent: PathLike, names: list[str], *, force: bool = False, inputs: Iterable[PathLike] = ()) -> None:
+    """Every check :func:`staged_outputs` makes before writing, without writing anything: a command
+    calls it for all its outputs before any work, so that a refusal never comes after minutes of it
+    (``staged_outputs`` repeats the checks under its lock at the end).
+
+    Refuses a name that is not a plain name, an output that overlaps one of ``inputs`` (resolved,
+    symlinks too) or the current folder's parent chain, a ``parent`` that is a file, an existing
+    output without ``force``, and with ``force`` an existing output studio did not write.
+    """
+    parent = Path(parent)
+    _check_names(parent, names)
+    check_not_overlapping([parent / n for n in names], inputs)
+    if parent.exists() and not parent.is_dir():
+        raise OutputError(f"{parent} exists and is not a folder")
+    existing = [parent / n for n in names if (parent / n).exists() or (parent / n).is_symlink()]
+    if existing and not force:
+        raise OutputError(f"{existing[0]} already exists (use --force to overwrite)")
+    for dst in existing:
+        _check_replaceable(dst, None)
+
+
+@contextlib.contextmanager
+def output_workspace(folder: PathLike, *, kind: str, inputs: Iterable[PathLike] = ()) -> Iterator[Path]:
+    """The folder of a resumable command (``bench``, ``sweep``), which fills it run after run: a new
+    or empty folder is made and marked as ``kind``'s; an existing folder is taken only when a run of
+    the same ``kind`` made it (a folder holding the user's own files, or another command's output,
+    is refused: there is no ``--force`` for it). The folder must not overlap ``inputs`` nor be the
+    current folder or one of its parents. One run at a time (a lock beside it); an ``OSError``
+    inside becomes one :class:`OutputError` naming the path and the cause.
+
+    Inside, every file is written with :func:`write_replacing` or :func:`staged_outputs`.
+    """
+    folder = Path(folder)
+    if folder.name in ("", ".", ".."):
+        folder = _resolve(folder)
+    check_workspace(folder, kind=kind, inputs=inputs)
+    parent = folder.parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise OutputError(os_error_message(err, parent)) from None
+    with _target_lock(parent, folder.name):
+        check_workspace(folder, kind=kind, inputs=inputs)
+        try:
+            if not folder.exists():
+                folder.mkdir()
+            if _marker(folder) != _WORKSPACE + kind:
+                _mark(folder, _WORKSPACE + kind)
+            yield folder
+        except OSError as err:
+            raise OutputError(os_error_message(err, folder)) from None
+
+
+def check_workspace(folder: PathLike, *, kind: str, inputs: Iterable[PathLike] = ()) -> None:
+    """The checks of :func:`output_workspace`, without making anything (see there)."""
+    folder = Path(folder)
+    if folder.name in ("", ".", ".."):
+        folder = _resolve(folder)
+    check_not_overlapping([folder], inputs)
+    if folder.is_symlink():
+        raise OutputError(f"{folder} is a symbolic link; name the {kind} folder itself")
+    if not folder.exists():
+        return
+    if not folder.is_dir():
+        raise OutputError(f"{folder} exists and is not a folder")
+    mark = _marker(folder)
+    if mark == _WORKSPACE + kind:
+        return
+    try:
+        empty = not any(folder.iterdir())
+    except OSError as err:
+        raise OutputError(os_error_message(err, folder)) from None
+    if mark is None and empty:
+        return
+    what = "another studio command's output" if mark is not None else f"a folder an earlier {kind} did not make"
+    raise OutputError(
+        f"{folder} is {what}; studio {kind} writes only into a new or empty folder or one of its own runs, "
+        "choose another output"
+    )
+
+
 @contextlib.contextmanager
 def staged_outputs(
     parent: PathLike, names: list[str], *, force: bool = False, inputs: Iterable[PathLike] = ()
@@ -329,14 +435,7 @@ def staged_outputs(
     :class:`OutputError` naming the target path.
     """
     parent = Path(parent)
-    for name in names:
-        if Path(name).name != name or name in ("", ".", ".."):
-            raise OutputError(f"{name!r} is not a plain file or folder name")
-        if name.endswith(".rrd") is False and name.lower().endswith(".rrd"):
-            raise OutputError(f"{parent / name}: a recording must end in .rrd (lower case)")
-    check_not_overlapping([parent / n for n in names], inputs)
-    if parent.exists() and not parent.is_dir():
-        raise OutputError(f"{parent} exists and is not a folder")
+    check_outputs(parent, names, force=force, inputs=inputs)
     try:
         parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:
@@ -372,8 +471,10 @@ def staged_outputs(
                         _check_replaceable(parent / name, staging / name)
                 _replace_all(staging, parent, made_names)
                 finished = True
-            except OSError as err:
-                msg = os_error_message(err)
+            except (OSError, OutputError) as err:
+                # one line naming the real target, never the staging folder (a full disk, a recording
+                # Rerun could not finish)
+                msg = os_error_message(err) if isinstance(err, OSError) else str(err)
                 raise OutputError(
                     msg.replace(str(staging) + os.sep, str(parent) + os.sep).replace(str(staging), str(parent))
                 ) from None
@@ -410,6 +511,8 @@ def write_replacing(path: PathLike, write: Callable[[Path], object]) -> Path:
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
         write(tmp)
+        if path.suffix == ".rrd":
+            verify_rrd(tmp)  # a recording Rerun could not finish (a full disk) is never put in place
         if tmp.exists():
             fd = os.open(tmp, os.O_RDONLY)
             try:

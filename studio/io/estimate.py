@@ -29,6 +29,7 @@ from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.io.g2o import G2oDocument, read_g2o
 from studio.io.multig2o import agent_folders
+from studio.io.names import safe_file_name
 from studio.io.singleg2o import agent_offsets
 from studio.io.tum import read_tum
 
@@ -124,7 +125,10 @@ def _tum_files(folder: Path, graph: PoseGraph) -> dict[str, Path]:
     files = [p for p in folder.iterdir() if p.is_file() and p.suffix == ".tum" and not p.name.endswith("_GT.tum")]
     found = {}
     for agent in graph.agents:
-        mine = sorted(p for p in files if p.name == f"{agent.name}.tum" or p.name.startswith(f"{agent.name}_"))
+        # the agent's own file (as ``studio solve`` writes it: its name made safe) wins; else one
+        # ``<agent>_*.tum``, as a converter's inputs are often named
+        exact = [p for p in files if p.name in (f"{agent.name}.tum", f"{safe_file_name(agent.name)}.tum")]
+        mine = exact or sorted(p for p in files if p.name.startswith(f"{agent.name}_"))
         if not mine:
             raise EvaluationError(f"{folder}: no {agent.name}.tum or {agent.name}_*.tum for agent {agent.name}")
         if len(mine) > 1:

@@ -8,6 +8,7 @@ it (:func:`read_outlier_kinds` reads them back).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -16,7 +17,10 @@ import numpy as np
 from studio.core.errors import FormatError
 from studio.core.types import PathLike
 
-__all__ = ["write_outliers_txt", "read_outlier_kinds"]
+__all__ = ["write_outliers_txt", "read_outliers_txt", "read_outlier_kinds"]
+
+#: A field: an optional minus sign and 1 to 18 digits (every such number fits int64).
+_INTEGER = re.compile(r"-?[0-9]{1,18}")
 
 _HEAD = (
     "# Loop closures that are outliers: they point at a wrong vertex (ground truth for robust\n"
@@ -37,23 +41,44 @@ def write_outliers_txt(path: PathLike, rows: np.ndarray, kinds: Sequence[str]) -
     Path(path).write_text("".join(text), encoding="utf-8")
 
 
-def read_outlier_kinds(path: PathLike) -> tuple[np.ndarray, list[str]]:
-    """(k, 4) rows (0-based agents) and the kind of each (``""`` before any ``# kind:`` line)."""
-    path = Path(path)
+def read_outliers_txt(path: PathLike, agent_sizes: Sequence[int] | None = None) -> tuple[np.ndarray, list[str]]:
+    """The one reader of ``outliers.txt``: (k, 4) int64 rows ``agent_from vertex_from agent_to
+    vertex_to`` with 0-based agents, and each row's kind (``""`` before any ``# kind:`` line).
+
+    The file is held to the text inputs' limits (size from the file, UTF-8, checked before
+    parsing: :data:`studio.io.g2o.MAX_TEXT_BYTES`); every field is a decimal integer of at most 18
+    digits; with ``agent_sizes`` (poses per agent) every agent must be in ``1..len(agent_sizes)`` and
+    every vertex one of its agent's. Errors name ``file:line``.
+    """
+    from studio.io.g2o import _open_text
+
+    text, name = _open_text(path)
     rows, kinds, kind = [], [], ""
-    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
-        text = line.strip()
-        if text.startswith("# kind:"):
-            kind = text[len("# kind:") :].strip()
+    for n, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if stripped.startswith("# kind:"):
+            kind = stripped[len("# kind:") :].strip()
             continue
-        if not text or text.startswith("#"):
+        body = stripped.split("#", 1)[0].strip()
+        if not body:
             continue
-        try:
-            a, b, c, d = (int(x) for x in text.split())
-        except ValueError:
+        parts = body.split()
+        if len(parts) != 4 or not all(_INTEGER.fullmatch(x) for x in parts):
             raise FormatError(
-                f"{path}:{n}: expected four integers `agent_from vertex_from agent_to vertex_to`"
-            ) from None
-        rows.append((a - 1, b, c - 1, d))
+                f"{name}:{n}: expected four integers `agent_from vertex_from agent_to vertex_to`, got {body[:60]!r}"
+            )
+        a, v, b, w = (int(x) for x in parts)
+        if agent_sizes is not None:
+            for agent, vertex in ((a, v), (b, w)):
+                if not 1 <= agent <= len(agent_sizes):
+                    raise FormatError(f"{name}:{n}: agent {agent} is not in 1..{len(agent_sizes)}")
+                if not 0 <= vertex < agent_sizes[agent - 1]:
+                    raise FormatError(f"{name}:{n}: agent {agent} has no vertex {vertex}")
+        rows.append((a - 1, v, b - 1, w))
         kinds.append(kind)
     return np.array(rows, dtype=np.int64).reshape(-1, 4), kinds
+
+
+def read_outlier_kinds(path: PathLike) -> tuple[np.ndarray, list[str]]:
+    """(k, 4) rows (0-based agents) and the kind of each (``""`` before any ``# kind:`` line)."""
+    return read_outliers_txt(path)

@@ -4,6 +4,7 @@ plain mapping with one-line errors naming the file (and line, where the parser g
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -20,6 +21,20 @@ __all__ = ["read_spec_file", "check_spec_keys"]
 
 #: Larger spec files are refused before reading (a spec is a few kB).
 MAX_SPEC_BYTES = 4 * 1024 * 1024
+#: Deepest nesting of arrays and tables a spec may have (a spec needs 3 or 4; the parsers recurse).
+MAX_SPEC_DEPTH = 64
+_STRINGS = re.compile(r'"(?:[^"\\\n]|\\.)*"|\'[^\'\n]*\'')
+
+
+def _nesting_depth(text: str) -> int:
+    """The deepest nesting of ``[ {`` outside quoted strings (counted on the bytes, no recursion)."""
+    import numpy as np
+
+    data = np.frombuffer(_STRINGS.sub('""', text).encode("utf-8"), dtype=np.uint8)
+    steps = np.zeros(len(data), dtype=np.int64)
+    steps[(data == ord("[")) | (data == ord("{"))] = 1
+    steps[(data == ord("]")) | (data == ord("}"))] = -1
+    return int(np.cumsum(steps).max(initial=0))
 
 
 def read_spec_file(path: PathLike, *, what: str = "spec") -> Any:
@@ -30,7 +45,12 @@ def read_spec_file(path: PathLike, *, what: str = "spec") -> Any:
         if path.stat().st_size > MAX_SPEC_BYTES:
             raise ConfigError(f"{path}: larger than {MAX_SPEC_BYTES >> 20} MiB; not a {what}")
         text = path.read_bytes().decode("utf-8")
+        depth = _nesting_depth(text)
+        if depth > MAX_SPEC_DEPTH:
+            raise ConfigError(f"{path}: nested {depth} deep, over the limit of {MAX_SPEC_DEPTH}; not a {what}")
         return json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
+    except RecursionError:
+        raise ConfigError(f"{path}: nested too deeply; not a {what}") from None
     except UnicodeDecodeError as err:
         raise ConfigError(f"{path}: not UTF-8 text (byte {err.start})") from None
     except json.JSONDecodeError as err:

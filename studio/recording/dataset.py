@@ -636,29 +636,11 @@ def _sibling_config(dataset: Path) -> str | None:
 
 
 def read_outliers(path: PathLike, graph: PoseGraph) -> np.ndarray:
-    """``outliers.txt`` as ``studio convert`` writes it: ``agent_from vertex_from agent_to vertex_to``
-    per line, agents 1-based, ``#`` comments. Returns (k, 4) int64 rows with 0-based agents."""
-    path = Path(path)
-    rows = []
-    with open(path, encoding="utf-8") as f:
-        for n, line in enumerate(f, start=1):
-            text = line.split("#", 1)[0].strip()
-            if not text:
-                continue
-            parts = text.split()
-            try:
-                a, v, b, w = (int(x) for x in parts)
-            except ValueError:
-                raise FormatError(
-                    f"{path}:{n}: expected four integers `agent_from vertex_from agent_to vertex_to`, got {text[:60]!r}"
-                ) from None
-            for agent, vertex in ((a, v), (b, w)):
-                if not 1 <= agent <= len(graph.agents):
-                    raise FormatError(f"{path}:{n}: agent {agent} is not in 1..{len(graph.agents)}")
-                if not 0 <= vertex < graph.agents[agent - 1].num_poses:
-                    raise FormatError(f"{path}:{n}: agent {agent} has no vertex {vertex}")
-            rows.append((a - 1, v, b - 1, w))
-    return np.array(rows, dtype=np.int64).reshape(-1, 4)
+    """``outliers.txt`` (:func:`studio.io.outliers_txt.read_outliers_txt`, checked against the graph's
+    agents and vertices). Returns (k, 4) int64 rows with 0-based agents."""
+    from studio.io.outliers_txt import read_outliers_txt
+
+    return read_outliers_txt(path, [a.num_poses for a in graph.agents])[0]
 
 
 def check_extent(graph: PoseGraph, dataset: Path) -> None:

@@ -120,8 +120,10 @@ def fingerprint_rrd(path: PathLike) -> dict[str, str]:
 
 def write_fingerprint(fp: dict[str, str], path: PathLike) -> None:
     """One line per key: ``<sha256>  <key>``, sorted, so a diff names what changed."""
+    from studio.io.atomic import write_replacing
+
     text = "".join(f"{v}  {k}\n" for k, v in sorted(fp.items()))
-    Path(path).write_text(text, encoding="utf-8")
+    write_replacing(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
 def read_fingerprint(path: PathLike) -> dict[str, str]:

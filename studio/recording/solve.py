@@ -9,14 +9,17 @@ is logged (``log_time`` is off), so the same run gives the same fingerprint.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import os
 import uuid
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from studio.core.errors import OutputError
 from studio.core.geometry import is_planar_se3, planar_poses_to_se3
 from studio.core.model import PoseGraph, PoseKind
 from studio.core.types import PathLike
@@ -163,28 +166,124 @@ def write_solve_recording(
     *,
     name: str,
     force: bool = False,
+    inputs: Sequence[PathLike] = (),
 ) -> Path:
-    """Write the run to a new ``.rrd`` (staged, renamed into place)."""
-    import rerun as rr
-
+    """Write the run to a new ``.rrd`` (staged, renamed into place; refused when it overlaps one of
+    ``inputs``, the dataset and the solve's other outputs)."""
     from studio.io.atomic import staged_outputs
     from studio.recording.dataset import recording_id_for
 
     path = Path(path)
     rid = recording_id_for(graph) if graph is not None else solve_recording_id(offsets, kind, iterates, chi2_history)
     names = [a.name for a in graph.agents] if graph is not None else ["graph"]
-    with staged_outputs(path.parent, [path.name], force=force) as staging:
+
+    def write(target: Path) -> None:
+        import rerun as rr
+
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)
         rec.set_log_time_enabled(False)  # no wall clock in the data: the same run, the same content
-        try:
-            shown = planar_poses_to_se3(iterates[-1][1]) if iterates and kind is PoseKind.SE2 else None
-            if iterates and shown is None:
-                shown = iterates[-1][1]
-            planar = kind is PoseKind.SE2 or (shown is not None and is_planar_se3(shown))
-            xyz = None if shown is None else shown[:, 0:3]
-            rec.save(staging / path.name, default_blueprint=solve_blueprint(names, xyz, planar))
-            rec.send_recording_name(name)
-            log_solve(rec, graph, offsets, kind, iterates, chi2_history)
-        finally:
-            rec.disconnect()
+        shown = planar_poses_to_se3(iterates[-1][1]) if iterates and kind is PoseKind.SE2 else None
+        if iterates and shown is None:
+            shown = iterates[-1][1]
+        planar = kind is PoseKind.SE2 or (shown is not None and is_planar_se3(shown))
+        xyz = None if shown is None else shown[:, 0:3]
+        rec.save(target, default_blueprint=solve_blueprint(names, xyz, planar))
+        rec.send_recording_name(name)
+        log_solve(rec, graph, offsets, kind, iterates, chi2_history)
+        # a sink that cannot flush (a full disk) makes disconnect() wait forever: leave it undone
+        # (the writing process then ends by os._exit) and let the exception report the failure
+        rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+        rec.disconnect()
+
+    with staged_outputs(path.parent, [path.name], force=force, inputs=inputs) as staging:
+        write_bounded(write, staging / path.name, shown=path)
     return path
+
+
+#: Seconds Rerun's writer may take to flush a recording before the write is given up: on a full
+#: disk its file sink can stop without ending the stream, and ``disconnect`` then waits forever.
+FLUSH_TIMEOUT_S = 3.0
+#: Seconds a recording's writing process may take at most, flush included.
+WRITE_TIMEOUT_S = 600.0
+#: Seconds the recording's file may stay the same size while its writer runs before the writer is
+#: given up as stuck (Rerun's batcher writes every few milliseconds while logging).
+STALL_TIMEOUT_S = 5.0
+
+
+def write_bounded(write: Callable[[Path], None], target: Path, *, shown: Path) -> None:
+    """Run ``write(target)`` (which writes a recording with Rerun) so that it cannot hang nor print:
+    in a forked process whose stdout and stderr go nowhere (Rerun's own ANSI log lines of a failed
+    write), that leaves by ``os._exit`` (a stuck sink's exit handlers never run) and is killed after
+    :data:`WRITE_TIMEOUT_S`. A failure is one :class:`OutputError` naming ``shown``.
+
+    Where Rerun is already loaded in this process (its threads would not exist in a fork) the write
+    runs here, its flush still bounded by :data:`FLUSH_TIMEOUT_S`.
+    """
+    import signal
+    import sys
+    import time
+
+    if "rerun_bindings" in sys.modules or not hasattr(os, "fork"):
+        try:
+            write(target)
+        except RuntimeError as err:
+            raise OutputError(f"{shown}: Rerun could not write the recording ({_first_line(err)})") from None
+        return
+    pid = os.fork()
+    if pid == 0:  # the writer
+        code = 1
+        try:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and kills us
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, 1)
+            os.dup2(null, 2)
+            write(target)
+            code = 0
+        except BaseException:  # noqa: BLE001 - any failure is the exit code; the parent reports it
+            code = 3
+        finally:
+            os._exit(code)
+    status = None
+    stalled = False
+    try:
+        deadline = time.monotonic() + WRITE_TIMEOUT_S
+        size, changed = -1, time.monotonic()
+        while status is None and time.monotonic() < deadline:
+            done, st = os.waitpid(pid, os.WNOHANG)
+            status = st if done else None
+            if status is None:
+                time.sleep(0.01)
+                try:
+                    now_size = target.stat().st_size
+                except OSError:
+                    now_size = -1
+                if now_size != size:
+                    size, changed = now_size, time.monotonic()
+                elif time.monotonic() - changed > STALL_TIMEOUT_S:
+                    stalled = True  # the file stopped growing: Rerun's sink is stuck (a full disk)
+                    break
+    finally:
+        if status is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+    if stalled:
+        raise OutputError(
+            f"{shown}: Rerun could not write the recording (stuck for {STALL_TIMEOUT_S:g} s){_disk_full(target)}"
+        )
+    if status is None:
+        raise OutputError(f"{shown}: the recording was not written within {WRITE_TIMEOUT_S:g} s")
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise OutputError(f"{shown}: Rerun could not write the recording{_disk_full(target)}")
+
+
+def _first_line(err: BaseException) -> str:
+    return next((ln.strip() for ln in str(err).splitlines() if ln.strip()), type(err).__name__)[:160]
+
+
+def _disk_full(target: Path) -> str:
+    try:
+        st = os.statvfs(target.parent)
+    except OSError:
+        return ""
+    return " (No space left on device)" if st.f_bavail * st.f_frsize < (1 << 20) else ""

@@ -6,7 +6,6 @@ parameters' values)."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Any
 
@@ -36,14 +35,15 @@ def log_sweep(rec: Any, table: Any) -> None:
 def write_sweep_recording(path: PathLike, name: str, table: Any) -> Path:
     import rerun as rr
 
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    rec = rr.RecordingStream(APPLICATION_ID, recording_id=f"sweep-{name}", send_properties=False)
-    try:
-        rec.save(tmp)
-        rec.send_recording_name(f"sweep {name}")
-        log_sweep(rec, table)
-    finally:
-        rec.disconnect()
-    os.replace(tmp, path)
-    return path
+    from studio.io.atomic import write_replacing
+
+    def write(tmp: Path) -> None:
+        rec = rr.RecordingStream(APPLICATION_ID, recording_id=f"sweep-{name}", send_properties=False)
+        try:
+            rec.save(tmp)
+            rec.send_recording_name(f"sweep {name}")
+            log_sweep(rec, table)
+        finally:
+            rec.disconnect()
+
+    return write_replacing(path, write)

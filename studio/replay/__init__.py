@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -472,14 +473,11 @@ def replay(
         raise FormatError(f"{dataset}: {err}") from None
     settings = IsamSettings(float(relinearize_threshold), relinearize_skip, 0, final_updates, bool(polish))
     # refuse a bad output before any work
-    from studio.io.atomic import check_not_overlapping
+    from studio.io.atomic import check_outputs
 
-    check_not_overlapping([out] + ([rrd_path] if rrd_path else []), inputs)
     for target in [out] + ([rrd_path] if rrd_path is not None else []):
-        if target.exists() and not force:
-            from studio.core.errors import OutputError
-
-            raise OutputError(f"{target} already exists (use --force to overwrite)")
+        absolute = Path(os.path.abspath(target))  # "-o ." is the current folder, named as such
+        check_outputs(absolute.parent, [absolute.name], force=force, inputs=inputs)
     schedule = build_schedule(graph, times, model, step_ns=step_ns, seed=seed, bandwidth=band)
     report = comms_report(schedule)
     world = _world(loaded, graph, times, schedule, settings)
