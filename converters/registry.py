@@ -13,12 +13,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 from studio.converters.airmuseum import read_airmuseum
 from studio.converters.euroc import euroc_ground_truth, read_euroc
 from studio.converters.kimera_multi import kimera_files, read_kimera_multi
 from studio.converters.kitti import read_kitti
+from studio.converters.mrclam import read_mrclam, read_mrclam_odometry, read_mrclam_sightings
 from studio.converters.s3e import read_s3e
 from studio.converters.tum import read_tum_sources
 from studio.core.errors import ConfigError
@@ -63,6 +64,11 @@ class Source:
     """Exactly one input (a sequence folder), else one or more."""
     takes_agents: bool = False
     """Takes ``--agent NAME=SPEC`` (bags)."""
+    odometry: Any = None
+    """The source's own odometry (``--odometry real``): ``(inputs, ground_truth, *, warn) ->
+    {agent: dead-reckoned Trajectory}`` (:func:`studio.converters.mrclam.read_mrclam_odometry`)."""
+    sightings: Any = None
+    """The source's agent-to-agent range-bearing sightings: ``(inputs, *, warn) -> Sightings``."""
 
 
 def _read_bag(
@@ -85,6 +91,14 @@ SOURCES: dict[str, Source] = {
     "euroc": Source(read_euroc, "sequence folders (e.g. MH_01_easy)", "their sequences"),
     "kitti": Source(read_kitti, "poses files (e.g. poses/00.txt)", "their files"),
     "kimera-multi": Source(read_kimera_multi, "a ground-truth folder", "the robots' files"),
+    "mrclam": Source(
+        read_mrclam,
+        "one dataset folder (e.g. MRCLAM_Dataset1)",
+        "Robot1..Robot5",
+        one_input=True,
+        odometry=read_mrclam_odometry,
+        sightings=read_mrclam_sightings,
+    ),
 }
 #: Each source's reader.
 READERS: dict[str, SourceReader] = {name: src.read for name, src in SOURCES.items()}
@@ -128,6 +142,8 @@ def _kind_of(path: Path) -> str | None:
             return "euroc"
         if kimera_files(path):
             return "kimera-multi"
+        if (path / "Robot1_Groundtruth.dat").is_file():
+            return "mrclam"
         entries = [*path.iterdir(), *(q for d in path.iterdir() if d.is_dir() for q in d.iterdir())]
         if any(S3E_GT.match(q.name) for q in entries):
             return "s3e"

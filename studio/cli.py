@@ -302,7 +302,7 @@ def convert(
         None,
         metavar="[FORMAT]",
         show_default=False,
-        help="Source format: tum, s3e, airmuseum, bag, euroc, kitti, kimera-multi; "
+        help="Source format: tum, s3e, airmuseum, bag, euroc, kitti, kimera-multi, mrclam; "
         "guessed from the inputs when left out and unambiguous.",
     ),
     inputs: list[Path] = typer.Argument(
@@ -353,6 +353,18 @@ def convert(
         help="agents: folders agent1..agentN with agents.json (kollagen's reader); "
         "robots: folders named after the robots.",
     ),
+    odometry: str = typer.Option(
+        "synthetic",
+        "--odometry",
+        help="synthetic: drawn from the ground truth; real: the source's own odometry (mrclam), "
+        "information fitted to its errors against the ground truth.",
+    ),
+    odometry_from: list[str] = typer.Option(
+        [],
+        "--odometry-from",
+        metavar="NAME=FILE",
+        help="Real odometry of agent NAME from a second source: NAME=FILE.tum or NAME=BAG:/topic.",
+    ),
     **graph_options: Any,
 ) -> None:
     """Turn real trajectories into a multi-g2o dataset with synthetic odometry and loop closures.
@@ -387,6 +399,8 @@ def convert(
         "split": split,
         "overlap_s": overlap,
         "folder_names": folder_names,
+        "odometry": odometry,
+        "odometry_from": tuple(odometry_from),
     }
     flags = {
         "orientation": "orientation",
@@ -395,6 +409,8 @@ def convert(
         "split": "split",
         "overlap_s": "overlap",
         "folder_names": "folder_names",
+        "odometry": "odometry",
+        "odometry_from": "odometry_from",
     }
     if source is not None and source not in source_names():
         inputs = [Path(source), *(inputs or [])]  # no FORMAT given: the first input
@@ -440,6 +456,18 @@ def convert(
             )
         for gap in res.build.gaps:
             typer.echo(f"  gap: {gap.agent} vertex {gap.vertex}: {gap.seconds:.3f} s, {gap.metres:.2f} m bridged")
+        for fit in res.odometry_fits:
+            typer.echo(
+                f"  real odometry {fit.agent}: drift {fit.drift_m_per_m:.3g} m/m; sigma {fit.sigma_min_m:.3g} m "
+                f"+ {fit.sigma_m_per_m:.3g} m/m, {fit.sigma_min_rad:.3g} rad + {fit.sigma_rad_per_m:.3g} rad/m "
+                f"+ {fit.sigma_rad_per_rad:.3g} rad/rad (fitted on {fit.edges} edges)"
+            )
+        if res.sightings_fit is not None:
+            sf = res.sightings_fit
+            typer.echo(
+                f"  range-bearing sightings: {sf.sightings} (sigma {sf.sigma_range_m:.3g} m, "
+                f"{sf.sigma_bearing_rad:.3g} rad; {sf.dropped_outside_time_span} outside the ground truth dropped)"
+            )
 
 
 def _with_graph_options(command: Any) -> Any:
