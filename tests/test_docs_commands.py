@@ -151,6 +151,23 @@ def _kimera(work: Path) -> None:
         (folder / f"{robot}_gt_odom.csv").write_text("\n".join(lines) + "\n")
 
 
+def _mrclam(work: Path) -> None:
+    from tests.converters.mrclam_files import write_mrclam_dataset
+
+    write_mrclam_dataset(work / "MRCLAM_Dataset1")
+
+
+def _vio(work: Path) -> None:
+    """``bob_vio.txt``: a drifting estimate of bob's trajectory (5 % scale, 0.002 rad/s of yaw)."""
+    from studio.core.trajectory import Trajectory
+    from studio.io.tum import read_tum, write_tum
+    from tests.converters.synthetic import drifting_estimate
+
+    bob = read_tum(DATA / "trajectories" / "bob.tum")
+    p, q = drifting_estimate(bob.stamps_ns, bob.positions_xyz, bob.quat_xyzw, scale=1.05, yaw_rate=0.002, seed=1)
+    write_tum(work / "bob_vio.txt", Trajectory("bob", bob.stamps_ns, p, q))
+
+
 #: What a command may name as an input, and how the stand-in is made in the work folder.
 INPUTS: dict[str, Callable[[Path], None]] = {
     "multi3500x8": lambda w: _preset_standin(w, "multi3500x8"),
@@ -163,6 +180,8 @@ INPUTS: dict[str, Callable[[Path], None]] = {
     "MH_01_easy": _euroc,
     "poses/00.txt": _kitti,
     "ground_truth/1014": _kimera,
+    "MRCLAM_Dataset1": _mrclam,
+    "bob_vio.txt": _vio,
     # docs/sweep.md's spec, smaller: 2 cells of the multi3500x8 stand-in
     "radius.toml": lambda w: (w / "radius.toml").write_text(
         'name = "radius"\nbase = "multi3500x8"\nsteps = ["evaluate"]\n[grid]\n'

@@ -29,7 +29,7 @@ from tests.converters.mrclam_files import (
     ROBOT_BARCODES,
     write_mrclam_dataset,
 )
-from tests.converters.synthetic import loop_trajectory, write_tum_file
+from tests.converters.synthetic import drifting_estimate, loop_trajectory, write_tum_file
 
 runner = CliRunner()
 
@@ -231,26 +231,12 @@ def test_odometry_real_needs_a_source_with_odometry(tmp_path):
 # ------------------------------------------------------------------------------ --odometry-from
 
 
-def _drifting(stamps, pos, quat, *, scale: float, yaw_rate: float, seed: int):
-    """A VIO-like estimate: the true motion scaled by ``scale``, its heading drifting by ``yaw_rate``
-    rad/s, plus a little noise, in its own frame (starting at the origin)."""
-    rng = np.random.default_rng(seed)
-    t = (stamps - stamps[0]) / 1e9
-    drift = quat_from_rotvec(np.column_stack([np.zeros((len(t), 2)), yaw_rate * t]))
-    from studio.core.geometry import quat_mul, quat_rotate
-
-    steps = np.diff(pos, axis=0) * scale + rng.normal(0, 0.002, (len(pos) - 1, 3))
-    steps[:, 2] = 0.0
-    p = np.vstack([np.zeros(3), np.cumsum(quat_rotate(drift[1:], steps), axis=0)])
-    return p, quat_mul(drift, quat)
-
-
 def test_odometry_from_a_tum_pair_gives_the_sources_relative_motions(tmp_path):
     gt, vio = {}, {}
     for k, name in enumerate(("alpha", "bob")):
         s, p, q = loop_trajectory(600, rate_hz=20.0, radius=8.0, phase=k)
         gt[name] = write_tum_file(tmp_path / f"{name}.tum", s, p, q)
-        vp, vq = _drifting(s, p, q, scale=1.05, yaw_rate=0.002, seed=k)
+        vp, vq = drifting_estimate(s, p, q, scale=1.05, yaw_rate=0.002, seed=k)
         vio[name] = (s, vp, vq)
         write_tum_file(tmp_path / f"{name}_vio.txt", s, vp, vq)
     out = tmp_path / "ds"
@@ -300,7 +286,7 @@ def test_odometry_from_a_bag_topic(tmp_path):
 
     s, p, q = loop_trajectory(400, rate_hz=20.0, radius=6.0)
     gt = write_tum_file(tmp_path / "alpha.tum", s, p, q)
-    vp, vq = _drifting(s, p, q, scale=0.98, yaw_rate=-0.003, seed=5)
+    vp, vq = drifting_estimate(s, p, q, scale=0.98, yaw_rate=-0.003, seed=5)
     m = Msgs(typestore("ros1"))
     write_bag(
         tmp_path / "run",
