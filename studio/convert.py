@@ -308,6 +308,10 @@ def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tup
         from studio.converters.airmuseum import BODY_FRAMES
 
         frames = {t.name: BODY_FRAMES[t.name.lower()] for t in trajs if t.name.lower() in BODY_FRAMES}
+    if cfg.options.planar:  # body frames the datasets state (EuRoC's IMU), for the yaw of the heading
+        from studio.converters.planar_checks import default_planar_body_frame
+
+        frames.update({t.name: code for t in trajs if (code := default_planar_body_frame(cfg.source, t))})
     names = {t.name for t in trajs}
     for spec in cfg.body_frames:
         name, _, code = spec.partition("=")
@@ -378,6 +382,12 @@ def convert(
         with np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
             read = reader(cfg.inputs, agents=cfg.agents, warn=_warn, progress=progress)
             trajs, orientation = prepare_trajectories(cfg, read)
+            if cfg.options.planar:
+                from studio.converters.planar_checks import planar_warnings
+
+                for t in trajs:
+                    for line in planar_warnings(t):
+                        _warn(line)
             build = build_graph(trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb)
             build, fits, rb, sight_fit = _real_measurements(cfg, build, read, trajs, _warn)
     except FloatingPointError as err:
