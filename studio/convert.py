@@ -169,6 +169,8 @@ _PIPELINE_FIELDS = (
     "odometry_from",
 )
 _TUPLE_FIELDS = ("body_frames", "odometry_from")
+#: Pipeline keys written to convert.json only when they differ from their default.
+_OMITTED_AT_DEFAULT: dict[str, Any] = {"odometry": "synthetic", "odometry_from": ()}
 
 
 def convert_config_to_json(cfg: ConvertConfig) -> dict[str, Any]:
@@ -181,6 +183,8 @@ def convert_config_to_json(cfg: ConvertConfig) -> dict[str, Any]:
     out.update(dataclasses.asdict(cfg.options))
     for key in _PIPELINE_FIELDS:
         value = getattr(cfg, key)
+        if key in _OMITTED_AT_DEFAULT and value == _OMITTED_AT_DEFAULT[key]:
+            continue  # keys added later: files of conversions that do not use them stay as they were
         out[key] = list(value) if isinstance(value, tuple) else value
     return out
 
