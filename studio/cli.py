@@ -337,7 +337,13 @@ def convert(
         "auto: derive where it carries no information (S3E).",
     ),
     heading_window_m: float = typer.Option(
-        2.0, "--heading-window-m", help="Path length over which a derived heading is measured, in metres."
+        2.0, "--heading-window-m", help="Path length over which a chord heading is measured, in metres."
+    ),
+    heading_method: str = typer.Option(
+        "smoothed",
+        "--heading-method",
+        help="Derived headings: smoothed (central differences of positions smoothed over about 1 s) "
+        "or chord (the chord over --heading-window-m of path).",
     ),
     body_frame: list[str] = typer.Option(
         [],
@@ -395,6 +401,7 @@ def convert(
     pipeline: dict[str, Any] = {
         "orientation": orientation,
         "heading_window_m": heading_window_m,
+        "heading_method": heading_method,
         "body_frames": tuple(body_frame),
         "split": split,
         "overlap_s": overlap,
@@ -405,6 +412,7 @@ def convert(
     flags = {
         "orientation": "orientation",
         "heading_window_m": "heading_window_m",
+        "heading_method": "heading_method",
         "body_frames": "body_frame",
         "split": "split",
         "overlap_s": "overlap",

@@ -43,6 +43,7 @@ from studio.converters.odometry_source import (
 from studio.converters.registry import check_inputs, get_reader, get_source
 from studio.converters.sightings import SightingsFit, resolve_sightings
 from studio.converters.transforms import (
+    HEADING_METHODS,
     apply_body_frame,
     body_frame_rotation,
     derive_orientation,
@@ -81,7 +82,11 @@ class ConvertConfig:
     """``keep`` the trajectories' orientation, ``derive`` headings from the motion, or ``auto``: derive
     where the orientation carries no information (all the same, e.g. identity)."""
     heading_window_m: float = 2.0
-    """Path length [m] over which a derived heading is measured."""
+    """Path length [m] over which a ``chord`` heading is measured."""
+    heading_method: str = "smoothed"
+    """How headings are derived from motion: ``smoothed`` (central differences of positions smoothed
+    over about 1 s) or ``chord`` (the chord over ``heading_window_m`` of path); see
+    :func:`studio.converters.transforms.derive_orientation`."""
     body_frames: tuple[str, ...] = ()
     """``NAME=CODE`` body frames (``robotA=ufl``), besides the source's defaults (AirMuseum's)."""
     split: int = 0
@@ -116,6 +121,8 @@ class ConvertConfig:
             parse_odometry_spec(spec)
         if self.orientation not in ("auto", "keep", "derive"):
             raise ConfigError(f"orientation: expected auto, keep or derive, got {self.orientation!r}")
+        if self.heading_method not in HEADING_METHODS:
+            raise ConfigError(f"heading_method: expected {' or '.join(HEADING_METHODS)}, got {self.heading_method!r}")
         if self.folder_names not in ("agents", "robots"):
             raise ConfigError(f"folder_names: expected agents or robots, got {self.folder_names!r}")
         if isinstance(self.split, bool) or not isinstance(self.split, int) or self.split < 0 or self.split == 1:
@@ -161,6 +168,7 @@ class ConvertResult:
 _PIPELINE_FIELDS = (
     "orientation",
     "heading_window_m",
+    "heading_method",
     "body_frames",
     "split",
     "overlap_s",
@@ -170,7 +178,7 @@ _PIPELINE_FIELDS = (
 )
 _TUPLE_FIELDS = ("body_frames", "odometry_from")
 #: Pipeline keys written to convert.json only when they differ from their default.
-_OMITTED_AT_DEFAULT: dict[str, Any] = {"odometry": "synthetic", "odometry_from": ()}
+_OMITTED_AT_DEFAULT: dict[str, Any] = {"odometry": "synthetic", "odometry_from": (), "heading_method": "smoothed"}
 
 
 def convert_config_to_json(cfg: ConvertConfig) -> dict[str, Any]:
@@ -301,6 +309,12 @@ def _outlier_lines(build: BuildResult) -> str:
 
 
 DERIVED = "derived from motion"
+#: How report.json names each way of deriving headings.
+HEADING_METHOD_TEXT = {
+    "smoothed": "smoothed: yaw of central differences of positions box-filtered twice over +-0.5 s, "
+    "held below 0.02 m/s",
+    "chord": "chord: yaw of the chord over {w:g} m of path, held while moving less than a quarter of it",
+}
 
 
 def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tuple[list[Trajectory], dict[str, str]]:
@@ -327,7 +341,7 @@ def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tup
     derived = []
     for t in out:
         if cfg.orientation == "derive" or (cfg.orientation == "auto" and orientation_is_uninformative(t)):
-            t = derive_orientation(t, cfg.heading_window_m)
+            t = derive_orientation(t, cfg.heading_window_m, cfg.heading_method)
             orientation[t.name] = DERIVED
         derived.append(t)
     if cfg.split:
@@ -416,6 +430,8 @@ def convert(
             progress("writing", 1, 2, "parts")
         _write_text(ds / CONFIG_NAME, json.dumps(convert_config_to_json(cfg), indent=2) + "\n")
         report = _report(build, trajs, warnings, orientation)
+        if orientation:
+            report["heading_method"] = HEADING_METHOD_TEXT[cfg.heading_method].format(w=cfg.heading_window_m)
         report["odometry"] = {
             "kind": "real" if fits else "synthetic",
             "source": cfg.odometry if cfg.odometry == "real" else ("odometry_from" if fits else "ground truth"),
