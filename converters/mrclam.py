@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from studio.converters.sightings import Sightings
+from studio.converters.text import MAX_TABLE_BYTES
 from studio.core.errors import FormatError
 from studio.core.geometry import yaw_to_quat_xyzw
 from studio.core.trajectory import Trajectory, Warn, clean_trajectory
@@ -59,6 +60,8 @@ def mrclam_files(root: Path, kind: str) -> list[Path]:
 def _read_dat(path: Path, columns: int, what: str) -> np.ndarray:
     """The numeric rows of an MR.CLAM ``.dat`` file (``#`` lines skipped), errors naming ``file:line``."""
     try:
+        if path.stat().st_size > MAX_TABLE_BYTES:
+            raise FormatError(f"{path}: larger than {MAX_TABLE_BYTES >> 30} GiB")
         text = path.read_bytes().decode("utf-8-sig")
     except UnicodeDecodeError as err:
         raise FormatError(f"{path}: not UTF-8 text (byte {err.start})") from None
@@ -68,8 +71,9 @@ def _read_dat(path: Path, columns: int, what: str) -> np.ndarray:
     data = [(n, line) for n, line in enumerate(lines, start=1) if line.strip() and not line.lstrip().startswith("#")]
     if not data:
         raise FormatError(f"{path}: no data rows ({what})")
-    tokens = " ".join(line for _, line in data).split()
-    if len(tokens) == columns * len(data):
+    rows = [line.split() for _, line in data]
+    if all(len(r) == columns for r in rows):
+        tokens = [t for r in rows for t in r]
         try:
             values = np.array(tokens, dtype=np.float64).reshape(len(data), columns)
         except ValueError:

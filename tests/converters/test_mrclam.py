@@ -218,6 +218,28 @@ def test_bad_mrclam_input_is_one_line_exit_2_and_nothing_written(dataset, tmp_pa
     assert len(res.output.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
 
 
+def test_rows_of_the_wrong_width_or_not_finite_name_their_line(dataset, tmp_path):
+    bad = _copy(dataset, tmp_path / "MRCLAM_Dataset4")
+    path = bad / "Robot1_Groundtruth.dat"
+    lines = path.read_text().splitlines()
+    # one row a column short and the next a column long: as many numbers as the layout expects
+    lines[5] = lines[5].rsplit("\t", 1)[0]
+    lines[6] = lines[6] + "\t0.5"
+    path.write_text("\n".join(lines) + "\n")
+    res = run("mrclam", bad, "-o", tmp_path / "o")
+    assert res.exit_code == 2
+    assert res.output.strip() == (
+        f"error: {path}:6: expected 4 columns (MR.CLAM ground truth: time [s], x [m], y [m], "
+        "orientation [rad]), found 3"
+    )
+    lines = path.read_text().splitlines()
+    lines[5], lines[6] = lines[7], lines[8].replace(lines[8].split("\t")[1], "nan", 1)
+    path.write_text("\n".join(lines) + "\n")
+    res = run("mrclam", bad, "-o", tmp_path / "o")
+    assert res.exit_code == 2 and res.output.strip() == f"error: {path}:7: value is not finite"
+    assert not (tmp_path / "o").exists()
+
+
 def test_odometry_real_needs_a_source_with_odometry(tmp_path):
     s, p, q = loop_trajectory(100)
     f = write_tum_file(tmp_path / "a.tum", s, p, q)
