@@ -67,19 +67,14 @@ def _read_dat(path: Path, columns: int, what: str) -> np.ndarray:
         raise FormatError(f"{path}: not UTF-8 text (byte {err.start})") from None
     except OSError as err:
         raise FormatError(f"{path}: cannot read ({err.strerror})") from None
+    fast = _read_fast(text, columns)
+    if fast is not None:
+        return fast
     lines = text.splitlines()
     data = [(n, line) for n, line in enumerate(lines, start=1) if line.strip() and not line.lstrip().startswith("#")]
     if not data:
         raise FormatError(f"{path}: no data rows ({what})")
-    rows = [line.split() for _, line in data]
-    if all(len(r) == columns for r in rows):
-        tokens = [t for r in rows for t in r]
-        try:
-            values = np.array(tokens, dtype=np.float64).reshape(len(data), columns)
-        except ValueError:
-            values = None
-        if values is not None and np.isfinite(values).all():
-            return values
+    out = []
     for n, line in data:  # the slow path finds the bad line
         parts = line.split()
         if len(parts) != columns:
@@ -91,7 +86,30 @@ def _read_dat(path: Path, columns: int, what: str) -> np.ndarray:
                 raise FormatError(f"{path}:{n}: {p[:40]!r} is not a number ({what})") from None
             if not np.isfinite(v):
                 raise FormatError(f"{path}:{n}: value is not finite")
-    raise FormatError(f"{path}: rows of unequal width ({what})")  # pragma: no cover - caught above
+        out.append([float(p) for p in parts])
+    return np.array(out, dtype=np.float64)
+
+
+def _read_fast(text: str, columns: int) -> np.ndarray | None:
+    """pandas' C parser on a regular file (``#`` only at line starts, every row ``columns`` finite
+    numbers); None for anything else, so that the line parser names the offending line."""
+    import io
+    import re
+
+    if re.search(r"^[ \t]*[^#\s][^#\n]*#", text, re.MULTILINE) or not text.strip():
+        return None  # a '#' after data on a line: the line parser says where
+
+    import pandas as pd
+
+    exact = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
+    try:
+        df = pd.read_csv(io.StringIO(text), sep=r"\s+", header=None, comment="#", engine="c", dtype=np.float64, **exact)
+    except (ValueError, pd.errors.ParserError, pd.errors.EmptyDataError):
+        return None
+    values = df.to_numpy(dtype=np.float64)
+    if values.ndim != 2 or values.shape[1] != columns or not len(values) or not np.isfinite(values).all():
+        return None
+    return values
 
 
 def _stamps_ns(seconds: np.ndarray) -> np.ndarray:
