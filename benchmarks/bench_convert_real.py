@@ -1,7 +1,9 @@
-"""`studio convert` on real-shaped inputs: five EuRoC machine-hall sequences as five agents, and a
-KITTI poses file of 4,500 poses split into three robots.
+"""`studio convert` on real-shaped inputs: five EuRoC machine-hall sequences as five agents, a
+KITTI poses file of 4,500 poses split into three robots, and an MR.CLAM dataset folder (five robots,
+ground truth at 100 Hz, odometry at about 67 Hz, robot sightings) with its real odometry.
 
-    python benchmarks/bench_convert_real.py [--euroc-rows 30000] [--kitti-poses 4500] [--repeat 3] [--out DIR]
+    python benchmarks/bench_convert_real.py [--euroc-rows 30000] [--kitti-poses 4500] [--mrclam-seconds 1500]
+        [--repeat 3] [--out DIR]
 
 The inputs are written by the script in the datasets' exact formats (EuRoC's 17-column data.csv at
 200 Hz with nanosecond stamps and w x y z quaternions; KITTI's 12-number pose lines with times.txt),
@@ -58,6 +60,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--euroc-rows", type=int, default=30000, help="ground-truth rows per EuRoC sequence")
     ap.add_argument("--kitti-poses", type=int, default=4500, help="poses of the KITTI file")
+    ap.add_argument("--mrclam-seconds", type=float, default=1500.0, help="length of the MR.CLAM run (0: none)")
     ap.add_argument("--repeat", type=int, default=3, help="runs per job")
     ap.add_argument("--out", type=Path, default=None, help="work folder (default: a temporary folder)")
     args = ap.parse_args()
@@ -78,6 +81,20 @@ def main() -> None:
             "10",
         ],
     }
+    if args.mrclam_seconds > 0:
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' MR.CLAM-layout writer
+        from tests.converters.mrclam_files import write_mrclam_dataset
+
+        mrclam = write_mrclam_dataset(work / "MRCLAM_Dataset1", seconds=args.mrclam_seconds)
+        jobs[f"mrclam {args.mrclam_seconds:g} s --odometry real"] = [
+            studio,
+            "convert",
+            "mrclam",
+            str(mrclam),
+            "--planar",
+            "--odometry",
+            "real",
+        ]
     print(f"# {time.strftime('%Y-%m-%d')}  {os.cpu_count()} cores  load {os.getloadavg()[0]:.2f}")
     for label, cmd in jobs.items():
         walls, peak = [], 0.0

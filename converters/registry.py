@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 from studio.converters.airmuseum import BODY_FRAMES as AIRMUSEUM_BODY_FRAMES
 from studio.converters.airmuseum import is_airmuseum_sequence, read_airmuseum
@@ -27,6 +27,7 @@ from studio.converters.jrl import read_jrl_graph, read_jrl_trajectories
 from studio.converters.kimera_multi import SUFFIX as KIMERA_SUFFIX
 from studio.converters.kimera_multi import kimera_files, read_kimera_multi
 from studio.converters.kitti import read_kitti
+from studio.converters.mrclam import read_mrclam, read_mrclam_odometry, read_mrclam_sightings
 from studio.converters.s3e import is_s3e_sequence, read_s3e
 from studio.converters.symbols import read_symbols_graph, read_symbols_trajectories
 from studio.converters.tum import read_tum_sources
@@ -100,6 +101,11 @@ class Source:
     read_graph: GraphReader | None = None
     """Graph sources: the reader of the graph itself, which ``studio convert`` writes as it is (then
     ``read`` gives the graph's ground truth as trajectories, for :func:`studio.convert.convert`)."""
+    odometry: Any = None
+    """The source's own odometry (``--odometry real``): ``(inputs, ground_truth, *, warn) ->
+    {agent: dead-reckoned Trajectory}`` (:func:`studio.converters.mrclam.read_mrclam_odometry`)."""
+    sightings: Any = None
+    """The source's agent-to-agent range-bearing sightings: ``(inputs, *, warn) -> Sightings``."""
 
 
 def _read_bag(
@@ -144,6 +150,10 @@ def _is_euroc(path: Path) -> bool:
 
 def _is_kimera_multi(path: Path) -> bool:
     return bool(kimera_files(path)) if path.is_dir() else path.name.endswith(KIMERA_SUFFIX)
+
+
+def _is_mrclam(path: Path) -> bool:
+    return path.is_dir() and (path / "Robot1_Groundtruth.dat").is_file()
 
 
 def _is_jrl(path: Path) -> bool:
@@ -240,6 +250,16 @@ SOURCES: dict[str, Source] = {
         one_input=True,
         read_graph=read_g2o_graph,
         detect=_is_g2o,
+    ),
+    "mrclam": Source(
+        read_mrclam,
+        "one dataset folder (e.g. MRCLAM_Dataset1)",
+        "Robot1..Robot5",
+        "UTIAS MR.CLAM (RobotK_Groundtruth.dat; its odometry and robot sightings)",
+        one_input=True,
+        odometry=read_mrclam_odometry,
+        sightings=read_mrclam_sightings,
+        detect=_is_mrclam,
     ),
 }
 #: Each source's reader.

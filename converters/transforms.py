@@ -21,6 +21,7 @@ __all__ = [
     "apply_body_frame",
     "orientation_is_uninformative",
     "derive_orientation",
+    "HEADING_METHODS",
     "split_trajectory",
     "FRAME_LETTERS",
 ]
@@ -57,13 +58,60 @@ def orientation_is_uninformative(traj: Trajectory, tolerance_rad: float = 1e-6) 
     return bool(np.all(quat_angle(quat_mul(quat_conj(q[:1]), q)) <= tolerance_rad))
 
 
-def derive_orientation(traj: Trajectory, window_m: float) -> Trajectory:
-    """Headings from the motion: the yaw of the chord from ``window_m / 2`` of path behind each pose to
-    ``window_m / 2`` ahead (clipped at the ends); while the robot moves less than a quarter of the
-    window (stationary, or turning on the spot) the last heading is held. Roll and pitch are zero."""
+#: ``derive_orientation`` methods: ``smoothed`` (the default) and ``chord`` (the first one).
+HEADING_METHODS = ("smoothed", "chord")
+#: Half-width [s] of the box filter, applied twice, that smooths positions for ``smoothed`` headings.
+SMOOTH_HALF_WIDTH_S = 0.5
+#: Below this speed [m/s] of the smoothed positions the robot stands still: the heading is held.
+STILL_SPEED_MPS = 0.02
+
+
+def _box_mean(stamps_ns: np.ndarray, xy: np.ndarray, half_ns: int) -> np.ndarray:
+    """Mean of the rows within ``half_ns`` of each stamp (cumulative sums: linear time)."""
+    lo = np.searchsorted(stamps_ns, stamps_ns - half_ns, side="left")
+    hi = np.searchsorted(stamps_ns, stamps_ns + half_ns, side="right")
+    c = np.vstack([np.zeros((1, xy.shape[1])), np.cumsum(xy, axis=0)])
+    return (c[hi] - c[lo]) / (hi - lo)[:, None]
+
+
+def _smoothed_headings(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Yaw of the central differences of the positions smoothed by a box filter of half-width
+    :data:`SMOOTH_HALF_WIDTH_S` applied twice (a triangle of 1 s), and where the smoothed speed is
+    at least :data:`STILL_SPEED_MPS`."""
+    st = traj.stamps_ns
+    xy = traj.positions_xyz[:, 0:2] - traj.positions_xyz[0, 0:2]  # UTM-sized sums lose digits
+    half = int(round(SMOOTH_HALF_WIDTH_S * 1e9))
+    smooth = _box_mean(st, _box_mean(st, xy, half), half)
+    n = len(st)
+    ahead = np.minimum(np.arange(n) + 1, n - 1)
+    behind = np.maximum(np.arange(n) - 1, 0)
+    d = smooth[ahead] - smooth[behind]
+    dt = (st[ahead] - st[behind]) / 1e9
+    moving = np.linalg.norm(d, axis=1) >= STILL_SPEED_MPS * dt
+    return np.arctan2(d[:, 1], d[:, 0]), moving
+
+
+def derive_orientation(traj: Trajectory, window_m: float, method: str = "smoothed") -> Trajectory:
+    """Headings from the motion; roll and pitch are zero, and while the robot stands still (turning
+    on the spot included: positions cannot show it) the last heading is held.
+
+    ``smoothed``: the yaw of the central differences of lightly smoothed positions
+    (:func:`_smoothed_headings`). ``chord``: the yaw of the chord from ``window_m / 2`` of path behind
+    each pose to ``window_m / 2`` ahead (clipped at the ends), held while the robot moves less than a
+    quarter of the window."""
     if not window_m > 0:
         raise ConfigError(f"heading_window_m: expected a positive length, got {window_m!r}")
+    if method not in HEADING_METHODS:
+        raise ConfigError(f"heading_method: expected {' or '.join(HEADING_METHODS)}, got {method!r}")
     p = traj.positions_xyz
+    if method == "smoothed":
+        yaw, moving = _smoothed_headings(traj)
+        if not moving.any():
+            raise FormatError(
+                f"{traj.source or traj.name}: the trajectory never moves faster than {STILL_SPEED_MPS:g} m/s: "
+                "no heading can be derived from its motion"
+            )
+        return _held(traj, yaw, moving)
     step = np.linalg.norm(np.diff(p[:, 0:2], axis=0), axis=1)
     s = np.concatenate([[0.0], np.cumsum(step)])
     ahead = np.minimum(np.searchsorted(s, s + window_m / 2, side="left"), len(s) - 1)
@@ -75,7 +123,12 @@ def derive_orientation(traj: Trajectory, window_m: float) -> Trajectory:
             f"{traj.source or traj.name}: the trajectory moves less than {window_m / 4:g} m: "
             "no heading can be derived from its motion"
         )
-    yaw = np.arctan2(chord[:, 1], chord[:, 0])
+    return _held(traj, np.arctan2(chord[:, 1], chord[:, 0]), moving)
+
+
+def _held(traj: Trajectory, yaw: np.ndarray, moving: np.ndarray) -> Trajectory:
+    """``yaw`` where ``moving``, the last moving heading elsewhere (the first one before it)."""
+    p = traj.positions_xyz
     idx = np.where(moving, np.arange(len(yaw)), 0)
     np.maximum.accumulate(idx, out=idx)  # hold the last heading
     first = int(np.flatnonzero(moving)[0])

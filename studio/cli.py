@@ -484,6 +484,18 @@ def convert(
             )
         for gap in res.build.gaps:
             typer.echo(f"  gap: {gap.agent} vertex {gap.vertex}: {gap.seconds:.3f} s, {gap.metres:.2f} m bridged")
+        for fit in res.odometry_fits:
+            typer.echo(
+                f"  real odometry {fit.agent}: drift {fit.drift_m_per_m:.3g} m/m; sigma {fit.sigma_min_m:.3g} m "
+                f"+ {fit.sigma_m_per_m:.3g} m/m, {fit.sigma_min_rad:.3g} rad + {fit.sigma_rad_per_m:.3g} rad/m "
+                f"+ {fit.sigma_rad_per_rad:.3g} rad/rad (fitted on {fit.edges} edges)"
+            )
+        if res.sightings_fit is not None:
+            sf = res.sightings_fit
+            typer.echo(
+                f"  range-bearing sightings: {sf.sightings} (sigma {sf.sigma_range_m:.3g} m, "
+                f"{sf.sigma_bearing_rad:.3g} rad; {sf.dropped_outside_time_span} outside the ground truth dropped)"
+            )
 
 
 def _convert_graph(

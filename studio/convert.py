@@ -35,8 +35,16 @@ import numpy as np
 
 from studio._callable import make_callable
 from studio.converters.build import BuildResult, GraphOptions, Progress, build_graph
+from studio.converters.odometry_source import (
+    OdometryFit,
+    apply_odometry_sources,
+    parse_odometry_spec,
+    read_odometry_sources,
+)
 from studio.converters.registry import check_inputs, get_reader, get_source
+from studio.converters.sightings import SightingsFit, resolve_sightings
 from studio.converters.transforms import (
+    HEADING_METHODS,
     apply_body_frame,
     body_frame_rotation,
     derive_orientation,
@@ -44,13 +52,14 @@ from studio.converters.transforms import (
     split_trajectory,
 )
 from studio.core.errors import ConfigError, FormatError, OutputError
-from studio.core.model import PoseGraph
+from studio.core.model import PoseGraph, RangeBearing
 from studio.core.option_values import check_option
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
+from studio.io.range_bearing import RANGE_BEARING_NAME, write_range_bearing
 from studio.io.textfmt import write_text
 
 __all__ = [
@@ -94,6 +103,14 @@ class ConvertConfig:
     where the orientation carries no information (all the same, e.g. identity)."""
     heading_window_m: float = _pipeline(2.0, "Path length over which a derived heading is measured, in metres.")
     """Path length [m] over which a derived heading is measured."""
+    heading_method: str = _pipeline(
+        "smoothed",
+        "Derived headings: smoothed (central differences of positions smoothed over about 1 s) "
+        "or chord (the chord over --heading-window-m of path).",
+    )
+    """How headings are derived from motion: ``smoothed`` (central differences of positions smoothed
+    over about 1 s) or ``chord`` (the chord over ``heading_window_m`` of path); see
+    :func:`studio.converters.transforms.derive_orientation`."""
     body_frames: tuple[str, ...] = _pipeline(
         (),
         "An agent's body axes, e.g. robotA=ufl (the source's own, AirMuseum's, are the default).",
@@ -110,15 +127,46 @@ class ConvertConfig:
         "agents: folders agent1..agentN with agents.json (kollagen's reader); robots: folders named after the robots.",
     )
     """``agents``: folders agent1..agentN with agents.json (kollagen's reader needs them); ``robots``."""
+    odometry: str = _pipeline(
+        "synthetic",
+        "synthetic: drawn from the ground truth; real: the source's own odometry (mrclam), "
+        "information fitted to its errors against the ground truth.",
+    )
+    """``synthetic``: odometry drawn from the ground truth (GraphOptions' noise model); ``real``: the
+    source's own odometry (MR.CLAM's wheel odometry), information fitted to its errors
+    (:mod:`studio.converters.odometry_source`)."""
+    odometry_from: tuple[str, ...] = _pipeline(
+        (),
+        "Real odometry of agent NAME from a second source: NAME=FILE.tum or NAME=BAG:/topic.",
+        metavar="NAME=FILE",
+    )
+    """``NAME=FILE.tum`` or ``NAME=BAG:SPEC``: real odometry for agent NAME from a second source."""
 
     def __post_init__(self) -> None:
         get_reader(self.source)  # unknown names raise and list the known ones
         object.__setattr__(self, "inputs", tuple(str(p) for p in self.inputs))
         object.__setattr__(self, "agents", tuple(self.agents))
         object.__setattr__(self, "body_frames", tuple(self.body_frames))
+        object.__setattr__(self, "odometry_from", tuple(self.odometry_from))
+        if self.odometry not in ("synthetic", "real"):
+            raise ConfigError(f"odometry: expected synthetic or real, got {self.odometry!r}")
+        if self.odometry == "real" and get_source(self.source).odometry is None:
+            raise ConfigError(
+                f"odometry: {self.source} ships no odometry of its own; give a second source with "
+                "--odometry-from NAME=FILE.tum (or NAME=BAG:/topic)"
+            )
+        if self.odometry == "real" and self.odometry_from:
+            raise ConfigError("odometry: real and odometry_from both name the odometry: give one")
+        for spec in self.odometry_from:
+            parse_odometry_spec(spec)
         if self.orientation not in ("auto", "keep", "derive"):
             raise ConfigError(
                 f"orientation: expected auto, keep or derive, got {self.orientation!r}", option="orientation"
+            )
+        if self.heading_method not in HEADING_METHODS:
+            raise ConfigError(
+                f"heading_method: expected {' or '.join(HEADING_METHODS)}, got {self.heading_method!r}",
+                option="heading_method",
             )
         if self.folder_names not in ("agents", "robots"):
             raise ConfigError(
@@ -159,6 +207,11 @@ class ConvertResult:
     """``OUT/<name>.rrd`` inside the dataset folder, or None when no recording was asked for."""
     orientation: dict[str, str] = field(default_factory=dict)
     """Agents whose headings were derived from their motion (value ``"derived from motion"``)."""
+    odometry_fits: tuple[OdometryFit, ...] = ()
+    """The noise model fitted to each agent's real odometry (empty: synthetic odometry)."""
+    range_bearing: RangeBearing | None = None
+    """Agent-to-agent sightings (``range_bearing.txt``), where the source has them."""
+    sightings_fit: SightingsFit | None = None
 
 
 #: The pipeline's own keys of convert.json (besides the source, inputs, agents and graph options).
@@ -168,6 +221,13 @@ _PIPELINE_FIELDS = tuple(f.name for f in dataclasses.fields(ConvertConfig) if "h
 def pipeline_flags() -> dict[str, str]:
     """Each pipeline field's command-line flag without the dashes' prefix (``overlap_s`` -> ``overlap``)."""
     return {f.name: f.metadata["flag"] or f.name for f in dataclasses.fields(ConvertConfig) if "help" in f.metadata}
+
+
+#: Pipeline fields that are lists in convert.json.
+_TUPLE_FIELDS = ("body_frames", "odometry_from")
+#: Pipeline keys written to convert.json only when they differ from their default (so the files of
+#: a conversion that does not use them stay as they were).
+_OMITTED_AT_DEFAULT: dict[str, Any] = {"odometry": "synthetic", "odometry_from": (), "heading_method": "smoothed"}
 
 
 def convert_config_to_json(cfg: ConvertConfig) -> dict[str, Any]:
@@ -180,6 +240,8 @@ def convert_config_to_json(cfg: ConvertConfig) -> dict[str, Any]:
     out.update(dataclasses.asdict(cfg.options))
     for key in _PIPELINE_FIELDS:
         value = getattr(cfg, key)
+        if key in _OMITTED_AT_DEFAULT and value == _OMITTED_AT_DEFAULT[key]:
+            continue  # keys added later: files of conversions that do not use them stay as they were
         out[key] = list(value) if isinstance(value, tuple) else value
     return out
 
@@ -195,7 +257,7 @@ def config_from_mapping(data: Mapping[str, Any], where: str = "config") -> Conve
         raise ConfigError(f"{where}: format {data['format']!r} is not {_FORMAT!r}")
     if "source" not in data:
         raise ConfigError(f"{where}: missing key 'source'")
-    for key in ("inputs", "agents", "body_frames"):
+    for key in ("inputs", "agents", *_TUPLE_FIELDS):
         if not isinstance(data.get(key, []), list) or not all(isinstance(x, str) for x in data.get(key, [])):
             raise ConfigError(f"{where}: {key!r} must be a list of strings")
     opts = {k: data[k] for k in _OPTION_FIELDS if k in data}
@@ -204,7 +266,7 @@ def config_from_mapping(data: Mapping[str, Any], where: str = "config") -> Conve
     except ConfigError as err:
         raise ConfigError(f"{where}: {err}") from None
     extra: dict[str, Any] = {
-        k: (tuple(data[k]) if k == "body_frames" else data[k]) for k in _PIPELINE_FIELDS if k in data
+        k: (tuple(data[k]) if k in _TUPLE_FIELDS else data[k]) for k in _PIPELINE_FIELDS if k in data
     }
     try:
         return ConvertConfig(
@@ -238,7 +300,14 @@ def _resolve_inputs(cfg: ConvertConfig) -> ConvertConfig:
         if not path.exists():
             raise FormatError(f"{p}: no such file or folder")
         inputs.append(str(path.resolve()))
-    return dataclasses.replace(cfg, inputs=tuple(inputs))
+    odometry_from = []
+    for spec in cfg.odometry_from:
+        name, path_text, bag_spec = parse_odometry_spec(spec)
+        path = Path(path_text)
+        if not path.exists():
+            raise FormatError(f"{path_text}: no such file or folder (--odometry-from {spec})")
+        odometry_from.append(f"{name}={path.resolve()}" + (f":{bag_spec}" if bag_spec else ""))
+    return dataclasses.replace(cfg, inputs=tuple(inputs), odometry_from=tuple(odometry_from))
 
 
 def _report(
@@ -289,6 +358,12 @@ def _outlier_lines(build: BuildResult) -> str:
 
 
 DERIVED = "derived from motion"
+#: How report.json names each way of deriving headings.
+HEADING_METHOD_TEXT = {
+    "smoothed": "smoothed: yaw of central differences of positions box-filtered twice over +-0.5 s, "
+    "held below 0.02 m/s",
+    "chord": "chord: yaw of the chord over {w:g} m of path, held while moving less than a quarter of it",
+}
 
 
 def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tuple[list[Trajectory], dict[str, str]]:
@@ -297,6 +372,10 @@ def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tup
     Returns the trajectories to build and, per agent whose headings were derived, ``DERIVED``."""
     defaults = get_source(cfg.source).body_frames  # the source's own (AirMuseum's robots)
     frames = {t.name: defaults[t.name.lower()] for t in trajs if t.name.lower() in defaults}
+    if cfg.options.planar:  # body frames the datasets state (EuRoC's IMU), for the yaw of the heading
+        from studio.converters.planar_checks import default_planar_body_frame
+
+        frames.update({t.name: code for t in trajs if (code := default_planar_body_frame(cfg.source, t))})
     names = {t.name for t in trajs}
     for spec in cfg.body_frames:
         name, _, code = spec.partition("=")
@@ -310,7 +389,7 @@ def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tup
     derived = []
     for t in out:
         if cfg.orientation == "derive" or (cfg.orientation == "auto" and orientation_is_uninformative(t)):
-            t = derive_orientation(t, cfg.heading_window_m)
+            t = derive_orientation(t, cfg.heading_window_m, cfg.heading_method)
             orientation[t.name] = DERIVED
         derived.append(t)
     if cfg.split:
@@ -351,7 +430,8 @@ def convert(
         raise OutputError(f"{out} already exists (use --force to overwrite)")
     check_option("max_memory_gb", max_memory_gb, allow_zero=False)
     cfg = _resolve_inputs(cfg)
-    check_not_overlapping([out], cfg.inputs)
+    odometry_inputs = [parse_odometry_spec(spec)[1] for spec in cfg.odometry_from]
+    check_not_overlapping([out], [*cfg.inputs, *odometry_inputs])
     warnings: list[str] = []
 
     def _warn(msg: str) -> None:
@@ -366,16 +446,22 @@ def convert(
     # acceptance probability) is harmless
     try:
         with np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
-            trajs, orientation = prepare_trajectories(
-                cfg, reader(cfg.inputs, agents=cfg.agents, warn=_warn, progress=progress)
-            )
+            read = reader(cfg.inputs, agents=cfg.agents, warn=_warn, progress=progress)
+            trajs, orientation = prepare_trajectories(cfg, read)
+            if cfg.options.planar:
+                from studio.converters.planar_checks import planar_warnings
+
+                for t in trajs:
+                    for line in planar_warnings(t):
+                        _warn(line)
             build = build_graph(trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb)
+            build, fits, rb, sight_fit = _real_measurements(cfg, build, read, trajs, _warn)
     except FloatingPointError as err:
         raise FormatError(
             f"{', '.join(Path(p).name for p in cfg.inputs)}: numbers out of the finite range "
             f"while reading or building ({err}): a value in the input is absurd"
         ) from None
-    with staged_outputs(out.parent, [out.name], force=force, inputs=cfg.inputs) as staging:
+    with staged_outputs(out.parent, [out.name], force=force, inputs=[*cfg.inputs, *odometry_inputs]) as staging:
         ds = staging / out.name
         ds.mkdir()
         if progress:
@@ -391,8 +477,19 @@ def convert(
         if progress:
             progress("writing", 1, 2, "parts")
         write_text(ds / CONFIG_NAME, (json.dumps(convert_config_to_json(cfg), indent=2) + "\n").encode("utf-8"))
-        report = json.dumps(_report(build, trajs, warnings, orientation), indent=2) + "\n"
-        write_text(ds / "report.json", report.encode("utf-8"))
+        report = _report(build, trajs, warnings, orientation)
+        if orientation:
+            report["heading_method"] = HEADING_METHOD_TEXT[cfg.heading_method].format(w=cfg.heading_window_m)
+        report["odometry"] = {
+            "kind": "real" if fits else "synthetic",
+            "source": cfg.odometry if cfg.odometry == "real" else ("odometry_from" if fits else "ground truth"),
+            "fits": [f.to_dict() for f in fits],
+        }
+        if rb is not None and sight_fit is not None:
+            write_range_bearing(ds / RANGE_BEARING_NAME, rb)
+            report["counts"]["range_bearing"] = len(rb)
+            report["range_bearing"] = sight_fit.to_dict()
+        write_text(ds / "report.json", (json.dumps(report, indent=2) + "\n").encode("utf-8"))
         write_text(ds / "outliers.txt", _outlier_lines(build).encode("utf-8"))
         if progress:
             progress("writing", 2, 2, "parts")
@@ -411,10 +508,48 @@ def convert(
                 config_json=json.dumps(shown, sort_keys=True),
                 outliers=build.outliers,
                 progress=progress,
+                range_bearing=rb,
             )
     return ConvertResult(
-        cfg, out, tuple(trajs), build, tuple(warnings), out / f"{out.name}.rrd" if rrd else None, orientation
+        cfg,
+        out,
+        tuple(trajs),
+        build,
+        tuple(warnings),
+        out / f"{out.name}.rrd" if rrd else None,
+        orientation,
+        tuple(fits),
+        rb,
+        sight_fit,
     )
+
+
+def _real_measurements(
+    cfg: ConvertConfig,
+    build: BuildResult,
+    read: Sequence[Trajectory],
+    trajs: Sequence[Trajectory],
+    warn: Callable[[str], None],
+) -> tuple[BuildResult, list[OdometryFit], RangeBearing | None, SightingsFit | None]:
+    """Real odometry (``odometry``, ``odometry_from``) and the source's sightings, on the built graph."""
+    src = get_source(cfg.source)
+    sources: dict[str, Trajectory] = {}
+    if cfg.odometry == "real":
+        sources = src.odometry(cfg.inputs, read, warn=warn)
+    elif cfg.odometry_from:
+        sources = read_odometry_sources(cfg.odometry_from, warn=warn)
+        names = {t.name for t in read}
+        for name in sources:
+            if name not in names:
+                raise ConfigError(f"odometry_from: no agent {name!r} (agents: {', '.join(t.name for t in read)})")
+    fits: list[OdometryFit] = []
+    if sources:
+        graph, fits = apply_odometry_sources(build.graph, sources)
+        build = dataclasses.replace(build, graph=graph)
+    rb = sight_fit = None
+    if src.sightings is not None:
+        rb, sight_fit = resolve_sightings(build.graph, src.sightings(cfg.inputs, warn=warn), trajs)
+    return build, fits, rb, sight_fit
 
 
 make_callable(__name__)  # studio.convert(...) is studio.convert.convert(...) (studio/_callable.py)

@@ -119,6 +119,16 @@ def _euroc(work: Path) -> None:
         _euroc_sequence(work, name, k)
 
 
+def _single_g2o(work: Path) -> None:
+    """``M3500.g2o`` and ``kitti_00.g2o`` stand-ins: the single g2o of a small kollagen walk."""
+    from studio.synth import load_synth_config, synthesize
+
+    res = synthesize(load_synth_config(DATA / "configs" / "small3x100.json"), work / ".g2o_standin", rrd=False)
+    single = res.dataset_dir.parent / f"{res.dataset_dir.name}_singleg2o" / f"{res.dataset_dir.name}.g2o"
+    for name in ("M3500.g2o", "kitti_00.g2o"):
+        shutil.copyfile(single, work / name)
+
+
 def _kitti(work: Path) -> None:
     import numpy as np
 
@@ -151,6 +161,23 @@ def _kimera(work: Path) -> None:
         (folder / f"{robot}_gt_odom.csv").write_text("\n".join(lines) + "\n")
 
 
+def _mrclam(work: Path) -> None:
+    from tests.converters.mrclam_files import write_mrclam_dataset
+
+    write_mrclam_dataset(work / "MRCLAM_Dataset1")
+
+
+def _vio(work: Path) -> None:
+    """``bob_vio.txt``: a drifting estimate of bob's trajectory (5 % scale, 0.002 rad/s of yaw)."""
+    from studio.core.trajectory import Trajectory
+    from studio.io.tum import read_tum, write_tum
+    from tests.converters.synthetic import drifting_estimate
+
+    bob = read_tum(DATA / "trajectories" / "bob.tum")
+    p, q = drifting_estimate(bob.stamps_ns, bob.positions_xyz, bob.quat_xyzw, scale=1.05, yaw_rate=0.002, seed=1)
+    write_tum(work / "bob_vio.txt", Trajectory("bob", bob.stamps_ns, p, q))
+
+
 #: What a command may name as an input, and how the stand-in is made in the work folder.
 INPUTS: dict[str, Callable[[Path], None]] = {
     "multi3500x8": lambda w: _preset_standin(w, "multi3500x8"),
@@ -163,6 +190,9 @@ INPUTS: dict[str, Callable[[Path], None]] = {
     "MH_01_easy": _euroc,
     "poses/00.txt": _kitti,
     "ground_truth/1014": _kimera,
+    "MRCLAM_Dataset1": _mrclam,
+    "bob_vio.txt": _vio,
+    "M3500.g2o": _single_g2o,
     # docs/sweep.md's spec, smaller: 2 cells of the multi3500x8 stand-in
     "radius.toml": lambda w: (w / "radius.toml").write_text(
         'name = "radius"\nbase = "multi3500x8"\nsteps = ["evaluate"]\n[grid]\n'

@@ -21,7 +21,7 @@ import numpy.typing as npt
 from studio.core.errors import GraphError
 from studio.core.geometry import planar_poses_to_se3, se2_information_to_se3
 
-__all__ = ["PoseKind", "Edges", "InterAgentEdges", "AgentGraph", "PoseGraph", "graphs_equal"]
+__all__ = ["PoseKind", "Edges", "InterAgentEdges", "AgentGraph", "PoseGraph", "RangeBearing", "graphs_equal"]
 
 _QUAT_TOLERANCE = 1e-6
 
@@ -335,3 +335,77 @@ def graphs_equal(a: PoseGraph, b: PoseGraph) -> bool:
             if not all(_same(getattr(ex, c), getattr(ey, c)) for c in cols):
                 return False
     return all(_same(getattr(a.inter, c), getattr(b.inter, c)) for c in cols + ("from_agent", "to_agent"))
+
+
+@dataclass(frozen=True, eq=False)
+class RangeBearing:
+    """Range-bearing sightings of one agent by another (MR.CLAM's robot-to-robot measurements), as
+    columns, one row per sighting. Agents are 0-based positions in :attr:`PoseGraph.agents`; each
+    side of a sighting is tied to the agent's keyframe nearest in time (``*_index``), and
+    ``*_offset_ns`` says how far that keyframe is from the sighting (``stamp - keyframe stamp``).
+
+    ``range_m`` is the distance from the observer's body origin to the observed agent, ``bearing_rad``
+    the direction of the observed agent in the observer's body frame (from the x axis, counter-clockwise
+    about z), both in the plane; ``sigma_*`` their standard deviations.
+    """
+
+    stamps_ns: np.ndarray
+    observer_agent: np.ndarray
+    observer_index: np.ndarray
+    observed_agent: np.ndarray
+    observed_index: np.ndarray
+    range_m: np.ndarray
+    bearing_rad: np.ndarray
+    sigma_range_m: np.ndarray
+    sigma_bearing_rad: np.ndarray
+    observer_offset_ns: np.ndarray
+    observed_offset_ns: np.ndarray
+
+    _INT = ("stamps_ns", "observer_agent", "observer_index", "observed_agent", "observed_index")
+    _OFFSETS = ("observer_offset_ns", "observed_offset_ns")
+    _FLOAT = ("range_m", "bearing_rad", "sigma_range_m", "sigma_bearing_rad")
+
+    def __post_init__(self) -> None:
+        for name in (*self._INT, *self._OFFSETS):
+            object.__setattr__(self, name, _as_index(getattr(self, name), name))
+        for name in self._FLOAT:
+            arr = np.ascontiguousarray(getattr(self, name), dtype=np.float64)
+            if arr.ndim != 1:
+                raise GraphError(f"{name} must be one-dimensional, got shape {arr.shape}")
+            bad = np.flatnonzero(~np.isfinite(arr))
+            if bad.size:
+                raise GraphError(f"{name} row {int(bad[0])} is not finite")
+            object.__setattr__(self, name, arr)
+        n = len(self.stamps_ns)
+        names = (*self._INT, *self._OFFSETS, *self._FLOAT)
+        if any(len(getattr(self, name)) != n for name in names):
+            raise GraphError("range-bearing columns must have matching lengths")
+        if n and (self.range_m.min() < 0 or min(self.sigma_range_m.min(), self.sigma_bearing_rad.min()) <= 0):
+            raise GraphError("ranges must be >= 0 and standard deviations > 0")
+        same = np.flatnonzero(self.observer_agent == self.observed_agent)
+        if same.size:
+            raise GraphError(f"range-bearing row {int(same[0])}: an agent does not sight itself")
+
+    def __len__(self) -> int:
+        return len(self.stamps_ns)
+
+    @classmethod
+    def empty(cls) -> RangeBearing:
+        z, f = np.zeros(0, dtype=np.int64), np.zeros(0)
+        return cls(z, z, z, z, z, f, f, f, f, z, z)
+
+    def check_against(self, graph: PoseGraph) -> None:
+        """Every agent and vertex exists in ``graph``; raises :class:`GraphError` naming the row."""
+        sizes = np.array([a.num_poses for a in graph.agents])
+        for side in ("observer", "observed"):
+            agent, index = getattr(self, f"{side}_agent"), getattr(self, f"{side}_index")
+            bad = np.flatnonzero((agent < 0) | (agent >= len(sizes)))
+            if bad.size:
+                raise GraphError(f"range-bearing row {int(bad[0])}: unknown {side} agent {int(agent[bad[0]])}")
+            bad = np.flatnonzero((index < 0) | (index >= sizes[agent]))
+            if bad.size:
+                k = int(bad[0])
+                raise GraphError(
+                    f"range-bearing row {k}: {side} vertex {int(index[k])} of agent "
+                    f"{graph.agents[agent[k]].name}, which has {int(sizes[agent[k]])} poses"
+                )

@@ -30,7 +30,7 @@ import numpy as np
 
 from studio.core.errors import FormatError, OutputError
 from studio.core.geometry import is_planar_se3
-from studio.core.model import AgentGraph, PoseGraph, PoseKind
+from studio.core.model import AgentGraph, PoseGraph, PoseKind, RangeBearing
 from studio.core.types import PathLike
 from studio.core.units import MAX_RECORDED_COORDINATE_M, NS_PER_S
 from studio.io.atomic import check_not_overlapping, staged_outputs
@@ -58,6 +58,7 @@ from studio.recording.entities import (
     SERIES_INTER_LOOP_CLOSURES,
     SERIES_LOOP_CLOSURES,
     SERIES_POSITION_ERROR,
+    SIGHTINGS,
     TIMELINE_NODE,
     TIMELINE_TIME,
     WORLD,
@@ -80,6 +81,7 @@ __all__ = [
     "read_outliers",
     "record_graph",
     "record_dataset",
+    "log_range_bearing",
     "default_blueprint",
     "recording_id_for",
     "has_real_stamps",
@@ -426,6 +428,28 @@ def log_outlier_loop_closures(
     _send_segments(rec, LOOP_CLOSURES_OUTLIERS, segments, c[order], stamps)
 
 
+def log_range_bearing(rec: rr.RecordingStream, graph: PoseGraph, rb: RangeBearing, real_time: bool) -> None:
+    """Range-bearing sightings, one entity per observing agent in its colour: a segment from the
+    observer keyframe's reference pose to the point at the measured range and bearing, at the
+    observer's node and (real stamps) the sighting's own stamp."""
+    import rerun as rr
+
+    from studio.core.geometry import yaw_from_quat_xyzw
+
+    for k in np.unique(rb.observer_agent).tolist():
+        agent = graph.agents[k]
+        rows = np.flatnonzero(rb.observer_agent == k)
+        rows = rows[np.lexsort((rb.stamps_ns[rows], rb.observer_index[rows]))]
+        ref = _reference(agent)
+        node = rb.observer_index[rows]
+        start = ref[node, 0:3]
+        heading = yaw_from_quat_xyzw(ref[node, 3:7]) + rb.bearing_rad[rows]
+        end = start + rb.range_m[rows, None] * np.column_stack([np.cos(heading), np.sin(heading), np.zeros(len(rows))])
+        entity = _path(SIGHTINGS, agent)
+        rec.log(entity, rr.LineStrips3D.from_fields(colors=[agent_colour(k)], radii=_LOOP_RADIUS), static=True)
+        _send_segments(rec, entity, np.stack([start, end], axis=1), node, rb.stamps_ns[rows] if real_time else None)
+
+
 def log_position_error(rec: rr.RecordingStream, agent: AgentGraph, k: int, real_time: bool) -> None:
     """|initial - ground truth| position per node (nothing when the agent has no ground truth)."""
     import rerun as rr
@@ -587,11 +611,13 @@ def record_graph(
     config_json: str | None = None,
     outliers: np.ndarray | None = None,
     progress: Progress | None = None,
+    range_bearing: RangeBearing | None = None,
 ) -> RecordResult:
     """Log ``graph`` to a new ``.rrd`` at ``path`` (written in place; see :func:`record_dataset`).
 
     ``outliers``: (k, 4) rows ``agent_from vertex_from agent_to vertex_to`` (0-based) of the loop
-    closures that are outliers, drawn apart from the inliers.
+    closures that are outliers, drawn apart from the inliers. ``range_bearing``: agent-to-agent
+    sightings (``range_bearing.txt``), drawn per observing agent.
     """
     import rerun as rr
 
@@ -619,6 +645,8 @@ def record_graph(
             log_inter_loop_closures(rec, g, real_time, inter_out)
             log_outlier_loop_closures(rec, g, real_time, intra_out, inter_out)
             log_loop_closure_counts(rec, g, real_time)
+            if range_bearing is not None and len(range_bearing):
+                log_range_bearing(rec, g, range_bearing, real_time)
             report(progress, "recording", steps, steps, "parts")
         finally:
             rec.disconnect()
@@ -680,9 +708,19 @@ def record_dataset(
     check_extent(graph, dataset)
     config_json = _sibling_config(dataset)
     outliers = read_outliers(dataset / "outliers.txt", graph) if (dataset / "outliers.txt").is_file() else None
+    from studio.io.range_bearing import RANGE_BEARING_NAME, read_range_bearing
+
+    rb_file = dataset / RANGE_BEARING_NAME
+    range_bearing = read_range_bearing(rb_file, graph) if rb_file.is_file() else None
     name = dataset.resolve().name
     with staged_outputs(out.parent, [out.name], force=force, inputs=[dataset]) as staging:
         res = record_graph(
-            graph, staging / out.name, name=name, config_json=config_json, outliers=outliers, progress=progress
+            graph,
+            staging / out.name,
+            name=name,
+            config_json=config_json,
+            outliers=outliers,
+            progress=progress,
+            range_bearing=range_bearing,
         )
     return RecordResult(out, res.recording_id, res.num_poses, res.edge_counts, res.real_time)

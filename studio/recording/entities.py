@@ -18,6 +18,7 @@ __all__ = [
     "LOOP_CLOSURES_INTRA",
     "LOOP_CLOSURES_INTER",
     "LOOP_CLOSURES_OUTLIERS",
+    "SIGHTINGS",
     "METRICS",
     "SERIES_POSITION_ERROR",
     "SERIES_LOOP_CLOSURES",
@@ -80,6 +81,9 @@ LOOP_CLOSURES_INTRA = "world/{agent}/loop_closures"
 LOOP_CLOSURES_INTER = "world/inter_loop_closures/{pair}"
 #: One segment per loop closure listed in the dataset's ``outliers.txt`` (intra- and inter-agent).
 LOOP_CLOSURES_OUTLIERS = "world/outlier_loop_closures"
+#: One segment per range-bearing sighting made by an agent (``range_bearing.txt``): from its
+#: keyframe's reference pose to the point the range and bearing give, at the sighting's node and stamp.
+SIGHTINGS = "world/{agent}/sightings"
 METRICS = "metrics"
 #: Scalar per node: |initial - ground truth| position [m].
 SERIES_POSITION_ERROR = "metrics/position_error/{agent}"

@@ -82,10 +82,13 @@ def test_convert_pipeline_options_come_from_convert_config(tmp_path):
     assert flags == {
         "orientation": "orientation",
         "heading_window_m": "heading_window_m",
+        "heading_method": "heading_method",
         "body_frames": "body_frame",
         "split": "split",
         "overlap_s": "overlap",
         "folder_names": "folder_names",
+        "odometry": "odometry",
+        "odometry_from": "odometry_from",
     }
     for f in dataclasses.fields(ConvertConfig):
         if f.name not in flags:

@@ -208,6 +208,8 @@ def test_detection_sees_each_source(tmp_path):
     (tmp_path / "dgs" / "fullGraph.g2o").write_text("VERTEX_SE2 0 0 0 0\n")
     (tmp_path / "dpgo" / "robot0").mkdir(parents=True)
     (tmp_path / "dpgo" / "robot0" / "measurements.csv").write_text("robot_src\n")
+    (tmp_path / "MRCLAM_Dataset1").mkdir()
+    (tmp_path / "MRCLAM_Dataset1" / "Robot1_Groundtruth.dat").write_text("# Time [s]\n")
     expected = {
         "seq": "euroc",
         "s3e": "s3e",
@@ -220,6 +222,7 @@ def test_detection_sees_each_source(tmp_path):
         "m.g2o": "g2o",
         "dgs": "symbols",
         "dpgo": "dpgo",
+        "MRCLAM_Dataset1": "mrclam",
     }
     for name, source in expected.items():
         assert guess_source([tmp_path / name]) == source, name

@@ -44,3 +44,18 @@ def tum_text(stamps_ns, pos, quat, *, sep: str = " ", header: str | None = "# ti
 def write_tum_file(path: Path, stamps_ns, pos, quat, **kw) -> Path:
     path.write_text(tum_text(stamps_ns, pos, quat, **kw))
     return path
+
+
+def drifting_estimate(stamps, pos, quat, *, scale: float, yaw_rate: float, seed: int):
+    """A VIO-like estimate of a trajectory: its motion scaled by ``scale``, its heading drifting by
+    ``yaw_rate`` rad/s, plus 2 mm of noise per step, in its own frame (starting at the origin).
+    Returns ``(positions_xyz, quat_xyzw)``."""
+    from studio.core.geometry import quat_from_rotvec, quat_mul, quat_rotate
+
+    rng = np.random.default_rng(seed)
+    t = (np.asarray(stamps) - stamps[0]) / 1e9
+    drift = quat_from_rotvec(np.column_stack([np.zeros((len(t), 2)), yaw_rate * t]))
+    steps = np.diff(pos, axis=0) * scale + rng.normal(0, 0.002, (len(pos) - 1, 3))
+    steps[:, 2] = 0.0
+    p = np.vstack([np.zeros(3), np.cumsum(quat_rotate(drift[1:], steps), axis=0)])
+    return p, quat_mul(drift, quat)

@@ -162,7 +162,7 @@ def test_unsorted_stamps_warn_with_counts(tmp_path, tum_files):
         (
             ["nope", "x"],
             "cannot tell the source of nope: name it (studio convert SOURCE INPUT..., SOURCE one of "
-            "tum, s3e, airmuseum, bag, euroc, kitti, kimera-multi, jrl, symbols, dpgo, g2o)",
+            "tum, s3e, airmuseum, bag, euroc, kitti, kimera-multi, jrl, symbols, dpgo, g2o, mrclam)",
         ),
         (["tum", "missing.txt"], "missing.txt: no such file or folder"),
         (["tum", "{f}", "--lc-radius", "0"], "--lc-radius: must be > 0"),
