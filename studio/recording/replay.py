@@ -202,10 +202,11 @@ def write_replay_recording(
     *,
     name: str,
     force: bool = False,
+    inputs: Sequence[PathLike] = (),
     **columns: Any,
 ) -> Path:
-    """Write the replay to a new ``.rrd`` (staged, renamed into place); ``columns`` as
-    :func:`log_replay` takes them."""
+    """Write the replay to a new ``.rrd`` (staged, renamed into place; never over or inside
+    ``inputs``, the files it was made from); ``columns`` as :func:`log_replay` takes them."""
     import rerun as rr
 
     from studio.io.atomic import staged_outputs
@@ -213,7 +214,7 @@ def write_replay_recording(
 
     path = Path(path)
     backends = [r[0] for r in columns["runs"]]
-    with staged_outputs(path.parent, [path.name], force=force) as staging:
+    with staged_outputs(path.parent, [path.name], force=force, inputs=inputs) as staging:
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id_for(graph), send_properties=False)
         rec.set_log_time_enabled(False)
         try:

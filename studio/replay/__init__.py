@@ -529,6 +529,7 @@ def replay(
         write_replay_recording(
             rrd_path,
             graph,
+            inputs=inputs,
             name=f"{Path(dataset).name} replay ({schedule.model})",
             force=force,
             ticks_ns=schedule.ticks_ns,
