@@ -15,7 +15,8 @@ Outputs, one folder (staged, renamed into place; replaced only with ``force``):
 ``metrics.csv`` (per back-end, checkpoint and robot), ``summary.csv``/``summary.md`` (final
 figures), ``links.csv`` (messages and bytes per link), ``timings.csv``, ``report.md`` (the
 communication report and the summary), ``replay.json`` (the effective options), ``ape.png`` (APE
-vs time per back-end, when matplotlib is installed), and with ``rrd`` a Rerun recording.
+vs time per back-end, when matplotlib is installed), with ``parquet`` each CSV table as Parquet too
+(:mod:`studio.io.parquet_table`), and with ``rrd`` a Rerun recording.
 """
 
 from __future__ import annotations
@@ -522,8 +523,10 @@ def _write_folder(
     report: CommsReport,
     runs: tuple[BackendRun, ...],
     options: dict[str, Any],
+    parquet: bool = False,
 ) -> None:
-    """Every file of the output folder (module doc) into ``folder``, a new folder in the staging."""
+    """Every file of the output folder (module doc) into ``folder``, a new folder in the staging;
+    with ``parquet`` each CSV table as Parquet beside it."""
     from studio.io.schedule_csv import write_schedule
 
     folder.mkdir()
@@ -545,6 +548,11 @@ def _write_folder(
     (folder / "report.md").write_text(_report_text(schedule, report, runs), encoding="utf-8")
     (folder / REPLAY_JSON).write_text(json.dumps(options, indent=2) + "\n", encoding="utf-8")
     _plot(folder / "ape.png", runs, schedule, f"{Path(dataset).name}: {schedule.model}")
+    if parquet:
+        from studio.io.parquet_table import write_parquet_from_csv
+
+        for table in sorted(folder.rglob("*.csv")):
+            write_parquet_from_csv(table.with_suffix(".parquet"), table.read_text(encoding="utf-8"))
 
 
 def _write_recording(
@@ -598,13 +606,15 @@ def replay(
     polish: bool = True,
     force: bool = False,
     rrd: PathLike | None = None,
+    parquet: bool = False,
 ) -> ReplayResult:
     """Replay ``dataset`` (a multi-g2o folder with ground truth) under the communication model
     ``comms`` through each of ``backends`` and write the outputs into the folder ``out`` (module doc).
 
     ``step_s``: the tick [s] contacts are evaluated on; ``every``: ticks between checkpoints (the
     metrics' interval and the back-ends' batch of updates); ``period_s``: replace the dataset's
-    stamps by pose index x this period (None: the dataset's stamps; kollagen's are 1 s apart)."""
+    stamps by pose index x this period (None: the dataset's stamps; kollagen's are 1 s apart);
+    ``parquet``: each CSV table as Parquet too (pyarrow; ConfigError before any work without it)."""
     from studio.io.atomic import staged_outputs
 
     out = Path(out)
@@ -618,6 +628,10 @@ def replay(
         final_updates=final_updates,
     )
     rrd_path = _rrd_target(rrd)
+    if parquet:
+        from studio.io.parquet_table import require_pyarrow
+
+        require_pyarrow()
     parsed = parse_comms(comms)
     band = None if bandwidth is None else parse_bandwidth(bandwidth)
     step_ns = round(step_s * NS_PER_S)
@@ -643,6 +657,7 @@ def replay(
             report=report,
             runs=runs,
             options=options,
+            parquet=parquet,
         )
     if rrd_path is not None:
         _write_recording(
