@@ -445,10 +445,15 @@ def _check_numbers(
         raise ConfigError(f"final_updates: must be an integer >= 0, got {final_updates!r}")
 
 
-def _rrd_target(rrd: PathLike | None) -> Path | None:
+def _rrd_target(rrd: PathLike | None, *, parquet: bool) -> Path | None:
+    """The recording's path (``rrd`` must end in ``.rrd``); with ``parquet``, pyarrow must import."""
     rrd_path = None if rrd is None else Path(rrd)
     if rrd_path is not None and rrd_path.suffix != ".rrd":
         raise ConfigError(f"rrd: {rrd_path} must end in .rrd")
+    if parquet:
+        from studio.io.parquet_table import require_pyarrow
+
+        require_pyarrow()
     return rrd_path
 
 
@@ -627,11 +632,7 @@ def replay(
         relinearize_threshold=relinearize_threshold,
         final_updates=final_updates,
     )
-    rrd_path = _rrd_target(rrd)
-    if parquet:
-        from studio.io.parquet_table import require_pyarrow
-
-        require_pyarrow()
+    rrd_path = _rrd_target(rrd, parquet=parquet)
     parsed = parse_comms(comms)
     band = None if bandwidth is None else parse_bandwidth(bandwidth)
     step_ns = round(step_s * NS_PER_S)
