@@ -2,10 +2,14 @@
 communication model, beside the batch optimum of `studio solve` and a plain per-step ISAM2 loop.
 
     python benchmarks/bench_replay.py [--preset multi3500x8] [--comms always range:5 ...]
-        [--backends centralized independent swarm] [--every 50] [--loop-steps 500] [--variants N] [--out DIR]
+        [--backends centralized independent swarm] [--every 50] [--loop-steps 500] [--variants N]
+        [--rrd] [--out DIR]
 
-Prints per run: wall time and peak resident memory of the whole `studio replay` process, the final
-team APE (first-pose and se3) and chi2 from its summary.csv, and the batch optimum's figures.
+Prints per run: wall time, CPU time (user + system) and peak resident memory of the whole `studio
+replay` process, the final team APE (first-pose and se3) and chi2 from its summary.csv, the load
+average when it ended, with `--rrd` the size of its recording, and the batch optimum's figures. On a
+shared machine the wall time is the CPU time stretched by the other sessions' load (GTSAM's wheel
+runs single-threaded): the CPU time is what an idle machine's wall time would be, near enough.
 `--variants N` adds the first N of these centralized runs, which show what the incremental choices
 cost: no final Gauss-Newton polish (`--no-polish`), relinearization checked every update
 (`--relinearize-skip 1`).
@@ -26,10 +30,25 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
-from timing import run_timed, work_folder  # noqa: E402  (benchmarks/timing.py, beside this script)
+from timing import run_usage, work_folder  # noqa: E402  (benchmarks/timing.py, beside this script)
+
+_GNU_TIME = "/usr/bin/time" if os.access("/usr/bin/time", os.X_OK) else None
+
+
+def _run(cmd: list[str]) -> tuple[float, float, float]:
+    """Wall seconds, CPU seconds (user + system) and peak RSS [MiB] of one run of ``cmd``; the peak
+    through GNU time where installed (timing.py says why), else an upper bound."""
+    if _GNU_TIME is None:
+        wall, usage = run_usage(cmd)
+        return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
+    with tempfile.NamedTemporaryFile("r") as peak_file:
+        wall, usage = run_usage([_GNU_TIME, "-f", "%M", "-o", peak_file.name, *cmd], shown=cmd)
+        lines = [ln for ln in peak_file.read().split() if ln.strip().isdigit()]
+        return wall, usage.ru_utime + usage.ru_stime, int(lines[-1]) / 1024.0
 
 
 def _summary(folder: Path) -> dict[str, dict[str, str]]:
@@ -37,7 +56,7 @@ def _summary(folder: Path) -> dict[str, dict[str, str]]:
         return {row["backend"]: row for row in csv.DictReader(f)}
 
 
-def _plain_loop(dataset: Path, steps: int) -> tuple[float, int]:
+def _plain_loop(dataset: Path, steps: int) -> tuple[float, float, int]:
     import numpy as np
 
     from studio.core.timing import measurement_times
@@ -59,13 +78,13 @@ def _plain_loop(dataset: Path, steps: int) -> tuple[float, int]:
     # the replay's gauge: a tight prior on the first robot's first pose, loose ones on the others'
     solver = IncrementalSolver(p, agent, IsamSettings(polish=False))
     stamps = np.unique(vertex_ns)[:steps]
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for t in stamps.tolist():
         v = np.flatnonzero((vertex_ns <= t) & ~solver.vertices)
         e = np.flatnonzero((edge_ns <= t) & ~solver.edges)
         solver.add(v, e)
     solver.solve()
-    return time.perf_counter() - t0, len(stamps)
+    return time.perf_counter() - t0, time.process_time() - c0, len(stamps)
 
 
 def main() -> None:
@@ -76,6 +95,7 @@ def main() -> None:
     ap.add_argument("--every", type=int, default=50, help="ticks between checkpoints (default 50)")
     ap.add_argument("--loop-steps", type=int, default=500, help="steps of the plain per-step loop (0: skip)")
     ap.add_argument("--variants", type=int, default=0, help="centralized variants: 1 no polish, 2 also skip 1")
+    ap.add_argument("--rrd", action="store_true", help="each replay writes a recording too (its size printed)")
     ap.add_argument("--out", type=Path, default=None, help="work folder (default: a temporary folder)")
     args = ap.parse_args()
     studio = shutil.which("studio") or str(Path(sys.executable).parent / "studio")
@@ -83,33 +103,42 @@ def main() -> None:
     print(f"# {time.strftime('%Y-%m-%d %H:%M')}  {os.cpu_count()} cores  load {os.getloadavg()[0]:.2f}", flush=True)
     subprocess.run([studio, "synth", args.preset, "-o", str(work), "-q", "--no-rrd", "--force"], check=True)
     dataset = work / args.preset
-    wall, peak = run_timed([studio, "solve", str(dataset), "-o", str(work / "solved"), "--force"])
+    wall, cpu, peak = _run([studio, "solve", str(dataset), "-o", str(work / "solved"), "--force"])
     chi2 = json.loads((work / "solved" / "solve.json").read_text())["chi2_final"]
     from studio.evaluate import evaluate
 
     est = work / "solved" / "estimate"
     fp = evaluate(dataset, estimate=est, align="first-pose").overall.ape_translation_m.mean
     se3 = evaluate(dataset, estimate=est, align="se3").overall.ape_translation_m.mean
-    print(f"{'run':44} {'wall s':>7} {'peak MiB':>8} {'APE 1st-pose':>12} {'APE se3':>8} {'chi2':>12}  load")
-    print(f"{'batch optimum (studio solve)':44} {wall:7.1f} {peak:8.0f} {fp:12.6f} {se3:8.6f} {chi2:12.6g}", flush=True)
+    print(
+        f"{'run':44} {'wall s':>7} {'CPU s':>7} {'peak MiB':>8} {'APE 1st-pose':>12} {'APE se3':>8} {'chi2':>12}"
+        f"  load  {'rrd MB' if args.rrd else ''}"
+    )
+    print(
+        f"{'batch optimum (studio solve)':44} {wall:7.1f} {cpu:7.1f} {peak:8.0f} {fp:12.6f} {se3:8.6f} {chi2:12.6g}"
+        f"  {os.getloadavg()[0]:.2f}",
+        flush=True,
+    )
     runs = [(c, b, []) for c in args.comms for b in args.backends]
     variants = [("always", "centralized", ["--no-polish"]), ("always", "centralized", ["--relinearize-skip", "1"])]
     runs += variants[: args.variants]
     for comms, backend, extra in runs:
         out = work / f"replay-{comms.replace(':', '_')}-{backend}-{len(extra)}{''.join(extra)}"
         cmd = [studio, "replay", str(dataset), "--comms", comms, "-b", backend, "--every", str(args.every)]
-        wall, peak = run_timed([*cmd, *extra, "-o", str(out), "--force"])
+        rrd = out.with_suffix(".rrd")
+        wall, cpu, peak = _run([*cmd, *extra, "-o", str(out), "--force"] + (["--rrd", str(rrd)] if args.rrd else []))
         row = _summary(out)[backend]
         label = f"{backend} {comms} {' '.join(extra)}".strip()
+        size = f"  {rrd.stat().st_size / 1e6:.1f}" if args.rrd else ""
         print(
-            f"{label:44} {wall:7.1f} {peak:8.0f} {float(row['ape_first_pose_m']):12.6f} "
-            f"{float(row['ape_se3_m']):8.6f} {float(row['chi2']):12.6g}  {os.getloadavg()[0]:.2f}",
+            f"{label:44} {wall:7.1f} {cpu:7.1f} {peak:8.0f} {float(row['ape_first_pose_m']):12.6f} "
+            f"{float(row['ape_se3_m']):8.6f} {float(row['chi2']):12.6g}  {os.getloadavg()[0]:.2f}{size}",
             flush=True,
         )
     if args.loop_steps:
-        seconds, steps = _plain_loop(dataset, args.loop_steps)
+        seconds, cpu, steps = _plain_loop(dataset, args.loop_steps)
         print(
-            f"plain per-step ISAM2 loop: first {steps} steps in {seconds:.1f} s "
+            f"plain per-step ISAM2 loop: first {steps} steps in {seconds:.1f} s wall, {cpu:.1f} s CPU "
             f"(a lower bound of the whole loop; load {os.getloadavg()[0]:.2f})",
             flush=True,
         )

@@ -783,6 +783,7 @@ def replay(
         True, "--polish/--no-polish", help="End with Gauss-Newton to convergence on what each solver holds."
     ),
     rrd: Path | None = typer.Option(None, "--rrd", help="Also write the replay as a Rerun recording (.rrd)."),
+    parquet: bool = typer.Option(False, "--parquet", help="Also write each CSV table as Parquet (needs pyarrow)."),
     force: bool = typer.Option(False, "--force", help="Replace an existing OUT (and --rrd file)."),
 ) -> None:
     """Replay a dataset in time: each robot's measurements at their times, inter-agent closures when
@@ -809,6 +810,7 @@ def replay(
         polish=polish,
         force=force,
         rrd=rrd,
+        parquet=parquet,
     )
     delivered = int((res.schedule.delivered_tick >= 0).sum())
     lines = [

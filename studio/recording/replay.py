@@ -112,6 +112,75 @@ def _stride(total: int) -> int:
     return max(1, -(-total // MAX_POINTS_PER_SNAPSHOT))
 
 
+def _log_static(rec: Any, names: list[str], truth: list[np.ndarray]) -> None:
+    """Each robot's ground truth and the series' names, once."""
+    import rerun as rr
+
+    for k, name in enumerate(names):
+        rec.log(
+            REPLAY_GROUND_TRUTH.format(agent=name),
+            rr.LineStrips3D([truth[k]], colors=[GROUND_TRUTH_GREY], radii=-0.5),
+            static=True,
+        )
+    rec.log(REPLAY_IN_CONTACT, rr.SeriesLines(names="robots in contact"), static=True)
+    rec.log(REPLAY_DELIVERED, rr.SeriesLines(names="closures delivered"), static=True)
+
+
+def _log_per_tick(rec: Any, ticks_ns: np.ndarray, delivered_tick: np.ndarray, robots_in_contact: np.ndarray) -> None:
+    """Robots in contact and closures delivered so far, at every tick (columns)."""
+    import rerun as rr
+
+    t0 = int(ticks_ns[0])
+    times = rr.TimeColumn(TIMELINE_REPLAY, duration=(ticks_ns - t0) / NS_PER_S)
+    tick_index = rr.TimeColumn(TIMELINE_REPLAY_TICK, sequence=np.arange(len(ticks_ns)))
+    delivered = np.cumsum(np.bincount(delivered_tick[delivered_tick >= 0], minlength=len(ticks_ns)))
+    rec.send_columns(
+        REPLAY_IN_CONTACT, indexes=[times, tick_index], columns=rr.Scalars.columns(scalars=robots_in_contact)
+    )
+    rec.send_columns(REPLAY_DELIVERED, indexes=[times, tick_index], columns=rr.Scalars.columns(scalars=delivered))
+
+
+def _log_links(rec: Any, here: list[np.ndarray], pairs: np.ndarray, up: np.ndarray) -> None:
+    """Segments between the robots in contact at this tick (their ground-truth positions now)."""
+    import rerun as rr
+
+    segs = [np.stack([here[a], here[b]]) for (a, b), on in zip(pairs.tolist(), up.tolist()) if on]
+    rec.log(REPLAY_LINKS, rr.LineStrips3D(segs, colors=[REPLAY_LINK_COLOUR], radii=-2.0))
+
+
+def _log_closures(rec: Any, ends_a: np.ndarray, ends_b: np.ndarray) -> None:
+    """The inter-agent closures delivered so far (ground-truth ends)."""
+    import rerun as rr
+
+    rec.log(
+        REPLAY_CLOSURES,
+        rr.LineStrips3D(np.stack([ends_a, ends_b], axis=1), colors=[(*INTER_FAINT_RGB, INTER_FAINT_ALPHA)]),
+    )
+
+
+def _log_beliefs(
+    rec: Any,
+    backend: str,
+    poses: np.ndarray,
+    *,
+    names: list[str],
+    offsets: np.ndarray,
+    seen: list[int],
+    stride: int,
+    colours: list[tuple[int, int, int, int]],
+) -> None:
+    """One back-end's belief of each robot's trajectory so far (decimated by ``stride``)."""
+    import rerun as rr
+
+    for k, name in enumerate(names):
+        lo = int(offsets[k])
+        keep = np.unique(np.concatenate([np.arange(0, seen[k], stride), [max(seen[k] - 1, 0)]]))
+        rec.log(
+            REPLAY_ESTIMATE.format(backend=backend, agent=name),
+            rr.LineStrips3D([poses[lo + keep, 0:3]], colors=[colours[k]], radii=-1.0),
+        )
+
+
 def log_replay(
     rec: Any,
     graph: PoseGraph,
@@ -138,21 +207,8 @@ def log_replay(
     offsets = np.concatenate([[0], np.cumsum([a.num_poses for a in graph.agents])]).astype(np.int64)
     flat_truth = np.concatenate(truth)
     t0 = int(ticks_ns[0])
-    for k, name in enumerate(names):
-        rec.log(
-            REPLAY_GROUND_TRUTH.format(agent=name),
-            rr.LineStrips3D([truth[k]], colors=[GROUND_TRUTH_GREY], radii=-0.5),
-            static=True,
-        )
-    rec.log(REPLAY_IN_CONTACT, rr.SeriesLines(names="robots in contact"), static=True)
-    rec.log(REPLAY_DELIVERED, rr.SeriesLines(names="closures delivered"), static=True)
-    times = rr.TimeColumn(TIMELINE_REPLAY, duration=(ticks_ns - t0) / NS_PER_S)
-    tick_index = rr.TimeColumn(TIMELINE_REPLAY_TICK, sequence=np.arange(len(ticks_ns)))
-    delivered = np.cumsum(np.bincount(delivered_tick[delivered_tick >= 0], minlength=len(ticks_ns)))
-    rec.send_columns(
-        REPLAY_IN_CONTACT, indexes=[times, tick_index], columns=rr.Scalars.columns(scalars=robots_in_contact)
-    )
-    rec.send_columns(REPLAY_DELIVERED, indexes=[times, tick_index], columns=rr.Scalars.columns(scalars=delivered))
+    _log_static(rec, names, truth)
+    _log_per_tick(rec, ticks_ns, delivered_tick, robots_in_contact)
     stride = _stride(int(offsets[-1]))
     colours = [(*AGENT_PALETTE_RGB[k % len(AGENT_PALETTE_RGB)], 255) for k in range(len(names))]
     checkpoints = runs[0][1] if runs else np.zeros(0, dtype=np.int64)
@@ -165,34 +221,18 @@ def log_replay(
         rec.set_time(TIMELINE_REPLAY, duration=(int(ticks_ns[tick]) - t0) / NS_PER_S)
         rec.set_time(TIMELINE_REPLAY_TICK, sequence=int(tick))
         now = int(ticks_ns[tick])
+        seen = [int((vertex_ns[offsets[k] : offsets[k + 1]] <= now).sum()) for k in range(len(names))]
         # where each robot is now (ground truth at its latest pose)
-        here = []
-        for k in range(len(names)):
-            seen = int((vertex_ns[offsets[k] : offsets[k + 1]] <= now).sum())
-            here.append(truth[k][max(seen - 1, 0)])
-        up = contact[tick]
-        segs = [np.stack([here[a], here[b]]) for (a, b), on in zip(pairs.tolist(), up.tolist()) if on]
-        rec.log(REPLAY_LINKS, rr.LineStrips3D(segs, colors=[REPLAY_LINK_COLOUR], radii=-2.0))
+        _log_links(rec, [truth[k][max(seen[k] - 1, 0)] for k in range(len(names))], pairs, contact[tick])
         got = order[(delivered_tick[order] >= 0) & (delivered_tick[order] <= tick)]
         if len(got) > MAX_CLOSURE_SEGMENTS:
             got = got[np.linspace(0, len(got) - 1, MAX_CLOSURE_SEGMENTS).astype(np.int64)]
         ends_a = flat_truth[offsets[closure_from[got]] + closure_from_index[got]]
         ends_b = flat_truth[offsets[closure_to[got]] + closure_to_index[got]]
-        rec.log(
-            REPLAY_CLOSURES,
-            rr.LineStrips3D(np.stack([ends_a, ends_b], axis=1), colors=[(*INTER_FAINT_RGB, INTER_FAINT_ALPHA)]),
-        )
+        _log_closures(rec, ends_a, ends_b)
         for name_b, _, ape, beliefs in runs:
             b = rr.escape_entity_path_part(name_b)
-            poses = beliefs[c]
-            for k, name in enumerate(names):
-                lo, hi = int(offsets[k]), int(offsets[k + 1])
-                seen = int((vertex_ns[lo:hi] <= now).sum())
-                keep = np.unique(np.concatenate([np.arange(0, seen, stride), [max(seen - 1, 0)]]))
-                rec.log(
-                    REPLAY_ESTIMATE.format(backend=b, agent=name),
-                    rr.LineStrips3D([poses[lo + keep, 0:3]], colors=[colours[k]], radii=-1.0),
-                )
+            _log_beliefs(rec, b, beliefs[c], names=names, offsets=offsets, seen=seen, stride=stride, colours=colours)
             rec.log(REPLAY_APE.format(backend=b), rr.Scalars(float(ape[c])))
 
 

@@ -15,7 +15,8 @@ Outputs, one folder (staged, renamed into place; replaced only with ``force``):
 ``metrics.csv`` (per back-end, checkpoint and robot), ``summary.csv``/``summary.md`` (final
 figures), ``links.csv`` (messages and bytes per link), ``timings.csv``, ``report.md`` (the
 communication report and the summary), ``replay.json`` (the effective options), ``ape.png`` (APE
-vs time per back-end, when matplotlib is installed), and with ``rrd`` a Rerun recording.
+vs time per back-end, when matplotlib is installed), with ``parquet`` each CSV table as Parquet too
+(:mod:`studio.io.parquet_table`), and with ``rrd`` a Rerun recording.
 """
 
 from __future__ import annotations
@@ -405,6 +406,194 @@ def _plot(path: Path, runs: tuple[BackendRun, ...], schedule: Schedule, title: s
     return True
 
 
+def _check_backends(backends: tuple[str, ...] | list[str]) -> list[str]:
+    names = list(backends)
+    if not names:
+        raise ConfigError("backend: give at least one back-end")
+    for name in names:
+        get_backend(name)
+    if len(set(names)) != len(names):
+        raise ConfigError(f"backend: {names} names one back-end twice")
+    return names
+
+
+def _positive_seconds(name: str, value: Any) -> None:
+    if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
+        raise ConfigError(f"{name}: must be a positive number of seconds, got {value!r}")
+
+
+def _check_numbers(
+    *,
+    step_s: float,
+    every: int,
+    period_s: float | None,
+    relinearize_skip: int,
+    relinearize_threshold: float,
+    final_updates: int,
+) -> None:
+    """Refuse a bad number among the options (ConfigError naming the option)."""
+    _positive_seconds("step", step_s)
+    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+        raise ConfigError(f"every: must be a positive number of ticks, got {every!r}")
+    if period_s is not None:
+        _positive_seconds("period", period_s)
+    if isinstance(relinearize_skip, bool) or not isinstance(relinearize_skip, int) or relinearize_skip < 1:
+        raise ConfigError(f"relinearize_skip: must be a positive integer, got {relinearize_skip!r}")
+    if not (isinstance(relinearize_threshold, (int, float)) and relinearize_threshold >= 0):
+        raise ConfigError(f"relinearize_threshold: must be >= 0, got {relinearize_threshold!r}")
+    if isinstance(final_updates, bool) or not isinstance(final_updates, int) or final_updates < 0:
+        raise ConfigError(f"final_updates: must be an integer >= 0, got {final_updates!r}")
+
+
+def _rrd_target(rrd: PathLike | None, *, parquet: bool) -> Path | None:
+    """The recording's path (``rrd`` must end in ``.rrd``); with ``parquet``, pyarrow must import."""
+    rrd_path = None if rrd is None else Path(rrd)
+    if rrd_path is not None and rrd_path.suffix != ".rrd":
+        raise ConfigError(f"rrd: {rrd_path} must end in .rrd")
+    if parquet:
+        from studio.io.parquet_table import require_pyarrow
+
+        require_pyarrow()
+    return rrd_path
+
+
+def _model(parsed: CommsModel | str, num_robots: int, inputs: list[PathLike]) -> CommsModel:
+    """The parsed ``--comms``; a rendezvous file (a path) is read and added to ``inputs``."""
+    if not isinstance(parsed, str):
+        return parsed
+    from studio.io.rendezvous_txt import read_rendezvous
+
+    windows = read_rendezvous(parsed, num_robots)
+    inputs.append(parsed)
+    return Rendezvous(windows, parsed)
+
+
+def _times(graph: PoseGraph, dataset: PathLike, period_s: float | None) -> MeasurementTimes:
+    try:
+        return measurement_times(graph, period_ns=None if period_s is None else round(period_s * NS_PER_S))
+    except GraphError as err:
+        raise FormatError(f"{dataset}: {err}") from None
+
+
+def _refuse_existing(targets: list[Path], *, force: bool, inputs: list[PathLike]) -> None:
+    """Refuse a bad output before any work."""
+    from studio.io.atomic import check_outputs
+
+    for target in targets:
+        absolute = Path(os.path.abspath(target))  # "-o ." is the current folder, named as such
+        check_outputs(absolute.parent, [absolute.name], force=force, inputs=inputs)
+
+
+def _timings_text(runs: tuple[BackendRun, ...]) -> str:
+    timing = ["backend,tick,solver_s"] + [
+        f"{r.name},{t},{s:.6f}" for r in runs for t, s in zip(r.checkpoint_ticks.tolist(), r.solver_seconds)
+    ]
+    timing += [f"{r.name},total,{r.seconds:.6f}" for r in runs]
+    return "\n".join(timing) + "\n"
+
+
+def _options(
+    dataset: PathLike,
+    schedule: Schedule,
+    names: list[str],
+    settings: IsamSettings,
+    kind: str,
+    step_s: float,
+    every: int,
+    period_s: float | None,
+) -> dict[str, Any]:
+    """The effective options, as ``replay.json`` records them."""
+    return {
+        "dataset": str(dataset),
+        "comms": schedule.model,
+        "bandwidth": schedule.bandwidth or None,
+        "seed": schedule.seed,
+        "step_s": step_s,
+        "every": every,
+        "period_s": period_s,
+        "clock": "pose index x period" if period_s is not None else "dataset stamps",
+        "backends": names,
+        "isam2": dataclasses.asdict(settings),
+        "planar": kind,
+    }
+
+
+def _write_folder(
+    folder: Path,
+    *,
+    dataset: PathLike,
+    graph: PoseGraph,
+    model: CommsModel,
+    schedule: Schedule,
+    report: CommsReport,
+    runs: tuple[BackendRun, ...],
+    options: dict[str, Any],
+    parquet: bool = False,
+) -> None:
+    """Every file of the output folder (module doc) into ``folder``, a new folder in the staging;
+    with ``parquet`` each CSV table as Parquet beside it."""
+    from studio.io.schedule_csv import write_schedule
+
+    folder.mkdir()
+    sched = folder / "schedule"
+    sched.mkdir()
+    write_schedule(sched, schedule, graph.inter.from_index, graph.inter.to_index)
+    if isinstance(model, Rendezvous):
+        from studio.io.rendezvous_txt import write_rendezvous
+
+        write_rendezvous(sched / "rendezvous.txt", model.windows_s)
+    (folder / "metrics.csv").write_text(_metrics_text(runs, schedule), encoding="utf-8")
+    summary = _summary_rows(runs)
+    (folder / "summary.csv").write_text(
+        "\n".join([",".join(SUMMARY_COLUMNS)] + [",".join(r) for r in summary]) + "\n", encoding="utf-8"
+    )
+    (folder / "summary.md").write_text(_markdown(list(SUMMARY_COLUMNS), summary), encoding="utf-8")
+    (folder / "links.csv").write_text(_links_text(runs, schedule), encoding="utf-8")
+    (folder / "timings.csv").write_text(_timings_text(runs), encoding="utf-8")
+    (folder / "report.md").write_text(_report_text(schedule, report, runs), encoding="utf-8")
+    (folder / REPLAY_JSON).write_text(json.dumps(options, indent=2) + "\n", encoding="utf-8")
+    _plot(folder / "ape.png", runs, schedule, f"{Path(dataset).name}: {schedule.model}")
+    if parquet:
+        from studio.io.parquet_table import write_parquet_from_csv
+
+        for table in sorted(folder.rglob("*.csv")):
+            write_parquet_from_csv(table.with_suffix(".parquet"), table.read_text(encoding="utf-8"))
+
+
+def _write_recording(
+    rrd_path: Path,
+    *,
+    dataset: PathLike,
+    graph: PoseGraph,
+    schedule: Schedule,
+    report: CommsReport,
+    runs: tuple[BackendRun, ...],
+    vertex_ns: np.ndarray,
+    inputs: list[PathLike],
+    force: bool,
+) -> None:
+    from studio.recording.replay import write_replay_recording
+
+    write_replay_recording(
+        rrd_path,
+        graph,
+        inputs=inputs,
+        name=f"{Path(dataset).name} replay ({schedule.model})",
+        force=force,
+        ticks_ns=schedule.ticks_ns,
+        contact=schedule.contact,
+        pairs=schedule.pairs,
+        closure_from=schedule.closure_from,
+        closure_from_index=graph.inter.from_index,
+        closure_to=schedule.closure_to,
+        closure_to_index=graph.inter.to_index,
+        delivered_tick=schedule.delivered_tick,
+        robots_in_contact=report.robots_in_contact,
+        runs=[(r.name, r.checkpoint_ticks, r.ape_team_se3_m, r.beliefs) for r in runs],
+        vertex_ns=vertex_ns,
+    )
+
+
 def replay(
     dataset: PathLike,
     out: PathLike,
@@ -422,126 +611,65 @@ def replay(
     polish: bool = True,
     force: bool = False,
     rrd: PathLike | None = None,
+    parquet: bool = False,
 ) -> ReplayResult:
     """Replay ``dataset`` (a multi-g2o folder with ground truth) under the communication model
     ``comms`` through each of ``backends`` and write the outputs into the folder ``out`` (module doc).
 
     ``step_s``: the tick [s] contacts are evaluated on; ``every``: ticks between checkpoints (the
     metrics' interval and the back-ends' batch of updates); ``period_s``: replace the dataset's
-    stamps by pose index x this period (None: the dataset's stamps; kollagen's are 1 s apart)."""
+    stamps by pose index x this period (None: the dataset's stamps; kollagen's are 1 s apart);
+    ``parquet``: each CSV table as Parquet too (pyarrow; ConfigError before any work without it)."""
     from studio.io.atomic import staged_outputs
 
     out = Path(out)
-    names = list(backends)
-    if not names:
-        raise ConfigError("backend: give at least one back-end")
-    for name in names:
-        get_backend(name)
-    if len(set(names)) != len(names):
-        raise ConfigError(f"backend: {names} names one back-end twice")
-    if not (isinstance(step_s, (int, float)) and np.isfinite(step_s) and step_s > 0):
-        raise ConfigError(f"step: must be a positive number of seconds, got {step_s!r}")
-    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
-        raise ConfigError(f"every: must be a positive number of ticks, got {every!r}")
-    if period_s is not None and not (isinstance(period_s, (int, float)) and np.isfinite(period_s) and period_s > 0):
-        raise ConfigError(f"period: must be a positive number of seconds, got {period_s!r}")
-    if isinstance(relinearize_skip, bool) or not isinstance(relinearize_skip, int) or relinearize_skip < 1:
-        raise ConfigError(f"relinearize_skip: must be a positive integer, got {relinearize_skip!r}")
-    if not (isinstance(relinearize_threshold, (int, float)) and relinearize_threshold >= 0):
-        raise ConfigError(f"relinearize_threshold: must be >= 0, got {relinearize_threshold!r}")
-    if isinstance(final_updates, bool) or not isinstance(final_updates, int) or final_updates < 0:
-        raise ConfigError(f"final_updates: must be an integer >= 0, got {final_updates!r}")
-    rrd_path = None if rrd is None else Path(rrd)
-    if rrd_path is not None and rrd_path.suffix != ".rrd":
-        raise ConfigError(f"rrd: {rrd_path} must end in .rrd")
+    names = _check_backends(backends)
+    _check_numbers(
+        step_s=step_s,
+        every=every,
+        period_s=period_s,
+        relinearize_skip=relinearize_skip,
+        relinearize_threshold=relinearize_threshold,
+        final_updates=final_updates,
+    )
+    rrd_path = _rrd_target(rrd, parquet=parquet)
     parsed = parse_comms(comms)
     band = None if bandwidth is None else parse_bandwidth(bandwidth)
     step_ns = round(step_s * NS_PER_S)
     loaded, graph = _load(dataset)
     inputs: list[PathLike] = [dataset]
-    if isinstance(parsed, str):
-        from studio.io.rendezvous_txt import read_rendezvous
-
-        windows = read_rendezvous(parsed, len(graph.agents))
-        model: CommsModel = Rendezvous(windows, parsed)
-        inputs.append(parsed)
-    else:
-        model = parsed
-    try:
-        times = measurement_times(graph, period_ns=None if period_s is None else round(period_s * NS_PER_S))
-    except GraphError as err:
-        raise FormatError(f"{dataset}: {err}") from None
+    model = _model(parsed, len(graph.agents), inputs)
+    times = _times(graph, dataset, period_s)
     settings = IsamSettings(float(relinearize_threshold), relinearize_skip, 0, final_updates, bool(polish))
-    # refuse a bad output before any work
-    from studio.io.atomic import check_outputs
-
-    for target in [out] + ([rrd_path] if rrd_path is not None else []):
-        absolute = Path(os.path.abspath(target))  # "-o ." is the current folder, named as such
-        check_outputs(absolute.parent, [absolute.name], force=force, inputs=inputs)
+    _refuse_existing([out] + ([rrd_path] if rrd_path is not None else []), force=force, inputs=inputs)
     schedule = build_schedule(graph, times, model, step_ns=step_ns, seed=seed, bandwidth=band)
     report = comms_report(schedule)
     world = _world(loaded, graph, times, schedule, settings)
     checkpoints = _checkpoints(len(schedule.ticks_ns), every)
     runs = tuple(_run(name, world, graph, schedule, checkpoints, keep_beliefs=rrd_path is not None) for name in names)
-    options = {
-        "dataset": str(dataset),
-        "comms": schedule.model,
-        "bandwidth": schedule.bandwidth or None,
-        "seed": seed,
-        "step_s": step_s,
-        "every": every,
-        "period_s": period_s,
-        "clock": "pose index x period" if period_s is not None else "dataset stamps",
-        "backends": names,
-        "isam2": dataclasses.asdict(settings),
-        "planar": loaded.problem.kind.value,
-    }
-    from studio.io.schedule_csv import write_schedule
-
+    options = _options(dataset, schedule, names, settings, loaded.problem.kind.value, step_s, every, period_s)
     with staged_outputs(out.parent, [out.name], force=force, inputs=inputs) as staging:
-        folder = staging / out.name
-        folder.mkdir()
-        sched = folder / "schedule"
-        sched.mkdir()
-        write_schedule(sched, schedule, graph.inter.from_index, graph.inter.to_index)
-        if isinstance(model, Rendezvous):
-            from studio.io.rendezvous_txt import write_rendezvous
-
-            write_rendezvous(sched / "rendezvous.txt", model.windows_s)
-        (folder / "metrics.csv").write_text(_metrics_text(runs, schedule), encoding="utf-8")
-        summary = _summary_rows(runs)
-        (folder / "summary.csv").write_text(
-            "\n".join([",".join(SUMMARY_COLUMNS)] + [",".join(r) for r in summary]) + "\n", encoding="utf-8"
+        _write_folder(
+            staging / out.name,
+            dataset=dataset,
+            graph=graph,
+            model=model,
+            schedule=schedule,
+            report=report,
+            runs=runs,
+            options=options,
+            parquet=parquet,
         )
-        (folder / "summary.md").write_text(_markdown(list(SUMMARY_COLUMNS), summary), encoding="utf-8")
-        (folder / "links.csv").write_text(_links_text(runs, schedule), encoding="utf-8")
-        timing = ["backend,tick,solver_s"] + [
-            f"{r.name},{t},{s:.6f}" for r in runs for t, s in zip(r.checkpoint_ticks.tolist(), r.solver_seconds)
-        ]
-        timing += [f"{r.name},total,{r.seconds:.6f}" for r in runs]
-        (folder / "timings.csv").write_text("\n".join(timing) + "\n", encoding="utf-8")
-        (folder / "report.md").write_text(_report_text(schedule, report, runs), encoding="utf-8")
-        (folder / REPLAY_JSON).write_text(json.dumps(options, indent=2) + "\n", encoding="utf-8")
-        _plot(folder / "ape.png", runs, schedule, f"{Path(dataset).name}: {schedule.model}")
     if rrd_path is not None:
-        from studio.recording.replay import write_replay_recording
-
-        write_replay_recording(
+        _write_recording(
             rrd_path,
-            graph,
-            inputs=inputs,
-            name=f"{Path(dataset).name} replay ({schedule.model})",
-            force=force,
-            ticks_ns=schedule.ticks_ns,
-            contact=schedule.contact,
-            pairs=schedule.pairs,
-            closure_from=schedule.closure_from,
-            closure_from_index=graph.inter.from_index,
-            closure_to=schedule.closure_to,
-            closure_to_index=graph.inter.to_index,
-            delivered_tick=schedule.delivered_tick,
-            robots_in_contact=report.robots_in_contact,
-            runs=[(r.name, r.checkpoint_ticks, r.ape_team_se3_m, r.beliefs) for r in runs],
+            dataset=dataset,
+            graph=graph,
+            schedule=schedule,
+            report=report,
+            runs=runs,
             vertex_ns=world.vertex_ns,
+            inputs=inputs,
+            force=force,
         )
     return ReplayResult(out, schedule, report, runs, options, rrd_path)

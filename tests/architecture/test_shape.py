@@ -25,8 +25,6 @@ ALLOWED_LONG = {
     "converters/odometry_source.py": "apply_odometry_sources (83 lines), to be split into fit and apply",
     "studio/io/jrl.py": "read_jrl (179 lines): one pass over the JSON document, to be split per section",
     "studio/io/symbol_g2o.py": "read_symbol_g2o_folder (124 lines), to be split into read and assemble",
-    "studio/replay/__init__.py": "replay (142 lines): the event loop over ticks, to be split into its steps",
-    "studio/recording/replay.py": "log_replay (82 lines), to be split per kind of data",
 }
 
 

@@ -194,3 +194,44 @@ def test_the_recording_shows_beliefs_links_and_closures_and_has_a_stable_fingerp
     with pytest.raises(Exception, match="already exists"):
         replay(tiny.dataset_dir, tmp_path / "c", comms="never", rrd=tmp_path / "a.rrd")
     assert not (tmp_path / "c").exists()
+
+
+def test_parquet_tables_hold_the_csv_columns_and_rows(tiny, tmp_path):
+    pa_csv = pytest.importorskip("pyarrow.csv")
+    pq = pytest.importorskip("pyarrow.parquet")
+    out = tmp_path / "pq"
+    r = runner.invoke(app, ["replay", str(tiny.dataset_dir), "--comms", "range:10", "-o", str(out), "--parquet"])
+    assert r.exit_code == 0, r.output
+    tables = sorted(p.relative_to(out).as_posix() for p in out.rglob("*.parquet"))
+    assert tables == [
+        "links.parquet",
+        "metrics.parquet",
+        "schedule/closures.parquet",
+        "schedule/contacts.parquet",
+        "summary.parquet",
+        "timings.parquet",
+    ]
+    for name in tables:
+        table = pq.read_table(out / name)
+        text = (out / name).with_suffix(".csv").read_text().splitlines()
+        assert table.column_names == text[0].split(","), name
+        assert table.num_rows == len(text) - 1, name
+        assert table.equals(pa_csv.read_csv(out / Path(name).with_suffix(".csv"))), name
+    metrics = pq.read_table(out / "metrics.parquet").to_pydict()
+    assert metrics["backend"][0] == "centralized" and metrics["ape_se3_m"][0] is None  # a robot's row
+    team = [k for k, robot in enumerate(metrics["robot"]) if robot == "all"]
+    assert all(metrics["ape_se3_m"][k] > 0 for k in team[1:])
+    # the same replay gives the same Parquet bytes (timings aside)
+    again = tmp_path / "pq2"
+    replay(tiny.dataset_dir, again, comms="range:10", parquet=True)
+    for name in tables:
+        if name != "timings.parquet":
+            assert (out / name).read_bytes() == (again / name).read_bytes(), name
+
+
+def test_parquet_without_pyarrow_is_one_line_and_nothing_written(tiny, tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "pyarrow", None)  # import pyarrow now raises ImportError
+    out = tmp_path / "never-written"
+    _fails(["replay", str(tiny.dataset_dir), "-o", str(out), "--parquet"], "parquet: needs pyarrow", out)
