@@ -70,7 +70,8 @@ def robot_prefix(k: int) -> str:
 
 def symbol_key(prefix: str, index: np.ndarray | int) -> np.ndarray:
     """The keys ``ord(prefix) << 56 | index`` (int64: every character used is below 128)."""
-    return (np.int64(ord(prefix)) << np.int64(INDEX_BITS)) | np.asarray(index, dtype=np.int64)
+    keys: np.ndarray = (np.int64(ord(prefix)) << np.int64(INDEX_BITS)) | np.asarray(index, dtype=np.int64)
+    return keys
 
 
 def symbol_parts(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
