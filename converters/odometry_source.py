@@ -189,7 +189,11 @@ def apply_odometry_sources(
     graph: PoseGraph, sources: Mapping[str, Trajectory], *, what: str = "the odometry source"
 ) -> tuple[PoseGraph, list[OdometryFit]]:
     """``graph`` with each agent's odometry edges, information and initial estimate taken from its
-    source (agents without one keep theirs), and the fit per agent with a source."""
+    source (agents without one keep theirs), and the fit per agent with a source.
+
+    Per agent: the source at the keyframes' stamps, its relative motions and their errors against
+    the ground truth (:func:`_planar_motion`, :func:`_spatial_motion`), the variance model fitted to
+    them (:func:`_fit_information`), then the agent's new odometry and initial estimate."""
     agents: list[AgentGraph] = []
     fits: list[OdometryFit] = []
     for agent in graph.agents:
@@ -198,59 +202,12 @@ def apply_odometry_sources(
             agents.append(agent)
             continue
         pos, quat = poses_at(src, agent.stamps_ns, what=what)
-        gt = agent.ground_truth
         m = agent.num_poses - 1
-        if graph.kind is PoseKind.SE2:
-            src_planar = np.column_stack([pos[:, 0:2], yaw_from_quat_xyzw(quat)])
-            meas, e, g = _se2_errors(gt, src_planar)
-            dist, turn = np.linalg.norm(g[:, 0:2], axis=1), np.abs(g[:, 2])
-            et, er = e[:, 0:2], e[:, 2:3]
-            rel0 = np.column_stack(
-                relative_planar_pose(
-                    src_planar[0, 0],
-                    src_planar[0, 1],
-                    src_planar[0, 2],
-                    src_planar[:, 0],
-                    src_planar[:, 1],
-                    src_planar[:, 2],
-                )
-            )
-            c, s = math.cos(gt[0, 2]), math.sin(gt[0, 2])
-            initial = np.column_stack(
-                [
-                    gt[0, 0] + c * rel0[:, 0] - s * rel0[:, 1],
-                    gt[0, 1] + s * rel0[:, 0] + c * rel0[:, 1],
-                    normalize_angle(gt[0, 2] + rel0[:, 2]),
-                ]
-            )
-        else:
-            gp, gq = gt[:, 0:3], gt[:, 3:7]
-            g_t = quat_rotate(quat_conj(gq[:-1]), gp[1:] - gp[:-1])
-            g_q = quat_mul(quat_conj(gq[:-1]), gq[1:])
-            s_t = quat_rotate(quat_conj(quat[:-1]), pos[1:] - pos[:-1])
-            s_q = quat_canonical(quat_mul(quat_conj(quat[:-1]), quat[1:]))
-            meas = np.column_stack([s_t, s_q])
-            et = quat_rotate(quat_conj(g_q), s_t - g_t)
-            er = quat_to_rotvec(quat_mul(quat_conj(g_q), s_q))
-            dist, turn = np.linalg.norm(g_t, axis=1), np.linalg.norm(quat_to_rotvec(g_q), axis=1)
-            q_align = quat_mul(gq[:1], quat_conj(quat[:1]))
-            init_p = gp[0] + quat_rotate(np.repeat(q_align, len(pos), axis=0), pos - pos[0])
-            init_q = quat_canonical(quat_mul(np.repeat(q_align, len(pos), axis=0), quat))
-            initial = np.column_stack([init_p, init_q / np.linalg.norm(init_q, axis=1, keepdims=True)])
-        kt, kr = et.shape[1], er.shape[1]
-        ct = _fit_variances((et**2).ravel(), np.repeat(np.column_stack([np.ones(m), dist**2]), kt, axis=0))
-        cr = _fit_variances((er**2).ravel(), np.repeat(np.column_stack([np.ones(m), dist**2, turn**2]), kr, axis=0))
-        ct[0], cr[0] = max(ct[0], MIN_SIGMA**2), max(cr[0], MIN_SIGMA**2)
-        var_t = ct[0] + ct[1] * dist**2
-        var_r = cr[0] + cr[1] * dist**2 + cr[2] * turn**2
-        if graph.kind is PoseKind.SE2:
-            info = np.zeros((m, 6))
-            info[:, _DIAG6] = np.column_stack([1 / var_t, 1 / var_t, 1 / var_r])
-        else:
-            info = np.zeros((m, 21))
-            info[:, _DIAG21] = np.column_stack([1 / var_t] * 3 + [_SE3_QUAT_INFORMATION_SCALE / var_r] * 3)
-        odometry = Edges(graph.kind, np.arange(m), np.arange(1, m + 1), meas, info)
-        agents.append(dataclasses.replace(agent, initial=initial, odometry=odometry))
+        motion = (_planar_motion if graph.kind is PoseKind.SE2 else _spatial_motion)(agent.ground_truth, pos, quat)
+        ct, cr, info = _fit_information(graph.kind, motion)
+        odometry = Edges(graph.kind, np.arange(m), np.arange(1, m + 1), motion.measurements, info)
+        agents.append(dataclasses.replace(agent, initial=motion.initial, odometry=odometry))
+        et, er, dist = motion.translation_errors, motion.rotation_errors, motion.distance_m
         travelled = float(dist.sum())
         fits.append(
             OdometryFit(
@@ -268,3 +225,84 @@ def apply_odometry_sources(
             )
         )
     return dataclasses.replace(graph, agents=tuple(agents)), fits
+
+
+@dataclass(frozen=True, eq=False)
+class _Motion:
+    """A source's motion between an agent's keyframes, against the ground truth's."""
+
+    measurements: np.ndarray
+    """The source's relative motion per odometry edge (the agent's pose rows)."""
+    translation_errors: np.ndarray
+    """``(m, 2)`` or ``(m, 3)``: the error's translation, in the first keyframe's frame [m]."""
+    rotation_errors: np.ndarray
+    """``(m, 1)`` or ``(m, 3)``: the error's rotation (angle or rotation vector) [rad]."""
+    distance_m: np.ndarray
+    """The true distance of each edge [m]."""
+    turn_rad: np.ndarray
+    """The true rotation angle of each edge [rad]."""
+    initial: np.ndarray
+    """Dead reckoning: the source's motion composed from the true first keyframe."""
+
+
+def _planar_motion(gt: np.ndarray, pos: np.ndarray, quat: np.ndarray) -> _Motion:
+    """:class:`_Motion` of SE(2) keyframes ``gt`` (rows ``x y yaw``), the source's yaw from ``quat``."""
+    src_planar = np.column_stack([pos[:, 0:2], yaw_from_quat_xyzw(quat)])
+    meas, e, g = _se2_errors(gt, src_planar)
+    rel0 = np.column_stack(
+        relative_planar_pose(
+            src_planar[0, 0],
+            src_planar[0, 1],
+            src_planar[0, 2],
+            src_planar[:, 0],
+            src_planar[:, 1],
+            src_planar[:, 2],
+        )
+    )
+    c, s = math.cos(gt[0, 2]), math.sin(gt[0, 2])
+    initial = np.column_stack(
+        [
+            gt[0, 0] + c * rel0[:, 0] - s * rel0[:, 1],
+            gt[0, 1] + s * rel0[:, 0] + c * rel0[:, 1],
+            normalize_angle(gt[0, 2] + rel0[:, 2]),
+        ]
+    )
+    return _Motion(meas, e[:, 0:2], e[:, 2:3], np.linalg.norm(g[:, 0:2], axis=1), np.abs(g[:, 2]), initial)
+
+
+def _spatial_motion(gt: np.ndarray, pos: np.ndarray, quat: np.ndarray) -> _Motion:
+    """:class:`_Motion` of SE(3) keyframes ``gt`` (rows ``x y z qx qy qz qw``)."""
+    gp, gq = gt[:, 0:3], gt[:, 3:7]
+    g_t = quat_rotate(quat_conj(gq[:-1]), gp[1:] - gp[:-1])
+    g_q = quat_mul(quat_conj(gq[:-1]), gq[1:])
+    s_t = quat_rotate(quat_conj(quat[:-1]), pos[1:] - pos[:-1])
+    s_q = quat_canonical(quat_mul(quat_conj(quat[:-1]), quat[1:]))
+    meas = np.column_stack([s_t, s_q])
+    et = quat_rotate(quat_conj(g_q), s_t - g_t)
+    er = quat_to_rotvec(quat_mul(quat_conj(g_q), s_q))
+    dist, turn = np.linalg.norm(g_t, axis=1), np.linalg.norm(quat_to_rotvec(g_q), axis=1)
+    q_align = quat_mul(gq[:1], quat_conj(quat[:1]))
+    init_p = gp[0] + quat_rotate(np.repeat(q_align, len(pos), axis=0), pos - pos[0])
+    init_q = quat_canonical(quat_mul(np.repeat(q_align, len(pos), axis=0), quat))
+    initial = np.column_stack([init_p, init_q / np.linalg.norm(init_q, axis=1, keepdims=True)])
+    return _Motion(meas, et, er, dist, turn, initial)
+
+
+def _fit_information(kind: PoseKind, motion: _Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The variance models' coefficients (translation, rotation; floors at :data:`MIN_SIGMA`) fitted
+    to ``motion``'s errors, and the information upper triangles they give each edge."""
+    et, er, dist, turn = motion.translation_errors, motion.rotation_errors, motion.distance_m, motion.turn_rad
+    m = len(dist)
+    kt, kr = et.shape[1], er.shape[1]
+    ct = _fit_variances((et**2).ravel(), np.repeat(np.column_stack([np.ones(m), dist**2]), kt, axis=0))
+    cr = _fit_variances((er**2).ravel(), np.repeat(np.column_stack([np.ones(m), dist**2, turn**2]), kr, axis=0))
+    ct[0], cr[0] = max(ct[0], MIN_SIGMA**2), max(cr[0], MIN_SIGMA**2)
+    var_t = ct[0] + ct[1] * dist**2
+    var_r = cr[0] + cr[1] * dist**2 + cr[2] * turn**2
+    if kind is PoseKind.SE2:
+        info = np.zeros((m, 6))
+        info[:, _DIAG6] = np.column_stack([1 / var_t, 1 / var_t, 1 / var_r])
+    else:
+        info = np.zeros((m, 21))
+        info[:, _DIAG21] = np.column_stack([1 / var_t] * 3 + [_SE3_QUAT_INFORMATION_SCALE / var_r] * 3)
+    return ct, cr, info

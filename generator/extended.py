@@ -77,7 +77,8 @@ def rotate_exact_information(upper: np.ndarray, theta_z: np.ndarray) -> np.ndarr
     d[:, 0, 0], d[:, 0, 1], d[:, 1, 0], d[:, 1, 1], d[:, 2, 2] = c, -s, s, c, 1.0
     rot = np.einsum("nji,njk,nkl->nil", d, omega, d)
     rows, cols = np.triu_indices(3)
-    return rot[:, rows, cols]
+    rotated_upper: np.ndarray = rot[:, rows, cols]
+    return rotated_upper
 
 
 def _renoise_planar(graph: PoseGraph, cfg: SynthConfig, seeds: tuple[int, ...]) -> PoseGraph:

@@ -60,7 +60,8 @@ def local_patterns(cells: np.ndarray, heading: np.ndarray, half: int) -> np.ndar
 
     def key(c: np.ndarray) -> np.ndarray:
         c = c - lo
-        return (c[..., 0] * span[1] + c[..., 1]) * span[2] + c[..., 2]
+        ids: np.ndarray = (c[..., 0] * span[1] + c[..., 1]) * span[2] + c[..., 2]
+        return ids
 
     occupied = np.unique(key(cells))
     off = np.arange(-half, half + 1)

@@ -241,11 +241,27 @@ def _single_g2o(path: Path) -> tuple[PoseKind, list[np.ndarray], list[EdgeSet], 
     return doc.kind, [gt], sets, [path.stem]
 
 
+@dataclass(frozen=True, eq=False)
+class _EdgeChi2:
+    """Every checked edge's class, endpoints and chi2 (total and per component), as columns."""
+
+    classes: np.ndarray
+    agent: np.ndarray
+    """The ``from`` agent of each edge (0-based)."""
+    rows: np.ndarray
+    """``(n, 4)``: ``from_agent from_vertex to_agent to_vertex`` (0-based)."""
+    total: np.ndarray
+    translation: np.ndarray
+    rotation: np.ndarray
+
+
 def check(dataset: PathLike, *, convention: Convention = "g2o") -> CheckReport:
     """Check ``dataset`` at its ground truth (see the module docstring): a multi-g2o folder, or a
-    single g2o file with ``<stem>_GT.tum`` beside it (kollagen's single view)."""
-    from scipy.stats import chi2 as chi2_dist
+    single g2o file with ``<stem>_GT.tum`` beside it (kollagen's single view).
 
+    The steps: read the dataset and its listed outliers, decide whether it is checked in SE(2),
+    compute every edge's chi2, flag the outlier candidates, sum per class and agent, and count the
+    listed outliers among the candidates."""
     from studio.core.errors import ConfigError
     from studio.io.multig2o import read_multi_g2o
 
@@ -266,18 +282,42 @@ def check(dataset: PathLike, *, convention: Convention = "g2o") -> CheckReport:
     )
     if planar:
         notes.append("3D records of planar data: checked in SE(2) (x, y, yaw); z, roll and pitch are not scored")
-
-    def rows(poses: np.ndarray) -> np.ndarray:
-        from studio.core.geometry import se3_poses_to_planar
-
-        return se3_poses_to_planar(poses) if planar else poses
-
     checked = PoseKind.SE2 if planar or kind is PoseKind.SE2 else PoseKind.SE3
     d = 3 if checked is PoseKind.SE2 else 6
-    dt = 2 if checked is PoseKind.SE2 else 3
+    edges = _edge_chi2(folder, truth, edge_sets, names, planar=planar, d=d, convention=convention)
+    flagged = _outlier_candidates(edges, d)
+    order = np.argsort(-edges.total[flagged], kind="stable")
+    candidates = np.column_stack([edges.rows[flagged][order].astype(np.float64), edges.total[flagged][order]])
+    classes = _class_checks(edges, flagged, names, d=d, dt=2 if checked is PoseKind.SE2 else 3)
+    listed_n = listed_flagged = None
+    if listed is not None:
+        listed_n = len(listed)
+        have = {tuple(r) for r in edges.rows[flagged].tolist()}
+        listed_flagged = sum(tuple(r) in have for r in listed.tolist())
+    return CheckReport(
+        str(folder), checked, convention, tuple(classes), candidates, listed_n, listed_flagged, tuple(notes)
+    )
+
+
+def _edge_chi2(
+    folder: Path,
+    truth: list[np.ndarray],
+    edge_sets: list[EdgeSet],
+    names: list[str],
+    *,
+    planar: bool,
+    d: int,
+    convention: Convention,
+) -> _EdgeChi2:
+    """Each edge's error at the ground truth and its chi2 (in SE(2) when ``planar``); an edge whose
+    information is not positive definite, or a dataset without edges, is a FormatError."""
+    from studio.core.geometry import se3_poses_to_planar
+
+    def rows(poses: np.ndarray) -> np.ndarray:
+        return se3_poses_to_planar(poses) if planar else poses
+
     stacked = np.concatenate([rows(t) for t in truth])
     offsets = np.concatenate([[0], np.cumsum([len(t) for t in truth])])
-
     cls, agent_of, fa, fv, ta, tv, total, ttrans, trot = [], [], [], [], [], [], [], [], []
     for name, a_from, v_from, a_to, v_to, meas, upper in edge_sets:
         if len(v_from) == 0:
@@ -306,26 +346,38 @@ def check(dataset: PathLike, *, convention: Convention = "g2o") -> CheckReport:
         trot.append(r)
     if not cls:
         raise FormatError(f"{folder}: the dataset has no edges to check")
-    c = np.concatenate(cls)
-    ag = np.concatenate(agent_of)
-    tot, tr, ro = np.concatenate(total), np.concatenate(ttrans), np.concatenate(trot)
-    rows_out = np.column_stack([np.concatenate(fa), np.concatenate(fv), np.concatenate(ta), np.concatenate(tv)])
+    return _EdgeChi2(
+        np.concatenate(cls),
+        np.concatenate(agent_of),
+        np.column_stack([np.concatenate(fa), np.concatenate(fv), np.concatenate(ta), np.concatenate(tv)]),
+        np.concatenate(total),
+        np.concatenate(ttrans),
+        np.concatenate(trot),
+    )
 
-    # outlier candidates, per class with its robust scale
+
+def _outlier_candidates(edges: _EdgeChi2, d: int) -> np.ndarray:
+    """The mask of outlier candidates: chi2 over the tail quantile, per class with its robust scale."""
+    from scipy.stats import chi2 as chi2_dist
+
+    tot = edges.total
     flagged = np.zeros(len(tot), dtype=bool)
     limit = chi2_dist.ppf(1 - OUTLIER_TAIL, d)
     for name in CLASSES:
-        sel = c == name
+        sel = edges.classes == name
         if not sel.any():
             continue
         scale = max(1.0, float(np.median(tot[sel])) / chi2_dist.median(d))
         flagged |= sel & (tot > limit * scale)
-    order = np.argsort(-tot[flagged], kind="stable")
-    candidates = np.column_stack([rows_out[flagged][order].astype(np.float64), tot[flagged][order]])
+    return flagged
 
+
+def _class_checks(edges: _EdgeChi2, flagged: np.ndarray, names: list[str], *, d: int, dt: int) -> list[ClassCheck]:
+    """The sums per class (and per agent for odometry and intra-agent loop closures of several
+    agents), rare outlier candidates left out."""
     classes = []
     for name in CLASSES:
-        sel = c == name
+        sel = edges.classes == name
         if not sel.any():
             continue
         # a few gross outliers would swamp a class's sum: leave them out when they are rare
@@ -333,7 +385,7 @@ def check(dataset: PathLike, *, convention: Convention = "g2o") -> CheckReport:
         use = sel & ~flagged if rare else sel
         excluded = int((sel & ~use).sum())
         groups = [("all", use)] + (
-            [(names[k], use & (ag == k)) for k in range(len(names))]
+            [(names[k], use & (edges.agent == k)) for k in range(len(names))]
             if name in ("odometry", "intra") and len(names) > 1
             else []
         )
@@ -344,21 +396,13 @@ def check(dataset: PathLike, *, convention: Convention = "g2o") -> CheckReport:
                     name,
                     label,
                     n,
-                    Component(float(tot[s_].sum()), n * d),
-                    Component(float(tr[s_].sum()), n * dt),
-                    Component(float(ro[s_].sum()), n * (d - dt)),
+                    Component(float(edges.total[s_].sum()), n * d),
+                    Component(float(edges.translation[s_].sum()), n * dt),
+                    Component(float(edges.rotation[s_].sum()), n * (d - dt)),
                     excluded if label == "all" else 0,
                 )
             )
-
-    listed_n = listed_flagged = None
-    if listed is not None:
-        listed_n = len(listed)
-        have = {tuple(r) for r in rows_out[flagged].tolist()}
-        listed_flagged = sum(tuple(r) in have for r in listed.tolist())
-    return CheckReport(
-        str(folder), checked, convention, tuple(classes), candidates, listed_n, listed_flagged, tuple(notes)
-    )
+    return classes
 
 
 def format_check(report: CheckReport, *, per_agent: bool = False) -> str:

@@ -440,87 +440,123 @@ def convert(
             warn(msg)
 
     check_inputs(cfg.source, cfg.inputs, cfg.agents)
+    built = _read_and_build(cfg, _warn, progress, max_memory_gb)
+    with staged_outputs(out.parent, [out.name], force=force, inputs=[*cfg.inputs, *odometry_inputs]) as staging:
+        ds = staging / out.name
+        ds.mkdir()
+        _write_dataset(cfg, built, ds, warnings, progress)
+        if recorder is not None:
+            recorder(built.build.graph, ds)
+        if rrd:
+            _record_dataset(cfg, built, ds / f"{out.name}.rrd", out.name, progress)
+    return ConvertResult(
+        cfg,
+        out,
+        tuple(built.trajectories),
+        built.build,
+        tuple(warnings),
+        out / f"{out.name}.rrd" if rrd else None,
+        built.orientation,
+        tuple(built.fits),
+        built.range_bearing,
+        built.sightings_fit,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class _Built:
+    """What :func:`convert` writes: the trajectories built and the graph with its real measurements."""
+
+    trajectories: list[Trajectory]
+    orientation: dict[str, str]
+    build: BuildResult
+    fits: list[OdometryFit]
+    range_bearing: RangeBearing | None
+    sightings_fit: SightingsFit | None
+
+
+def _read_and_build(
+    cfg: ConvertConfig, warn: Callable[[str], None], progress: Progress | None, max_memory_gb: float
+) -> _Built:
+    """Read the sources, prepare the trajectories, build the graph and put the real measurements on it."""
     reader = get_reader(cfg.source)
     # numbers that leave the finite range (a quaternion component of 1e200 in a bag) are an error
     # naming the input, never a numpy warning on the terminal; underflow (far loop-closure candidates'
     # acceptance probability) is harmless
     try:
         with np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
-            read = reader(cfg.inputs, agents=cfg.agents, warn=_warn, progress=progress)
+            read = reader(cfg.inputs, agents=cfg.agents, warn=warn, progress=progress)
             trajs, orientation = prepare_trajectories(cfg, read)
             if cfg.options.planar:
                 from studio.converters.planar_checks import planar_warnings
 
                 for t in trajs:
                     for line in planar_warnings(t):
-                        _warn(line)
+                        warn(line)
             build = build_graph(trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb)
-            build, fits, rb, sight_fit = _real_measurements(cfg, build, read, trajs, _warn)
+            build, fits, rb, sight_fit = _real_measurements(cfg, build, read, trajs, warn)
     except FloatingPointError as err:
         raise FormatError(
             f"{', '.join(Path(p).name for p in cfg.inputs)}: numbers out of the finite range "
             f"while reading or building ({err}): a value in the input is absurd"
         ) from None
-    with staged_outputs(out.parent, [out.name], force=force, inputs=[*cfg.inputs, *odometry_inputs]) as staging:
-        ds = staging / out.name
-        ds.mkdir()
-        if progress:
-            progress("writing", 0, 2, "parts")
-        write_multi_g2o(
-            build.graph,
-            ds,
-            records="2d" if cfg.options.planar else "3d",
-            precision="full",
-            folder_names=cfg.folder_names,  # type: ignore[arg-type]
-            sources={t.name: Path(t.source).name for t in trajs},
-        )
-        if progress:
-            progress("writing", 1, 2, "parts")
-        write_text(ds / CONFIG_NAME, (json.dumps(convert_config_to_json(cfg), indent=2) + "\n").encode("utf-8"))
-        report = _report(build, trajs, warnings, orientation)
-        if orientation:
-            report["heading_method"] = HEADING_METHOD_TEXT[cfg.heading_method].format(w=cfg.heading_window_m)
-        report["odometry"] = {
-            "kind": "real" if fits else "synthetic",
-            "source": cfg.odometry if cfg.odometry == "real" else ("odometry_from" if fits else "ground truth"),
-            "fits": [f.to_dict() for f in fits],
-        }
-        if rb is not None and sight_fit is not None:
-            write_range_bearing(ds / RANGE_BEARING_NAME, rb)
-            report["counts"]["range_bearing"] = len(rb)
-            report["range_bearing"] = sight_fit.to_dict()
-        write_text(ds / "report.json", (json.dumps(report, indent=2) + "\n").encode("utf-8"))
-        write_text(ds / "outliers.txt", _outlier_lines(build).encode("utf-8"))
-        if progress:
-            progress("writing", 2, 2, "parts")
-        if recorder is not None:
-            recorder(build.graph, ds)
-        if rrd:
-            from studio.recording.dataset import record_graph
+    return _Built(trajs, orientation, build, fits, rb, sight_fit)
 
-            # input paths reduced to file names: the recording must not depend on where it was made
-            shown = convert_config_to_json(cfg)
-            shown["inputs"] = [Path(p).name for p in cfg.inputs]
-            record_graph(
-                build.graph,
-                ds / f"{out.name}.rrd",
-                name=out.name,
-                config_json=json.dumps(shown, sort_keys=True),
-                outliers=build.outliers,
-                progress=progress,
-                range_bearing=rb,
-            )
-    return ConvertResult(
-        cfg,
-        out,
-        tuple(trajs),
-        build,
-        tuple(warnings),
-        out / f"{out.name}.rrd" if rrd else None,
-        orientation,
-        tuple(fits),
-        rb,
-        sight_fit,
+
+def _write_dataset(
+    cfg: ConvertConfig, built: _Built, ds: Path, warnings: Sequence[str], progress: Progress | None
+) -> None:
+    """The dataset's files in the staged folder ``ds``: the multi-g2o graph, ``convert.json``,
+    ``report.json``, the range-bearing measurements (if any) and ``outliers.txt``."""
+    build, trajs, orientation = built.build, built.trajectories, built.orientation
+    if progress:
+        progress("writing", 0, 2, "parts")
+    write_multi_g2o(
+        build.graph,
+        ds,
+        records="2d" if cfg.options.planar else "3d",
+        precision="full",
+        folder_names=cfg.folder_names,  # type: ignore[arg-type]
+        sources={t.name: Path(t.source).name for t in trajs},
+    )
+    if progress:
+        progress("writing", 1, 2, "parts")
+    write_text(ds / CONFIG_NAME, (json.dumps(convert_config_to_json(cfg), indent=2) + "\n").encode("utf-8"))
+    report = _report(build, trajs, warnings, orientation)
+    if orientation:
+        report["heading_method"] = HEADING_METHOD_TEXT[cfg.heading_method].format(w=cfg.heading_window_m)
+    fits = built.fits
+    report["odometry"] = {
+        "kind": "real" if fits else "synthetic",
+        "source": cfg.odometry if cfg.odometry == "real" else ("odometry_from" if fits else "ground truth"),
+        "fits": [f.to_dict() for f in fits],
+    }
+    rb, sight_fit = built.range_bearing, built.sightings_fit
+    if rb is not None and sight_fit is not None:
+        write_range_bearing(ds / RANGE_BEARING_NAME, rb)
+        report["counts"]["range_bearing"] = len(rb)
+        report["range_bearing"] = sight_fit.to_dict()
+    write_text(ds / "report.json", (json.dumps(report, indent=2) + "\n").encode("utf-8"))
+    write_text(ds / "outliers.txt", _outlier_lines(build).encode("utf-8"))
+    if progress:
+        progress("writing", 2, 2, "parts")
+
+
+def _record_dataset(cfg: ConvertConfig, built: _Built, path: Path, name: str, progress: Progress | None) -> None:
+    """The dataset's Rerun recording at ``path`` (inside the staged dataset)."""
+    from studio.recording.dataset import record_graph
+
+    # input paths reduced to file names: the recording must not depend on where it was made
+    shown = convert_config_to_json(cfg)
+    shown["inputs"] = [Path(p).name for p in cfg.inputs]
+    record_graph(
+        built.build.graph,
+        path,
+        name=name,
+        config_json=json.dumps(shown, sort_keys=True),
+        outliers=built.build.outliers,
+        progress=progress,
+        range_bearing=built.range_bearing,
     )
 
 

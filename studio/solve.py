@@ -43,7 +43,7 @@ from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE as MAX_COORDINATE_M  # the one bound of every number
 from studio.io.names import safe_file_name, safe_file_names
-from studio.solvers import DEFAULT_METHOD, method_entry
+from studio.solvers import DEFAULT_METHOD, SolveMethod, method_entry
 from studio.solvers.problem import Init, Iteration, Optimizer, Problem, Solution, SolveOptions, graph_chi2
 from studio.solvers.validate import check_problem, check_solution
 
@@ -277,10 +277,55 @@ def solve(
 
     ``robots``: ``dgs`` on a single g2o file, that many robots of contiguous vertex ids (a multi-g2o
     folder's robots are its agents); with ground truth, ``dgs`` also scores every round (APE)."""
-    from studio.io.atomic import staged_outputs
-
     entry = method_entry(method)
-    solver = entry.solve
+    options = _solve_options(entry, optimizer, init, max_iterations, relative_tolerance, command, robots)
+    out = Path(out)
+    rrd_path = None if rrd is None else Path(rrd)
+    if rrd_path is not None and rrd_path.suffix != ".rrd":
+        raise ConfigError(f"rrd: {rrd_path} must end in .rrd")
+    inputs = dataset_inputs(dataset)
+    _check_solve_outputs(out, rrd_path, inputs, force)  # every refusal before any work
+    t0 = time.perf_counter()
+    loaded = load_problem(dataset, dimension=dimension)
+    tum_names = _tum_names(loaded, dataset)
+    problem = loaded.problem
+    iterates: list[tuple[int, np.ndarray]] = []
+    scorer = _RoundScorer.of(loaded) if entry.scores_rounds else None
+    solution = _run_solver(loaded, entry, options, dataset, method, iterates if rrd_path is not None else None, scorer)
+    seconds = time.perf_counter() - t0
+    chi2_initial = solution.chi2_history[0] if solution.chi2_history else graph_chi2(problem, problem.initial)
+    chi2_final = graph_chi2(problem, solution.poses) if np.isfinite(solution.poses).all() else float("nan")
+    check_solution(problem, solution, chi2_initial, chi2_final, method=method, where=str(dataset))
+    result = SolveResult(
+        out,
+        out,
+        method,
+        options,
+        solution.iterations,
+        graph_chi2(problem, problem.initial),
+        chi2_initial,
+        chi2_final,
+        seconds,
+        problem.kind is PoseKind.SE2 and loaded.source_kind is PoseKind.SE3,
+        _rejected_rows(loaded, solution),
+        solution,
+        rrd_path,
+        None if scorer is None else scorer.rounds(solution),
+    )
+    return _write_solve_outputs(result, loaded, dataset, tum_names, iterates, inputs=inputs, force=force)
+
+
+def _solve_options(
+    entry: SolveMethod,
+    optimizer: str,
+    init: str,
+    max_iterations: int | None,
+    relative_tolerance: float,
+    command: str,
+    robots: int,
+) -> SolveOptions:
+    """The options of :func:`solve` checked (each refusal names its option), ``max_iterations``
+    defaulting to the method's own."""
     if optimizer not in get_args(Optimizer):
         raise ConfigError(f"optimizer: expected {' or '.join(get_args(Optimizer))}, got {optimizer!r}")
     if init not in get_args(Init):
@@ -293,24 +338,26 @@ def solve(
         raise ConfigError(f"relative_tolerance: expected a number in [0, 1), got {relative_tolerance!r}")
     if isinstance(robots, bool) or not isinstance(robots, int) or robots < 0:
         raise ConfigError(f"robots: expected a whole number of robots (0: the default), got {robots!r}")
-    options = SolveOptions(optimizer, init, max_iterations, float(relative_tolerance), command, robots)  # type: ignore[arg-type]
-    out = Path(out)
-    rrd_path = None if rrd is None else Path(rrd)
-    if rrd_path is not None and rrd_path.suffix != ".rrd":
-        raise ConfigError(f"rrd: {rrd_path} must end in .rrd")
-    inputs = dataset_inputs(dataset)
-    _check_solve_outputs(out, rrd_path, inputs, force)  # every refusal before any work
-    t0 = time.perf_counter()
-    loaded = load_problem(dataset, dimension=dimension)
-    tum_names = _tum_names(loaded, dataset)
+    return SolveOptions(optimizer, init, max_iterations, float(relative_tolerance), command, robots)  # type: ignore[arg-type]
+
+
+def _run_solver(
+    loaded: Loaded,
+    entry: SolveMethod,
+    options: SolveOptions,
+    dataset: PathLike,
+    method: str,
+    iterates: list[tuple[int, np.ndarray]] | None,
+    scorer: _RoundScorer | None,
+) -> Solution:
+    """Check the problem and run the method on it; each iterate is kept in ``iterates`` (for the
+    recording) and scored by ``scorer`` when they are given. A back-end's own failure is a FormatError."""
     problem = loaded.problem
-    iterates: list[tuple[int, np.ndarray]] = []
     on_iteration: Iteration | None = None
-    scorer = _RoundScorer.of(loaded) if entry.scores_rounds else None
-    if rrd_path is not None or scorer is not None:
+    if iterates is not None or scorer is not None:
 
         def on_iteration(k: int, poses: np.ndarray) -> None:
-            if rrd_path is not None:
+            if iterates is not None:
                 iterates.append((k, poses.copy()))
             if scorer is not None:
                 scorer.add(k, poses)
@@ -326,36 +373,39 @@ def solve(
     check_problem(problem, str(dataset), vertex_name)
     try:
         with native_stdout_silenced():  # GTSAM's notices (gnc's setMaxIterations) are not our output
-            solution = solver(problem, options, on_iteration)
+            return entry.solve(problem, options, on_iteration)
     except RuntimeError as err:  # GTSAM's and g2o's own failures (e.g. an indeterminate system)
         first = next((ln.strip() for ln in str(err).splitlines() if ln.strip()), type(err).__name__)
         raise FormatError(f"{dataset}: method {method} failed: {first} (is the graph connected?)") from None
-    seconds = time.perf_counter() - t0
-    rejected = None
-    if solution.rejected is not None:
-        ids = np.flatnonzero(solution.rejected)
-        fa, fv = _agent_rows(loaded.offsets, problem.edge_from[ids])
-        ta, tv = _agent_rows(loaded.offsets, problem.edge_to[ids])
-        rejected = np.column_stack([fa, fv, ta, tv]).astype(np.int64).reshape(-1, 4)
-    chi2_initial = solution.chi2_history[0] if solution.chi2_history else graph_chi2(problem, problem.initial)
-    chi2_final = graph_chi2(problem, solution.poses) if np.isfinite(solution.poses).all() else float("nan")
-    check_solution(problem, solution, chi2_initial, chi2_final, method=method, where=str(dataset))
-    result = SolveResult(
-        out,
-        out,
-        method,
-        options,
-        solution.iterations,
-        graph_chi2(problem, problem.initial),
-        chi2_initial,
-        chi2_final,
-        seconds,
-        problem.kind is PoseKind.SE2 and loaded.source_kind is PoseKind.SE3,
-        rejected,
-        solution,
-        rrd_path,
-        None if scorer is None else scorer.rounds(solution),
-    )
+
+
+def _rejected_rows(loaded: Loaded, solution: Solution) -> np.ndarray | None:
+    """The rows ``from_agent from_vertex to_agent to_vertex`` of the loop closures the method
+    rejected (gnc), or None."""
+    if solution.rejected is None:
+        return None
+    problem = loaded.problem
+    ids = np.flatnonzero(solution.rejected)
+    fa, fv = _agent_rows(loaded.offsets, problem.edge_from[ids])
+    ta, tv = _agent_rows(loaded.offsets, problem.edge_to[ids])
+    return np.column_stack([fa, fv, ta, tv]).astype(np.int64).reshape(-1, 4)
+
+
+def _write_solve_outputs(
+    result: SolveResult,
+    loaded: Loaded,
+    dataset: PathLike,
+    tum_names: list[str],
+    iterates: list[tuple[int, np.ndarray]],
+    *,
+    inputs: list[Path],
+    force: bool,
+) -> SolveResult:
+    """Stage and write the estimate, ``solve.json`` and the recording (``result.rrd_path``); return
+    ``result`` with the estimate's path."""
+    from studio.io.atomic import staged_outputs
+
+    out, rrd_path, solution = result.out_dir, result.rrd_path, result.solution
     stem = safe_file_name(Path(dataset).stem, fallback="graph")
     with contextlib.ExitStack() as stack:
         # the recording is staged inside the estimate's guard: a failure of either leaves neither
@@ -367,10 +417,10 @@ def solve(
                 rrd_path,
                 loaded.graph,
                 loaded.offsets,
-                problem.kind,
+                loaded.problem.kind,
                 iterates,
                 solution.chi2_history,
-                name=f"{stem} ({method})",
+                name=f"{stem} ({result.method})",
                 force=force,
                 inputs=[*inputs, out],
             )

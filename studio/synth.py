@@ -173,16 +173,9 @@ def synthesize(
     Configs estimated to need more memory or disk than the limits are refused before any work.
     ``progress`` hears of each agent, agent pair, written part and recorded agent.
     """
-    check_option("max_memory_gb", max_memory_gb, allow_zero=False)
-    check_option("max_output_gb", max_output_gb, allow_zero=False)
-    if jobs is not None and (isinstance(jobs, bool) or not 0 <= jobs <= 4096):
-        raise ConfigError(f"jobs: expected 0 (the idle cores) .. 4096, got {jobs!r}", option="jobs")
-    check_resources(config, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
+    _check_synth_options(config, multi_records, jobs, max_memory_gb, max_output_gb)
     out_dir = Path(out_dir)
     name = config.name
-    walk = None if config.studio is None else walk_mode(config.studio.walk)
-    if walk is not None and not walk.planar and multi_records == "2d":
-        raise ConfigError(f"{name}: walk {walk.name} is 3D; multi_records 2d cannot hold it", option="multi_records")
     extras = [f"{name}{suffix}" for suffix in generator.extra_suffixes(config)]
     config_name, rrd_name = f"{name}.config.json", f"{name}.rrd"
     names = [name, *extras, config_name] + ([rrd_name] if rrd else [])
@@ -206,22 +199,7 @@ def synthesize(
 
         output = run_team(job, jobs)
         outliers = output.outliers
-        if outliers is not None:
-            write_outliers_txt(staging / name / "outliers.txt", outliers.rows, outliers.kinds)
-        with open(staging / config_name, "w", encoding="utf-8") as f:
-            json.dump(synth_config_to_json(config), f, indent=4)
-            f.write("\n")
-        if rrd:
-            from studio.recording.dataset import record_graph
-
-            record_graph(
-                output.graph,
-                staging / rrd_name,
-                name=name,
-                config_json=json.dumps(synth_config_to_json(config), sort_keys=True),
-                outliers=None if outliers is None else outliers.rows,
-                progress=progress,
-            )
+        _write_config_and_recording(config, output, staging, rrd=rrd, progress=progress)
     single = f"{name}_singleg2o"
     return SynthResult(
         config,
@@ -232,6 +210,48 @@ def synthesize(
         out_dir / rrd_name if rrd else None,
         outliers=outliers,
     )
+
+
+def _check_synth_options(
+    config: SynthConfig, multi_records: Records, jobs: int | None, max_memory_gb: float, max_output_gb: float
+) -> None:
+    """Every refusal of :func:`synthesize` before any work: the limits, ``jobs``, the config's
+    estimated resources and a 3D walk in 2D multi-g2o records."""
+    check_option("max_memory_gb", max_memory_gb, allow_zero=False)
+    check_option("max_output_gb", max_output_gb, allow_zero=False)
+    if jobs is not None and (isinstance(jobs, bool) or not 0 <= jobs <= 4096):
+        raise ConfigError(f"jobs: expected 0 (the idle cores) .. 4096, got {jobs!r}", option="jobs")
+    check_resources(config, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
+    walk = None if config.studio is None else walk_mode(config.studio.walk)
+    if walk is not None and not walk.planar and multi_records == "2d":
+        raise ConfigError(
+            f"{config.name}: walk {walk.name} is 3D; multi_records 2d cannot hold it", option="multi_records"
+        )
+
+
+def _write_config_and_recording(
+    config: SynthConfig, output: GeneratedDataset, staging: Path, *, rrd: bool, progress: Progress | None
+) -> None:
+    """Beside the generated files in ``staging``: the planted outliers (``<name>/outliers.txt``),
+    the effective config (``<name>.config.json``) and, with ``rrd``, the recording (``<name>.rrd``)."""
+    name = config.name
+    outliers = output.outliers
+    if outliers is not None:
+        write_outliers_txt(staging / name / "outliers.txt", outliers.rows, outliers.kinds)
+    with open(staging / f"{name}.config.json", "w", encoding="utf-8") as f:
+        json.dump(synth_config_to_json(config), f, indent=4)
+        f.write("\n")
+    if rrd:
+        from studio.recording.dataset import record_graph
+
+        record_graph(
+            output.graph,
+            staging / f"{name}.rrd",
+            name=name,
+            config_json=json.dumps(synth_config_to_json(config), sort_keys=True),
+            outliers=None if outliers is None else outliers.rows,
+            progress=progress,
+        )
 
 
 def generate(config: SynthConfig, *, seed: int = 0, jobs: int | None = 1) -> PoseGraph:

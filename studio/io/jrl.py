@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -278,18 +278,56 @@ def _load(source: PathLike) -> tuple[Any, str]:
 
 
 def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> JrlGraph:
-    """Read a JRL file (see the module doc); ``warn`` hears about skipped factors."""
+    """Read a JRL file (see the module doc); ``warn`` hears about skipped factors.
+
+    One section at a time: the header (``name``, ``robots``, which robots each section names, the
+    ``studio`` block), the measurements' factors, the values (``initialization``, ``groundtruth``),
+    each robot's poses, then the graph and its labelled outliers (``outlier_factors``)."""
     data, where = _load(source)
     r = _Reader(where)
+    name, robots, studio = _read_header(r, data)
+    keys = _Keys(r, robots)
+    factors = _read_factors(r, keys, data["measurements"])
+    kind = factors.kind
+    if kind is None:
+        raise FormatError(f"{where}: measurements: no BetweenFactorPose2 or BetweenFactorPose3")
+    dim = 3 if kind is PoseKind.SE2 else 6
+    meas = _pose_array(r, kind, factors.measurements, [f"{p}.measurement" for p in factors.paths])
+    cov = _number_array(r, factors.covariances, dim * dim, [f"{p}.covariance" for p in factors.paths])
+    cov = cov.reshape(-1, dim, dim)
+    if factors.skipped and warn is not None:
+        warn(
+            f"{where}: skipped factors the studio's pose graphs do not hold: "
+            + ", ".join(f"{n} {t}" for t, n in sorted(factors.skipped.items()))
+        )
+    init = _read_values(r, keys, data, "initialization", kind)
+    truth = _read_values(r, keys, data, "groundtruth", kind)
+    edge = np.array(factors.rows, dtype=np.int64).reshape(-1, 4)
+    agents, local = _robot_poses(r, robots, studio, edge, factors, init, truth)
+    fi = np.array([local[a][i] for a, i in zip(edge[:, 0].tolist(), edge[:, 1].tolist())], dtype=np.int64)
+    ti = np.array([local[a][i] for a, i in zip(edge[:, 2].tolist(), edge[:, 3].tolist())], dtype=np.int64)
+    sign, _ = np.linalg.slogdet(cov)
+    if np.any(sign <= 0):
+        bad = int(np.flatnonzero(sign <= 0)[0])
+        (c, e, m) = next(key for key, v in factors.ids.items() if v == bad)
+        raise r.fail(f"measurements.{c}[{e}].measurements[{m}].covariance", "not positive definite")
+    table = EdgeTable(kind, edge[:, 0], fi, edge[:, 2], ti, meas, covariance_to_information(kind, cov))
+    graph = assemble_graph(agents, table, where=where, metadata={"source": where, "name": str(name)})
+    outliers = _outlier_rows(r, data, factors.ids, table)
+    return JrlGraph(graph, outliers, str(name), factors.skipped)
+
+
+def _read_header(r: _Reader, data: Any) -> tuple[Any, list[str], dict[str, Any] | None]:
+    """The document's ``name``, its ``robots`` (checked, and every section's robots among them) and
+    its ``studio`` block (None when absent or of another format)."""
     if not isinstance(data, dict):
-        raise FormatError(f"{where}: expected a JSON object at the top")
+        raise FormatError(f"{r.where}: expected a JSON object at the top")
     name = r.get(data, "name", "$")
     robots = r.get(data, "robots", "$")
     if not isinstance(robots, list) or not robots or not all(isinstance(c, str) and len(c) == 1 for c in robots):
         raise r.fail("robots", "expected a non-empty list of one-character robot ids")
     if len(set(robots)) != len(robots):
         raise r.fail("robots", "a robot id is listed twice")
-    position = {ord(c): k for k, c in enumerate(robots)}
     measurements = r.get(data, "measurements", "$")
     if not isinstance(measurements, dict):
         raise r.fail("measurements", "expected an object from robot id to entries")
@@ -304,32 +342,58 @@ def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> 
     studio = data.get("studio") if isinstance(data.get("studio"), dict) else None
     if studio is not None and studio.get("format") != STUDIO_BLOCK_FORMAT:
         studio = None
+    return name, robots, studio
+
+
+class _Keys:
+    """The robots of a document and the decoding of their Symbol keys."""
+
+    def __init__(self, r: _Reader, robots: list[str]) -> None:
+        self.r = r
+        self.robots = robots
+        self.position = {ord(c): k for k, c in enumerate(robots)}
+
+    def decode(self, key: int, path: str) -> tuple[int, int]:
+        """``(robot position, pose index)`` of ``key``; a key of no robot fails naming ``path``."""
+        c = key >> INDEX_BITS
+        if c not in self.position:
+            shown = chr(c) if 0 < c < 0x110000 else "?"
+            raise self.r.fail(path, f"key {key} (Symbol {shown!r}) names no robot in robots {self.robots}")
+        return self.position[c], key & _INDEX_MASK
+
+
+@dataclass(eq=False)
+class _Factors:
+    """The pose-graph factors of the measurements, in reading order, as they were found."""
 
     kind: PoseKind | None = None
-    skipped: dict[str, int] = {}
-    rows: list[tuple[int, int, int, int]] = []
-    meas_rows: list[list[float]] = []
-    cov_rows: list[list[float]] = []
-    edge_stamps: list[int] = []
-    factor_ids: dict[tuple[str, int, int], int] = {}
-    paths: list[str] = []
-    first_stamp: dict[int, int] = {}
+    skipped: dict[str, int] = field(default_factory=dict)
+    rows: list[tuple[int, int, int, int]] = field(default_factory=list)
+    """``(robot_from, index_from, robot_to, index_to)`` per factor (indices as the keys give them)."""
+    measurements: list[Any] = field(default_factory=list)
+    covariances: list[Any] = field(default_factory=list)
+    stamps: list[int] = field(default_factory=list)
+    """The stamp of the entry holding each factor."""
+    ids: dict[tuple[str, int, int], int] = field(default_factory=dict)
+    """``(robot, entry, measurement)`` -> the factor's row."""
+    paths: list[str] = field(default_factory=list)
+    first_stamp: dict[int, int] = field(default_factory=dict)
+    """Each robot's first entry's stamp."""
 
-    def decode(key: int, path: str) -> tuple[int, int]:
-        c = key >> INDEX_BITS
-        if c not in position:
-            shown = chr(c) if 0 < c < 0x110000 else "?"
-            raise r.fail(path, f"key {key} (Symbol {shown!r}) names no robot in robots {robots}")
-        return position[c], key & _INDEX_MASK
 
-    for c in robots:
+def _read_factors(r: _Reader, keys: _Keys, measurements: dict[str, Any]) -> _Factors:
+    """Every robot's entries and their factors: Between factors kept, priors and non-pose factors
+    counted as skipped, anything else (or a kind mixed with the other) a FormatError."""
+    out = _Factors()
+    between = {v: k for k, v in _BETWEEN.items()}
+    for c in keys.robots:
         entries = measurements.get(c, [])
         if not isinstance(entries, list):
             raise r.fail(f"measurements.{c}", "expected a list of entries")
         for e, entry in enumerate(entries):
             path = f"measurements.{c}[{e}]"
             stamp = r.uint(r.get(entry, "stamp", path), f"{path}.stamp")
-            first_stamp.setdefault(position[ord(c)], stamp)
+            out.first_stamp.setdefault(keys.position[ord(c)], stamp)
             factors = entry.get("measurements", []) if isinstance(entry, dict) else []
             if not isinstance(factors, list):
                 raise r.fail(f"{path}.measurements", "expected a list of measurements")
@@ -339,61 +403,65 @@ def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> 
                 if not isinstance(tag, str):
                     raise r.fail(f"{fpath}.type", "expected a type tag")
                 if tag in _PRIOR.values() or tag.startswith(_SKIPPED_TYPES):
-                    skipped[tag] = skipped.get(tag, 0) + 1
+                    out.skipped[tag] = out.skipped.get(tag, 0) + 1
                     continue
-                fkind = {v: k for k, v in _BETWEEN.items()}.get(tag)
+                fkind = between.get(tag)
                 if fkind is None:
                     raise r.fail(f"{fpath}.type", f"unknown measurement type {tag[:40]!r}")
-                if kind is None:
-                    kind = fkind
-                elif fkind is not kind:
-                    raise r.fail(f"{fpath}.type", f"{tag} mixed with {_BETWEEN[kind]} measurements")
-                a, i = decode(r.uint(r.get(factor, "key1", fpath), f"{fpath}.key1"), f"{fpath}.key1")
-                b, j = decode(r.uint(r.get(factor, "key2", fpath), f"{fpath}.key2"), f"{fpath}.key2")
-                meas_rows.append(r.get(factor, "measurement", fpath))
-                cov_rows.append(r.get(factor, "covariance", fpath))
-                factor_ids[(c, e, m)] = len(rows)
-                paths.append(fpath)
-                rows.append((a, i, b, j))
-                edge_stamps.append(stamp)
-    if kind is None:
-        raise FormatError(f"{where}: measurements: no BetweenFactorPose2 or BetweenFactorPose3")
-    dim = 3 if kind is PoseKind.SE2 else 6
-    meas = _pose_array(r, kind, meas_rows, [f"{p}.measurement" for p in paths])
-    cov = _number_array(r, cov_rows, dim * dim, [f"{p}.covariance" for p in paths]).reshape(-1, dim, dim)
-    if skipped and warn is not None:
-        warn(
-            f"{where}: skipped factors the studio's pose graphs do not hold: "
-            + ", ".join(f"{n} {t}" for t, n in sorted(skipped.items()))
-        )
+                if out.kind is None:
+                    out.kind = fkind
+                elif fkind is not out.kind:
+                    raise r.fail(f"{fpath}.type", f"{tag} mixed with {_BETWEEN[out.kind]} measurements")
+                a, i = keys.decode(r.uint(r.get(factor, "key1", fpath), f"{fpath}.key1"), f"{fpath}.key1")
+                b, j = keys.decode(r.uint(r.get(factor, "key2", fpath), f"{fpath}.key2"), f"{fpath}.key2")
+                out.measurements.append(r.get(factor, "measurement", fpath))
+                out.covariances.append(r.get(factor, "covariance", fpath))
+                out.ids[(c, e, m)] = len(out.rows)
+                out.paths.append(fpath)
+                out.rows.append((a, i, b, j))
+                out.stamps.append(stamp)
+    return out
 
-    def values(section: str) -> dict[int, dict[int, list[float]]] | None:
-        block = data.get(section)
-        if block is None:
-            return None
-        out: dict[int, dict[int, list[float]]] = {}
-        for c, vals in block.items():
-            items = vals.values() if isinstance(vals, dict) else vals
-            if not isinstance(items, (list, type({}.values()))):
-                raise r.fail(f"{section}.{c}", "expected a list of values")
-            items = list(items)
-            vpaths = [f"{section}.{c}[{n}]" for n in range(len(items))]
-            decoded = []
-            for v, vpath in zip(items, vpaths):
-                key = r.uint(r.get(v, "key", vpath), f"{vpath}.key")
-                vtype = r.get(v, "type", vpath)
-                if vtype != _VALUE[kind]:  # type: ignore[index]
-                    raise r.fail(f"{vpath}.type", f"expected {_VALUE[kind]} values, got {str(vtype)[:40]!r}")  # type: ignore[index]
-                decoded.append(decode(key, f"{vpath}.key"))
-            poses = _pose_array(r, kind, items, vpaths).tolist()  # type: ignore[arg-type]
-            for (a, i), pose in zip(decoded, poses):
-                out.setdefault(a, {})[i] = pose
-        return out
 
-    init = values("initialization")
-    truth = values("groundtruth")
-    edge = np.array(rows, dtype=np.int64).reshape(-1, 4)
-    # each robot's pose indices: every index a value or a measurement names, renumbered 0..n-1
+def _read_values(
+    r: _Reader, keys: _Keys, data: dict[str, Any], section: str, kind: PoseKind
+) -> dict[int, dict[int, list[float]]] | None:
+    """A values section (``initialization``, ``groundtruth``): robot position -> pose index -> pose
+    row; None when the document has no such section."""
+    block = data.get(section)
+    if block is None:
+        return None
+    out: dict[int, dict[int, list[float]]] = {}
+    for c, vals in block.items():
+        items = vals.values() if isinstance(vals, dict) else vals
+        if not isinstance(items, (list, type({}.values()))):
+            raise r.fail(f"{section}.{c}", "expected a list of values")
+        items = list(items)
+        vpaths = [f"{section}.{c}[{n}]" for n in range(len(items))]
+        decoded = []
+        for v, vpath in zip(items, vpaths):
+            key = r.uint(r.get(v, "key", vpath), f"{vpath}.key")
+            vtype = r.get(v, "type", vpath)
+            if vtype != _VALUE[kind]:
+                raise r.fail(f"{vpath}.type", f"expected {_VALUE[kind]} values, got {str(vtype)[:40]!r}")
+            decoded.append(keys.decode(key, f"{vpath}.key"))
+        poses = _pose_array(r, kind, items, vpaths).tolist()
+        for (a, i), pose in zip(decoded, poses):
+            out.setdefault(a, {})[i] = pose
+    return out
+
+
+def _robot_poses(
+    r: _Reader,
+    robots: list[str],
+    studio: dict[str, Any] | None,
+    edge: np.ndarray,
+    factors: _Factors,
+    init: dict[int, dict[int, list[float]]] | None,
+    truth: dict[int, dict[int, list[float]]] | None,
+) -> tuple[list[AgentPoses], list[dict[int, int]]]:
+    """Each robot's poses: every index a value or a measurement names, renumbered 0..n-1 (the
+    second list maps each robot's indices to those), with stamps, initial values and ground truth."""
     agents = []
     local: list[dict[int, int]] = []
     names = list(robots)
@@ -409,53 +477,49 @@ def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> 
             raise r.fail(f"robots[{k}]", f"robot {c!r} has no poses")
         index = sorted(seen)
         local.append({v: n for n, v in enumerate(index)})
-        n = len(index)
-        stamps = _stamps(r, c, k, index, edge, edge_stamps, first_stamp, stamps_block)
-        poses_init = None
-        if init is not None:
-            have = init.get(k, {})
-            missing = [v for v in index if v not in have]
-            if missing:
-                raise r.fail(f"initialization.{c}", f"no value for pose {c}{missing[0]}")
-            poses_init = np.array([have[v] for v in index], dtype=np.float64)
-        gt = None
-        if truth is not None:
-            have = truth.get(k, {})
-            missing = [v for v in index if v not in have]
-            if missing:
-                raise r.fail(f"groundtruth.{c}", f"no value for pose {c}{missing[0]}")
-            gt = np.array([have[v] for v in index], dtype=np.float64)
+        stamps = _stamps(r, c, k, index, edge, factors.stamps, factors.first_stamp, stamps_block)
+        poses_init = _robot_values(r, init, "initialization", c, k, index)
+        gt = _robot_values(r, truth, "groundtruth", c, k, index)
         agents.append(AgentPoses(names[k], stamps, poses_init, gt))
-        del n
-    fi = np.array([local[a][i] for a, i in zip(edge[:, 0].tolist(), edge[:, 1].tolist())], dtype=np.int64)
-    ti = np.array([local[a][i] for a, i in zip(edge[:, 2].tolist(), edge[:, 3].tolist())], dtype=np.int64)
-    sign, _ = np.linalg.slogdet(cov)
-    if np.any(sign <= 0):
-        bad = int(np.flatnonzero(sign <= 0)[0])
-        (c, e, m) = next(key for key, v in factor_ids.items() if v == bad)
-        raise r.fail(f"measurements.{c}[{e}].measurements[{m}].covariance", "not positive definite")
-    table = EdgeTable(
-        kind,
-        edge[:, 0],
-        fi,
-        edge[:, 2],
-        ti,
-        meas,
-        covariance_to_information(kind, cov),
-    )
-    graph = assemble_graph(agents, table, where=where, metadata={"source": where, "name": str(name)})
+    return agents, local
+
+
+def _robot_values(
+    r: _Reader, block: dict[int, dict[int, list[float]]] | None, section: str, c: str, k: int, index: list[int]
+) -> np.ndarray | None:
+    """Robot ``k``'s poses at ``index`` from a values section (None without it); a missing one fails."""
+    if block is None:
+        return None
+    have = block.get(k, {})
+    missing = [v for v in index if v not in have]
+    if missing:
+        raise r.fail(f"{section}.{c}", f"no value for pose {c}{missing[0]}")
+    return np.array([have[v] for v in index], dtype=np.float64)
+
+
+def _outlier_rows(
+    r: _Reader, data: dict[str, Any], ids: dict[tuple[str, int, int], int], table: EdgeTable
+) -> np.ndarray:
+    """``(k, 4)`` rows ``agent_from vertex_from agent_to vertex_to`` of the ``outlier_factors``."""
     outliers = []
-    for c, ids in (data.get("outlier_factors") or {}).items():
-        if not isinstance(ids, list):
+    for c, pairs in (data.get("outlier_factors") or {}).items():
+        if not isinstance(pairs, list):
             raise r.fail(f"outlier_factors.{c}", "expected a list of [entry, measurement] pairs")
-        for n, pair in enumerate(ids):
+        for n, pair in enumerate(pairs):
             if not (isinstance(pair, list) and len(pair) == 2 and all(isinstance(x, int) for x in pair)):
                 raise r.fail(f"outlier_factors.{c}[{n}]", "expected [entry, measurement]")
-            row = factor_ids.get((c, pair[0], pair[1]))
+            row = ids.get((c, pair[0], pair[1]))
             if row is None:
                 raise r.fail(f"outlier_factors.{c}[{n}]", f"no pose-graph measurement {pair} in measurements.{c}")
-            outliers.append((int(edge[row, 0]), int(fi[row]), int(edge[row, 2]), int(ti[row])))
-    return JrlGraph(graph, np.array(outliers, dtype=np.int64).reshape(-1, 4), str(name), skipped)
+            outliers.append(
+                (
+                    int(table.from_agent[row]),
+                    int(table.from_index[row]),
+                    int(table.to_agent[row]),
+                    int(table.to_index[row]),
+                )
+            )
+    return np.array(outliers, dtype=np.int64).reshape(-1, 4)
 
 
 def _number_array(r: _Reader, values: list[Any], width: int, paths: list[str]) -> np.ndarray:

@@ -80,7 +80,7 @@ def _number(
 def _choice(obj: dict[str, Any], key: str, path: str, fail: Fail, default: str, choices: tuple[str, ...]) -> str:
     if key not in obj:
         return default
-    v = obj[key]
+    v: str = obj[key]
     if v not in choices:
         raise fail(f"{path}.{key}", f"must be one of {', '.join(choices)}, got {v!r}")
     return v

@@ -70,7 +70,8 @@ def robot_prefix(k: int) -> str:
 
 def symbol_key(prefix: str, index: np.ndarray | int) -> np.ndarray:
     """The keys ``ord(prefix) << 56 | index`` (int64: every character used is below 128)."""
-    return (np.int64(ord(prefix)) << np.int64(INDEX_BITS)) | np.asarray(index, dtype=np.int64)
+    keys: np.ndarray = (np.int64(ord(prefix)) << np.int64(INDEX_BITS)) | np.asarray(index, dtype=np.int64)
+    return keys
 
 
 def symbol_parts(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -132,11 +133,37 @@ def _robot_files(folder: Path) -> list[tuple[int, Path]]:
 
 def read_symbol_g2o_folder(folder: PathLike) -> PoseGraph:
     """Read a folder of Symbol-keyed g2o files (see the module doc) into a :class:`PoseGraph`; the
-    agents are named after their characters (``a``, ``b``...)."""
+    agents are named after their characters (``a``, ``b``...).
+
+    The steps: read the robot files (or ``fullGraph.g2o``), find each robot's character and own
+    vertices, renumber them into agents (with their ground truth), take each edge once and assemble."""
     folder = Path(folder)
     if not folder.is_dir():
         raise FormatError(f"{folder}: not a folder")
     files = _robot_files(folder)
+    docs = _read_symbol_docs(folder, files)
+    kind = docs[0][1].kind
+    owner, own = _own_vertices(docs, robot_files=bool(files))
+    codes = list(owner)
+    agents = []
+    renumber: dict[int, np.ndarray] = {}
+    for c in codes:
+        index, poses = own[c]
+        order = np.argsort(index, kind="stable")
+        index, poses = index[order], poses[order]
+        if np.any(np.diff(index) == 0):
+            dup = int(index[np.flatnonzero(np.diff(index) == 0)[0]])
+            raise FormatError(f"{owner[c]}: Symbol key {chr(c)}{dup} is defined twice")
+        renumber[c] = index
+        gt_path = owner[c].with_name(f"{owner[c].stem}_GT.tum") if files else None
+        stamps, truth = _robot_truth(gt_path, kind, len(index), owner[c])
+        agents.append(AgentPoses(chr(c), stamps, poses, truth))
+    table = _edge_table(kind, _edge_parts(docs, codes), codes, renumber, owner)
+    return assemble_graph(agents, table, where=str(folder), metadata={"source": str(folder)})
+
+
+def _read_symbol_docs(folder: Path, files: list[tuple[int, Path]]) -> list[tuple[Path, G2oDocument]]:
+    """The robot files (or ``fullGraph.g2o``) read, checked for one record kind and Symbol keys."""
     docs: list[tuple[Path, G2oDocument]] = []
     if files:
         docs = [(p, read_g2o(p, dangling=True)) for _, p in files]
@@ -152,10 +179,18 @@ def read_symbol_g2o_folder(folder: PathLike) -> PoseGraph:
             bad = np.flatnonzero((col >> np.int64(INDEX_BITS)) <= 0)
             if bad.size:
                 raise FormatError(f"{p}: key {int(col[bad[0]])} is not a GTSAM Symbol (no character in its top byte)")
-    # each robot's own character and vertices
+    return docs
+
+
+def _own_vertices(
+    docs: list[tuple[Path, G2oDocument]], *, robot_files: bool
+) -> tuple[dict[int, Path], dict[int, tuple[np.ndarray, np.ndarray]]]:
+    """Each robot's character (in file order) with the file that defines it, and its own vertices'
+    indices and poses: a robot file's character is its first vertex's; ``fullGraph.g2o`` is split
+    by the keys' characters."""
     owner: dict[int, Path] = {}
     own: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    if files:
+    if robot_files:
         for p, d in docs:
             if not len(d.vertex_ids):
                 raise FormatError(f"{p}: no vertices (its first vertex gives the robot's Symbol character)")
@@ -174,32 +209,34 @@ def read_symbol_g2o_folder(folder: PathLike) -> PoseGraph:
         for c in dict.fromkeys(chars.tolist()):
             owner[c] = p
             own[c] = (index[chars == c], d.vertex_poses[chars == c])
-    codes = list(owner)
-    position = {c: k for k, c in enumerate(codes)}
-    agents = []
-    renumber: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    for c in codes:
-        index, poses = own[c]
-        order = np.argsort(index, kind="stable")
-        index, poses = index[order], poses[order]
-        if np.any(np.diff(index) == 0):
-            dup = int(index[np.flatnonzero(np.diff(index) == 0)[0]])
-            raise FormatError(f"{owner[c]}: Symbol key {chr(c)}{dup} is defined twice")
-        renumber[c] = (index, poses)
-        gt_path = owner[c].with_name(f"{owner[c].stem}_GT.tum") if files else None
-        stamps = np.arange(len(index), dtype=np.int64) * NS_PER_S
-        truth = None
-        if gt_path is not None and gt_path.is_file():
-            traj = read_tum(gt_path)
-            if len(traj) != len(index):
-                raise FormatError(f"{gt_path}: {len(traj)} poses for the {len(index)} vertices of {owner[c].name}")
-            stamps, truth = traj.stamps_ns, traj.poses_xyz_quat_xyzw
-            if kind is PoseKind.SE2:
-                from studio.core.geometry import se3_poses_to_planar
+    return owner, own
 
-                truth = se3_poses_to_planar(truth)
-        agents.append(AgentPoses(chr(c), stamps, poses, truth))
-    # the edges: inside a robot from its file; between robots once (the from-robot's file first)
+
+def _robot_truth(
+    gt_path: Path | None, kind: PoseKind, n: int, robot_file: Path
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """A robot's stamps and ground truth from ``gt_path`` (``<k>_GT.tum``), or stamps 0, 1, 2... s
+    and no ground truth where there is no such file."""
+    if gt_path is None or not gt_path.is_file():
+        return np.arange(n, dtype=np.int64) * NS_PER_S, None
+    traj = read_tum(gt_path)
+    if len(traj) != n:
+        raise FormatError(f"{gt_path}: {len(traj)} poses for the {n} vertices of {robot_file.name}")
+    truth = traj.poses_xyz_quat_xyzw
+    if kind is PoseKind.SE2:
+        from studio.core.geometry import se3_poses_to_planar
+
+        truth = se3_poses_to_planar(truth)
+    return traj.stamps_ns, truth
+
+
+_EdgePart = tuple[Path, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""One file's edges: ``(file, from_char, from_index, to_char, to_index, measurements, information)``."""
+
+
+def _edge_parts(docs: list[tuple[Path, G2oDocument]], codes: list[int]) -> list[_EdgePart]:
+    """The edges of each file: inside a robot from its file; between robots once (the first file
+    that holds one keeps it). An edge reaching a character of no robot is a FormatError."""
     parts = []
     seen_inter: set[tuple[int, int]] = set()
     for p, d in docs:
@@ -223,6 +260,19 @@ def read_symbol_g2o_folder(folder: PathLike) -> PoseGraph:
         parts.append(
             (p, fc[keep], fi[keep], tc[keep], ti[keep], d.edge_measurements[keep], d.edge_information_upper[keep])
         )
+    return parts
+
+
+def _edge_table(
+    kind: PoseKind,
+    parts: list[_EdgePart],
+    codes: list[int],
+    renumber: dict[int, np.ndarray],
+    owner: dict[int, Path],
+) -> EdgeTable:
+    """The edges in agents and renumbered vertices (``renumber[c]``: robot ``c``'s sorted indices);
+    an edge reaching an index its robot does not define is a FormatError."""
+    position = {c: k for k, c in enumerate(codes)}
     cols: list[list[np.ndarray]] = [[], [], [], [], [], []]
     for p, fc, fi, tc, ti, meas, info in parts:
         for codes_col, index_col, out_a, out_i in ((fc, fi, cols[0], cols[1]), (tc, ti, cols[2], cols[3])):
@@ -230,7 +280,7 @@ def read_symbol_g2o_folder(folder: PathLike) -> PoseGraph:
             local = np.zeros(len(index_col), dtype=np.int64)
             for c in np.unique(codes_col).tolist():
                 sel = codes_col == c
-                known = renumber[c][0]
+                known = renumber[c]
                 pos = np.searchsorted(known, index_col[sel])
                 pos_c = np.minimum(pos, len(known) - 1)
                 missing = known[pos_c] != index_col[sel]
@@ -244,7 +294,7 @@ def read_symbol_g2o_folder(folder: PathLike) -> PoseGraph:
             out_i.append(local)
         cols[4].append(meas)
         cols[5].append(info)
-    table = EdgeTable(
+    return EdgeTable(
         kind,
         np.concatenate(cols[0]),
         np.concatenate(cols[1]),
@@ -253,4 +303,3 @@ def read_symbol_g2o_folder(folder: PathLike) -> PoseGraph:
         np.concatenate(cols[4]).reshape(-1, kind.pose_width),
         np.concatenate(cols[5]).reshape(-1, kind.information_width),
     )
-    return assemble_graph(agents, table, where=str(folder), metadata={"source": str(folder)})
