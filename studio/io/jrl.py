@@ -255,6 +255,9 @@ class _Reader:
         return [*t, x, y, z, w]
 
 
+_INT64_MIN, _INT64_MAX = -(1 << 63), (1 << 63) - 1
+
+
 def _load(source: PathLike) -> tuple[Any, str]:
     path = Path(source)
     try:
@@ -393,6 +396,8 @@ def _read_factors(r: _Reader, keys: _Keys, measurements: dict[str, Any]) -> _Fac
         for e, entry in enumerate(entries):
             path = f"measurements.{c}[{e}]"
             stamp = r.uint(r.get(entry, "stamp", path), f"{path}.stamp")
+            if stamp > _INT64_MAX:
+                raise r.fail(f"{path}.stamp", f"stamp beyond the studio's int64 nanoseconds ({stamp})")
             out.first_stamp.setdefault(keys.position[ord(c)], stamp)
             factors = entry.get("measurements", []) if isinstance(entry, dict) else []
             if not isinstance(factors, list):
@@ -502,7 +507,10 @@ def _outlier_rows(
 ) -> np.ndarray:
     """``(k, 4)`` rows ``agent_from vertex_from agent_to vertex_to`` of the ``outlier_factors``."""
     outliers = []
-    for c, pairs in (data.get("outlier_factors") or {}).items():
+    labelled = data.get("outlier_factors") or {}
+    if not isinstance(labelled, dict):
+        raise r.fail("outlier_factors", "expected an object of robot -> [[entry, measurement], ...]")
+    for c, pairs in labelled.items():
         if not isinstance(pairs, list):
             raise r.fail(f"outlier_factors.{c}", "expected a list of [entry, measurement] pairs")
         for n, pair in enumerate(pairs):
@@ -572,6 +580,8 @@ def _stamps(
         stamps = block[c]
         if not (isinstance(stamps, list) and len(stamps) == n and all(isinstance(s, int) for s in stamps)):
             raise r.fail(f"studio.stamps_ns.{c}", f"expected {n} integer stamps, one per pose")
+        if any(isinstance(s, bool) or not _INT64_MIN <= s <= _INT64_MAX for s in stamps):
+            raise r.fail(f"studio.stamps_ns.{c}", "expected 64-bit signed integer stamps (nanoseconds)")
         out = np.array(stamps, dtype=np.int64)
         if n > 1 and np.any(np.diff(out) <= 0):
             raise r.fail(f"studio.stamps_ns.{c}", "stamps must increase")

@@ -408,6 +408,38 @@ def test_bad_jrl_files(datasets, tmp_path):
     )
 
 
+def test_jrl_stamps_beyond_int64_and_a_non_object_outlier_section(datasets, tmp_path):
+    """Found by fuzzing the reader: both were tracebacks (OverflowError, AttributeError)."""
+    export_dataset(datasets["synth"], tmp_path / "ok.jrl", format="jrl")
+    doc = json.loads((tmp_path / "ok.jrl").read_text())
+    big = json.loads(json.dumps(doc))
+    big["measurements"]["a"][1]["stamp"] = 1 << 63
+    (tmp_path / "e.jrl").write_text(json.dumps(big))
+    _fails_cleanly(
+        ["convert", "jrl", str(tmp_path / "e.jrl"), "-o", str(tmp_path / "o5")],
+        tmp_path / "o5",
+        "measurements.a[1].stamp",
+        "beyond the studio's int64",
+    )
+    block = json.loads(json.dumps(doc))
+    block["studio"]["stamps_ns"]["a"][0] = -(1 << 63) - 1
+    (tmp_path / "f.jrl").write_text(json.dumps(block))
+    _fails_cleanly(
+        ["convert", "jrl", str(tmp_path / "f.jrl"), "-o", str(tmp_path / "o6")],
+        tmp_path / "o6",
+        "studio.stamps_ns.a",
+        "64-bit signed",
+    )
+    labelled = dict(doc, outlier_factors=[1, 2])
+    (tmp_path / "g.jrl").write_text(json.dumps(labelled))
+    _fails_cleanly(
+        ["convert", "jrl", str(tmp_path / "g.jrl"), "-o", str(tmp_path / "o7")],
+        tmp_path / "o7",
+        "outlier_factors",
+        "expected an object",
+    )
+
+
 def test_colliding_symbol_keys(datasets, tmp_path):
     export_dataset(datasets["synth"], tmp_path / "sym", format="symbols")
     text = (tmp_path / "sym" / "1.g2o").read_text()
