@@ -17,6 +17,8 @@ __all__ = ["read_table"]
 
 #: Larger files are refused before reading (ground-truth files of real datasets are a few MB).
 MAX_TABLE_BYTES = 1 << 30
+#: the range of a nanosecond stamp (int64)
+_INT64_MIN, _INT64_MAX = -(1 << 63), (1 << 63) - 1
 
 
 _QUAT_NAME = re.compile(r"^q(?:_?[a-z]*_)?([wxyz])$")
@@ -92,9 +94,14 @@ def read_table(
             raise FormatError(f"{path}:{lineno}: value is not finite")
         if int_first:
             token = parts[0]
-            if not token.lstrip("-").isdigit() or len(token) > 19:
+            if not token.lstrip("-").isdigit() or len(token) > 20:
                 raise FormatError(f"{path}:{lineno}: timestamp {token[:40]!r} is not an integer of nanoseconds")
-            firsts.append(int(token))
+            stamp_ns = int(token)
+            if not _INT64_MIN <= stamp_ns <= _INT64_MAX:
+                raise FormatError(
+                    f"{path}:{lineno}: timestamp {token!r} ns is beyond the int64 range (at most {_INT64_MAX} ns)"
+                )
+            firsts.append(stamp_ns)
         rows.append(values)
     if not rows:
         raise FormatError(f"{path}: no data rows ({what})")

@@ -67,7 +67,7 @@ def _root(
 
 
 #: Library options whose flag is not their name in kebab case (``overlap_s`` -> ``--overlap``).
-_FLAGS: dict[str, str] = {}
+_FLAGS: dict[str, str] = {"max_iterations": "iterations"}
 
 
 def _as_flags(err: StudioError) -> str:
@@ -790,9 +790,11 @@ def replay(
 
     Example: studio replay out/multi3500x8 --comms range:20 -o out/replay-range20
     """
+    from studio.core.option_values import check_count
     from studio.replay import DEFAULT_BACKENDS
     from studio.replay import replay as run_replay
 
+    check_count("--comms-seed", comms_seed, low=0, high=2**63 - 1)  # the library's ``seed``
     names = tuple(b.strip() for b in backend.split(",") if b.strip()) or DEFAULT_BACKENDS
     res = run_replay(
         dataset,

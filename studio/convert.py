@@ -25,7 +25,6 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import json
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -56,7 +55,7 @@ from studio.core.model import PoseGraph, RangeBearing
 from studio.core.option_values import check_option
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
-from studio.core.units import DEFAULT_MAX_MEMORY_GB
+from studio.core.units import DEFAULT_MAX_MEMORY_GB, MAX_SPLIT_ROBOTS
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
 from studio.io.range_bearing import RANGE_BEARING_NAME, write_range_bearing
@@ -172,23 +171,14 @@ class ConvertConfig:
             raise ConfigError(
                 f"folder_names: expected agents or robots, got {self.folder_names!r}", option="folder_names"
             )
-        if isinstance(self.split, bool) or not isinstance(self.split, int) or self.split < 0 or self.split == 1:
+        if self.split != 0 and not (
+            not isinstance(self.split, bool) and isinstance(self.split, int) and 2 <= self.split <= MAX_SPLIT_ROBOTS
+        ):
             raise ConfigError(
-                f"split: expected 0 (off) or an integer of at least 2, got {self.split!r}", option="split"
+                f"split: expected 0 (off) or an integer in 2..{MAX_SPLIT_ROBOTS}, got {self.split!r}", option="split"
             )
-        for name, value in (("heading_window_m", self.heading_window_m), ("overlap_s", self.overlap_s)):
-            if (
-                isinstance(value, bool)
-                or not isinstance(value, (int, float))
-                or not math.isfinite(value)
-                or value < 0
-                or (name == "heading_window_m" and value == 0)
-            ):
-                raise ConfigError(
-                    f"{name}: expected a {'positive' if name == 'heading_window_m' else 'non-negative'} "
-                    f"number, got {value!r}",
-                    option=name,
-                )
+        check_option("heading_window_m", self.heading_window_m, allow_zero=False)
+        check_option("overlap_s", self.overlap_s)
         for spec in self.body_frames:
             name, sep, code = spec.partition("=")
             if not sep or not name:

@@ -11,6 +11,7 @@ __all__ = [
     "MAX_RECORDED_COORDINATE_M",
     "MAX_SOLUTION_M",
     "CHI2_RISE_TOLERANCE",
+    "MAX_SPLIT_ROBOTS",
 ]
 
 #: Nanoseconds per second: timestamps are int64 nanoseconds inside the studio.
@@ -39,3 +40,5 @@ MAX_RECORDED_COORDINATE_M = 1e12
 MAX_SOLUTION_M = 1e12
 #: Relative rise of chi2 over a solve tolerated as rounding (this fraction of the start, plus as much).
 CHI2_RISE_TOLERANCE = 1e-9
+#: Most robots ``--split`` cuts one trajectory or graph into (synth's limit of agents, too).
+MAX_SPLIT_ROBOTS = 10_000

@@ -46,6 +46,7 @@ from studio.core.comms import (
 )
 from studio.core.errors import ConfigError, FormatError, GraphError
 from studio.core.model import PoseGraph
+from studio.core.option_values import check_count, check_option
 from studio.core.timing import MeasurementTimes, measurement_times
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
@@ -439,18 +440,14 @@ def replay(
         get_backend(name)
     if len(set(names)) != len(names):
         raise ConfigError(f"backend: {names} names one back-end twice")
-    if not (isinstance(step_s, (int, float)) and np.isfinite(step_s) and step_s > 0):
-        raise ConfigError(f"step: must be a positive number of seconds, got {step_s!r}")
-    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
-        raise ConfigError(f"every: must be a positive number of ticks, got {every!r}")
-    if period_s is not None and not (isinstance(period_s, (int, float)) and np.isfinite(period_s) and period_s > 0):
-        raise ConfigError(f"period: must be a positive number of seconds, got {period_s!r}")
-    if isinstance(relinearize_skip, bool) or not isinstance(relinearize_skip, int) or relinearize_skip < 1:
-        raise ConfigError(f"relinearize_skip: must be a positive integer, got {relinearize_skip!r}")
-    if not (isinstance(relinearize_threshold, (int, float)) and relinearize_threshold >= 0):
-        raise ConfigError(f"relinearize_threshold: must be >= 0, got {relinearize_threshold!r}")
-    if isinstance(final_updates, bool) or not isinstance(final_updates, int) or final_updates < 0:
-        raise ConfigError(f"final_updates: must be an integer >= 0, got {final_updates!r}")
+    check_option("step", step_s, allow_zero=False)
+    check_count("every", every)
+    if period_s is not None:
+        check_option("period", period_s, allow_zero=False)
+    check_count("seed", seed, low=0, high=2**63 - 1)
+    check_count("relinearize_skip", relinearize_skip)
+    check_option("relinearize_threshold", relinearize_threshold)
+    check_count("final_updates", final_updates, low=0)
     rrd_path = None if rrd is None else Path(rrd)
     if rrd_path is not None and rrd_path.suffix != ".rrd":
         raise ConfigError(f"rrd: {rrd_path} must end in .rrd")

@@ -1,0 +1,81 @@
+"""Numbers bounded where they enter (issue 23): nanosecond stamps beyond int64, and every numeric
+option of convert, replay and solve that has no natural range (NaN, inf, negative, absurdly large).
+Each is one line naming the file:line or the option, exit 2, nothing written."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from tests.reliability.test_guard import made, refused_intact, world  # noqa: F401  (fixtures)
+
+
+@pytest.mark.parametrize("layout", ["mocap0", "state_groundtruth_estimate0"])
+@pytest.mark.parametrize("stamp", ["9223372036854775808", "99999999999999999999", "-9223372036854775809"])
+def test_a_nanosecond_stamp_beyond_int64_is_one_line_naming_file_and_line(world, layout, stamp):
+    columns = 8 if layout == "mocap0" else 17
+    csv = world / "seq" / "mav0" / layout / "data.csv"
+    csv.parent.mkdir(parents=True)
+    row = ",".join(["0", "0", "0", "1", "0", "0", "0"] + ["0"] * (columns - 8))  # p, q wxyz, the rest
+    csv.write_text(f"#timestamp [ns],...\n1000,{row}\n{stamp},{row}\n")
+    err = refused_intact(["convert", "euroc", world / "seq", "-o", world / "out"], world, f"{csv}:3: timestamp")
+    assert "int64" in err and stamp in err
+
+
+def test_the_largest_int64_stamp_is_still_read(world):
+    """The bound is the type's, not tighter: 2**63 - 1 ns passes the reader (the pipeline then
+    refuses a two-pose trajectory for its own reason, not the stamp)."""
+    from studio.converters.text import read_table
+
+    csv = world / "data.csv"
+    csv.write_text("0,0,0,0,1,0,0,0\n9223372036854775807,1,0,0,1,0,0,0\n")
+    _, stamps = read_table(csv, 8, what="test", int_first=True)
+    assert stamps is not None and int(stamps[-1]) == 2**63 - 1
+
+
+SINGLE = ["convert", "g2o", "single/tiny_three.g2o", "--ground-truth", "vertices"]
+TUM = ["convert", "tum", "alpha.tum"]
+REPLAY = ["replay", "ds", "-b", "centralized"]
+SOLVE = ["solve", "ds"]
+
+#: (command, options, the option the one line must name)
+CASES = [
+    (SINGLE, ["--split", "2", "--overlap", "1e300"], "--overlap"),
+    (SINGLE, ["--split", "2", "--partition", "time", "--overlap", "1e300"], "--overlap"),
+    (SINGLE, ["--split", "2", "--partition", "time", "--overlap", "inf"], "--overlap"),
+    (SINGLE, ["--split", "2", "--partition", "time", "--overlap", "nan"], "--overlap"),
+    (SINGLE, ["--split", "99999999999999999999"], "--split"),
+    (SINGLE, ["--split", "-3"], "--split"),
+    (TUM, ["--split", "2", "--overlap", "1e300"], "--overlap"),
+    (TUM, ["--split", "2", "--overlap", "-1"], "--overlap"),
+    (TUM, ["--split", "99999999999999999999"], "--split"),
+    (TUM, ["--split", "2", "--heading-window-m", "1e300"], "--heading-window-m"),
+    (TUM, ["--lc-radius", "1e300"], "--lc-radius"),
+    (TUM, ["--max-memory-gb", "nan"], "--max-memory-gb"),
+    (REPLAY, ["--step", "1e300"], "--step"),
+    (REPLAY, ["--step", "nan"], "--step"),
+    (REPLAY, ["--step", "1e-6"], "--step"),  # 240 million ticks: refused from the count
+    (REPLAY, ["--period", "1e300"], "--period"),
+    (REPLAY, ["--period", "-1"], "--period"),
+    (REPLAY, ["--every", "99999999999999999999"], "--every"),
+    (REPLAY, ["--every", "0"], "--every"),
+    (REPLAY, ["--comms-seed", "-1"], "--comms-seed"),
+    (REPLAY, ["--comms-seed", "99999999999999999999"], "--comms-seed"),
+    (REPLAY, ["--relinearize-skip", "99999999999999999999"], "--relinearize-skip"),
+    (REPLAY, ["--relinearize-threshold", "1e300"], "--relinearize-threshold"),
+    (REPLAY, ["--relinearize-threshold", "nan"], "--relinearize-threshold"),
+    (REPLAY, ["--comms", "range:1e300"], "range"),
+    (REPLAY, ["--comms", "range:5,period=1e300"], "period"),
+    (REPLAY, ["--bandwidth", "1e300/s"], "bandwidth"),
+    (SOLVE, ["--iterations", "99999999999999999999"], "--iterations"),
+    (SOLVE, ["--iterations", "0"], "--iterations"),
+    (SOLVE, ["-m", "dgs", "--robots", "99999999999"], "--robots"),
+    (SOLVE, ["-m", "dgs", "--robots", "-1"], "--robots"),
+]
+
+
+@pytest.mark.parametrize(("command", "options", "flag"), CASES, ids=[" ".join(c[1]) for c in CASES])
+def test_a_range_less_number_is_one_line_naming_its_option(world, command, options, flag):
+    err = refused_intact([*command, "-o", Path("out"), *options], world, flag)
+    assert "Traceback" not in err and not (world / "out").exists()
