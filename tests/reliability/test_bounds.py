@@ -8,7 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from tests.reliability.test_guard import made, refused_intact, world  # noqa: F401  (fixtures)
+from tests.reliability import test_guard as guard
+
+refused_intact = guard.refused_intact
+made, world = guard.made, guard.world  # the guard tests' fixtures: a synth dataset and a working folder
 
 
 @pytest.mark.parametrize("layout", ["mocap0", "state_groundtruth_estimate0"])
@@ -79,3 +82,66 @@ CASES = [
 def test_a_range_less_number_is_one_line_naming_its_option(world, command, options, flag):
     err = refused_intact([*command, "-o", Path("out"), *options], world, flag)
     assert "Traceback" not in err and not (world / "out").exists()
+
+
+def _aliasing_config(world: Path, *, window: int, fragment: int, steps: int) -> Path:
+    import json
+
+    cfg = json.loads((world / "tiny_three.json").read_text())
+    cfg["number_of_steps"] = steps
+    cfg["agent_parameters"]["step_fragment"] = fragment
+    cfg["studio"] = {
+        "version": 1,
+        "outliers": {
+            "intra_fraction": 0.05,
+            "inter_fraction": 0.05,
+            "kinds": {"aliasing": 1.0},
+            "aliasing_window": window,
+        },
+    }
+    path = world / f"alias_{window}_{fragment}.json"
+    path.write_text(json.dumps(cfg))
+    return path
+
+
+def test_aliasing_outliers_with_a_large_window_are_refused_from_the_estimate(world):
+    """2,000 steps of 40 fragments, a window of 5 steps: every one of 80,001 poses per agent compares
+    401 x 401 cells (about 0.8 TB); refused from the estimate in one line naming the window and the
+    option that lifts it, before any allocation."""
+    import time
+
+    from studio.generator.config import aliasing_bytes, estimate_resources
+    from studio.synth import load_synth_config
+
+    config = _aliasing_config(world, window=5, fragment=40, steps=2000)
+    t0 = time.perf_counter()
+    err = refused_intact(["synth", config, "-o", Path("out")], world, "aliasing windows (401x401 cells per pose)")
+    assert "--max-memory-gb" in err and time.perf_counter() - t0 < 10
+    parsed = load_synth_config(config)
+    assert aliasing_bytes(parsed) == 80_001 * 401 * 401 * 64
+    assert estimate_resources(parsed)[0] > aliasing_bytes(parsed)
+    small = load_synth_config(_aliasing_config(world, window=1, fragment=4, steps=60))
+    assert aliasing_bytes(small) == 241 * 9 * 9 * 64  # counted, and far under the limit
+
+
+def test_the_aliasing_estimate_covers_the_measured_peak():
+    """The per-cell cost is not below what the pattern comparison really allocates (tracemalloc)."""
+    import tracemalloc
+
+    import numpy as np
+
+    from studio.generator.config import MEMORY_BYTES_PER_ALIAS_CELL
+    from studio.generator.outliers import local_patterns
+
+    rng = np.random.default_rng(0)
+    n, half = 1500, 15
+    cells = np.cumsum(rng.integers(-1, 2, (n, 3)), axis=0)
+    cells[:, 2] = 0
+    tracemalloc.start()
+    try:
+        local_patterns(cells, rng.integers(0, 4, n), half)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak <= n * (2 * half + 1) ** 2 * MEMORY_BYTES_PER_ALIAS_CELL
+    assert peak >= n * (2 * half + 1) ** 2 * MEMORY_BYTES_PER_ALIAS_CELL / 4  # and not far above it
