@@ -4,6 +4,9 @@ Each is one line naming the file:line or the option, exit 2, nothing written."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -145,3 +148,43 @@ def test_the_aliasing_estimate_covers_the_measured_peak():
         tracemalloc.stop()
     assert peak <= n * (2 * half + 1) ** 2 * MEMORY_BYTES_PER_ALIAS_CELL
     assert peak >= n * (2 * half + 1) ** 2 * MEMORY_BYTES_PER_ALIAS_CELL / 4  # and not far above it
+
+
+def _solve_rss_kib(world: Path, command: str) -> tuple[subprocess.CompletedProcess, int]:
+    """Run ``studio solve ds -m command`` in a fresh interpreter; its result and the solve process's
+    peak RSS (the largest descendant the wrapper waited for: the studio, not the tiny shell tools)."""
+    wrapper = (
+        "import resource, subprocess, sys; p = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
+        "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss); print(p.returncode); "
+        "sys.stdout.write(p.stdout); sys.stderr.write(p.stderr)"
+    )
+    argv = [sys.executable, "-c", "from studio.cli import main; main()", "solve", "ds", "-o", "est", "-m", "command"]
+    env = dict(os.environ, CI="true", RERUN_ANALYTICS="0")
+    res = subprocess.run(
+        [sys.executable, "-c", wrapper, *argv, "--command", command],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=world,
+        timeout=600,
+    )
+    rss, code, *_ = res.stdout.splitlines()
+    return subprocess.CompletedProcess(res.args, int(code), res.stdout, res.stderr), int(rss)
+
+
+@pytest.mark.parametrize("megabytes", [pytest.param(1000, marks=pytest.mark.slow), 100])
+def test_a_solver_printing_a_gigabyte_holds_kilobytes(world, megabytes):
+    """An external solver that prints ``megabytes`` MB and fails: one line with its last words and
+    the count of what was cut; one that prints as much and succeeds: a truthful success. The studio's
+    peak RSS stays far under what it printed (it was 2.9 GB for 1 GB)."""
+    flood = f"head -c {megabytes * 1_000_000} /dev/zero"
+    res, rss_kib = _solve_rss_kib(world, f"sh -c '{flood}; echo last words >&2; exit 3' {{input}} {{output}}")
+    assert res.returncode == 2
+    lines = res.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: command: sh exited with status 3: last words ("), lines
+    assert f"{megabytes * 1_000_000 + 11:,} bytes of output; the first and last 32 KiB kept" in lines[0]
+    assert rss_kib < 400_000 and not (world / "est").exists()
+    res, rss_kib = _solve_rss_kib(world, f'sh -c \'{flood}; cp "$0" "$1"\' {{input}} {{output}}')
+    assert res.returncode == 0 and res.stderr == "", res.stderr
+    assert "chi2" in res.stdout and (world / "est" / "solve.json").is_file()
+    assert rss_kib < 400_000
