@@ -713,8 +713,7 @@ def solve(
     Example: studio solve out/multi3500x8 -o out/multi3500x8-solved ; then
     studio evaluate out/multi3500x8 --estimate out/multi3500x8-solved/estimate --align se3
     """
-    import json
-
+    from studio.io.strict_json import dumps_strict
     from studio.solve import solve as run_solve
 
     res = run_solve(
@@ -731,7 +730,7 @@ def solve(
         robots=robots,
     )
     if as_json:
-        typer.echo(json.dumps(res.to_dict(), indent=2))
+        typer.echo(dumps_strict(res.to_dict(), "--json", indent=2))
         return
     rejected = "" if res.rejected is None else f", {len(res.rejected)} loop closures rejected"
     typer.echo(

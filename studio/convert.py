@@ -59,6 +59,7 @@ from studio.core.units import DEFAULT_MAX_MEMORY_GB, MAX_SPLIT_ROBOTS
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
 from studio.io.range_bearing import RANGE_BEARING_NAME, write_range_bearing
+from studio.io.strict_json import dumps_strict
 from studio.io.textfmt import write_text
 
 __all__ = [
@@ -466,7 +467,10 @@ def convert(
         )
         if progress:
             progress("writing", 1, 2, "parts")
-        write_text(ds / CONFIG_NAME, (json.dumps(convert_config_to_json(cfg), indent=2) + "\n").encode("utf-8"))
+        write_text(
+            ds / CONFIG_NAME,
+            (dumps_strict(convert_config_to_json(cfg), str(out / CONFIG_NAME), indent=2) + "\n").encode(),
+        )
         report = _report(build, trajs, warnings, orientation)
         if orientation:
             report["heading_method"] = HEADING_METHOD_TEXT[cfg.heading_method].format(w=cfg.heading_window_m)
@@ -479,7 +483,7 @@ def convert(
             write_range_bearing(ds / RANGE_BEARING_NAME, rb)
             report["counts"]["range_bearing"] = len(rb)
             report["range_bearing"] = sight_fit.to_dict()
-        write_text(ds / "report.json", (json.dumps(report, indent=2) + "\n").encode("utf-8"))
+        write_text(ds / "report.json", (dumps_strict(report, str(out / "report.json"), indent=2) + "\n").encode())
         write_text(ds / "outliers.txt", _outlier_lines(build).encode("utf-8"))
         if progress:
             progress("writing", 2, 2, "parts")

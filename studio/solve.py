@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import json
 import os
 import time
 from collections.abc import Iterator
@@ -44,6 +43,7 @@ from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE as MAX_COORDINATE_M  # the one bound of every number
 from studio.core.units import MAX_SPLIT_ROBOTS
 from studio.io.names import safe_file_name, safe_file_names
+from studio.io.strict_json import dumps_strict
 from studio.solvers import DEFAULT_METHOD, method_entry
 from studio.solvers.problem import Init, Iteration, Optimizer, Problem, Solution, SolveOptions, graph_chi2
 from studio.solvers.validate import check_problem, check_solution
@@ -385,7 +385,8 @@ def solve(
         name = _write_estimate(loaded, solution.poses, folder, stem, tum_names)
         result = dataclasses.replace(result, estimate_path=out / name)
         (folder / SOLVE_JSON).write_text(
-            json.dumps(result.to_dict(), indent=2, default=_json_default, allow_nan=False) + "\n", encoding="utf-8"
+            dumps_strict(result.to_dict(), str(out / SOLVE_JSON), indent=2, default=_json_default) + "\n",
+            encoding="utf-8",
         )
     return result
 

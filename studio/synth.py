@@ -23,6 +23,7 @@ from studio.io.atomic import staged_outputs
 from studio.io.multig2o import Records, multi_g2o_parts
 from studio.io.outliers_txt import write_outliers_txt
 from studio.io.singleg2o import write_single_g2o, write_single_tum
+from studio.io.strict_json import dumps_strict
 from studio.io.synth_config import read_synth_config, synth_config_to_json
 from studio.runtime.parallel import default_jobs, parallel_map, run_team
 from studio.runtime.progress import Progress, report
@@ -213,7 +214,7 @@ def synthesize(
         if outliers is not None:
             write_outliers_txt(staging / name / "outliers.txt", outliers.rows, outliers.kinds)
         with open(staging / config_name, "w", encoding="utf-8") as f:
-            json.dump(synth_config_to_json(config), f, indent=4)
+            f.write(dumps_strict(synth_config_to_json(config), str(out_dir / config_name), indent=4))
             f.write("\n")
         if rrd:
             from studio.recording.dataset import record_graph

@@ -157,7 +157,8 @@ def multi_g2o_parts(
             for d, a in zip(dirs, graph.agents)
         ]
         (folder / AGENTS_FILE).write_text(
-            json.dumps({"format": _AGENTS_FORMAT, "agents": entries}, indent=2) + "\n", encoding="utf-8"
+            json.dumps({"format": _AGENTS_FORMAT, "agents": entries}, indent=2, allow_nan=False) + "\n",
+            encoding="utf-8",
         )
 
     n = len(graph.agents)

@@ -21,7 +21,6 @@ vs time per back-end, when matplotlib is installed), and with ``rrd`` a Rerun re
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 import time
 from dataclasses import dataclass
@@ -50,6 +49,7 @@ from studio.core.option_values import check_count, check_option
 from studio.core.timing import MeasurementTimes, measurement_times
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
+from studio.io.strict_json import dumps_strict
 from studio.replay.backends import World, get_backend
 from studio.replay.metrics import as_se3, first_pose_errors, se3_errors
 from studio.solvers.incremental import IsamSettings
@@ -518,7 +518,9 @@ def replay(
         timing += [f"{r.name},total,{r.seconds:.6f}" for r in runs]
         (folder / "timings.csv").write_text("\n".join(timing) + "\n", encoding="utf-8")
         (folder / "report.md").write_text(_report_text(schedule, report, runs), encoding="utf-8")
-        (folder / REPLAY_JSON).write_text(json.dumps(options, indent=2) + "\n", encoding="utf-8")
+        (folder / REPLAY_JSON).write_text(
+            dumps_strict(options, str(out / REPLAY_JSON), indent=2) + "\n", encoding="utf-8"
+        )
         _plot(folder / "ape.png", runs, schedule, f"{Path(dataset).name}: {schedule.model}")
     if rrd_path is not None:
         from studio.recording.replay import write_replay_recording

@@ -188,3 +188,66 @@ def test_a_solver_printing_a_gigabyte_holds_kilobytes(world, megabytes):
     assert res.returncode == 0 and res.stderr == "", res.stderr
     assert "chi2" in res.stdout and (world / "est" / "solve.json").is_file()
     assert rss_kib < 400_000
+
+
+# --------------------------------------------------------------------------- strict JSON
+def test_dumps_strict_names_the_output_and_the_json_path():
+    import math
+
+    from studio.core.errors import OutputError
+    from studio.io.strict_json import dumps_strict, non_finite_path
+
+    assert dumps_strict({"a": [1.0, 2]}, "x.json") == '{"a": [1.0, 2]}'
+    assert non_finite_path({"a": [1.0, {"b": math.inf}]}) == ("$.a[1].b", math.inf)
+    with pytest.raises(OutputError, match=r"^out/solve\.json: \$\.runs\[0\]\.ape_m is nan, not a finite number"):
+        dumps_strict({"runs": [{"ape_m": math.nan}]}, "out/solve.json")
+
+
+def test_no_json_the_studio_writes_holds_nan(world):
+    """Every JSON under a fresh solve, convert and export is standard JSON (parsed strictly)."""
+    import json
+
+    def strict(text: str) -> object:
+        return json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in JSON"))
+
+    from typer.testing import CliRunner
+
+    from studio.cli import app
+
+    runner = CliRunner()
+    for args in (
+        ["solve", "ds", "-o", "est"],
+        ["convert", "tum", "alpha.tum", "bob.tum", "-o", "conv", "--no-rrd"],
+        ["export", "ds", "--format", "jrl", "-o", "ds.jrl"],
+    ):
+        assert runner.invoke(app, args).exit_code == 0, args
+    found = [p for p in world.rglob("*.json")] + [world / "ds.jrl"]
+    assert len(found) >= 5
+    for p in found:
+        strict(p.read_text(encoding="utf-8"))
+    res = runner.invoke(app, ["solve", "ds", "-o", "est2", "--json"])
+    strict(res.stdout)
+
+
+def test_a_nan_bench_result_fails_its_cell_instead_of_being_written(world, monkeypatch):
+    import json
+    import math
+
+    import studio.bench as bench_mod
+
+    def nan_cell(cell, spec, dataset, single, run_dir):
+        return {
+            "dataset": cell.dataset,
+            "case": cell.case,
+            "method": cell.method,
+            "input": spec.input,
+            "ape_se3_m": math.nan,
+        }
+
+    monkeypatch.setattr(bench_mod, "_run_cell", nan_cell)
+    spec = bench_mod.load_bench_spec(str(world / "bench.toml"))
+    res = bench_mod.bench(spec, world / "b", isolate=False)
+    (cell,) = [r for r in res.rows if r["method"] == "gtsam"]
+    assert "ape_se3_m" not in cell and "$.ape_se3_m is nan, not a finite number" in cell["error"]
+    for p in (world / "b").rglob("*.json"):
+        assert "NaN" not in p.read_text() and json.loads(p.read_text()), p
