@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from studio._callable import make_callable
-from studio.converters.build import BuildResult, GraphOptions, Progress, build_graph
+from studio.converters.build import OUTLIER_KIND, BuildResult, GraphOptions, Progress, build_graph
 from studio.converters.odometry_source import (
     OdometryFit,
     apply_odometry_sources,
@@ -58,6 +58,7 @@ from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, MAX_SPLIT_ROBOTS
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
+from studio.io.outliers_txt import write_outliers_txt
 from studio.io.range_bearing import RANGE_BEARING_NAME, write_range_bearing
 from studio.io.strict_json import dumps_strict
 from studio.io.textfmt import write_text
@@ -338,16 +339,6 @@ def _report(
     }
 
 
-def _outlier_lines(build: BuildResult) -> str:
-    head = (
-        "# Loop closures that are outliers: they point at a wrong vertex (ground truth for robust\n"
-        "# optimisers). Columns: agent_from vertex_from agent_to vertex_to; agents 1-based as in\n"
-        "# inter_agent_lc.dat, vertices 0-based; equal agents: an intra-agent loop closure.\n"
-    )
-    rows = "".join(f"{a + 1} {b} {c + 1} {d}\n" for a, b, c, d in build.outliers.tolist())
-    return head + rows
-
-
 DERIVED = "derived from motion"
 #: How report.json names each way of deriving headings.
 HEADING_METHOD_TEXT = {
@@ -484,7 +475,7 @@ def convert(
             report["counts"]["range_bearing"] = len(rb)
             report["range_bearing"] = sight_fit.to_dict()
         write_text(ds / "report.json", (dumps_strict(report, str(out / "report.json"), indent=2) + "\n").encode())
-        write_text(ds / "outliers.txt", _outlier_lines(build).encode("utf-8"))
+        write_outliers_txt(ds / "outliers.txt", build.outliers, [OUTLIER_KIND] * len(build.outliers))
         if progress:
             progress("writing", 2, 2, "parts")
         if recorder is not None:

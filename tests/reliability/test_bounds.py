@@ -251,3 +251,38 @@ def test_a_nan_bench_result_fails_its_cell_instead_of_being_written(world, monke
     assert "ape_se3_m" not in cell and "$.ape_se3_m is nan, not a finite number" in cell["error"]
     for p in (world / "b").rglob("*.json"):
         assert "NaN" not in p.read_text() and json.loads(p.read_text()), p
+
+
+# --------------------------------------------------------------------------- one outliers.txt writer
+def test_convert_and_synth_write_outliers_txt_with_one_writer_and_one_header(world):
+    from typer.testing import CliRunner
+
+    from studio.cli import app
+    from studio.io.outliers_txt import read_outliers_txt
+
+    args = ["convert", "tum", "alpha.tum", "bob.tum", "-o", "conv", "--no-rrd", "--outlier-fraction", "0.3"]
+    assert CliRunner().invoke(app, args).exit_code == 0
+    rows, kinds = read_outliers_txt(world / "conv" / "outliers.txt")
+    assert len(rows) > 0 and set(kinds) == {"far"}
+    converted = (world / "conv" / "outliers.txt").read_text().splitlines()
+    from studio.io.outliers_txt import write_outliers_txt
+
+    write_outliers_txt(world / "synth_outliers.txt", rows[:1], ["aliasing"])  # as synth writes its kinds
+    written = (world / "synth_outliers.txt").read_text().splitlines()
+    header = written[: written.index("# kind: aliasing")]
+    assert len(header) == 5 and converted[:6] == [*header, "# kind: far"]
+
+
+def test_only_the_outliers_txt_module_writes_outliers_txt():
+    """No other module formats the file's rows itself (convert once did, without kinds)."""
+    import re
+
+    root = Path(__file__).resolve().parents[2]
+    writers = []
+    for path in [*root.joinpath("studio").rglob("*.py"), *root.joinpath("converters").rglob("*.py")]:
+        text = path.read_text(encoding="utf-8")
+        if re.search(r"outliers\.txt\"?\)?[^\n]*\.(write_text|write_bytes)|write_text\([^\n]*outliers\.txt", text):
+            writers.append(path.name)
+        if re.search(r"Loop closures that are outliers", text):
+            writers.append(path.name)
+    assert writers == ["outliers_txt.py"], writers
