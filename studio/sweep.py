@@ -708,7 +708,7 @@ def _plots(spec: SweepSpec, out: Path, df: Any) -> list[Path]:
         axes.ravel()[0].legend(fontsize=7, frameon=False)
         fig.suptitle(f"{spec.name}: metrics against {label} ({len(df)} cells)", fontsize=10)
         fig.tight_layout()
-        path = out / "plots" / f"{label.replace('.', '_')}.png"
+        path = out / "plots" / f"{safe_file_name(label.replace('.', '_'), fallback='parameter')}.png"
         write_replacing(path, functools.partial(_save_png, fig))
         plt.close(fig)
         paths.append(path)

@@ -286,3 +286,78 @@ def test_only_the_outliers_txt_module_writes_outliers_txt():
         if re.search(r"Loop closures that are outliers", text):
             writers.append(path.name)
     assert writers == ["outliers_txt.py"], writers
+
+
+# --------------------------------------------------------------------------- names from data
+HOSTILE_NAMES = ["../../escaped", "/tmp/studio-bounds-abs", "a\x00b", "x" * 300, "..", ".hidden", "sub/dir"]
+
+
+def test_agent_names_never_become_paths_in_a_robots_folder_layout(tmp_path):
+    """``folder_names="robots"`` names the agent folders after the agents: hostile names give plain
+    folders inside the dataset (at most 100 characters), never a path outside it."""
+    import dataclasses
+
+    from studio.io.multig2o import read_multi_g2o, write_multi_g2o
+    from studio.synth import load_synth_config
+    from studio.synth import synthesize as run_synth
+
+    made = run_synth(load_synth_config(guard.DATA / "configs" / "tiny_three.json"), tmp_path / "s", rrd=False, jobs=1)
+    graph = read_multi_g2o(made.dataset_dir)
+    for hostile in HOSTILE_NAMES:
+        agents = (dataclasses.replace(graph.agents[0], name=hostile), *graph.agents[1:])
+        out = tmp_path / "out"
+        out.mkdir()
+        write_multi_g2o(dataclasses.replace(graph, agents=agents), out, folder_names="robots")
+        made_entries = sorted(p.name for p in out.iterdir())
+        assert all("/" not in n and not n.startswith(".") and len(n) <= 100 for n in made_entries), made_entries
+        assert not Path("/tmp/studio-bounds-abs").exists() and not (tmp_path / "escaped").exists()
+        assert len([p for p in out.iterdir() if p.is_dir()]) == 3, made_entries
+        import shutil
+
+        shutil.rmtree(out)
+
+
+def test_agent_names_that_meet_in_one_folder_are_refused(tmp_path):
+    import dataclasses
+
+    from studio.core.errors import FormatError
+    from studio.io.multig2o import read_multi_g2o, write_multi_g2o
+    from studio.synth import load_synth_config
+    from studio.synth import synthesize as run_synth
+
+    made = run_synth(load_synth_config(guard.DATA / "configs" / "tiny_three.json"), tmp_path / "s", rrd=False, jobs=1)
+    graph = read_multi_g2o(made.dataset_dir)
+    agents = (dataclasses.replace(graph.agents[0], name="a/b"), dataclasses.replace(graph.agents[1], name="a_b"))
+    (tmp_path / "out").mkdir()
+    with pytest.raises(FormatError, match="give the same file name 'a_b'"):
+        write_multi_g2o(
+            dataclasses.replace(graph, agents=(*agents, graph.agents[2])), tmp_path / "out", folder_names="robots"
+        )
+
+
+def test_a_very_long_tum_stem_makes_a_short_agent_folder(world):
+    long_name = "y" * 240 + ".tum"
+    (world / long_name).write_bytes((world / "alpha.tum").read_bytes())
+    from typer.testing import CliRunner
+
+    from studio.cli import app
+
+    res = CliRunner().invoke(
+        app, ["convert", "tum", long_name, "bob.tum", "-o", "conv", "--no-rrd", "--folder-names", "robots"]
+    )
+    assert res.exit_code == 0, res.stderr
+    assert sorted(p.name for p in (world / "conv").iterdir() if p.is_dir()) == ["bob", "y" * 100]
+
+
+@pytest.mark.parametrize("hostile", ["../x", "/abs", "a/b", "..", ".x", "convert.json", "a\x00b"])
+def test_a_bag_agent_name_that_is_not_a_plain_folder_name_is_refused(world, hostile):
+    (world / "run.bag").write_bytes(b"")  # never read: the name is refused first
+    refused_intact(["convert", "bag", "run.bag", "--agent", f"{hostile}=/odom", "-o", Path("out")], world, "agent name")
+
+
+def test_sweep_plot_names_from_spec_parameters_stay_plain_file_names():
+    from studio.io.names import safe_file_name
+
+    for label in ("../../x", "base./etc/passwd", "a" * 300):
+        name = safe_file_name(label.replace(".", "_"), fallback="parameter")
+        assert "/" not in name and not name.startswith(".") and len(name) <= 100
