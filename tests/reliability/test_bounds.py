@@ -361,3 +361,19 @@ def test_sweep_plot_names_from_spec_parameters_stay_plain_file_names():
     for label in ("../../x", "base./etc/passwd", "a" * 300):
         name = safe_file_name(label.replace(".", "_"), fallback="parameter")
         assert "/" not in name and not name.startswith(".") and len(name) <= 100
+
+
+def test_fits_without_a_value_are_null_in_report_json_not_nan():
+    """A robot that never moved has no drift per metre, a run without sightings no RMS: null."""
+    import json
+    import math
+
+    from studio.converters.odometry_source import OdometryFit
+    from studio.converters.sightings import SightingsFit
+    from studio.io.strict_json import dumps_strict
+
+    odo = OdometryFit("a", "a.tum", 3, 0.1, 0.01, 0.1, 0.01, 0.01, 0.0, 0.0, math.nan)
+    sight = SightingsFit(0, 0, 0.1, 0.01, math.nan, math.nan, 0, 0.0, 0.0, {})
+    for fit in (odo, sight):
+        doc = json.loads(dumps_strict(fit.to_dict(), "report.json"))
+        assert None in doc.values() and all(v is None or v == v for v in doc.values() if isinstance(v, float))
