@@ -90,18 +90,20 @@ def read_table(
             expected = width if width is not None else " or ".join(map(str, counts))
             raise FormatError(f"{path}:{lineno}: expected {expected} columns ({what}), found {len(values)}")
         width = len(values)
-        if not all(map(math.isfinite, values)):
-            raise FormatError(f"{path}:{lineno}: value is not finite")
         if int_first:
             token = parts[0]
-            if not token.lstrip("-").isdigit() or len(token) > 20:
+            digits = token[1:] if token.startswith("-") else token
+            if not (digits.isascii() and digits.isdigit()):
                 raise FormatError(f"{path}:{lineno}: timestamp {token[:40]!r} is not an integer of nanoseconds")
-            stamp_ns = int(token)
-            if not _INT64_MIN <= stamp_ns <= _INT64_MAX:
+            stamp_ns = int(token) if len(digits) <= 19 else None  # longer ones: beyond int64 (int() not tried)
+            if stamp_ns is None or not _INT64_MIN <= stamp_ns <= _INT64_MAX:
+                shown = token if len(token) <= 40 else f"{token[:20]}...({len(digits)} digits)"
                 raise FormatError(
-                    f"{path}:{lineno}: timestamp {token!r} ns is beyond the int64 range (at most {_INT64_MAX} ns)"
+                    f"{path}:{lineno}: timestamp {shown!r} ns is beyond the int64 range (at most {_INT64_MAX} ns)"
                 )
             firsts.append(stamp_ns)
+        if not all(map(math.isfinite, values)):
+            raise FormatError(f"{path}:{lineno}: value is not finite")
         rows.append(values)
     if not rows:
         raise FormatError(f"{path}: no data rows ({what})")

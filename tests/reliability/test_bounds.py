@@ -18,7 +18,9 @@ made, world = guard.made, guard.world  # the guard tests' fixtures: a synth data
 
 
 @pytest.mark.parametrize("layout", ["mocap0", "state_groundtruth_estimate0"])
-@pytest.mark.parametrize("stamp", ["9223372036854775808", "99999999999999999999", "-9223372036854775809"])
+@pytest.mark.parametrize(
+    "stamp", ["9223372036854775808", "99999999999999999999", "-9223372036854775809", "1" * 30, "9" * 5000]
+)
 def test_a_nanosecond_stamp_beyond_int64_is_one_line_naming_file_and_line(world, layout, stamp):
     columns = 8 if layout == "mocap0" else 17
     csv = world / "seq" / "mav0" / layout / "data.csv"
@@ -26,7 +28,7 @@ def test_a_nanosecond_stamp_beyond_int64_is_one_line_naming_file_and_line(world,
     row = ",".join(["0", "0", "0", "1", "0", "0", "0"] + ["0"] * (columns - 8))  # p, q wxyz, the rest
     csv.write_text(f"#timestamp [ns],...\n1000,{row}\n{stamp},{row}\n")
     err = refused_intact(["convert", "euroc", world / "seq", "-o", world / "out"], world, f"{csv}:3: timestamp")
-    assert "int64" in err and stamp in err
+    assert "int64" in err and (stamp in err or f"{stamp[:20]}...({len(stamp)} digits)" in err)
 
 
 def test_the_largest_int64_stamp_is_still_read(world):
