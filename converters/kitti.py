@@ -31,6 +31,9 @@ CAMERA_TO_Z_UP = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 _WHAT = "KITTI poses: 12 numbers per line, a 3x4 matrix [R | t] row by row"
 KITTI_RATE_HZ = 10.0
 
+#: Largest time [s] whose nanoseconds fit int64 (about 292 years).
+MAX_STAMP_S = ((1 << 63) - 1) / 1e9 * (1 - 1e-12)
+
 
 def kitti_times_for(poses: Path) -> Path | None:
     for cand in (poses.with_name("times.txt"), poses.parent.parent / "sequences" / poses.stem / "times.txt"):
@@ -74,6 +77,12 @@ def read_kitti(
             t, _ = read_table(times, 1, what="KITTI times.txt: one time in seconds per line", header=False)
             if len(t) != len(m):
                 raise FormatError(f"{times}: {len(t)} times for the {len(m)} poses of {path}")
+            far = np.flatnonzero(~(np.abs(t[:, 0]) <= MAX_STAMP_S))  # beyond it, nanoseconds leave int64
+            if far.size:
+                raise FormatError(
+                    f"{times}: time {int(far[0]) + 1} ({t[far[0], 0]:g} s) is beyond the int64 nanosecond range "
+                    f"({MAX_STAMP_S:.4g} s)"
+                )
             stamps = np.round(t[:, 0] * 1e9).astype(np.int64)
         quat = Rotation.from_matrix(rot).as_quat()  # x y z w
         out.append(clean_trajectory(safe_agent_name(path.stem), stamps, pos, quat, str(path), warn))

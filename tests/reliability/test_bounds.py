@@ -379,3 +379,16 @@ def test_fits_without_a_value_are_null_in_report_json_not_nan():
     for fit in (odo, sight):
         doc = json.loads(dumps_strict(fit.to_dict(), "report.json"))
         assert None in doc.values() and all(v is None or v == v for v in doc.values() if isinstance(v, float))
+
+
+@pytest.mark.parametrize("far", ["1e11", "1e300", "-1e12"])
+def test_a_kitti_time_beyond_the_int64_nanosecond_range_is_one_line(world, far):
+    (world / "kitti").mkdir()
+    (world / "kitti" / "00.txt").write_text("".join(f"1 0 0 {k} 0 1 0 0 0 0 1 0\n" for k in range(20)))
+    times = [f"{k * 0.1:.1f}" for k in range(20)]
+    times[5] = far
+    (world / "kitti" / "times.txt").write_text("\n".join(times) + "\n")
+    err = refused_intact(
+        ["convert", "kitti", world / "kitti" / "00.txt", "-o", Path("out")], world, "times.txt: time 6"
+    )
+    assert "beyond the int64 nanosecond range" in err
