@@ -23,6 +23,7 @@ from studio.converters.text import read_table
 from studio.core.errors import FormatError
 from studio.core.trajectory import Trajectory, Warn, clean_trajectory
 from studio.core.types import PathLike
+from studio.core.units import MAX_STAMP_S
 
 __all__ = ["read_kitti", "kitti_times_for", "CAMERA_TO_Z_UP"]
 
@@ -30,9 +31,6 @@ __all__ = ["read_kitti", "kitti_times_for", "CAMERA_TO_Z_UP"]
 CAMERA_TO_Z_UP = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 _WHAT = "KITTI poses: 12 numbers per line, a 3x4 matrix [R | t] row by row"
 KITTI_RATE_HZ = 10.0
-
-#: Largest time [s] whose nanoseconds fit int64 (about 292 years).
-MAX_STAMP_S = ((1 << 63) - 1) / 1e9 * (1 - 1e-12)
 
 
 def kitti_times_for(poses: Path) -> Path | None:

@@ -12,6 +12,7 @@ __all__ = [
     "MAX_SOLUTION_M",
     "CHI2_RISE_TOLERANCE",
     "MAX_SPLIT_ROBOTS",
+    "MAX_STAMP_S",
 ]
 
 #: Nanoseconds per second: timestamps are int64 nanoseconds inside the studio.
@@ -42,3 +43,6 @@ MAX_SOLUTION_M = 1e12
 CHI2_RISE_TOLERANCE = 1e-9
 #: Most robots ``--split`` cuts one trajectory or graph into (synth's limit of agents, too).
 MAX_SPLIT_ROBOTS = 10_000
+#: Largest time [s] whose nanoseconds fit int64 (about 292 years): a time in seconds beyond it
+#: cannot become a stamp.
+MAX_STAMP_S = ((1 << 63) - 1) / 1e9 * (1 - 1e-12)

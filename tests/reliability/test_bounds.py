@@ -392,3 +392,24 @@ def test_a_kitti_time_beyond_the_int64_nanosecond_range_is_one_line(world, far):
         ["convert", "kitti", world / "kitti" / "00.txt", "-o", Path("out")], world, "times.txt: time 6"
     )
     assert "beyond the int64 nanosecond range" in err
+
+
+@pytest.mark.parametrize(
+    ("file", "column", "match"),
+    [
+        ("Robot1_Groundtruth.dat", 0, "row 4: time 1e+300 s is beyond the int64 nanosecond range"),
+        ("Robot2_Measurement.dat", 1, "measurement 4: barcode 1e+300 is not a barcode"),
+    ],
+)
+def test_an_mrclam_time_or_barcode_out_of_range_is_one_line_naming_the_file(world, file, column, match):
+    from tests.converters.mrclam_files import write_mrclam_dataset
+
+    root = write_mrclam_dataset(world / "mr", seconds=30.0)
+    path = root / file
+    lines = path.read_text().splitlines()
+    data = [k for k, ln in enumerate(lines) if not ln.startswith("#")]
+    parts = lines[data[3]].split()
+    parts[column] = "1e300"
+    lines[data[3]] = "\t".join(parts)
+    path.write_text("\n".join(lines) + "\n")
+    refused_intact(["convert", "mrclam", root, "-o", Path("out")], world, f"{path}: {match}")
