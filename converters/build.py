@@ -53,6 +53,7 @@ from studio.runtime.progress import Progress  # the callback type of build_graph
 
 __all__ = [
     "GraphOptions",
+    "OUTLIER_KIND",
     "option_help",
     "Gap",
     "BuildResult",
@@ -566,6 +567,11 @@ def _loop_closures(
     return _Loops(i, j, same, meas_lc, info_lc, int(len(ok)))
 
 
+#: The kind of the outliers the builder plants (``outliers.txt``'s ``# kind:`` line): the ``to`` vertex
+#: replaced by one at least two loop-closure radii from both true endpoints.
+OUTLIER_KIND = "far"
+
+
 def _plant_outliers(chains: _Chains, loops: _Loops, opts: GraphOptions) -> tuple[np.ndarray, np.ndarray]:
     """Step 5: the ``to`` keyframe of every loop closure (a wrong one for the outliers) and which are
     outliers."""
@@ -579,7 +585,7 @@ def _plant_outliers(chains: _Chains, loops: _Loops, opts: GraphOptions) -> tuple
         chosen = np.sort(rng_out.choice(n_lc, size=k, replace=False))
         # a wrong vertex of the same agent as the true one, at least 2R from it and from the from vertex;
         # a loop closure without such a vertex stays true
-        far = WrongVertexRule("far", min_to_m=2 * opts.lc_radius, min_from_m=2 * opts.lc_radius)
+        far = WrongVertexRule(OUTLIER_KIND, min_to_m=2 * opts.lc_radius, min_from_m=2 * opts.lc_radius)
         A, V = chains.A, chains.V
         ends = np.column_stack([A[i], V[i], A[j], V[j]])
         kf_pos = [c.positions_xyz for c in chains.agents]

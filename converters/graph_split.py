@@ -30,7 +30,8 @@ import numpy as np
 
 from studio.core.errors import ConfigError, FormatError
 from studio.core.model import PoseGraph, PoseKind
-from studio.core.units import NS_PER_S
+from studio.core.option_values import check_option
+from studio.core.units import MAX_SPLIT_ROBOTS, NS_PER_S
 from studio.io.dpgo import contiguous_split
 from studio.io.graph_table import AgentPoses, EdgeTable, assemble_graph
 
@@ -230,16 +231,19 @@ class GraphImportOptions:
     initial estimate along the odometry; ``none``."""
 
     def __post_init__(self) -> None:
-        if isinstance(self.split, bool) or not isinstance(self.split, int) or self.split < 0 or self.split == 1:
-            raise ConfigError(f"split: expected 0 (off) or an integer of at least 2, got {self.split!r}")
+        if self.split != 0 and not (
+            not isinstance(self.split, bool) and isinstance(self.split, int) and 2 <= self.split <= MAX_SPLIT_ROBOTS
+        ):
+            raise ConfigError(
+                f"split: expected 0 (off) or an integer in 2..{MAX_SPLIT_ROBOTS}, got {self.split!r}", option="split"
+            )
         if self.partition not in PARTITIONS:
             raise ConfigError(f"partition: expected one of {', '.join(PARTITIONS)}, got {self.partition!r}")
         if self.ground_truth not in GROUND_TRUTH_CHOICES:
             raise ConfigError(
                 f"ground_truth: expected one of {', '.join(GROUND_TRUTH_CHOICES)}, got {self.ground_truth!r}"
             )
-        if isinstance(self.overlap_s, bool) or not isinstance(self.overlap_s, (int, float)) or not self.overlap_s >= 0:
-            raise ConfigError(f"overlap_s: expected a non-negative number of seconds, got {self.overlap_s!r}")
+        check_option("overlap_s", self.overlap_s)
 
 
 def graph_trajectories(graph: PoseGraph, where: str) -> list:

@@ -23,6 +23,7 @@ from studio.converters.text import read_table
 from studio.core.errors import FormatError
 from studio.core.trajectory import Trajectory, Warn, clean_trajectory
 from studio.core.types import PathLike
+from studio.core.units import MAX_STAMP_S
 
 __all__ = ["read_kitti", "kitti_times_for", "CAMERA_TO_Z_UP"]
 
@@ -74,6 +75,12 @@ def read_kitti(
             t, _ = read_table(times, 1, what="KITTI times.txt: one time in seconds per line", header=False)
             if len(t) != len(m):
                 raise FormatError(f"{times}: {len(t)} times for the {len(m)} poses of {path}")
+            far = np.flatnonzero(~(np.abs(t[:, 0]) <= MAX_STAMP_S))  # beyond it, nanoseconds leave int64
+            if far.size:
+                raise FormatError(
+                    f"{times}: time {int(far[0]) + 1} ({t[far[0], 0]:g} s) is beyond the int64 nanosecond range "
+                    f"({MAX_STAMP_S:.4g} s)"
+                )
             stamps = np.round(t[:, 0] * 1e9).astype(np.int64)
         quat = Rotation.from_matrix(rot).as_quat()  # x y z w
         out.append(clean_trajectory(safe_agent_name(path.stem), stamps, pos, quat, str(path), warn))

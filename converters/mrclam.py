@@ -33,6 +33,7 @@ from studio.core.errors import FormatError
 from studio.core.geometry import yaw_to_quat_xyzw
 from studio.core.trajectory import Trajectory, Warn, clean_trajectory
 from studio.core.types import PathLike
+from studio.core.units import MAX_STAMP_S
 
 __all__ = [
     "MRCLAM_ROBOTS",
@@ -112,7 +113,12 @@ def _read_fast(text: str, columns: int) -> np.ndarray | None:
     return values
 
 
-def _stamps_ns(seconds: np.ndarray) -> np.ndarray:
+def _stamps_ns(seconds: np.ndarray, path: Path) -> np.ndarray:
+    far = np.flatnonzero(~(np.abs(seconds) <= MAX_STAMP_S))
+    if far.size:
+        raise FormatError(
+            f"{path}: row {int(far[0]) + 1}: time {seconds[far[0]]:g} s is beyond the int64 nanosecond range"
+        )
     return np.round(seconds * 1e6).astype(np.int64) * _US
 
 
@@ -139,7 +145,7 @@ def read_mrclam(
         rows = _read_dat(path, 4, _GT_WHAT)
         pos = np.column_stack([rows[:, 1], rows[:, 2], np.zeros(len(rows))])
         out.append(
-            clean_trajectory(_name(k), _stamps_ns(rows[:, 0]), pos, yaw_to_quat_xyzw(rows[:, 3]), str(path), warn)
+            clean_trajectory(_name(k), _stamps_ns(rows[:, 0], path), pos, yaw_to_quat_xyzw(rows[:, 3]), str(path), warn)
         )
     return out
 
@@ -177,7 +183,7 @@ def read_mrclam_odometry(
         if not path.is_file():
             raise FormatError(f"{path}: missing (--odometry real integrates RobotK_Odometry.dat)")
         rows = _read_dat(path, 3, "MR.CLAM odometry: time [s], forward velocity [m/s], angular velocity [rad/s]")
-        stamps = _stamps_ns(rows[:, 0])
+        stamps = _stamps_ns(rows[:, 0], path)
         order = np.argsort(stamps, kind="stable")
         if np.any(np.diff(stamps) < 0) and warn is not None:
             warn(f"{path}: {int(np.count_nonzero(np.diff(stamps) < 0))} out-of-order timestamps sorted")
@@ -224,6 +230,9 @@ def read_mrclam_sightings(inputs: Sequence[PathLike], *, warn: Warn | None = Non
             if "no data rows" not in str(err):
                 raise
             continue
+        odd = np.flatnonzero(~(np.abs(rows[:, 1]) < 2**31))
+        if odd.size:
+            raise FormatError(f"{path}: measurement {int(odd[0]) + 1}: barcode {rows[odd[0], 1]:g} is not a barcode")
         codes = rows[:, 1].astype(np.int64)
         target = np.array([robot_of.get(int(c), -1) for c in codes], dtype=np.int64)
         counts["landmark_sightings"] += int(np.count_nonzero(np.isin(codes, list(landmarks))))
@@ -233,7 +242,7 @@ def read_mrclam_sightings(inputs: Sequence[PathLike], *, warn: Warn | None = Non
         if bad.size:
             raise FormatError(f"{path}: measurement {int(bad[0]) + 1} has a negative range")
         sel = (target >= 0) & (target != k - 1)
-        stamps.append(_stamps_ns(rows[sel, 0]))
+        stamps.append(_stamps_ns(rows[sel, 0], path))
         observer.append(np.full(int(sel.sum()), k - 1, dtype=np.int64))
         observed.append(target[sel])
         rng.append(rows[sel, 2])

@@ -85,7 +85,10 @@ class OdometryFit:
     """Sum of the edges' translation error norms over the distance travelled."""
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """The fit as report.json holds it; a value there is none of (NaN: no travel) is null."""
+        return {
+            k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in dataclasses.asdict(self).items()
+        }
 
 
 _BAG_SPEC = re.compile(r"^(?P<path>.+?\.(?:bag|mcap)|.+?)(?::(?P<spec>/.*))$")

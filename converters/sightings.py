@@ -57,9 +57,10 @@ class SightingsFit:
     source_counts: dict[str, int] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
+        """The fit as report.json holds it; a value there is none of (NaN: no sightings) is null."""
         from dataclasses import asdict
 
-        return asdict(self)
+        return {k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in asdict(self).items()}
 
 
 def _agent_of(name: str, names: Sequence[str]) -> list[int]:

@@ -17,6 +17,8 @@ __all__ = ["read_table"]
 
 #: Larger files are refused before reading (ground-truth files of real datasets are a few MB).
 MAX_TABLE_BYTES = 1 << 30
+#: the range of a nanosecond stamp (int64)
+_INT64_MIN, _INT64_MAX = -(1 << 63), (1 << 63) - 1
 
 
 _QUAT_NAME = re.compile(r"^q(?:_?[a-z]*_)?([wxyz])$")
@@ -88,13 +90,20 @@ def read_table(
             expected = width if width is not None else " or ".join(map(str, counts))
             raise FormatError(f"{path}:{lineno}: expected {expected} columns ({what}), found {len(values)}")
         width = len(values)
-        if not all(map(math.isfinite, values)):
-            raise FormatError(f"{path}:{lineno}: value is not finite")
         if int_first:
             token = parts[0]
-            if not token.lstrip("-").isdigit() or len(token) > 19:
+            digits = token[1:] if token.startswith("-") else token
+            if not (digits.isascii() and digits.isdigit()):
                 raise FormatError(f"{path}:{lineno}: timestamp {token[:40]!r} is not an integer of nanoseconds")
-            firsts.append(int(token))
+            stamp_ns = int(token) if len(digits) <= 19 else None  # longer ones: beyond int64 (int() not tried)
+            if stamp_ns is None or not _INT64_MIN <= stamp_ns <= _INT64_MAX:
+                shown = token if len(token) <= 40 else f"{token[:20]}...({len(digits)} digits)"
+                raise FormatError(
+                    f"{path}:{lineno}: timestamp {shown!r} ns is beyond the int64 range (at most {_INT64_MAX} ns)"
+                )
+            firsts.append(stamp_ns)
+        if not all(map(math.isfinite, values)):
+            raise FormatError(f"{path}:{lineno}: value is not finite")
         rows.append(values)
     if not rows:
         raise FormatError(f"{path}: no data rows ({what})")

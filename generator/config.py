@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, replace
 from studio.core.errors import ConfigError
 from studio.generator.extensions import StudioExtensions
 
-__all__ = ["AgentConfig", "InterLoopClosureConfig", "SynthConfig", "estimate_resources"]
+__all__ = ["AgentConfig", "InterLoopClosureConfig", "SynthConfig", "estimate_resources", "aliasing_bytes"]
 
 
 @dataclass(frozen=True)
@@ -134,6 +134,11 @@ OUTPUT_BYTES_PER_POSE = 1_500
 
 #: Bytes per candidate ("hit": an occupied cell inside a pose's circle) while loop closures are drawn.
 MEMORY_BYTES_PER_HIT = 48
+#: Bytes per (pose, window cell) while aliasing outliers compare local patterns
+#: (``generator/outliers.local_patterns``: one agent at a time, every pose's ``(2 w F + 1)^2`` window
+#: of cell keys and their look-ups; measured 48 B by tracemalloc at 500-5,000 poses and windows of
+#: 21-121 cells a side), with margin.
+MEMORY_BYTES_PER_ALIAS_CELL = 64
 
 
 def _radius_cells(radius_m: float, cfg: SynthConfig) -> int:
@@ -148,11 +153,24 @@ def _search_bytes(radius_cells: int, queries: int, table: int) -> float:
     return side * side * 24 + queries * side * 32 + queries * min(circle, table) * MEMORY_BYTES_PER_HIT
 
 
+def aliasing_bytes(cfg: SynthConfig) -> int:
+    """Memory of the aliasing outliers' local patterns: one agent's poses times its window's cells
+    (0 when no aliasing outlier is asked for)."""
+    out = cfg.studio.outliers if cfg.studio is not None else None
+    if out is None or not (out.intra_fraction > 0 or out.inter_fraction > 0):
+        return 0
+    if dict(out.kinds).get("aliasing", 0.0) <= 0:
+        return 0
+    side = 2 * out.aliasing_window * cfg.step_fragment + 1
+    return cfg.poses_per_agent * side * side * MEMORY_BYTES_PER_ALIAS_CELL
+
+
 def estimate_resources(cfg: SynthConfig) -> tuple[int, int]:
     """``(peak memory bytes, output bytes)`` that generating ``cfg`` will roughly need.
 
     Poses cost a fixed amount each; each loop-closure search (one agent's intra-agent closures, or one
-    pair of agents) is bounded by its circle size, with two searches running at once.
+    pair of agents) is bounded by its circle size, with two searches running at once; aliasing
+    outliers add one agent's poses times its window's cells.
     """
     n = cfg.poses_per_agent
     poses = cfg.number_of_agents * n
@@ -161,4 +179,5 @@ def estimate_resources(cfg: SynthConfig) -> tuple[int, int]:
         searches.append(_search_bytes(_radius_cells(cfg.inter.loop_closure_radius, cfg), n, n))
     pairs = cfg.number_of_agents * (cfg.number_of_agents - 1) // 2
     memory = MEMORY_BYTES_BASE + poses * MEMORY_BYTES_PER_POSE + pairs * MEMORY_BYTES_PER_PAIR + 2 * max(searches)
+    memory += aliasing_bytes(cfg)
     return int(memory), poses * OUTPUT_BYTES_PER_POSE

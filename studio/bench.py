@@ -43,6 +43,7 @@ from studio.core.types import PathLike
 from studio.io.atomic import check_workspace, output_workspace, write_replacing
 from studio.io.names import safe_file_name
 from studio.io.spec_file import check_spec_keys, read_spec_file
+from studio.io.strict_json import dumps_strict, non_finite_path
 from studio.runtime.progress import Progress, report
 
 __all__ = ["BenchSpec", "BenchResult", "Cell", "load_bench_spec", "bench", "PAPER_SPEC", "format_paper_table"]
@@ -393,6 +394,11 @@ def _bench(spec: BenchSpec, out: Path, progress: Progress | None, isolate: bool)
                 "error": str(err),
             }
         computed += 1
+        found = non_finite_path(row)
+        if found is not None:  # a NaN result fails the cell (written as NaN it would pass)
+            row = {k: row[k] for k in ("dataset", "case", "method", "input") if k in row} | {
+                "error": f"{done}: {found[0]} is {found[1]!r}, not a finite number (strict JSON)"
+            }
         _write_json(done, row)
         rows.append(row)
     report(progress, "bench cells", total, total, "cells")
@@ -413,7 +419,7 @@ def _finished(path: Path) -> dict[str, Any] | None:
 
 def _write_json(path: Path, row: Mapping[str, Any]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(row, indent=2, sort_keys=True, default=float) + "\n"
+    text = dumps_strict(row, str(path), indent=2, sort_keys=True, default=float) + "\n"
     write_replacing(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 

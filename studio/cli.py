@@ -67,7 +67,7 @@ def _root(
 
 
 #: Library options whose flag is not their name in kebab case (``overlap_s`` -> ``--overlap``).
-_FLAGS: dict[str, str] = {}
+_FLAGS: dict[str, str] = {"max_iterations": "iterations"}
 
 
 def _as_flags(err: StudioError) -> str:
@@ -713,8 +713,7 @@ def solve(
     Example: studio solve out/multi3500x8 -o out/multi3500x8-solved ; then
     studio evaluate out/multi3500x8 --estimate out/multi3500x8-solved/estimate --align se3
     """
-    import json
-
+    from studio.io.strict_json import dumps_strict
     from studio.solve import solve as run_solve
 
     res = run_solve(
@@ -731,7 +730,7 @@ def solve(
         robots=robots,
     )
     if as_json:
-        typer.echo(json.dumps(res.to_dict(), indent=2))
+        typer.echo(dumps_strict(res.to_dict(), "--json", indent=2))
         return
     rejected = "" if res.rejected is None else f", {len(res.rejected)} loop closures rejected"
     typer.echo(
@@ -791,9 +790,11 @@ def replay(
 
     Example: studio replay out/multi3500x8 --comms range:20 -o out/replay-range20
     """
+    from studio.core.option_values import check_count
     from studio.replay import DEFAULT_BACKENDS
     from studio.replay import replay as run_replay
 
+    check_count("--comms-seed", comms_seed, low=0, high=2**63 - 1)  # the library's ``seed``
     names = tuple(b.strip() for b in backend.split(",") if b.strip()) or DEFAULT_BACKENDS
     res = run_replay(
         dataset,

@@ -25,7 +25,6 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import json
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from studio._callable import make_callable
-from studio.converters.build import BuildResult, GraphOptions, Progress, build_graph
+from studio.converters.build import OUTLIER_KIND, BuildResult, GraphOptions, Progress, build_graph
 from studio.converters.odometry_source import (
     OdometryFit,
     apply_odometry_sources,
@@ -56,10 +55,12 @@ from studio.core.model import PoseGraph, RangeBearing
 from studio.core.option_values import check_option
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
-from studio.core.units import DEFAULT_MAX_MEMORY_GB
+from studio.core.units import DEFAULT_MAX_MEMORY_GB, MAX_SPLIT_ROBOTS
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
+from studio.io.outliers_txt import write_outliers_txt
 from studio.io.range_bearing import RANGE_BEARING_NAME, write_range_bearing
+from studio.io.strict_json import dumps_strict
 from studio.io.textfmt import write_text
 
 __all__ = [
@@ -172,23 +173,14 @@ class ConvertConfig:
             raise ConfigError(
                 f"folder_names: expected agents or robots, got {self.folder_names!r}", option="folder_names"
             )
-        if isinstance(self.split, bool) or not isinstance(self.split, int) or self.split < 0 or self.split == 1:
+        if self.split != 0 and not (
+            not isinstance(self.split, bool) and isinstance(self.split, int) and 2 <= self.split <= MAX_SPLIT_ROBOTS
+        ):
             raise ConfigError(
-                f"split: expected 0 (off) or an integer of at least 2, got {self.split!r}", option="split"
+                f"split: expected 0 (off) or an integer in 2..{MAX_SPLIT_ROBOTS}, got {self.split!r}", option="split"
             )
-        for name, value in (("heading_window_m", self.heading_window_m), ("overlap_s", self.overlap_s)):
-            if (
-                isinstance(value, bool)
-                or not isinstance(value, (int, float))
-                or not math.isfinite(value)
-                or value < 0
-                or (name == "heading_window_m" and value == 0)
-            ):
-                raise ConfigError(
-                    f"{name}: expected a {'positive' if name == 'heading_window_m' else 'non-negative'} "
-                    f"number, got {value!r}",
-                    option=name,
-                )
+        check_option("heading_window_m", self.heading_window_m, allow_zero=False)
+        check_option("overlap_s", self.overlap_s)
         for spec in self.body_frames:
             name, sep, code = spec.partition("=")
             if not sep or not name:
@@ -345,16 +337,6 @@ def _report(
         "counts": {**g.edge_counts(), **result_build.candidates},
         "warnings": list(warnings),
     }
-
-
-def _outlier_lines(build: BuildResult) -> str:
-    head = (
-        "# Loop closures that are outliers: they point at a wrong vertex (ground truth for robust\n"
-        "# optimisers). Columns: agent_from vertex_from agent_to vertex_to; agents 1-based as in\n"
-        "# inter_agent_lc.dat, vertices 0-based; equal agents: an intra-agent loop closure.\n"
-    )
-    rows = "".join(f"{a + 1} {b} {c + 1} {d}\n" for a, b, c, d in build.outliers.tolist())
-    return head + rows
 
 
 DERIVED = "derived from motion"
@@ -521,7 +503,10 @@ def _write_dataset(
     )
     if progress:
         progress("writing", 1, 2, "parts")
-    write_text(ds / CONFIG_NAME, (json.dumps(convert_config_to_json(cfg), indent=2) + "\n").encode("utf-8"))
+    write_text(
+        ds / CONFIG_NAME,
+        (dumps_strict(convert_config_to_json(cfg), f"{ds.name}/{CONFIG_NAME}", indent=2) + "\n").encode(),
+    )
     report = _report(build, trajs, warnings, orientation)
     if orientation:
         report["heading_method"] = HEADING_METHOD_TEXT[cfg.heading_method].format(w=cfg.heading_window_m)
@@ -536,8 +521,8 @@ def _write_dataset(
         write_range_bearing(ds / RANGE_BEARING_NAME, rb)
         report["counts"]["range_bearing"] = len(rb)
         report["range_bearing"] = sight_fit.to_dict()
-    write_text(ds / "report.json", (json.dumps(report, indent=2) + "\n").encode("utf-8"))
-    write_text(ds / "outliers.txt", _outlier_lines(build).encode("utf-8"))
+    write_text(ds / "report.json", (dumps_strict(report, f"{ds.name}/report.json", indent=2) + "\n").encode())
+    write_outliers_txt(ds / "outliers.txt", build.outliers, [OUTLIER_KIND] * len(build.outliers))
     if progress:
         progress("writing", 2, 2, "parts")
 

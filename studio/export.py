@@ -19,7 +19,6 @@ output is replaced only with ``force``.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,6 +35,7 @@ from studio.io.graph_table import graph_edge_table, information_matrix
 from studio.io.jrl import write_jrl
 from studio.io.multig2o import read_multi_g2o
 from studio.io.outliers_txt import read_outlier_kinds, write_outliers_txt
+from studio.io.strict_json import dumps_strict
 from studio.io.symbol_g2o import robot_prefix, write_symbol_g2o_folder
 from studio.io.tum import write_tum
 
@@ -212,6 +212,8 @@ def export_dataset(
                 "outliers": len(outliers),
                 "warnings": warnings,
             }
-            (target / "export.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
+            (target / "export.json").write_text(
+                dumps_strict(meta, str(out / "export.json"), indent=2) + "\n", encoding="utf-8"
+            )
             files.append("export.json")
     return ExportResult(format, out, tuple(files), tuple(warnings))

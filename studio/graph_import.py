@@ -34,6 +34,7 @@ from studio.core.types import PathLike
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
 from studio.io.outliers_txt import write_outliers_txt
+from studio.io.strict_json import dumps_strict
 from studio.runtime.progress import Progress
 
 __all__ = ["ImportResult", "import_graph", "graph_source_names", "IMPORT_NAME"]
@@ -124,7 +125,7 @@ def import_graph(
             graph, ds, records="2d" if graph.kind is PoseKind.SE2 else "3d", precision="full", folder_names="agents"
         )
         write_outliers_txt(ds / "outliers.txt", outliers, [f"labelled in the {source} input"] * len(outliers))
-        (ds / IMPORT_NAME).write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
+        (ds / IMPORT_NAME).write_text(dumps_strict(meta, str(out / IMPORT_NAME), indent=2) + "\n", encoding="utf-8")
         if rrd:
             from studio.recording.dataset import record_graph
 

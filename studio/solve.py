@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import json
 import os
 import time
 from collections.abc import Iterator
@@ -42,7 +41,9 @@ from studio.core.model import AgentGraph, PoseGraph, PoseKind
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE as MAX_COORDINATE_M  # the one bound of every number
+from studio.core.units import MAX_SPLIT_ROBOTS
 from studio.io.names import safe_file_name, safe_file_names
+from studio.io.strict_json import dumps_strict
 from studio.solvers import DEFAULT_METHOD, SolveMethod, method_entry
 from studio.solvers.problem import Init, Iteration, Optimizer, Problem, Solution, SolveOptions, graph_chi2
 from studio.solvers.validate import check_problem, check_solution
@@ -333,11 +334,16 @@ def _solve_options(
     if max_iterations is None:
         max_iterations = entry.default("max_iterations")  # the method's own default (g2o: the paper's 10)
     if isinstance(max_iterations, bool) or not isinstance(max_iterations, int) or not 1 <= max_iterations <= 10_000:
-        raise ConfigError(f"max_iterations: expected an integer in 1..10000, got {max_iterations!r}")
+        raise ConfigError(
+            f"max_iterations: expected an integer in 1..10000, got {max_iterations!r}", option="max_iterations"
+        )
     if not (isinstance(relative_tolerance, (int, float)) and 0 <= relative_tolerance < 1):
         raise ConfigError(f"relative_tolerance: expected a number in [0, 1), got {relative_tolerance!r}")
     if isinstance(robots, bool) or not isinstance(robots, int) or robots < 0:
-        raise ConfigError(f"robots: expected a whole number of robots (0: the default), got {robots!r}")
+        raise ConfigError(
+            f"robots: expected 0 (the default) or a count up to {MAX_SPLIT_ROBOTS}, got {robots!r}",
+            option="robots",
+        )
     return SolveOptions(optimizer, init, max_iterations, float(relative_tolerance), command, robots)  # type: ignore[arg-type]
 
 
@@ -429,7 +435,8 @@ def _write_solve_outputs(
         name = _write_estimate(loaded, solution.poses, folder, stem, tum_names)
         result = dataclasses.replace(result, estimate_path=out / name)
         (folder / SOLVE_JSON).write_text(
-            json.dumps(result.to_dict(), indent=2, default=_json_default, allow_nan=False) + "\n", encoding="utf-8"
+            dumps_strict(result.to_dict(), str(out / SOLVE_JSON), indent=2, default=_json_default) + "\n",
+            encoding="utf-8",
         )
     return result
 

@@ -53,6 +53,7 @@ from studio.core.types import PathLike
 from studio.io.atomic import check_workspace, output_workspace, write_replacing
 from studio.io.names import safe_file_name
 from studio.io.spec_file import check_spec_keys, read_spec_file
+from studio.io.strict_json import dumps_strict, non_finite_path
 from studio.runtime.progress import Progress, report
 
 __all__ = [
@@ -316,7 +317,8 @@ def _step_check(task: CellTask, cell_dir: Path, dataset: Path, row: dict[str, An
     report = check(dataset, **opts)
     for c in report.classes:
         if c.agent == "all":
-            row[f"check_{c.name.replace(' ', '_')}_factor"] = c.total.factor
+            factor = c.total.factor  # NaN: a class without degrees of freedom, no value (None)
+            row[f"check_{c.name.replace(' ', '_')}_factor"] = factor if math.isfinite(factor) else None
 
 
 def _step_record(task: CellTask, cell_dir: Path, dataset: Path, row: dict[str, Any], opts: dict[str, Any]) -> None:
@@ -394,7 +396,11 @@ def run_cell(task: CellTask) -> dict[str, Any]:
         row["error"] = one_line_error(err)
         return row
     row["cell_s"] = time.perf_counter() - t0
-    text = json.dumps(row, indent=2, sort_keys=True, default=float) + "\n"
+    try:
+        text = dumps_strict(row, str(done), indent=2, sort_keys=True, default=float) + "\n"
+    except StudioError as err:  # a non-finite result fails the cell (written as NaN it would pass)
+        shutil.rmtree(cell_dir, ignore_errors=True)
+        return {k: v for k, v in row.items() if non_finite_path(v) is None} | {"error": one_line_error(err)}
     write_replacing(done, lambda tmp: tmp.write_text(text, encoding="utf-8"))
     return row
 
@@ -531,7 +537,7 @@ def _sweep(
     (out / "configs").mkdir(parents=True, exist_ok=True)
     for t in tasks:
         path = out / "configs" / f"{t.name}.json"
-        text = json.dumps(t.config, indent=4) + "\n"
+        text = dumps_strict(t.config, str(path), indent=4) + "\n"
         if not path.is_file() or path.read_text(encoding="utf-8") != text:
             write_replacing(path, functools.partial(_write_text, text=text))
     rows: dict[str, dict[str, Any]] = {}
@@ -702,7 +708,7 @@ def _plots(spec: SweepSpec, out: Path, df: Any) -> list[Path]:
         axes.ravel()[0].legend(fontsize=7, frameon=False)
         fig.suptitle(f"{spec.name}: metrics against {label} ({len(df)} cells)", fontsize=10)
         fig.tight_layout()
-        path = out / "plots" / f"{label.replace('.', '_')}.png"
+        path = out / "plots" / f"{safe_file_name(label.replace('.', '_'), fallback='parameter')}.png"
         write_replacing(path, functools.partial(_save_png, fig))
         plt.close(fig)
         paths.append(path)

@@ -13,7 +13,7 @@ from studio.core.model import PoseGraph
 from studio.core.option_values import check_option
 from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
-from studio.generator.config import SynthConfig, estimate_resources
+from studio.generator.config import SynthConfig, aliasing_bytes, estimate_resources
 from studio.generator.extended import STUDIO, walk_mode
 from studio.generator.kollagen import SingleG2oView
 from studio.generator.outliers import PlantedOutliers
@@ -23,6 +23,7 @@ from studio.io.atomic import staged_outputs
 from studio.io.multig2o import Records, multi_g2o_parts
 from studio.io.outliers_txt import write_outliers_txt
 from studio.io.singleg2o import write_single_g2o, write_single_tum
+from studio.io.strict_json import dumps_strict
 from studio.io.synth_config import read_synth_config, synth_config_to_json
 from studio.runtime.parallel import default_jobs, parallel_map, run_team
 from studio.runtime.progress import Progress, report
@@ -136,8 +137,12 @@ def check_resources(
     memory, output = estimate_resources(config)
     poses = config.number_of_agents * config.poses_per_agent
     if memory > max_memory_gb * 1e9:
+        cause = "loop-closure radii"
+        if 2 * aliasing_bytes(config) > memory:  # mostly the aliasing outliers' pattern windows
+            side = 2 * config.studio.outliers.aliasing_window * config.step_fragment + 1  # type: ignore[union-attr]
+            cause = f"aliasing windows ({side}x{side} cells per pose)"
         raise ConfigError(
-            f"{config.name}: {poses:.3g} poses and their loop-closure radii would need about "
+            f"{config.name}: {poses:.3g} poses and their {cause} would need about "
             f"{memory / 1e9:.3g} GB of memory, over the {max_memory_gb:g} GB limit (raise it with max_memory_gb)",
             option="max_memory_gb",
         )
@@ -239,7 +244,7 @@ def _write_config_and_recording(
     if outliers is not None:
         write_outliers_txt(staging / name / "outliers.txt", outliers.rows, outliers.kinds)
     with open(staging / f"{name}.config.json", "w", encoding="utf-8") as f:
-        json.dump(synth_config_to_json(config), f, indent=4)
+        f.write(dumps_strict(synth_config_to_json(config), f"{name}.config.json", indent=4))
         f.write("\n")
     if rrd:
         from studio.recording.dataset import record_graph

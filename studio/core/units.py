@@ -11,6 +11,8 @@ __all__ = [
     "MAX_RECORDED_COORDINATE_M",
     "MAX_SOLUTION_M",
     "CHI2_RISE_TOLERANCE",
+    "MAX_SPLIT_ROBOTS",
+    "MAX_STAMP_S",
 ]
 
 #: Nanoseconds per second: timestamps are int64 nanoseconds inside the studio.
@@ -39,3 +41,8 @@ MAX_RECORDED_COORDINATE_M = 1e12
 MAX_SOLUTION_M = 1e12
 #: Relative rise of chi2 over a solve tolerated as rounding (this fraction of the start, plus as much).
 CHI2_RISE_TOLERANCE = 1e-9
+#: Most robots ``--split`` cuts one trajectory or graph into (synth's limit of agents, too).
+MAX_SPLIT_ROBOTS = 10_000
+#: Largest time [s] whose nanoseconds fit int64 (about 292 years): a time in seconds beyond it
+#: cannot become a stamp.
+MAX_STAMP_S = ((1 << 63) - 1) / 1e9 * (1 - 1e-12)

@@ -59,6 +59,7 @@ from studio.io.graph_table import (
     information_matrix,
     matrix_to_upper,
 )
+from studio.io.strict_json import dumps_strict
 from studio.io.symbol_g2o import INDEX_BITS, robot_prefix
 
 __all__ = [
@@ -194,7 +195,7 @@ def jrl_document(graph: PoseGraph, *, name: str, outliers: np.ndarray | None = N
 
 def write_jrl(path: PathLike, graph: PoseGraph, *, name: str, outliers: np.ndarray | None = None) -> None:
     """Write ``graph`` as a JRL file (compact JSON, numbers as Python's shortest round-trip repr)."""
-    text = json.dumps(jrl_document(graph, name=name, outliers=outliers), separators=(",", ":"))
+    text = dumps_strict(jrl_document(graph, name=name, outliers=outliers), str(path), separators=(",", ":"))
     with open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write(text)
         f.write("\n")

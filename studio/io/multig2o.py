@@ -46,6 +46,7 @@ from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.io.inter_lc_dat import Precision, read_inter_lc_dat, write_inter_lc_dat
+from studio.io.names import safe_file_names
 from studio.io.tum import read_tum, write_tum
 
 __all__ = [
@@ -125,7 +126,11 @@ def multi_g2o_parts(
         raise GraphError(f"folder_names must be agents or robots, got {folder_names!r}")
     if records == "2d" and graph.kind is not PoseKind.SE2:
         raise GraphError("2D records need a planar (SE2) graph")
-    dirs = [f"agent{k + 1}" if folder_names == "agents" else a.name for k, a in enumerate(graph.agents)]
+    dirs = (
+        [f"agent{k + 1}" for k in range(len(graph.agents))]
+        if folder_names == "agents"  # robots: their names, never a path (safe names stay as they are)
+        else safe_file_names([a.name for a in graph.agents], where=f"{folder.name}: agent names")
+    )
 
     def graph_part(k: int) -> Callable[[], None]:
         def write() -> None:
@@ -157,7 +162,8 @@ def multi_g2o_parts(
             for d, a in zip(dirs, graph.agents)
         ]
         (folder / AGENTS_FILE).write_text(
-            json.dumps({"format": _AGENTS_FORMAT, "agents": entries}, indent=2) + "\n", encoding="utf-8"
+            json.dumps({"format": _AGENTS_FORMAT, "agents": entries}, indent=2, allow_nan=False) + "\n",
+            encoding="utf-8",
         )
 
     n = len(graph.agents)

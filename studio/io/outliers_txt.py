@@ -3,7 +3,9 @@
 The rows are ``agent_from vertex_from agent_to vertex_to`` (agents 1-based as in
 ``inter_agent_lc.dat``, vertices 0-based), as ``studio convert`` writes them; every reader of that
 format skips ``#`` lines, so the kind of each group of rows is a comment line ``# kind: NAME`` before
-it (:func:`read_outlier_kinds` reads them back).
+it (:func:`read_outlier_kinds` reads them back). :func:`write_outliers_txt` is the one writer (synth,
+convert, the graph imports): one header, the rows grouped by kind (``random``, ``aliasing``: synth's
+kinds; ``far``: convert's, a vertex at least two loop-closure radii from both true endpoints).
 """
 
 from __future__ import annotations

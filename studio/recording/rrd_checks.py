@@ -11,13 +11,13 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import subprocess
 import sys
 from pathlib import Path
 from typing import Any
 
 from studio.core.errors import FormatError
 from studio.core.types import PathLike
+from studio.runtime.capture import CappedRun, run_capped
 
 __all__ = ["fingerprint_rrd", "read_fingerprint", "write_fingerprint", "rrd_verify", "rrd_compare"]
 
@@ -142,12 +142,10 @@ def read_fingerprint(path: PathLike) -> dict[str, str]:
 # Rerun's own checks
 
 
-def _rerun_cli(*args: str, timeout: float = 300.0) -> subprocess.CompletedProcess[str]:
+def _rerun_cli(*args: str, timeout: float = 300.0) -> CappedRun:
     env = dict(os.environ, RERUN_ANALYTICS="0")
     env.setdefault("CI", "true")
-    return subprocess.run(
-        [sys.executable, "-m", "rerun", *args], capture_output=True, text=True, env=env, timeout=timeout, check=False
-    )
+    return run_capped([sys.executable, "-m", "rerun", *args], env=env, timeout_s=timeout)
 
 
 def _tail(text: str, lines: int = 30, chars: int = 4000) -> str:

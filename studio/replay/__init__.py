@@ -22,7 +22,6 @@ vs time per back-end, when matplotlib is installed), with ``parquet`` each CSV t
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 import time
 from dataclasses import dataclass
@@ -47,9 +46,11 @@ from studio.core.comms import (
 )
 from studio.core.errors import ConfigError, FormatError, GraphError
 from studio.core.model import PoseGraph
+from studio.core.option_values import check_count, check_option
 from studio.core.timing import MeasurementTimes, measurement_times
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
+from studio.io.strict_json import dumps_strict
 from studio.replay.backends import World, get_backend
 from studio.replay.metrics import as_se3, first_pose_errors, se3_errors
 from studio.solvers.incremental import IsamSettings
@@ -417,32 +418,25 @@ def _check_backends(backends: tuple[str, ...] | list[str]) -> list[str]:
     return names
 
 
-def _positive_seconds(name: str, value: Any) -> None:
-    if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
-        raise ConfigError(f"{name}: must be a positive number of seconds, got {value!r}")
-
-
 def _check_numbers(
     *,
     step_s: float,
     every: int,
     period_s: float | None,
+    seed: int,
     relinearize_skip: int,
     relinearize_threshold: float,
     final_updates: int,
 ) -> None:
     """Refuse a bad number among the options (ConfigError naming the option)."""
-    _positive_seconds("step", step_s)
-    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
-        raise ConfigError(f"every: must be a positive number of ticks, got {every!r}")
+    check_option("step", step_s, allow_zero=False)
+    check_count("every", every)
     if period_s is not None:
-        _positive_seconds("period", period_s)
-    if isinstance(relinearize_skip, bool) or not isinstance(relinearize_skip, int) or relinearize_skip < 1:
-        raise ConfigError(f"relinearize_skip: must be a positive integer, got {relinearize_skip!r}")
-    if not (isinstance(relinearize_threshold, (int, float)) and relinearize_threshold >= 0):
-        raise ConfigError(f"relinearize_threshold: must be >= 0, got {relinearize_threshold!r}")
-    if isinstance(final_updates, bool) or not isinstance(final_updates, int) or final_updates < 0:
-        raise ConfigError(f"final_updates: must be an integer >= 0, got {final_updates!r}")
+        check_option("period", period_s, allow_zero=False)
+    check_count("seed", seed, low=0, high=2**63 - 1)
+    check_count("relinearize_skip", relinearize_skip)
+    check_option("relinearize_threshold", relinearize_threshold)
+    check_count("final_updates", final_updates, low=0)
 
 
 def _rrd_target(rrd: PathLike | None, *, parquet: bool) -> Path | None:
@@ -551,7 +545,9 @@ def _write_folder(
     (folder / "links.csv").write_text(_links_text(runs, schedule), encoding="utf-8")
     (folder / "timings.csv").write_text(_timings_text(runs), encoding="utf-8")
     (folder / "report.md").write_text(_report_text(schedule, report, runs), encoding="utf-8")
-    (folder / REPLAY_JSON).write_text(json.dumps(options, indent=2) + "\n", encoding="utf-8")
+    (folder / REPLAY_JSON).write_text(
+        dumps_strict(options, f"{folder.name}/{REPLAY_JSON}", indent=2) + "\n", encoding="utf-8"
+    )
     _plot(folder / "ape.png", runs, schedule, f"{Path(dataset).name}: {schedule.model}")
     if parquet:
         from studio.io.parquet_table import write_parquet_from_csv
@@ -628,6 +624,7 @@ def replay(
         step_s=step_s,
         every=every,
         period_s=period_s,
+        seed=seed,
         relinearize_skip=relinearize_skip,
         relinearize_threshold=relinearize_threshold,
         final_updates=final_updates,

@@ -7,7 +7,6 @@ and reads the output's vertices back (ids must be the same; edges and ``FIX`` li
 from __future__ import annotations
 
 import shlex
-import subprocess
 import tempfile
 from pathlib import Path
 
@@ -17,6 +16,7 @@ from studio.core.errors import ConfigError, FormatError
 from studio.core.geometry import planar_poses_to_se3, se3_poses_to_planar
 from studio.core.model import PoseKind
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
+from studio.runtime.capture import DEFAULT_CAP_BYTES, run_capped
 from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
 
 __all__ = ["solve_command"]
@@ -44,12 +44,15 @@ def solve_command(problem: Problem, options: SolveOptions, on_iteration: Iterati
         )
         argv = [part.replace("{input}", str(src)).replace("{output}", str(dst)) for part in shlex.split(template)]
         try:
-            proc = subprocess.run(argv, capture_output=True, text=True, check=False)
+            proc = run_capped(argv)  # a program printing gigabytes holds a few KiB here
         except OSError as err:
             raise ConfigError(f"command: cannot run {argv[0]!r} ({err.strerror})") from None
         if proc.returncode != 0:
-            tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or [""]
-            raise ConfigError(f"command: {argv[0]} exited with status {proc.returncode}: {tail[0][:200]}")
+            tail = (proc.stderr.strip() or proc.stdout.strip()).splitlines()[-1:] or [""]
+            printed = proc.stdout_bytes + proc.stderr_bytes
+            kept_kib = DEFAULT_CAP_BYTES // 2 // 1024
+            cut = f" ({printed:,} bytes of output; the first and last {kept_kib} KiB kept)" if proc.cut else ""
+            raise ConfigError(f"command: {argv[0]} exited with status {proc.returncode}: {tail[0][:200]}{cut}")
         if not dst.is_file():
             raise FormatError(f"command: {argv[0]} wrote no {dst.name}")
         doc = read_g2o(dst, edges=False)

@@ -255,5 +255,5 @@ def test_robots_option_splits_a_single_g2o(tmp_path):
         app, ["solve", str(single), "-o", str(tmp_path / "x"), "--method", "dgs", "--robots", "-1"]
     )
     assert bad.exit_code == 2
-    assert "robots: expected a whole number of robots" in bad.output
+    assert "--robots: expected 0 (the default) or a count" in bad.output
     assert not (tmp_path / "x").exists()

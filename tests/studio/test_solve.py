@@ -132,7 +132,7 @@ def test_cli_solve_then_evaluate(small, tmp_path):
     "args, message",
     [
         (["solve", "missing-folder", "-o", "x"], "no such dataset"),
-        (["solve", "{ds}", "-o", "{tmp}/x", "--iterations", "0"], "max_iterations: expected an integer in 1..10000"),
+        (["solve", "{ds}", "-o", "{tmp}/x", "--iterations", "0"], "--iterations: expected an integer in 1..10000"),
         (["solve", "{ds}", "-o", "{tmp}/x", "--method", "command"], "command: method command needs the program"),
         (["solve", "{ds}", "-o", "{tmp}/x", "--rrd", "{tmp}/run.png"], "must end in .rrd"),
     ],
