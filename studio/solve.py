@@ -339,7 +339,7 @@ def _solve_options(
         )
     if not (isinstance(relative_tolerance, (int, float)) and 0 <= relative_tolerance < 1):
         raise ConfigError(f"relative_tolerance: expected a number in [0, 1), got {relative_tolerance!r}")
-    if isinstance(robots, bool) or not isinstance(robots, int) or robots < 0:
+    if isinstance(robots, bool) or not isinstance(robots, int) or not 0 <= robots <= MAX_SPLIT_ROBOTS:
         raise ConfigError(
             f"robots: expected 0 (the default) or a count up to {MAX_SPLIT_ROBOTS}, got {robots!r}",
             option="robots",
