@@ -794,22 +794,24 @@ def replay(
     from studio.replay import replay as run_replay
 
     names = tuple(b.strip() for b in backend.split(",") if b.strip()) or DEFAULT_BACKENDS
-    res = run_replay(
-        dataset,
-        out,
-        comms=comms,
-        backends=names,
-        bandwidth=bandwidth,
-        step_s=step,
-        every=every,
-        period_s=period,
-        seed=comms_seed,
-        relinearize_skip=relinearize_skip,
-        relinearize_threshold=relinearize_threshold,
-        polish=polish,
-        force=force,
-        rrd=rrd,
-    )
+    with terminal_progress() as progress:
+        res = run_replay(
+            dataset,
+            out,
+            comms=comms,
+            backends=names,
+            bandwidth=bandwidth,
+            step_s=step,
+            every=every,
+            period_s=period,
+            seed=comms_seed,
+            relinearize_skip=relinearize_skip,
+            relinearize_threshold=relinearize_threshold,
+            polish=polish,
+            force=force,
+            rrd=rrd,
+            progress=progress,
+        )
     delivered = int((res.schedule.delivered_tick >= 0).sum())
     lines = [
         f"{dataset.name}: {res.schedule.model}, {len(res.schedule.ticks_ns)} ticks, "
