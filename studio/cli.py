@@ -203,13 +203,19 @@ def record(
 @app.command()
 @cli_errors
 def evaluate(
-    dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder with <agent>_GT.tum ground truth."),
+    dataset: Path = typer.Argument(
+        ...,
+        metavar="DATASET",
+        help="A multi-g2o folder with <agent>_GT.tum ground truth, or a single g2o file NAME.g2o with "
+        "NAME_GT.tum beside it (kollagen's single view, scored as one agent).",
+    ),
     estimate: Path | None = typer.Option(
         None,
         "--estimate",
         "-e",
-        help="An optimizer's output: a single g2o file (ids as in the dataset's single g2o), a multi-g2o "
-        "folder, or a folder of <agent>.tum / <agent>_*.tum files. Default: the dataset's initial estimate.",
+        help="An optimizer's output: the folder studio solve wrote (or its solve.json), a single g2o file "
+        "(ids as in the dataset's single g2o), a multi-g2o folder, or a folder of <agent>.tum / "
+        "<agent>_*.tum files. Default: the dataset's initial estimate.",
     ),
     align: Alignment = typer.Option(
         Alignment.none,
@@ -234,7 +240,7 @@ def evaluate(
 
     Unaligned by default (the kollagen paper's convention: all agents share one frame).
 
-    Example: studio evaluate out/multi3500x8 --estimate optimized.g2o
+    Example: studio evaluate out/multi3500x8 --estimate out/solved-multi3500x8
     """
     from studio.core.errors import ConfigError
     from studio.evaluate import evaluate as evaluate_dataset

@@ -557,19 +557,23 @@ def evaluate(
     tum_max_diff_s: float = DEFAULT_TUM_MAX_DIFF_S,
     progress: Progress | None = None,
 ) -> Evaluation:
-    """Read the multi-g2o folder ``dataset`` and score ``estimate`` (or, if None, the dataset's
-    initial estimate) against its ground truth. See the module docstring for the conventions.
+    """Read ``dataset`` and score ``estimate`` (or, if None, the dataset's initial estimate) against
+    its ground truth. See the module docstring for the conventions.
 
-    ``estimate`` is a single g2o file (ids as in the dataset's single g2o), a multi-g2o folder, or a
-    folder of ``<agent>.tum``/``<agent>_*.tum`` files (matched by time within ``tum_max_diff_s``).
+    ``dataset`` is a multi-g2o folder, or a single g2o file with ``<stem>_GT.tum`` beside it
+    (kollagen's single view, scored as one agent named ``<stem>``). ``estimate`` is a single g2o
+    file (ids as in the dataset's single g2o), a multi-g2o folder, a folder of
+    ``<agent>.tum``/``<agent>_*.tum`` files (matched by time within ``tum_max_diff_s``), or the
+    folder ``studio solve`` wrote (its ``solve.json`` names the estimate inside).
     """
     from studio.io.estimate import read_estimate
     from studio.io.multig2o import read_multi_g2o
+    from studio.io.singleg2o import read_single_g2o_dataset
 
     check_alignment(align, align_per_agent)  # before any reading
     step = "evaluate"
     report(progress, step, 0, 3, "stages")
-    graph = read_multi_g2o(dataset, edges=False)
+    graph = read_single_g2o_dataset(dataset) if Path(dataset).is_file() else read_multi_g2o(dataset, edges=False)
     report(progress, step, 1, 3, "stages")
     est = None if estimate is None else read_estimate(estimate, graph)
     report(progress, step, 2, 3, "stages")
