@@ -16,9 +16,11 @@ from typing import Any, get_args
 
 import typer
 
+from studio.converters.graph_split import GROUND_TRUTH_CHOICES, PARTITIONS
 from studio.converters.registry import SOURCES
 from studio.core.alignment import Alignment
 from studio.core.errors import StudioError
+from studio.core.residuals import DEFAULT_CONVENTION, Convention
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.generator.presets import PRESETS
 from studio.runtime.progress import terminal_progress
@@ -33,6 +35,11 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+def _choice_metavar(values: Iterable[str]) -> str:
+    """``<a|b|c>``: a word option's choices (a registry's names), as ``--help`` shows them."""
+    return "<" + "|".join(values) + ">"
 
 
 def _choices(name: str, values: Iterable[str]) -> type[enum.Enum]:
@@ -353,9 +360,9 @@ def convert(
     ctx: typer.Context,
     source: str = typer.Argument(
         None,
-        metavar="[FORMAT]",
+        metavar="[SOURCE]",
         show_default=False,
-        help="Source format: "
+        help="Source: "
         + "; ".join(f"{name}: {src.help}" for name, src in SOURCES.items())
         + "; guessed from the inputs when left out and unambiguous.",
     ),
@@ -385,11 +392,13 @@ def convert(
     partition: str = typer.Option(
         "contiguous",
         "--partition",
+        metavar=_choice_metavar(PARTITIONS),
         help="g2o with --split: contiguous (DPGO's split), metis (balanced, fewest cut edges) or time.",
     ),
     ground_truth: str = typer.Option(
         "auto",
         "--ground-truth",
+        metavar=_choice_metavar(GROUND_TRUTH_CHOICES),
         help="g2o: auto (<stem>_GT.tum beside the file), vertices (the file's vertices; initial "
         "estimate from the odometry) or none.",
     ),
@@ -602,7 +611,8 @@ def _with_convert_options(command: Any) -> Any:
             list(default) if many else default,
             "--" + flag.replace("_", "-"),
             help=f.metadata["help"],
-            metavar=f.metadata["metavar"] or None,
+            metavar=f.metadata["metavar"]
+            or (_choice_metavar(f.metadata["choices"]) if f.metadata["choices"] else None),
         )
         params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=annotation))
         hints[f.name] = annotation
@@ -619,6 +629,12 @@ _with_graph_options(convert)
 # The formats are the entries of studio.export.EXPORT_FORMATS (choices and help built from them).
 
 
+def _export_format_metavar() -> str:
+    from studio.export import EXPORT_FORMATS
+
+    return _choice_metavar(EXPORT_FORMATS)
+
+
 def _export_format_help() -> str:
     from studio.export import EXPORT_FORMATS
 
@@ -629,7 +645,9 @@ def _export_format_help() -> str:
 @cli_errors
 def export(
     dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder (ours or kollagen's)."),
-    format: str = typer.Option(..., "--format", "-f", help=_export_format_help() + " (docs/formats.md)."),
+    format: str = typer.Option(
+        ..., "--format", "-f", metavar=_export_format_metavar(), help=_export_format_help() + " (docs/formats.md)."
+    ),
     out: Path = typer.Option(..., "-o", "--out", help="The file (jrl) or folder (dpgo, symbols) to write."),
     name: str = typer.Option(None, "--name", help="The dataset's name inside the files (default: DATASET's)."),
     force: bool = typer.Option(False, "--force", help="Replace an existing output."),
@@ -832,17 +850,20 @@ def replay(
     typer.echo("\n".join(lines))
 
 
-class ConventionChoice(str, enum.Enum):
-    g2o = "g2o"
-    rotvec = "rotvec"
+ConventionChoice = _choices("ConventionChoice", get_args(Convention))
 
 
 @app.command()
 @cli_errors
 def check(
-    dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder with ground truth."),
-    convention: ConventionChoice = typer.Option(
-        ConventionChoice.g2o,
+    dataset: Path = typer.Argument(
+        ...,
+        metavar="DATASET",
+        help="A multi-g2o folder with <agent>_GT.tum ground truth, or a single g2o file NAME.g2o with "
+        "NAME_GT.tum beside it (kollagen's single view).",
+    ),
+    convention: ConventionChoice = typer.Option(  # type: ignore[valid-type]
+        DEFAULT_CONVENTION,
         "--convention",
         help="3D rotation error: g2o (quaternion vector part, ~angle/2) or rotvec (rotation vector, GTSAM).",
     ),
