@@ -903,7 +903,11 @@ def bench(
     with terminal_progress(not quiet) as progress:
         res = run_bench(parsed, out, progress=progress)
     if not quiet:
-        typer.echo(format_paper_table(res.rows, parsed, parsed.alignments[0]), nl=False)
+        align = parsed.alignments[0]
+        typer.echo(
+            f"APE translation mean over all agents [m], alignment {align} (every alignment: {res.markdown_path})"
+        )
+        typer.echo(format_paper_table(res.rows, parsed, align), nl=False)
         typer.echo(
             f"{res.computed} cells run, {len([r for r in res.rows if r['method'] != 'odometry']) - res.computed} "
             f"reused\n  {res.markdown_path}\n  {res.csv_path}" + (f"\n  {res.plot_path}" if res.plot_path else "")
