@@ -682,6 +682,44 @@ def format_markdown(ev: Evaluation) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: The statistics panel's columns (header, metric, statistic): the few a reader compares first,
+#: narrow enough that a row per agent and ``all`` fit the recording's panel for eight agents.
+_PANEL_COLUMNS = (
+    ("poses", None, None),
+    ("APE t mean", "ape_translation_m", "mean"),
+    ("APE t RMSE", "ape_translation_m", "rmse"),
+    ("APE t max", "ape_translation_m", "max"),
+    ("APE r mean", "ape_rotation_deg", "mean"),
+    ("RPE t RMSE", "rpe_m_translation_m", "rmse"),
+    ("RPE r RMSE", "rpe_m_rotation_deg", "rmse"),
+)
+
+
+def _panel_cells(a: AgentScore) -> list[str]:
+    out = [a.name]
+    for _, metric, stat in _PANEL_COLUMNS:
+        st = None if metric is None else getattr(a, metric)
+        out.append(str(a.poses) if metric is None else "-" if st is None else f"{getattr(st, str(stat)):.4f}")
+    return out
+
+
+def format_panel(ev: Evaluation) -> str:
+    """The recording's statistics panel (Markdown): one row per agent and ``all`` (every agent
+    pooled, in bold) with APE and RPE (over ``rpe_delta_m`` of ground-truth path), four decimals, the
+    conventions in one line above and the inputs below (the full table is ``format_markdown``)."""
+    head = ["agent"] + [c[0] for c in _PANEL_COLUMNS]
+    lines = [
+        f"t [m], r [deg]; {ev.alignment_text}; RPE over {ev.rpe_delta_m:g} m of ground-truth path",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|" + "|".join([":---"] + ["---:"] * len(_PANEL_COLUMNS)) + "|",
+    ]
+    lines += ["| " + " | ".join(_panel_cells(a)) + " |" for a in ev.agents]
+    lines.append("| " + " | ".join(f"**{c}**" for c in _panel_cells(ev.overall)) + " |")
+    lines += ["", f"Dataset: {ev.dataset}  ", f"Estimate: {ev.estimate} ({ev.estimate_layout})"]
+    return "\n".join(lines) + "\n"
+
+
 # ---------------------------------------------------------------------------------------------- recording
 
 
@@ -719,7 +757,7 @@ def write_evaluation_recording(
         raise OutputError(f"{path}: a recording must end in .rrd")
     inputs = [ev.dataset] + ([ev.estimate] if ev.estimate_layout != "initial" else [])
     with staged_outputs(path.parent, [path.name], force=force, inputs=inputs) as staging:
-        save_evaluation_recording(staging / path.name, format_markdown(ev), series, recording_id=recording_id)
+        save_evaluation_recording(staging / path.name, format_panel(ev), series, recording_id=recording_id)
     report(progress, "evaluation recording", 1, 1, "files")
     return path
 
