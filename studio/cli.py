@@ -951,6 +951,9 @@ def _tune_allocator() -> None:
 
 
 def main() -> None:
+    from studio._entry import quiet_rerun_writers
+
+    quiet_rerun_writers()  # `python -m studio.cli` too (the console script does it in studio._entry)
     app()
 
 

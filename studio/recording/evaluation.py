@@ -229,7 +229,13 @@ def save_evaluation_recording(
         recording_id = evaluation_recording_id(summary_markdown, series)
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
     rec.save(path, default_blueprint=evaluation_blueprint(series))
-    log_evaluation(rec, summary_markdown, series)
-    rec.flush()
-    rec.disconnect()
+    try:
+        log_evaluation(rec, summary_markdown, series)
+        rec.flush()
+    except RuntimeError:
+        # Rerun's file writer stopped (a full disk): the output guard's check of the file
+        # (studio.io.atomic.verify_rrd) names what went wrong, in one line
+        pass
+    finally:
+        rec.disconnect()
     return path
