@@ -877,7 +877,7 @@ def check(
     from studio.check import check as run_check
     from studio.check import format_check
 
-    report = run_check(dataset, convention=convention.value)  # type: ignore[arg-type]
+    report = run_check(dataset, convention=convention.value)  # type: ignore[attr-defined]
     typer.echo(report.to_json() if as_json else format_check(report, per_agent=per_agent), nl=not as_json or True)
 
 

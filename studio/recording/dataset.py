@@ -630,7 +630,7 @@ def default_blueprint(scene: _Scene) -> rrb.Blueprint:
     # always resolved at the cursor, so the pose markers do not leave a trail).
     # Many inter-agent closures: their segments (one entity per pair, toggled in the blueprint
     # panel) hidden, their density shown in their place.
-    hidden = (
+    hidden: dict[Any, Any] | None = (
         {"/" + LOOP_CLOSURES_INTER.split("/{pair}")[0]: rrb.EntityBehavior(visible=False)} if scene.many_inter else None
     )
     space = rrb.Spatial3DView(
