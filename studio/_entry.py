@@ -11,9 +11,9 @@ numpy loads: the studio spreads work over processes, never over BLAS threads (it
 core from the command's own work: measured on ``studio synth multi10000x5``, 0.2-0.3 s less CPU and
 about 0.1 s less wall time with one thread.
 
-And it turns off the log lines of Rerun's SDK writer (:func:`quiet_rerun_writers`): on a failed write
-(a full disk) its file sink printed three ERROR/WARN lines with ANSI colours before the studio's own
-one line, which already says what went wrong (every recording is checked once written).
+And it turns off the log lines of Rerun's SDK writer (:func:`studio.runtime.library_logs.quiet_rerun_writers`):
+on a failed write (a full disk) its file sink printed three ERROR/WARN lines with ANSI colours before
+the studio's own one line, which already says what went wrong.
 """
 
 from __future__ import annotations
@@ -22,12 +22,9 @@ import os
 import signal
 import sys
 
-__all__ = ["main", "limit_blas_threads", "quiet_rerun_writers", "RERUN_LOG_FILTER"]
+from studio.runtime.library_logs import quiet_rerun_writers
 
-#: ``RUST_LOG`` the command line runs with unless the caller set one: Rerun's warnings and errors,
-#: except those of its file sink and recording stream (``re_log_encoding``, ``re_sdk``), whose
-#: failures the studio reports itself, in one line.
-RERUN_LOG_FILTER = "warn,re_log_encoding=off,re_sdk=off"
+__all__ = ["main", "limit_blas_threads"]
 
 _INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 
@@ -35,11 +32,6 @@ _INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 def limit_blas_threads() -> None:
     """One OpenBLAS thread unless the caller chose (before numpy loads; see the module doc)."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-
-
-def quiet_rerun_writers() -> None:
-    """Rerun's writer logs off unless the caller set ``RUST_LOG`` (before rerun loads; module doc)."""
-    os.environ.setdefault("RUST_LOG", RERUN_LOG_FILTER)
 
 
 def main() -> None:

@@ -951,7 +951,7 @@ def _tune_allocator() -> None:
 
 
 def main() -> None:
-    from studio._entry import quiet_rerun_writers
+    from studio.runtime.library_logs import quiet_rerun_writers
 
     quiet_rerun_writers()  # `python -m studio.cli` too (the console script does it in studio._entry)
     app()
