@@ -10,6 +10,10 @@ numpy loads: the studio spreads work over processes, never over BLAS threads (it
 7x7), and OpenBLAS's idle thread spins for about 0.1 s of CPU after start-up. On two cores that took a
 core from the command's own work: measured on ``studio synth multi10000x5``, 0.2-0.3 s less CPU and
 about 0.1 s less wall time with one thread.
+
+And it turns off the log lines of Rerun's SDK writer (:func:`studio.runtime.library_logs.quiet_rerun_writers`):
+on a failed write (a full disk) its file sink printed three ERROR/WARN lines with ANSI colours before
+the studio's own one line, which already says what went wrong.
 """
 
 from __future__ import annotations
@@ -17,6 +21,8 @@ from __future__ import annotations
 import os
 import signal
 import sys
+
+from studio.runtime.library_logs import quiet_rerun_writers
 
 __all__ = ["main", "limit_blas_threads"]
 
@@ -30,6 +36,7 @@ def limit_blas_threads() -> None:
 
 def main() -> None:
     limit_blas_threads()
+    quiet_rerun_writers()
     try:
         from studio.cli import main as cli_main
     except KeyboardInterrupt:

@@ -16,9 +16,11 @@ from typing import Any, get_args
 
 import typer
 
+from studio.converters.graph_split import GROUND_TRUTH_CHOICES, PARTITIONS
 from studio.converters.registry import SOURCES
 from studio.core.alignment import Alignment
 from studio.core.errors import StudioError
+from studio.core.residuals import DEFAULT_CONVENTION, Convention
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.generator.presets import PRESETS
 from studio.runtime.progress import terminal_progress
@@ -33,6 +35,11 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+def _choice_metavar(values: Iterable[str]) -> str:
+    """``<a|b|c>``: a word option's choices (a registry's names), as ``--help`` shows them."""
+    return "<" + "|".join(values) + ">"
 
 
 def _choices(name: str, values: Iterable[str]) -> type[enum.Enum]:
@@ -203,13 +210,19 @@ def record(
 @app.command()
 @cli_errors
 def evaluate(
-    dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder with <agent>_GT.tum ground truth."),
+    dataset: Path = typer.Argument(
+        ...,
+        metavar="DATASET",
+        help="A multi-g2o folder with <agent>_GT.tum ground truth, or a single g2o file NAME.g2o with "
+        "NAME_GT.tum beside it (kollagen's single view, scored as one agent).",
+    ),
     estimate: Path | None = typer.Option(
         None,
         "--estimate",
         "-e",
-        help="An optimizer's output: a single g2o file (ids as in the dataset's single g2o), a multi-g2o "
-        "folder, or a folder of <agent>.tum / <agent>_*.tum files. Default: the dataset's initial estimate.",
+        help="An optimizer's output: the folder studio solve wrote (or its solve.json), a single g2o file "
+        "(ids as in the dataset's single g2o), a multi-g2o folder, or a folder of <agent>.tum / "
+        "<agent>_*.tum files. Default: the dataset's initial estimate.",
     ),
     align: Alignment = typer.Option(
         Alignment.none,
@@ -234,7 +247,7 @@ def evaluate(
 
     Unaligned by default (the kollagen paper's convention: all agents share one frame).
 
-    Example: studio evaluate out/multi3500x8 --estimate optimized.g2o
+    Example: studio evaluate out/multi3500x8 --estimate out/solved-multi3500x8
     """
     from studio.core.errors import ConfigError
     from studio.evaluate import evaluate as evaluate_dataset
@@ -347,9 +360,9 @@ def convert(
     ctx: typer.Context,
     source: str = typer.Argument(
         None,
-        metavar="[FORMAT]",
+        metavar="[SOURCE]",
         show_default=False,
-        help="Source format: "
+        help="Source: "
         + "; ".join(f"{name}: {src.help}" for name, src in SOURCES.items())
         + "; guessed from the inputs when left out and unambiguous.",
     ),
@@ -379,11 +392,13 @@ def convert(
     partition: str = typer.Option(
         "contiguous",
         "--partition",
+        metavar=_choice_metavar(PARTITIONS),
         help="g2o with --split: contiguous (DPGO's split), metis (balanced, fewest cut edges) or time.",
     ),
     ground_truth: str = typer.Option(
         "auto",
         "--ground-truth",
+        metavar=_choice_metavar(GROUND_TRUTH_CHOICES),
         help="g2o: auto (<stem>_GT.tum beside the file), vertices (the file's vertices; initial "
         "estimate from the odometry) or none.",
     ),
@@ -596,7 +611,8 @@ def _with_convert_options(command: Any) -> Any:
             list(default) if many else default,
             "--" + flag.replace("_", "-"),
             help=f.metadata["help"],
-            metavar=f.metadata["metavar"] or None,
+            metavar=f.metadata["metavar"]
+            or (_choice_metavar(f.metadata["choices"]) if f.metadata["choices"] else None),
         )
         params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=annotation))
         hints[f.name] = annotation
@@ -613,6 +629,12 @@ _with_graph_options(convert)
 # The formats are the entries of studio.export.EXPORT_FORMATS (choices and help built from them).
 
 
+def _export_format_metavar() -> str:
+    from studio.export import EXPORT_FORMATS
+
+    return _choice_metavar(EXPORT_FORMATS)
+
+
 def _export_format_help() -> str:
     from studio.export import EXPORT_FORMATS
 
@@ -623,7 +645,9 @@ def _export_format_help() -> str:
 @cli_errors
 def export(
     dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder (ours or kollagen's)."),
-    format: str = typer.Option(..., "--format", "-f", help=_export_format_help() + " (docs/formats.md)."),
+    format: str = typer.Option(
+        ..., "--format", "-f", metavar=_export_format_metavar(), help=_export_format_help() + " (docs/formats.md)."
+    ),
     out: Path = typer.Option(..., "-o", "--out", help="The file (jrl) or folder (dpgo, symbols) to write."),
     name: str = typer.Option(None, "--name", help="The dataset's name inside the files (default: DATASET's)."),
     force: bool = typer.Option(False, "--force", help="Replace an existing output."),
@@ -796,23 +820,25 @@ def replay(
 
     check_count("--comms-seed", comms_seed, low=0, high=2**63 - 1)  # the library's ``seed``
     names = tuple(b.strip() for b in backend.split(",") if b.strip()) or DEFAULT_BACKENDS
-    res = run_replay(
-        dataset,
-        out,
-        comms=comms,
-        backends=names,
-        bandwidth=bandwidth,
-        step_s=step,
-        every=every,
-        period_s=period,
-        seed=comms_seed,
-        relinearize_skip=relinearize_skip,
-        relinearize_threshold=relinearize_threshold,
-        polish=polish,
-        force=force,
-        rrd=rrd,
-        parquet=parquet,
-    )
+    with terminal_progress() as progress:
+        res = run_replay(
+            dataset,
+            out,
+            comms=comms,
+            backends=names,
+            bandwidth=bandwidth,
+            step_s=step,
+            every=every,
+            period_s=period,
+            seed=comms_seed,
+            relinearize_skip=relinearize_skip,
+            relinearize_threshold=relinearize_threshold,
+            polish=polish,
+            force=force,
+            rrd=rrd,
+            parquet=parquet,
+            progress=progress,
+        )
     delivered = int((res.schedule.delivered_tick >= 0).sum())
     lines = [
         f"{dataset.name}: {res.schedule.model}, {len(res.schedule.ticks_ns)} ticks, "
@@ -827,17 +853,20 @@ def replay(
     typer.echo("\n".join(lines))
 
 
-class ConventionChoice(str, enum.Enum):
-    g2o = "g2o"
-    rotvec = "rotvec"
+ConventionChoice = _choices("ConventionChoice", get_args(Convention))
 
 
 @app.command()
 @cli_errors
 def check(
-    dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder with ground truth."),
-    convention: ConventionChoice = typer.Option(
-        ConventionChoice.g2o,
+    dataset: Path = typer.Argument(
+        ...,
+        metavar="DATASET",
+        help="A multi-g2o folder with <agent>_GT.tum ground truth, or a single g2o file NAME.g2o with "
+        "NAME_GT.tum beside it (kollagen's single view).",
+    ),
+    convention: ConventionChoice = typer.Option(  # type: ignore[valid-type]
+        DEFAULT_CONVENTION,
         "--convention",
         help="3D rotation error: g2o (quaternion vector part, ~angle/2) or rotvec (rotation vector, GTSAM).",
     ),
@@ -851,7 +880,7 @@ def check(
     from studio.check import check as run_check
     from studio.check import format_check
 
-    report = run_check(dataset, convention=convention.value)  # type: ignore[arg-type]
+    report = run_check(dataset, convention=convention.value)  # type: ignore[attr-defined]
     typer.echo(report.to_json() if as_json else format_check(report, per_agent=per_agent), nl=not as_json or True)
 
 
@@ -877,7 +906,11 @@ def bench(
     with terminal_progress(not quiet) as progress:
         res = run_bench(parsed, out, progress=progress)
     if not quiet:
-        typer.echo(format_paper_table(res.rows, parsed, parsed.alignments[0]), nl=False)
+        align = parsed.alignments[0]
+        typer.echo(
+            f"APE translation mean over all agents [m], alignment {align} (every alignment: {res.markdown_path})"
+        )
+        typer.echo(format_paper_table(res.rows, parsed, align), nl=False)
         typer.echo(
             f"{res.computed} cells run, {len([r for r in res.rows if r['method'] != 'odometry']) - res.computed} "
             f"reused\n  {res.markdown_path}\n  {res.csv_path}" + (f"\n  {res.plot_path}" if res.plot_path else "")
@@ -921,6 +954,9 @@ def _tune_allocator() -> None:
 
 
 def main() -> None:
+    from studio.runtime.library_logs import quiet_rerun_writers
+
+    quiet_rerun_writers()  # `python -m studio.cli` too (the console script does it in studio._entry)
     app()
 
 

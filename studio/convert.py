@@ -78,10 +78,17 @@ _FORMAT = "studio-convert/1"
 _OPTION_FIELDS = [f.name for f in dataclasses.fields(GraphOptions)]
 
 
-def _pipeline(default: Any, help: str, *, flag: str = "", metavar: str = "") -> Any:
-    """A pipeline field of :class:`ConvertConfig`: its default, help text and command-line flag
-    (``--split``; the field's name unless given), declared once (the CLI builds its options from them)."""
-    return field(default=default, metadata={"help": help, "flag": flag, "metavar": metavar})
+def _pipeline(default: Any, help: str, *, flag: str = "", metavar: str = "", choices: tuple[str, ...] = ()) -> Any:
+    """A pipeline field of :class:`ConvertConfig`: its default, help text, command-line flag
+    (``--split``; the field's name unless given) and, for a word option, its ``choices`` (checked by
+    :class:`ConvertConfig`, listed by ``studio convert --help``), declared once (the CLI builds its
+    options from them)."""
+    return field(default=default, metadata={"help": help, "flag": flag, "metavar": metavar, "choices": choices})
+
+
+def _one_of(choices: tuple[str, ...]) -> str:
+    """``a, b or c``."""
+    return choices[0] if len(choices) == 1 else ", ".join(choices[:-1]) + " or " + choices[-1]
 
 
 @dataclass(frozen=True)
@@ -99,6 +106,7 @@ class ConvertConfig:
         "auto",
         "keep the trajectories' orientation, derive headings from the motion, or "
         "auto: derive where it carries no information (S3E).",
+        choices=("auto", "keep", "derive"),
     )
     """``keep`` the trajectories' orientation, ``derive`` headings from the motion, or ``auto``: derive
     where the orientation carries no information (all the same, e.g. identity)."""
@@ -108,6 +116,7 @@ class ConvertConfig:
         "smoothed",
         "Derived headings: smoothed (central differences of positions smoothed over about 1 s) "
         "or chord (the chord over --heading-window-m of path).",
+        choices=tuple(HEADING_METHODS),
     )
     """How headings are derived from motion: ``smoothed`` (central differences of positions smoothed
     over about 1 s) or ``chord`` (the chord over ``heading_window_m`` of path); see
@@ -126,12 +135,14 @@ class ConvertConfig:
     folder_names: str = _pipeline(
         "agents",
         "agents: folders agent1..agentN with agents.json (kollagen's reader); robots: folders named after the robots.",
+        choices=("agents", "robots"),
     )
     """``agents``: folders agent1..agentN with agents.json (kollagen's reader needs them); ``robots``."""
     odometry: str = _pipeline(
         "synthetic",
         "synthetic: drawn from the ground truth; real: the source's own odometry (mrclam), "
         "information fitted to its errors against the ground truth.",
+        choices=("synthetic", "real"),
     )
     """``synthetic``: odometry drawn from the ground truth (GraphOptions' noise model); ``real``: the
     source's own odometry (MR.CLAM's wheel odometry), information fitted to its errors
@@ -149,8 +160,12 @@ class ConvertConfig:
         object.__setattr__(self, "agents", tuple(self.agents))
         object.__setattr__(self, "body_frames", tuple(self.body_frames))
         object.__setattr__(self, "odometry_from", tuple(self.odometry_from))
-        if self.odometry not in ("synthetic", "real"):
-            raise ConfigError(f"odometry: expected synthetic or real, got {self.odometry!r}")
+        for f in dataclasses.fields(self):
+            choices = f.metadata.get("choices") if f.metadata else None
+            if choices and getattr(self, f.name) not in choices:
+                raise ConfigError(
+                    f"{f.name}: expected {_one_of(choices)}, got {getattr(self, f.name)!r}", option=f.name
+                )
         if self.odometry == "real" and get_source(self.source).odometry is None:
             raise ConfigError(
                 f"odometry: {self.source} ships no odometry of its own; give a second source with "
@@ -160,19 +175,6 @@ class ConvertConfig:
             raise ConfigError("odometry: real and odometry_from both name the odometry: give one")
         for spec in self.odometry_from:
             parse_odometry_spec(spec)
-        if self.orientation not in ("auto", "keep", "derive"):
-            raise ConfigError(
-                f"orientation: expected auto, keep or derive, got {self.orientation!r}", option="orientation"
-            )
-        if self.heading_method not in HEADING_METHODS:
-            raise ConfigError(
-                f"heading_method: expected {' or '.join(HEADING_METHODS)}, got {self.heading_method!r}",
-                option="heading_method",
-            )
-        if self.folder_names not in ("agents", "robots"):
-            raise ConfigError(
-                f"folder_names: expected agents or robots, got {self.folder_names!r}", option="folder_names"
-            )
         if self.split != 0 and not (
             not isinstance(self.split, bool) and isinstance(self.split, int) and 2 <= self.split <= MAX_SPLIT_ROBOTS
         ):

@@ -557,19 +557,23 @@ def evaluate(
     tum_max_diff_s: float = DEFAULT_TUM_MAX_DIFF_S,
     progress: Progress | None = None,
 ) -> Evaluation:
-    """Read the multi-g2o folder ``dataset`` and score ``estimate`` (or, if None, the dataset's
-    initial estimate) against its ground truth. See the module docstring for the conventions.
+    """Read ``dataset`` and score ``estimate`` (or, if None, the dataset's initial estimate) against
+    its ground truth. See the module docstring for the conventions.
 
-    ``estimate`` is a single g2o file (ids as in the dataset's single g2o), a multi-g2o folder, or a
-    folder of ``<agent>.tum``/``<agent>_*.tum`` files (matched by time within ``tum_max_diff_s``).
+    ``dataset`` is a multi-g2o folder, or a single g2o file with ``<stem>_GT.tum`` beside it
+    (kollagen's single view, scored as one agent named ``<stem>``). ``estimate`` is a single g2o
+    file (ids as in the dataset's single g2o), a multi-g2o folder, a folder of
+    ``<agent>.tum``/``<agent>_*.tum`` files (matched by time within ``tum_max_diff_s``), or the
+    folder ``studio solve`` wrote (its ``solve.json`` names the estimate inside).
     """
     from studio.io.estimate import read_estimate
     from studio.io.multig2o import read_multi_g2o
+    from studio.io.singleg2o import read_single_g2o_dataset
 
     check_alignment(align, align_per_agent)  # before any reading
     step = "evaluate"
     report(progress, step, 0, 3, "stages")
-    graph = read_multi_g2o(dataset, edges=False)
+    graph = read_single_g2o_dataset(dataset) if Path(dataset).is_file() else read_multi_g2o(dataset, edges=False)
     report(progress, step, 1, 3, "stages")
     est = None if estimate is None else read_estimate(estimate, graph)
     report(progress, step, 2, 3, "stages")
@@ -678,6 +682,44 @@ def format_markdown(ev: Evaluation) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: The statistics panel's columns (header, metric, statistic): the few a reader compares first,
+#: narrow enough that a row per agent and ``all`` fit the recording's panel for eight agents.
+_PANEL_COLUMNS = (
+    ("poses", None, None),
+    ("APE t mean", "ape_translation_m", "mean"),
+    ("APE t RMSE", "ape_translation_m", "rmse"),
+    ("APE t max", "ape_translation_m", "max"),
+    ("APE r mean", "ape_rotation_deg", "mean"),
+    ("RPE t RMSE", "rpe_m_translation_m", "rmse"),
+    ("RPE r RMSE", "rpe_m_rotation_deg", "rmse"),
+)
+
+
+def _panel_cells(a: AgentScore) -> list[str]:
+    out = [a.name]
+    for _, metric, stat in _PANEL_COLUMNS:
+        st = None if metric is None else getattr(a, metric)
+        out.append(str(a.poses) if metric is None else "-" if st is None else f"{getattr(st, str(stat)):.4f}")
+    return out
+
+
+def format_panel(ev: Evaluation) -> str:
+    """The recording's statistics panel (Markdown): one row per agent and ``all`` (every agent
+    pooled, in bold) with APE and RPE (over ``rpe_delta_m`` of ground-truth path), four decimals, the
+    conventions in one line above and the inputs below (the full table is ``format_markdown``)."""
+    head = ["agent"] + [c[0] for c in _PANEL_COLUMNS]
+    lines = [
+        f"t [m], r [deg]; {ev.alignment_text}; RPE over {ev.rpe_delta_m:g} m of ground-truth path",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|" + "|".join([":---"] + ["---:"] * len(_PANEL_COLUMNS)) + "|",
+    ]
+    lines += ["| " + " | ".join(_panel_cells(a)) + " |" for a in ev.agents]
+    lines.append("| " + " | ".join(f"**{c}**" for c in _panel_cells(ev.overall)) + " |")
+    lines += ["", f"Dataset: {ev.dataset}  ", f"Estimate: {ev.estimate} ({ev.estimate_layout})"]
+    return "\n".join(lines) + "\n"
+
+
 # ---------------------------------------------------------------------------------------------- recording
 
 
@@ -715,7 +757,7 @@ def write_evaluation_recording(
         raise OutputError(f"{path}: a recording must end in .rrd")
     inputs = [ev.dataset] + ([ev.estimate] if ev.estimate_layout != "initial" else [])
     with staged_outputs(path.parent, [path.name], force=force, inputs=inputs) as staging:
-        save_evaluation_recording(staging / path.name, format_markdown(ev), series, recording_id=recording_id)
+        save_evaluation_recording(staging / path.name, format_panel(ev), series, recording_id=recording_id)
     report(progress, "evaluation recording", 1, 1, "files")
     return path
 

@@ -42,6 +42,7 @@ from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE as MAX_COORDINATE_M  # the one bound of every number
 from studio.core.units import MAX_SPLIT_ROBOTS
+from studio.io.estimate import SOLVE_JSON
 from studio.io.names import safe_file_name, safe_file_names
 from studio.io.strict_json import dumps_strict
 from studio.solvers import DEFAULT_METHOD, SolveMethod, method_entry
@@ -51,7 +52,6 @@ from studio.solvers.validate import check_problem, check_solution
 __all__ = ["SolveResult", "solve", "load_problem", "Dimension", "SOLVE_JSON"]
 
 Dimension = Literal["auto", "2d", "3d"]
-SOLVE_JSON = "solve.json"
 
 
 @dataclass(frozen=True, eq=False)

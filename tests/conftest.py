@@ -9,6 +9,9 @@ import pytest
 
 os.environ.setdefault("CI", "true")
 os.environ["RERUN_ANALYTICS"] = "0"
+# long jobs print a plain progress line every few seconds off a terminal; the suite asserts quiet pipes
+# (tests/runtime/test_progress.py sets it low where it tests those lines)
+os.environ.setdefault("STUDIO_PROGRESS_INTERVAL_S", "3600")
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED = REPO.parent / "shared"

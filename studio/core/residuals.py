@@ -25,12 +25,14 @@ import numpy as np
 from studio.core.errors import GraphError
 from studio.core.geometry import normalize_angle, quat_canonical, quat_conj, quat_mul, quat_rotate, upper_to_matrix
 
-__all__ = ["Convention", "edge_errors", "chi2_terms", "chi2_parts", "graph_chi2"]
+__all__ = ["Convention", "DEFAULT_CONVENTION", "edge_errors", "chi2_terms", "chi2_parts", "graph_chi2"]
 
 if TYPE_CHECKING:
     from studio.core.model import PoseGraph
 
 Convention = Literal["g2o", "rotvec"]
+#: The rotation error of g2o's SE3 edges (quaternion vector part), what ``studio check`` uses by default.
+DEFAULT_CONVENTION: Convention = "g2o"
 
 
 def _errors_se2(xi: np.ndarray, xj: np.ndarray, z: np.ndarray) -> np.ndarray:

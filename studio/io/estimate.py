@@ -7,6 +7,10 @@
 * **TUM** (a folder of ``<agent>.tum`` or ``<agent>_*.tum``, ``*_GT.tum`` excluded): one trajectory
   per agent; its poses are matched to the ground truth by timestamp when scoring.
 
+The folder ``studio solve`` writes (or its ``solve.json``) stands for the estimate it holds: the entry
+``"estimate"`` of ``solve.json`` names it (``estimate/``, a multi-g2o folder, or ``<stem>.g2o``); a
+folder without ``solve.json`` but with a multi-g2o ``estimate/`` inside is taken the same way.
+
 Every layout gives one :class:`~studio.core.trajectory.Trajectory` per dataset agent. g2o estimates
 give one pose per dataset vertex, stamped with the dataset's stamps (``Estimate.by_time`` is false:
 pose k is the estimate of vertex k); a vertex count or id that does not match the dataset raises
@@ -33,7 +37,7 @@ from studio.io.names import safe_file_name
 from studio.io.singleg2o import agent_offsets
 from studio.io.tum import read_tum
 
-__all__ = ["Estimate", "EstimateLayout", "read_estimate", "estimate_layout"]
+__all__ = ["Estimate", "EstimateLayout", "read_estimate", "estimate_layout", "solve_output_estimate"]
 
 EstimateLayout = Literal["single-g2o", "multi-g2o", "tum"]
 
@@ -143,9 +147,47 @@ def _read_tum_folder(folder: Path, graph: PoseGraph) -> tuple[Trajectory, ...]:
     return tuple(read_tum(path, name=name) for name, path in _tum_files(folder, graph).items())
 
 
-def estimate_layout(path: PathLike) -> EstimateLayout:
-    """Guess the layout from the path: a file is a single g2o; a folder holds agent folders or TUM files."""
+SOLVE_JSON = "solve.json"
+
+
+def solve_output_estimate(path: PathLike) -> Path | None:
+    """The estimate inside a ``studio solve`` output (its folder or its ``solve.json``), or None when
+    ``path`` is not one. A ``solve.json`` that cannot be read, or names no estimate inside its folder,
+    raises :class:`FormatError` naming it."""
+    import json
+
     path = Path(path)
+    if path.is_file() and path.name == SOLVE_JSON:
+        folder, record = path.parent, path
+    elif path.is_dir():
+        folder, record = path, path / SOLVE_JSON
+        if not record.is_file():
+            inner = path / "estimate"
+            return inner if inner.is_dir() and _has_agent_dirs(inner) else None
+    else:
+        return None
+    try:
+        if record.stat().st_size > 64 * 2**20:
+            raise FormatError(f"{record}: over 64 MiB, not a solve.json")
+        data = json.loads(record.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as err:
+        raise FormatError(f"{record}: not a readable solve.json ({err.__class__.__name__})") from None
+    name = data.get("estimate") if isinstance(data, dict) else None
+    if not isinstance(name, str) or not name or name != Path(name).name or name in (".", ".."):
+        raise FormatError(f"{record}: $.estimate must name the estimate beside it, got {name!r}")
+    inner = folder / name
+    if not inner.exists():
+        raise FormatError(f"{record}: its estimate {inner} is missing")
+    return inner
+
+
+def estimate_layout(path: PathLike) -> EstimateLayout:
+    """Guess the layout from the path: a file is a single g2o; a folder holds agent folders or TUM files
+    (a ``studio solve`` output: the estimate it names, see :func:`solve_output_estimate`)."""
+    path = Path(path)
+    inner = solve_output_estimate(path)
+    if inner is not None:
+        return estimate_layout(inner)
     if path.is_file():
         return "single-g2o"
     if not path.is_dir():
@@ -156,13 +198,14 @@ def estimate_layout(path: PathLike) -> EstimateLayout:
         return "tum"
     raise FormatError(
         f"{path}: not an estimate (expected a single .g2o file, a folder of <agent>/posegraph.g2o, "
-        "or a folder of <agent>.tum files)"
+        "a folder of <agent>.tum files, or the folder studio solve wrote)"
     )
 
 
 def read_estimate(path: PathLike, graph: PoseGraph) -> Estimate:
     """Read an estimate of ``graph`` (layout guessed by :func:`estimate_layout`), split per agent."""
     path = Path(path)
+    path = solve_output_estimate(path) or path
     layout = estimate_layout(path)
     reader = {"single-g2o": _read_single_g2o, "multi-g2o": _read_multi_g2o, "tum": _read_tum_folder}[layout]
     return Estimate(layout, str(path), reader(path, graph))

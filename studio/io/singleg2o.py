@@ -14,17 +14,28 @@ from pathlib import Path
 
 import numpy as np
 
-from studio.core.errors import GraphError
-from studio.core.geometry import planar_poses_to_se3, relative_planar_pose, se2_information_to_se3
-from studio.core.model import AgentGraph, PoseGraph, PoseKind
+from studio.core.errors import FormatError, GraphError
+from studio.core.geometry import (
+    planar_poses_to_se3,
+    relative_planar_pose,
+    se2_information_to_se3,
+    se3_poses_to_planar,
+)
+from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
-from studio.io.g2o import G2oDocument, write_g2o
+from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.io.multig2o import Records
-from studio.io.tum import write_tum
+from studio.io.tum import read_tum, write_tum
 
-__all__ = ["write_single_g2o", "write_single_tum", "agent_offsets", "connector_measurements"]
+__all__ = [
+    "write_single_g2o",
+    "write_single_tum",
+    "read_single_g2o_dataset",
+    "agent_offsets",
+    "connector_measurements",
+]
 
 
 def agent_offsets(graph: PoseGraph) -> np.ndarray:
@@ -120,3 +131,42 @@ def write_single_tum(graph: PoseGraph, path: PathLike, *, ground_truth: bool) ->
     poses = np.concatenate([_se3_poses(a, ground_truth) for a in graph.agents])
     stamps = np.arange(len(poses), dtype=np.int64) * NS_PER_S
     write_tum(path, Trajectory.from_poses(Path(path).stem, stamps, poses))
+
+
+def read_single_g2o_dataset(path: PathLike) -> PoseGraph:
+    """kollagen's single view as a dataset to score: ``NAME.g2o`` (the initial estimate, ids
+    ``0..n-1``) with ``NAME_GT.tum`` beside it (one ground-truth pose per id, in id order).
+
+    The file cannot say where one agent ends (kollagen's connectors are odometry edges), so the
+    graph has one agent, named ``NAME``; only the poses are read (no edges). The stamps are the
+    ground truth's when they increase, else the id in seconds. Raises :class:`FormatError` naming
+    the file for a missing ground truth, or one that does not match the vertices."""
+    path = Path(path)
+    gt_path = path.with_name(f"{path.stem}_GT.tum")
+    if not gt_path.is_file():
+        raise FormatError(f"{path}: no ground truth beside it ({gt_path.name}); a dataset is scored against it")
+    doc = read_g2o(path, edges=False)
+    n = len(doc.vertex_ids)
+    order = np.argsort(doc.vertex_ids, kind="stable")
+    if n == 0 or not np.array_equal(doc.vertex_ids[order], np.arange(n)):
+        raise FormatError(f"{path}: vertex ids must be 0..{max(n - 1, 0)} (kollagen's single view)")
+    truth = read_tum(gt_path)
+    if len(truth.stamps_ns) != n:
+        raise FormatError(f"{gt_path}: {len(truth.stamps_ns)} poses for the {n} vertices of {path.name}")
+    stamps = truth.stamps_ns
+    if n > 1 and np.any(np.diff(stamps) <= 0):
+        stamps = np.arange(n, dtype=np.int64) * NS_PER_S
+    gt3 = truth.poses_xyz_quat_xyzw
+    planar = doc.kind is PoseKind.SE2
+    gt = se3_poses_to_planar(gt3) if planar else gt3
+    agent = AgentGraph(
+        path.stem,
+        doc.kind,
+        stamps,
+        doc.vertex_poses[order],
+        gt,
+        Edges.empty(doc.kind),
+        Edges.empty(doc.kind),
+        ground_truth_se3=gt3 if planar else None,
+    )
+    return PoseGraph(doc.kind, (agent,), InterAgentEdges.empty(doc.kind), metadata={"source": str(path)})

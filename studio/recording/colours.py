@@ -25,6 +25,7 @@ __all__ = [
     "INTER_ALPHA",
     "INTER_FAINT_RGB",
     "INTER_FAINT_ALPHA",
+    "INTER_DENSITY_RGBA",
     "OUTLIER_COLOUR",
     "GROUND_TRUTH_GREY",
     "ERROR_SCALE_RGB",
@@ -66,6 +67,8 @@ INTER_ALPHA = 200
 #: Inter-agent loop closures when there are many (thin hairlines that add up where they crowd).
 INTER_FAINT_RGB: RGB = (120, 120, 120)
 INTER_FAINT_ALPHA = 100
+#: The inter-agent loop-closure density (many closures): a light grey, opaque (over the agents' paths).
+INTER_DENSITY_RGBA: RGBA = (175, 175, 175, 255)
 #: Outlier loop closures (``outliers.txt``): magenta, no agent's colour.
 OUTLIER_COLOUR: RGBA = (255, 0, 200, 255)
 #: Ground truth under an estimate (evaluation and solve recordings): a grey on no error scale.
@@ -128,6 +131,7 @@ def recording_colours() -> dict[str, RGBA]:
     out["inter-agent loop closures"] = (*INTER_RGB, INTER_ALPHA)
     out["inter-agent loop closures, many"] = (*INTER_FAINT_RGB, INTER_FAINT_ALPHA)
     out["inter-agent count plot"] = (*INTER_RGB, 255)
+    out["inter-agent loop-closure density"] = INTER_DENSITY_RGBA
     out["outlier loop closures"] = OUTLIER_COLOUR
     out["ground truth (evaluation, solve)"] = GROUND_TRUTH_GREY
     scale = np.asarray(ERROR_SCALE_RGB, dtype=np.float64)

@@ -38,6 +38,7 @@ from studio.recording.colours import (
     AGENT_PALETTE_RGB,
     INITIAL_ALPHA,
     INTER_ALPHA,
+    INTER_DENSITY_RGBA,
     INTER_FAINT_ALPHA,
     INTER_FAINT_RGB,
     INTER_RGB,
@@ -45,6 +46,7 @@ from studio.recording.colours import (
 )
 from studio.recording.entities import (
     APPLICATION_ID,
+    INTER_LOOP_CLOSURE_DENSITY,
     LOOP_CLOSURES_INTER,
     LOOP_CLOSURES_INTRA,
     LOOP_CLOSURES_OUTLIERS,
@@ -90,8 +92,14 @@ __all__ = [
 #: Rows per chunk for time-indexed line strips (``rerun rrd verify`` is quadratic in it).
 STRIP_CHUNK_ROWS = 1000
 
-#: Above this many inter-agent loop closures they are drawn thinner and more translucent.
+#: Above this many inter-agent loop closures the segments (hidden by default, one entity per pair)
+#: give way to their density (:func:`log_inter_loop_closure_density`).
 MANY_INTER_LOOP_CLOSURES = 3000
+#: The density's grid: this many cells across the extent of the closures (where the agents meet).
+DENSITY_CELLS_ACROSS = 30
+#: The density's discs, in cells: the fullest cell's disc has a radius of one cell (neighbouring
+#: full cells merge into a patch), an emptier one the area of its share of that count, down to this.
+DENSITY_MIN_RADIUS_CELLS = 0.2
 _PATH_RADIUS = -1.5  # negative: screen-space points
 _INITIAL_RADIUS = -0.75
 _LOOP_RADIUS = -0.75
@@ -149,6 +157,8 @@ class _Scene:
     max_loop_closures: int = 1
     """Most intra-agent loop closures of one agent."""
     max_inter_loop_closures: int = 1
+    many_inter: bool = False
+    """More inter-agent loop closures than :data:`MANY_INTER_LOOP_CLOSURES`: drawn as their density."""
 
 
 # --------------------------------------------------------------------------------------------------
@@ -399,6 +409,49 @@ def log_inter_loop_closures(
         _send_segments(rec, entity, segments, created[order], stamps)
 
 
+def closure_density(
+    midpoints_xyz: np.ndarray, extent_m: float, cells_across: int = DENSITY_CELLS_ACROSS
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bin closure midpoints on a square grid of ``extent_m / cells_across`` cells (x, y; z too for
+    spatial data): per occupied cell, the mean position of its closures and their count, in the
+    order of the cells' indices (deterministic)."""
+    cell_m = max(extent_m, 1e-9) / cells_across
+    keys = np.floor(midpoints_xyz / cell_m).astype(np.int64)
+    cells, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(-1)
+    sums = np.zeros((len(cells), 3))
+    np.add.at(sums, inverse, midpoints_xyz)
+    return sums / counts[:, None], counts
+
+
+def log_inter_loop_closure_density(
+    rec: rr.RecordingStream, graph: PoseGraph, extent_m: float, last_node: int, outlier: np.ndarray | None = None
+) -> None:
+    """Many inter-agent loop closures (inliers) as their density: a grey disc per grid cell where
+    closures are, its area growing with their count, at ``last_node`` (the recording opens there)."""
+    import rerun as rr
+
+    inter = graph.inter
+    keep = np.ones(len(inter), dtype=bool) if outlier is None else ~outlier
+    if not keep.any():
+        return
+    ref_all, _, offsets = _global_rows(graph)
+    g_from = offsets[inter.from_agent[keep]] + inter.from_index[keep]
+    g_to = offsets[inter.to_agent[keep]] + inter.to_index[keep]
+    mid = 0.5 * (ref_all[g_from] + ref_all[g_to])
+    across_m = float(np.max(np.ptp(mid, axis=0))) or 1.0
+    centres, counts = closure_density(mid, across_m)
+    cell_m = across_m / DENSITY_CELLS_ACROSS
+    radii = cell_m * np.maximum(np.sqrt(counts / counts.max()), DENSITY_MIN_RADIUS_CELLS)
+    centres = centres + [0.0, 0.0, 0.02 * extent_m]  # above the paths, so the view draws it on top
+    rec.set_time(TIMELINE_NODE, sequence=last_node)
+    rec.log(
+        INTER_LOOP_CLOSURE_DENSITY,
+        rr.Points3D(centres, radii=radii.astype(np.float32), colors=[INTER_DENSITY_RGBA]),
+    )
+    rec.reset_time()
+
+
 def log_outlier_loop_closures(
     rec: rr.RecordingStream, graph: PoseGraph, real_time: bool, intra: list[np.ndarray], inter: np.ndarray
 ) -> None:
@@ -522,6 +575,7 @@ def _scene(graph: PoseGraph, real_time: bool) -> _Scene:
         max_position_error_m=max(errors + [1e-3]),
         max_loop_closures=most_lcs,
         max_inter_loop_closures=max(len(graph.inter), 1),
+        many_inter=len(graph.inter) > MANY_INTER_LOOP_CLOSURES,
     )
 
 
@@ -530,6 +584,26 @@ def fixed_id(part: Any, namespace: uuid.UUID, name: str) -> Any:
     within the recording kind's ``namespace``), so the same layout gives the same file content."""
     part.id = uuid.uuid5(namespace, name)
     return part
+
+
+#: A plot with a legend shows its y axis up to this multiple of the largest value: the legend sits
+#: in the top-left corner over the empty band above the data (and over its first nodes, where a
+#: count or a dead-reckoning error is still small), so eight agents' names fit without hiding it.
+LEGEND_HEADROOM = 1.6
+
+
+def plot_legend() -> Any:
+    """The legend of a plot with one series per agent: top left, over :data:`LEGEND_HEADROOM`."""
+    import rerun.blueprint as rrb
+
+    return rrb.PlotLegend(corner=rrb.components.Corner2D.LeftTop, visible=True)
+
+
+def no_plot_legend() -> Any:
+    """No legend (a plot whose title names its one series, or whose colours another plot names)."""
+    import rerun.blueprint as rrb
+
+    return rrb.PlotLegend(visible=False)
 
 
 def default_blueprint(scene: _Scene) -> rrb.Blueprint:
@@ -554,26 +628,35 @@ def default_blueprint(scene: _Scene) -> rrb.Blueprint:
         eye = rrb.EyeControls3D(position=(cx - d, cy - d, cz + d), look_target=(cx, cy, cz), eye_up=(0.0, 0.0, 1.0))
     # Everything up to the cursor: loop closures accumulate (paths are static, and transforms are
     # always resolved at the cursor, so the pose markers do not leave a trail).
+    # Many inter-agent closures: their segments (one entity per pair, toggled in the blueprint
+    # panel) hidden, their density shown in their place.
+    hidden: dict[Any, Any] | None = (
+        {"/" + LOOP_CLOSURES_INTER.split("/{pair}")[0]: rrb.EntityBehavior(visible=False)} if scene.many_inter else None
+    )
     space = rrb.Spatial3DView(
         origin=f"/{WORLD}",
         name="agents",
         eye_controls=eye,
         time_ranges=upto_cursor,
         line_grid=rrb.LineGrid3D(visible=False),
+        overrides=hidden,
     )
     whole = rr.TimeRange(start=rr.TimeRangeBoundary.infinite(), end=rr.TimeRangeBoundary.infinite())
     # Fixed y ranges: the whole series is visible whatever the cursor (auto-fit follows the view).
+    # One legend, on the first plot (its colours are every plot's and the 3D view's), given room.
     err = rrb.TimeSeriesView(
         origin=f"/{METRICS}/position_error",
         name="initial-estimate position error [m]",
         axis_x=rrb.TimeAxis(view_range=whole),
-        axis_y=rrb.ScalarAxis(range=(0.0, 1.05 * scene.max_position_error_m)),
+        axis_y=rrb.ScalarAxis(range=(0.0, LEGEND_HEADROOM * scene.max_position_error_m)),
+        plot_legend=plot_legend(),
     )
     lcs = rrb.TimeSeriesView(
         origin=f"/{METRICS}/intra_loop_closures",
         name="intra-agent loop closures so far",
         axis_x=rrb.TimeAxis(view_range=whole),
         axis_y=rrb.ScalarAxis(range=(0.0, 1.05 * scene.max_loop_closures)),
+        plot_legend=no_plot_legend(),
     )
     parts = [(space, "agents"), (err, "position_error"), (lcs, "loop_closures")]
     plots = [err, lcs]
@@ -583,10 +666,11 @@ def default_blueprint(scene: _Scene) -> rrb.Blueprint:
             name="inter-agent loop closures so far (all agents)",
             axis_x=rrb.TimeAxis(view_range=whole),
             axis_y=rrb.ScalarAxis(range=(0.0, 1.05 * scene.max_inter_loop_closures)),
+            plot_legend=no_plot_legend(),
         )
         plots.append(inter)
         parts.append((inter, "inter_loop_closures"))
-    series = rrb.Vertical(*plots)
+    series = rrb.Vertical(*plots, row_shares=[2.0] + [1.0] * (len(plots) - 1))
     root = rrb.Horizontal(space, series, column_shares=[2, 1])
     for part, label in parts + [(series, "series"), (root, "root")]:
         fixed_id(part, _RECORDING_ID_NAMESPACE, f"blueprint/{label}")
@@ -643,6 +727,8 @@ def record_graph(
                 log_position_error(rec, agent, k, real_time)
                 report(progress, "recording", k + 1, steps, "parts")
             log_inter_loop_closures(rec, g, real_time, inter_out)
+            if scene.many_inter:
+                log_inter_loop_closure_density(rec, g, scene.extent_m, scene.num_nodes - 1, inter_out)
             log_outlier_loop_closures(rec, g, real_time, intra_out, inter_out)
             log_loop_closure_counts(rec, g, real_time)
             if range_bearing is not None and len(range_bearing):

@@ -18,6 +18,7 @@ __all__ = [
     "LOOP_CLOSURES_INTRA",
     "LOOP_CLOSURES_INTER",
     "LOOP_CLOSURES_OUTLIERS",
+    "INTER_LOOP_CLOSURE_DENSITY",
     "SIGHTINGS",
     "METRICS",
     "SERIES_POSITION_ERROR",
@@ -79,6 +80,10 @@ LOOP_CLOSURES_INTRA = "world/{agent}/loop_closures"
 #: One segment per inter-agent loop closure (inliers) between two agents, at the node where it is
 #: created; one entity per agent pair (``{pair}`` is ``<agent a>-<agent b>``, in agent order).
 LOOP_CLOSURES_INTER = "world/inter_loop_closures/{pair}"
+#: Many inter-agent loop closures (paper scale): one disc per cell of a grid over the map where
+#: closures are, its size growing with how many fall there (where the agents' paths meet), logged at
+#: the last node; drawn instead of the segments, which stay in their own entities, hidden.
+INTER_LOOP_CLOSURE_DENSITY = "world/inter_loop_closure_density"
 #: One segment per loop closure listed in the dataset's ``outliers.txt`` (intra- and inter-agent).
 LOOP_CLOSURES_OUTLIERS = "world/outlier_loop_closures"
 #: One segment per range-bearing sighting made by an agent (``range_bearing.txt``): from its

@@ -36,7 +36,7 @@ import numpy as np
 
 from studio.core.types import PathLike
 from studio.recording.colours import GROUND_TRUTH_GREY, error_colours
-from studio.recording.dataset import agent_colour, fixed_id, hash_columns
+from studio.recording.dataset import LEGEND_HEADROOM, agent_colour, fixed_id, hash_columns, plot_legend
 from studio.recording.entities import (
     APPLICATION_ID,
     EVALUATION_ESTIMATE,
@@ -180,21 +180,33 @@ def evaluation_blueprint(series: Sequence[ErrorSeries]) -> Any:
             )
         )
     whole = rr.TimeRange(start=rr.TimeRangeBoundary.infinite(), end=rr.TimeRangeBoundary.infinite())
-    metrics = sorted({m for s in series for m in s.values})
+    # translation first: the tab shown on opening
+    metrics = sorted({m for s in series for m in s.values}, key=lambda m: (m != "ape_translation_m", m))
+
+    def largest(metric: str) -> float:
+        return max([float(np.max(s.values[metric])) for s in series if len(s.values.get(metric, ()))] + [1e-9])
+
     plots = [
         _fixed(
             rrb.TimeSeriesView(
                 origin="/" + EVALUATION_SERIES.split("{metric}")[0] + m,
                 name=METRIC_LABELS.get(m, m),
                 axis_x=rrb.TimeAxis(view_range=whole),
+                axis_y=rrb.ScalarAxis(range=(0.0, LEGEND_HEADROOM * largest(m))),
+                plot_legend=plot_legend(),
             ),
             f"metric/{m}",
         )
         for m in metrics
     ]
+    # the plots share one pane as tabs, so one of them is tall enough for eight agents' legend
+    tabs = [_fixed(rrb.Tabs(*plots, active_tab=0), "plots")] if plots else []
     summary = _fixed(rrb.TextDocumentView(origin=f"/{EVALUATION_SUMMARY}", name="statistics"), "summary")
-    right = _fixed(rrb.Vertical(*plots, summary), "right")
-    root = _fixed(rrb.Horizontal(*views, right, column_shares=[3, 2] if views else None), "root")
+    # the statistics grow with the agents (a row each, and `all`): for eight agents the panel takes
+    # about half the column, so every row shows without scrolling
+    table_share = 1.0 + 0.15 * len(series)
+    right = _fixed(rrb.Vertical(*tabs, summary, row_shares=[2.0] * len(tabs) + [table_share]), "right")
+    root = _fixed(rrb.Horizontal(*views, right, column_shares=[1, 1] if views else None), "root")
     return rrb.Blueprint(
         root,
         rrb.TimePanel(timeline=TIMELINE_NODE, play_state="following", expanded=False),
@@ -217,7 +229,13 @@ def save_evaluation_recording(
         recording_id = evaluation_recording_id(summary_markdown, series)
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
     rec.save(path, default_blueprint=evaluation_blueprint(series))
-    log_evaluation(rec, summary_markdown, series)
-    rec.flush()
-    rec.disconnect()
+    try:
+        log_evaluation(rec, summary_markdown, series)
+        rec.flush()
+    except RuntimeError:
+        # Rerun's file writer stopped (a full disk): the output guard's check of the file
+        # (studio.io.atomic.verify_rrd) names what went wrong, in one line
+        pass
+    finally:
+        rec.disconnect()
     return path

@@ -53,6 +53,7 @@ from studio.core.units import NS_PER_S
 from studio.io.strict_json import dumps_strict
 from studio.replay.backends import World, get_backend
 from studio.replay.metrics import as_se3, first_pose_errors, se3_errors
+from studio.runtime.progress import Progress, report
 from studio.solvers.incremental import IsamSettings
 from studio.solvers.problem import graph_chi2
 
@@ -214,7 +215,14 @@ def _checkpoints(num_ticks: int, every: int) -> np.ndarray:
 
 
 def _run(
-    name: str, world: World, graph: PoseGraph, schedule: Schedule, checkpoints: np.ndarray, *, keep_beliefs: bool
+    name: str,
+    world: World,
+    graph: PoseGraph,
+    schedule: Schedule,
+    checkpoints: np.ndarray,
+    *,
+    keep_beliefs: bool,
+    progress: Progress | None = None,
 ) -> BackendRun:
     t0 = time.perf_counter()
     backend = get_backend(name)(world)
@@ -232,6 +240,7 @@ def _run(
     step = None
     beliefs: list[np.ndarray] = []
     for c, tick in enumerate(checkpoints.tolist()):
+        report(progress, f"replay {name}", c, len(checkpoints), "checkpoints")
         linked = np.asarray(schedule.contact[previous + 1 : tick + 1].any(axis=0))
         present = np.array([world.vertex_ns[offsets[r]] <= world.ticks_ns[tick] for r in range(n)])
         groups = _components(n, pairs, linked, present)
@@ -608,6 +617,7 @@ def replay(
     force: bool = False,
     rrd: PathLike | None = None,
     parquet: bool = False,
+    progress: Progress | None = None,
 ) -> ReplayResult:
     """Replay ``dataset`` (a multi-g2o folder with ground truth) under the communication model
     ``comms`` through each of ``backends`` and write the outputs into the folder ``out`` (module doc).
@@ -643,7 +653,10 @@ def replay(
     report = comms_report(schedule)
     world = _world(loaded, graph, times, schedule, settings)
     checkpoints = _checkpoints(len(schedule.ticks_ns), every)
-    runs = tuple(_run(name, world, graph, schedule, checkpoints, keep_beliefs=rrd_path is not None) for name in names)
+    runs = tuple(
+        _run(name, world, graph, schedule, checkpoints, keep_beliefs=rrd_path is not None, progress=progress)
+        for name in names
+    )
     options = _options(dataset, schedule, names, settings, loaded.problem.kind.value, step_s, every, period_s)
     with staged_outputs(out.parent, [out.name], force=force, inputs=inputs) as staging:
         _write_folder(

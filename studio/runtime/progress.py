@@ -4,7 +4,9 @@ Library functions accept ``progress: Progress | None`` and call it as ``progress
 (optionally with a ``unit``) whenever a count moves; a new ``step`` label starts a new line and
 finishes the previous one. They never print. The CLI passes the callback of
 :func:`terminal_progress`, which draws the steps with rich.progress (count, rate, elapsed time) on
-stderr when stderr is a terminal, and passes ``None`` in a pipe or with ``--quiet``.
+stderr when stderr is a terminal; when stderr is a pipe or a file (a log), it prints one plain line
+every few seconds instead (:func:`plain_progress`: ``progress: step 12/40 cells, 1m05s``), so a long
+job in a log shows it is alive; with ``--quiet`` it passes ``None``.
 """
 
 from __future__ import annotations
@@ -12,10 +14,16 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import threading
+import time
 from collections.abc import Iterator
-from typing import Protocol
+from typing import Protocol, TextIO
 
-__all__ = ["Progress", "report", "terminal_progress"]
+__all__ = ["PLAIN_INTERVAL_S", "Progress", "plain_progress", "report", "terminal_progress"]
+
+#: Seconds between two plain progress lines off a terminal (the environment variable
+#: ``STUDIO_PROGRESS_INTERVAL_S`` overrides it; the test suite sets it high, and low where it tests them).
+PLAIN_INTERVAL_S = 5.0
 
 
 class Progress(Protocol):
@@ -40,20 +48,83 @@ def _may_be_terminal() -> bool:
     return "FORCE_COLOR" in os.environ or os.environ.get("TTY_COMPATIBLE") == "1"
 
 
+def _interval_s() -> float:
+    """The plain lines' interval: ``STUDIO_PROGRESS_INTERVAL_S`` when set to a positive number."""
+    raw = os.environ.get("STUDIO_PROGRESS_INTERVAL_S", "")
+    try:
+        value = float(raw)
+    except ValueError:
+        return PLAIN_INTERVAL_S
+    return value if value > 0 else PLAIN_INTERVAL_S
+
+
+def _clock(seconds: float) -> str:
+    """``42s``, ``3m05s``, ``1h02m``."""
+    s = int(seconds)
+    if s < 60:
+        return f"{s}s"
+    if s < 3600:
+        return f"{s // 60}m{s % 60:02d}s"
+    return f"{s // 3600}h{s % 3600 // 60:02d}m"
+
+
+@contextlib.contextmanager
+def plain_progress(stream: TextIO, interval_s: float) -> Iterator[Progress]:
+    """A :class:`Progress` for a log: every ``interval_s`` seconds, one plain line on ``stream`` with
+    the latest step, its count and the time since the start (``progress: bench cells 3/16 cells,
+    1m05s``), from a timer thread, so a step that goes quiet for minutes still shows the clock.
+    Nothing is printed before the first interval has passed (a short command stays silent), no
+    colours and no carriage returns."""
+    start = time.monotonic()
+    state: list[tuple[str, int, int, str]] = []
+    lock = threading.Lock()
+    stop = threading.Event()
+
+    def update(step: str, done: int, total: int, unit: str = "") -> None:
+        with lock:
+            state[:] = [(step, done, total, unit)]
+
+    def tick() -> None:
+        while not stop.wait(interval_s):
+            with lock:
+                if not state:
+                    continue
+                step, done, total, unit = state[0]
+            count = f"{done}/{total}" if total > 0 else f"{done}"
+            line = f"progress: {step} {count}{' ' + unit if unit else ''}, {_clock(time.monotonic() - start)}"
+            with contextlib.suppress(OSError, ValueError):  # a closed log does not stop the job
+                stream.write(line + "\n")
+                stream.flush()
+
+    timer = threading.Thread(target=tick, name="studio-progress", daemon=True)
+    timer.start()
+    try:
+        yield update
+    finally:
+        stop.set()
+        timer.join()
+
+
 @contextlib.contextmanager
 def terminal_progress(enabled: bool = True) -> Iterator[Progress | None]:
-    """A :class:`Progress` drawing on stderr, or ``None`` when disabled or stderr is not a terminal.
+    """A :class:`Progress` drawing on stderr; off a terminal, :func:`plain_progress`'s lines every
+    few seconds; ``None`` when disabled.
 
     Each step is one line: ``step  ━━━━━━━━━━  done/total unit  rate unit/s  elapsed``.
     """
-    if not enabled or not _may_be_terminal():
+    if not enabled:
         yield None
+        return
+    if not _may_be_terminal():
+        with plain_progress(sys.stderr, _interval_s()) as plain:
+            yield plain
         return
     from rich.console import Console
 
     console = Console(stderr=True)
     if not console.is_terminal or console.is_dumb_terminal:
-        yield None
+        with plain_progress(sys.stderr, _interval_s()) as plain:
+            yield plain
         return
     from rich.progress import (
         BarColumn,

@@ -87,8 +87,6 @@ def test_the_cli_and_pipelines_name_no_method_or_source():
     """Choices are not copied: no method or source name is written in the CLI, and the pipelines do
     not switch on one (``== "g2o"``, ``== "airmuseum"``)."""
     cli = (REPO / "studio" / "cli.py").read_text(encoding="utf-8")
-    # `studio check --convention g2o` names g2o's error convention, not the solve method
-    cli = re.sub(r"class ConventionChoice\b.*?\n\n\n", "", cli, flags=re.DOTALL)
     for name in (*METHODS, *SOURCES):
         assert not re.search(rf'(?<![\w-])"{re.escape(name)}"', cli), name
     for module in ("solve.py", "bench.py", "convert.py", "sweep.py"):

@@ -204,6 +204,44 @@ def test_record_and_convert_on_a_full_disk_are_one_line_and_leave_nothing(small_
         assert sorted(p.name for p in small_disk.iterdir() if not p.name.startswith(".studio-lock")) == ["filler"]
 
 
+def test_rerun_writes_no_log_lines_of_its_own_on_a_full_disk(small_disk, tmp_path):
+    """Rerun's file sink printed three ANSI-coloured ERROR/WARN lines (re_log_encoding, re_sdk)
+    before the studio's one line; those go to the process's stderr from Rust, past Python, so this
+    runs the command line as a process. The caller's own RUST_LOG still wins."""
+    import os
+    import sys
+
+    from studio.synth import load_synth_config, synthesize
+    from tests.conftest import DATA
+
+    ds = synthesize(
+        load_synth_config(DATA / "configs" / "small3x100.json"), tmp_path / "src", rrd=False, jobs=1
+    ).dataset_dir
+    st = os.statvfs(small_disk)
+    (small_disk / "filler").write_bytes(b"\0" * max(0, st.f_bavail * st.f_frsize - 64 * 1024))  # 64 kB left
+    env = {k: v for k, v in os.environ.items() if k != "RUST_LOG"}
+    cases = (
+        ["record", str(ds), "-o", str(small_disk / "x.rrd")],
+        ["evaluate", str(ds), "--rrd", str(small_disk / "e.rrd")],
+    )
+    for args in cases:
+        res = subprocess.run(
+            [sys.executable, "-m", "studio.cli", *args], capture_output=True, text=True, env=env, timeout=120
+        )
+        assert res.returncode == 2, res.stderr
+        lines = res.stderr.splitlines()
+        assert len(lines) == 1 and lines[0].startswith("error: ") and "No space left on device" in lines[0], lines
+        assert "\x1b[" not in res.stderr and "re_log_encoding" not in res.stderr
+    loud = subprocess.run(
+        [sys.executable, "-m", "studio.cli", *cases[0]],
+        capture_output=True,
+        text=True,
+        env={**env, "RUST_LOG": "warn"},
+        timeout=120,
+    )
+    assert loud.returncode == 2 and "re_log_encoding" in loud.stderr  # the user asked for Rerun's logs
+
+
 def test_a_read_only_file_system_is_one_line(tmp_path):
     from tests.conftest import DATA
 
