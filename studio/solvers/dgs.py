@@ -65,6 +65,8 @@ __all__ = [
     "DEFAULT_POSE_TOL",
     "DEFAULT_ROTATION_GAMMA",
     "DEFAULT_POSE_GAMMA",
+    "DEFAULT_ROTATION_MOMENTUM",
+    "DEFAULT_POSE_MOMENTUM",
     "BYTES_PER_NUMBER",
 ]
 
@@ -81,6 +83,10 @@ DEFAULT_POSE_TOL = 1e-2
 DEFAULT_ROTATION_GAMMA = 1.0
 #: Over-relaxation of the pose stage's block updates.
 DEFAULT_POSE_GAMMA = 1.9
+#: Nesterov momentum of the rotation stage's rounds (0: none).
+DEFAULT_ROTATION_MOMENTUM = 0.0
+#: Nesterov momentum of the pose stage's rounds (0: none).
+DEFAULT_POSE_MOMENTUM = 0.0
 #: Bytes of one number in a message (float64).
 BYTES_PER_NUMBER = 8
 
@@ -206,8 +212,26 @@ def _factorise(h: Any, robot_dofs: list[np.ndarray], total: int) -> _Blocks:
     return _Blocks(robot_dofs, others, lus, couplings)
 
 
-def _round(x: np.ndarray, g: np.ndarray, blocks: _Blocks, schedule: Schedule, gamma: float) -> float:
-    """One round in place on ``x`` (``(N,)`` or ``(N, k)``); returns the largest change of an entry."""
+def _round(
+    x: np.ndarray,
+    g: np.ndarray,
+    blocks: _Blocks,
+    schedule: Schedule,
+    gamma: float,
+    previous: np.ndarray | None = None,
+    momentum: float = 0.0,
+) -> float:
+    """One round in place on ``x`` (``(N,)`` or ``(N, k)``); returns the largest change of an entry.
+
+    With ``momentum`` (and ``previous``, the iterate before this one, updated here), every robot
+    first extrapolates its own block, ``x + momentum (x - previous)`` (Nesterov), and its
+    neighbours use the extrapolated values: each robot still needs only its own and its neighbours'
+    latest values."""
+    before = None
+    if momentum and previous is not None:
+        before = x.copy()
+        x += momentum * (x - previous)
+        previous[:] = before
     source = x if schedule == "gauss-seidel" else x.copy()
     change = 0.0
     for dofs, other, lu, coupling in zip(blocks.dofs, blocks.others, blocks.lus, blocks.couplings):
@@ -219,6 +243,8 @@ def _round(x: np.ndarray, g: np.ndarray, blocks: _Blocks, schedule: Schedule, ga
             new = (1.0 - gamma) * x[dofs] + gamma * new
         change = max(change, float(np.abs(new - x[dofs]).max()))
         x[dofs] = new
+    if before is not None:
+        change = float(np.abs(x - before).max()) if x.size else 0.0
     return change
 
 
@@ -403,6 +429,13 @@ def _check_connected(problem: Problem) -> None:
 # the two stages
 
 
+@dataclass(frozen=True)
+class _StageOptions:
+    tol: float
+    gamma: float
+    momentum: float
+
+
 @dataclass(eq=False)
 class _Run:
     """What both stages share: the problem split into robots, the rounds so far and the bytes sent."""
@@ -472,7 +505,7 @@ def _check_options(max_rounds: int, tols: dict[str, float], gammas: dict[str, fl
         raise ConfigError(f"schedule: expected gauss-seidel or jacobi, got {schedule!r}")
 
 
-def _rotation_stage(run: _Run, start: np.ndarray, tol: float, gamma: float) -> tuple[np.ndarray, bool]:
+def _rotation_stage(run: _Run, start: np.ndarray, opt: _StageOptions) -> tuple[np.ndarray, bool]:
     """The chordal relaxation in rounds: ``Y = R^T``, rows ``Y_j - Z^T Y_i``, ``d`` right-hand sides.
     Returns the ``(n, d, d)`` rotations (the anchor's as given) and whether ``tol`` was met."""
     problem = run.problem
@@ -488,15 +521,16 @@ def _rotation_stage(run: _Run, start: np.ndarray, tol: float, gamma: float) -> t
     zero_rhs = np.zeros((n * d, d))
     converged = False
     projected = _project_so(np.transpose(y.reshape(n, d, d), (0, 2, 1)))
+    previous = y.copy()
     while run.left > 1:
-        _round(y, zero_rhs, blocks, run.schedule, gamma)
+        _round(y, zero_rhs, blocks, run.schedule, opt.gamma, previous, opt.momentum)
         # the relaxation's iterates also shrink (its optimum has entries far below 1 where the
         # rotations disagree), which matters to no one: the change is measured on the rotations
         now = _project_so(np.transpose(y.reshape(n, d, d), (0, 2, 1)))
         change = float(np.abs(now - projected).max())
         projected = now
         run.record("rotation", change, None, run.send(d * d), None)
-        if change <= tol:
+        if change <= opt.tol:
             converged = True
             break
     rot = projected
@@ -515,7 +549,7 @@ def _pose_start(problem: Problem, start: np.ndarray, rot: np.ndarray, warm_start
     return lin
 
 
-def _pose_system(run: _Run, lin: np.ndarray, anchor_pose: np.ndarray, tol: float, gamma: float) -> np.ndarray:
+def _pose_system(run: _Run, lin: np.ndarray, anchor_pose: np.ndarray, opt: _StageOptions) -> np.ndarray:
     """One Gauss-Newton system at ``lin`` solved in rounds (until ``tol`` or the budget); the poses."""
     problem = run.problem
     n, kind = problem.num_vertices, problem.kind
@@ -527,31 +561,32 @@ def _pose_system(run: _Run, lin: np.ndarray, anchor_pose: np.ndarray, tol: float
     # Jacobi rounds on the anchor-free (singular) system would keep oscillating in its gauge
     blocks = _factorise(h, run.dofs_of(b, fix_anchor=run.robots == 1 or run.schedule == "jacobi"), n * b)
     delta = np.zeros(n * b)
+    previous = delta.copy()
     poses = lin
     while run.left > 0:
-        change = _round(delta, g, blocks, run.schedule, gamma)
+        change = _round(delta, g, blocks, run.schedule, opt.gamma, previous, opt.momentum)
         poses = _reanchor(kind, _retract(kind, lin, delta.reshape(n, b)), anchor, anchor_pose)
         run.record("pose", change, graph_chi2(problem, poses), run.send(b) + run.handshake, poses)
         run.handshake = 0
-        if change <= tol:
+        if change <= opt.tol:
             break
     run.step = float(np.abs(delta).max()) if delta.size else 0.0
     return poses
 
 
 def _pose_stage(
-    run: _Run, lin: np.ndarray, anchor_pose: np.ndarray, tol: float, gamma: float
+    run: _Run, lin: np.ndarray, anchor_pose: np.ndarray, opt: _StageOptions
 ) -> tuple[np.ndarray, int, bool]:
     """Gauss-Newton from ``lin``, each system solved in rounds, relinearized until an update moves no
-    entry by more than ``tol`` or the rounds run out: the poses, the systems built, convergence."""
+    entry by more than ``opt.tol`` or the rounds run out: the poses, the systems built, convergence."""
     run.handshake = run.send(run.problem.kind.pose_width)  # each robot's separator poses at ``lin``
     linearizations = 0
     poses = lin
     while run.left > 0:
-        poses = _pose_system(run, lin, anchor_pose, tol, gamma)
+        poses = _pose_system(run, lin, anchor_pose, opt)
         linearizations += 1
         lin = poses
-        if run.step <= tol and run.rounds[-1].change <= tol:
+        if run.step <= opt.tol and run.rounds[-1].change <= opt.tol:
             return poses, linearizations, True
     return poses, linearizations, False
 
@@ -566,15 +601,20 @@ def dgs_rounds(
     pose_tol: float = DEFAULT_POSE_TOL,
     rotation_gamma: float = DEFAULT_ROTATION_GAMMA,
     pose_gamma: float = DEFAULT_POSE_GAMMA,
+    rotation_momentum: float = DEFAULT_ROTATION_MOMENTUM,
+    pose_momentum: float = DEFAULT_POSE_MOMENTUM,
     schedule: Schedule = "gauss-seidel",
     warm_start: bool = False,
+    rotation_stage: bool = True,
     on_round: OnRound | None = None,
 ) -> DgsResult:
     """Run DGS on ``problem`` with vertex ``v`` owned by robot ``agent_of_vertex[v]`` (ints ``0..R-1``).
 
     ``initial`` (default: the problem's poses) gives the rotation stage's starting rotations and, with
     ``warm_start``, the pose stage's translations (a replay continuing from an earlier estimate);
-    without it the pose stage starts with every translation at the anchor's, as the paper.
+    without it the pose stage starts with every translation at the anchor's, as the paper. Without
+    ``rotation_stage`` the pose stage starts at ``initial`` itself (a replay's later solves, whose
+    rotations are already refined: a chordal stage cut short would only move them away).
     ``on_round(round, poses)`` is called after each round, ``poses`` the current estimate in the pose
     stage and None in the rotation stage. At most ``max_rounds`` rounds over both stages."""
     t0 = time.perf_counter()
@@ -582,12 +622,16 @@ def dgs_rounds(
     robots = int(robot.max()) + 1 if problem.num_vertices else 0
     tols = {"rotation_tol": rotation_tol, "pose_tol": pose_tol}
     _check_options(max_rounds, tols, {"rotation_gamma": rotation_gamma, "pose_gamma": pose_gamma}, schedule)
+    for name, beta in (("rotation_momentum", rotation_momentum), ("pose_momentum", pose_momentum)):
+        if isinstance(beta, bool) or not (isinstance(beta, (int, float)) and 0 <= beta < 1):
+            raise ConfigError(f"{name}: expected a number in [0, 1), got {beta!r}")
     start = problem.initial if initial is None else np.asarray(initial, dtype=np.float64)
     if start.shape != problem.initial.shape:
         raise ConfigError(f"initial: expected shape {problem.initial.shape}, got {start.shape}")
     _check_connected(problem)
     if robots == 1:  # one block is the whole system, solved exactly: over-relaxing it only overshoots
         rotation_gamma = pose_gamma = 1.0
+        rotation_momentum = pose_momentum = 0.0
     run = _Run(
         problem,
         [np.flatnonzero(robot == r) for r in range(robots)],
@@ -598,11 +642,15 @@ def dgs_rounds(
         schedule,
         on_round,
     )
-    rot, converged_rot = _rotation_stage(run, start, rotation_tol, rotation_gamma)
+    if rotation_stage:
+        rot, converged_rot = _rotation_stage(run, start, _StageOptions(rotation_tol, rotation_gamma, rotation_momentum))
+        lin = _pose_start(problem, start, rot, warm_start)
+    else:
+        lin, converged_rot = start.copy(), True
     rotation_rounds = len(run.rounds)
-    lin = _pose_start(problem, start, rot, warm_start)
     chi2_initial = graph_chi2(problem, lin)
-    poses, linearizations, converged_pose = _pose_stage(run, lin, start[problem.anchor], pose_tol, pose_gamma)
+    pose = _StageOptions(pose_tol, pose_gamma, pose_momentum)
+    poses, linearizations, converged_pose = _pose_stage(run, lin, start[problem.anchor], pose)
     return DgsResult(
         poses=poses,
         rounds=tuple(run.rounds),
