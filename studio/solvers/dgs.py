@@ -76,15 +76,15 @@ Stage = Literal["rotation", "pose"]
 #: Rounds at most, both stages together.
 DEFAULT_MAX_ROUNDS = 100
 #: Rotation stage: stop when no entry of a rotation matrix changes by more than this in a round.
-DEFAULT_ROTATION_TOL = 1e-2
+DEFAULT_ROTATION_TOL = 0.2
 #: Pose stage: stop a linear system's rounds when no update entry (m, rad) changes by more than this.
 DEFAULT_POSE_TOL = 1e-2
 #: Over-relaxation of the rotation stage's block updates.
 DEFAULT_ROTATION_GAMMA = 1.0
 #: Over-relaxation of the pose stage's block updates.
 DEFAULT_POSE_GAMMA = 1.9
-#: Nesterov momentum of the rotation stage's rounds (0: none).
-DEFAULT_ROTATION_MOMENTUM = 0.0
+#: Nesterov momentum of the rotation stage's Gauss-Seidel rounds (0: none; Jacobi rounds default to 0).
+DEFAULT_ROTATION_MOMENTUM = 0.9
 #: Nesterov momentum of the pose stage's rounds (0: none).
 DEFAULT_POSE_MOMENTUM = 0.0
 #: Bytes of one number in a message (float64).
@@ -601,7 +601,7 @@ def dgs_rounds(
     pose_tol: float = DEFAULT_POSE_TOL,
     rotation_gamma: float = DEFAULT_ROTATION_GAMMA,
     pose_gamma: float = DEFAULT_POSE_GAMMA,
-    rotation_momentum: float = DEFAULT_ROTATION_MOMENTUM,
+    rotation_momentum: float | None = None,
     pose_momentum: float = DEFAULT_POSE_MOMENTUM,
     schedule: Schedule = "gauss-seidel",
     warm_start: bool = False,
@@ -622,6 +622,8 @@ def dgs_rounds(
     robots = int(robot.max()) + 1 if problem.num_vertices else 0
     tols = {"rotation_tol": rotation_tol, "pose_tol": pose_tol}
     _check_options(max_rounds, tols, {"rotation_gamma": rotation_gamma, "pose_gamma": pose_gamma}, schedule)
+    if rotation_momentum is None:  # Jacobi rounds with momentum diverge on kollagen's graphs
+        rotation_momentum = DEFAULT_ROTATION_MOMENTUM if schedule == "gauss-seidel" else 0.0
     for name, beta in (("rotation_momentum", rotation_momentum), ("pose_momentum", pose_momentum)):
         if isinstance(beta, bool) or not (isinstance(beta, (int, float)) and 0 <= beta < 1):
             raise ConfigError(f"{name}: expected a number in [0, 1), got {beta!r}")
@@ -695,6 +697,8 @@ def solve_dgs(problem: Problem, options: SolveOptions, on_iteration: Iteration |
         pose_tol=options.pose_tol,
         rotation_gamma=options.rotation_gamma,
         pose_gamma=options.pose_gamma,
+        rotation_momentum=options.rotation_momentum,
+        pose_momentum=options.pose_momentum,
         schedule=options.schedule,  # type: ignore[arg-type]  # dgs_rounds checks it
         on_round=on_round,
     )
@@ -714,6 +718,12 @@ def solve_dgs(problem: Problem, options: SolveOptions, on_iteration: Iteration |
             "schedule": options.schedule,
             "rotation_gamma": options.rotation_gamma,
             "pose_gamma": options.pose_gamma,
+            "rotation_momentum": (
+                options.rotation_momentum
+                if options.rotation_momentum is not None
+                else DEFAULT_ROTATION_MOMENTUM * (options.schedule == "gauss-seidel")
+            ),
+            "pose_momentum": options.pose_momentum,
             "rotation_tol": options.rotation_tol,
             "pose_tol": options.pose_tol,
             "round_stage": [r.stage for r in result.rounds],
