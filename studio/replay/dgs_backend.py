@@ -3,38 +3,49 @@ run a few rounds at every checkpoint, warm-started from what the robots believed
 
 At a checkpoint the robots that were in contact since the last one (a group of the replay) and are
 tied by the inter-agent closures they have been delivered form a *team*; a team runs
-:data:`ROUNDS_PER_CHECKPOINT` DGS rounds on what its members know (their odometry and intra-agent
+:data:`CHECKPOINT` (10) DGS rounds on what its members know (their odometry and intra-agent
 closures so far, the delivered closures between members), each robot its own block. The team starts
 from its members' beliefs, new poses continued from each robot's latest belief by the dataset's dead
 reckoning, the pose stage keeping those translations (``warm_start``); the gauge is the lowest-id
 member's first pose, held where that robot believes it. A robot alone is a team of one (its one
 block solved exactly: Gauss-Newton on its own graph). After the last checkpoint every team runs
-:data:`FINAL_ROUNDS` more rounds. Messages and bytes are DGS's own (each round every robot sends
+:data:`FINAL` (100) more rounds. A solve
+whose result has a higher chi2 than its start is not taken (each robot can sum its own edges' chi2;
+the team needs the total, one number each). Messages and bytes are DGS's own (each round every robot sends
 each neighbour its separator values), counted on the pair.
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
 from studio.replay.backends import Step, World, _Base
 from studio.solvers.dgs import DEFAULT_POSE_TOL, dgs_rounds
 from studio.solvers.incremental import compose, inverse
-from studio.solvers.problem import Problem
+from studio.solvers.problem import Problem, graph_chi2
 
-__all__ = ["Dgs", "ROUNDS_PER_CHECKPOINT", "FINAL_ROUNDS"]
+__all__ = ["Dgs", "Budget", "CHECKPOINT", "FINAL"]
 
-#: DGS rounds each team runs at a checkpoint (both stages together).
-ROUNDS_PER_CHECKPOINT = 10
-#: DGS rounds each team runs after the last checkpoint.
-FINAL_ROUNDS = 100
-#: The pose tolerance [m, rad] of the final rounds (the checkpoints' is DGS's default, 1e-2).
-FINAL_POSE_TOL = 1e-4
-#: Over-relaxation of the pose stage's block updates here: on small3x100 under ``always`` 1.6 ends
-#: at the batch optimum (chi2 +0.02 %), 1.0 short of it (+0.3 %), 1.9 diverges.
-POSE_GAMMA = 1.6
+
+@dataclass(frozen=True)
+class Budget:
+    """What a team runs at once: DGS rounds at most (both stages), the pose stage's tolerance [m,
+    rad] and over-relaxation."""
+
+    rounds: int
+    pose_tol: float
+    pose_gamma: float
+
+
+#: At each checkpoint: 10 rounds, DGS's pose tolerance, no over-relaxation (1.6 diverges on
+#: Multi3500x8 once the eight robots are one team: Gauss-Newton steps far from the optimum).
+CHECKPOINT = Budget(10, DEFAULT_POSE_TOL, 1.0)
+#: After the last checkpoint: 100 rounds to a tolerance of 1e-4, over-relaxed by 1.6 (on small3x100
+#: under ``always`` it ends at the batch optimum, chi2 +0.02 %; 1.0 short of it, +0.3 %).
+FINAL = Budget(100, 1e-4, 1.6)
 
 
 def _teams(world: World, group: tuple[int, ...], edges: np.ndarray) -> list[tuple[int, ...]]:
@@ -68,6 +79,8 @@ class Dgs(_Base):
         self.teams: set[tuple[int, ...]] = set()
         """The teams of the last checkpoint: a team seen again skips the rotation stage."""
         self.rounds = 0
+        self.rejected = 0
+        """Solves whose result was not taken (chi2 not below the start's)."""
 
     def _start(self, vertices: np.ndarray) -> np.ndarray:
         """Starting values of ``vertices`` (global ids, sorted): beliefs, new poses dead-reckoned."""
@@ -83,8 +96,9 @@ class Dgs(_Base):
             out[rows] = compose(np.repeat(base, len(rows), axis=0), w.problem.initial[vertices[rows]], kind)
         return out
 
-    def _solve(self, team: tuple[int, ...], tick: int, rounds: int, pose_tol: float) -> float:
-        """``rounds`` DGS rounds of one team on what it knows; the seconds it took."""
+    def _solve(self, team: tuple[int, ...], tick: int, budget: Budget) -> float:
+        """DGS rounds of one team on what it knows; the seconds it took. A result whose chi2 is not
+        below the start's (Gauss-Newton steps can diverge far from the optimum) is not taken."""
         w, p = self.world, self.world.problem
         vertices, edges = self._known(tick, team)
         ids = np.flatnonzero(vertices)
@@ -113,34 +127,36 @@ class Dgs(_Base):
             sub,
             robot_local,
             initial=start,
-            max_rounds=max(rounds, 2),
-            pose_gamma=POSE_GAMMA,
-            pose_tol=pose_tol,
+            max_rounds=max(budget.rounds, 2),
+            pose_gamma=budget.pose_gamma,
+            pose_tol=budget.pose_tol,
             warm_start=True,
             rotation_stage=team not in self.teams,
         )
+        better = bool(graph_chi2(sub, result.poses) < graph_chi2(sub, start))  # nan: not better
         seconds = time.perf_counter() - t0
-        self.own[ids] = result.poses
+        self.own[ids] = result.poses if better else start
+        self.rejected += not better
         self.believed[ids] = True
         self.rounds += result.num_rounds
         for a, b in zip(*np.nonzero(result.bytes_per_link)):
             self._count(team[int(a)], team[int(b)], result.num_rounds, int(result.bytes_per_link[a, b]))
         return seconds
 
-    def _advance(self, tick: int, groups: list[tuple[int, ...]], rounds: int, pose_tol: float) -> Step:
+    def _advance(self, tick: int, groups: list[tuple[int, ...]], budget: Budget) -> Step:
         seconds = 0.0
         teams = set()
         for group in groups:
             _, edges = self._known(tick, group)
             for team in _teams(self.world, group, edges):
-                seconds += self._solve(team, tick, rounds, pose_tol)
+                seconds += self._solve(team, tick, budget)
                 teams.add(team)
         self.teams = teams
         return Step(self.own.copy(), seconds)
 
     def advance(self, tick: int, groups: list[tuple[int, ...]]) -> Step:
         self.last_tick, self.last_groups = tick, groups
-        return self._advance(tick, groups, ROUNDS_PER_CHECKPOINT, DEFAULT_POSE_TOL)
+        return self._advance(tick, groups, CHECKPOINT)
 
     def finish(self) -> Step:
-        return self._advance(self.last_tick, self.last_groups, FINAL_ROUNDS, FINAL_POSE_TOL)
+        return self._advance(self.last_tick, self.last_groups, FINAL)
