@@ -9,10 +9,10 @@ from its members' beliefs, new poses continued from each robot's latest belief b
 reckoning, the pose stage keeping those translations (``warm_start``); the gauge is the lowest-id
 member's first pose, held where that robot believes it. A robot alone is a team of one (its one
 block solved exactly: Gauss-Newton on its own graph). After the last checkpoint every team runs
-:data:`FINAL` (100) more rounds. A solve
-whose result has a higher chi2 than its start is not taken (each robot can sum its own edges' chi2;
-the team needs the total, one number each). Messages and bytes are DGS's own (each round every robot sends
-each neighbour its separator values), counted on the pair.
+:data:`FINAL` (100) more rounds. A solve whose result has a higher chi2 than its start is not
+taken (each robot can sum its own edges' chi2; the team needs the total, one number each). Messages
+and bytes are DGS's own (each round every robot sends each neighbour its separator values), counted
+on the pair.
 """
 
 from __future__ import annotations
