@@ -777,9 +777,10 @@ def solve(
 
 
 def _replay_backend_help() -> str:
+    from studio.replay import DEFAULT_BACKENDS
     from studio.replay.backends import backend_names
 
-    return "Comma-separated back-ends (" + ", ".join(backend_names()) + "); default all."
+    return f"Comma-separated back-ends ({', '.join(backend_names())}); default {','.join(DEFAULT_BACKENDS)}."
 
 
 @app.command()

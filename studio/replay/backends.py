@@ -254,10 +254,18 @@ class Swarm(_Base):
         return Step(self.own.copy(), seconds)
 
 
+def _dgs(world: World) -> Backend:
+    """Distributed Gauss-Seidel, a few rounds per checkpoint (:mod:`studio.replay.dgs_backend`)."""
+    from studio.replay.dgs_backend import Dgs
+
+    return Dgs(world)
+
+
 BACKENDS: dict[str, BackendFactory] = {
     "centralized": Centralized,
     "independent": Independent,
     "swarm": Swarm,
+    "dgs": _dgs,
 }
 
 

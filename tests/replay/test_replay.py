@@ -235,3 +235,22 @@ def test_parquet_without_pyarrow_is_one_line_and_nothing_written(tiny, tmp_path,
     monkeypatch.setitem(sys.modules, "pyarrow", None)  # import pyarrow now raises ImportError
     out = tmp_path / "never-written"
     _fails(["replay", str(tiny.dataset_dir), "-o", str(out), "--parquet"], "parquet: needs pyarrow", out)
+
+
+def test_dgs_with_always_connected_comms_ends_close_to_centralized(always, small, tmp_path):
+    """DGS rounds at every checkpoint, warm-started, reach the centralized back-end's end on a small
+    dataset; they send separators on every link; under ``never`` each robot is its own exact solve."""
+    central = always.runs[0]
+    dgs = replay(small.dataset_dir, tmp_path / "dgs", comms="always", every=20, backends=["dgs"]).runs[0]
+    assert dgs.name == "dgs"
+    assert dgs.chi2_final == pytest.approx(central.chi2_final, rel=0.01)
+    assert dgs.ape_team_first_pose_m[-1] == pytest.approx(central.ape_team_first_pose_m[-1], rel=0.05)
+    assert dgs.ape_team_se3_m[-1] == pytest.approx(central.ape_team_se3_m[-1], rel=0.05)
+    assert dgs.poses_seen[-1].tolist() == [401, 401, 401]
+    assert (dgs.messages > 0).all() and (dgs.bytes > 8 * dgs.messages).all()
+    # along the way the team's map gets better than dead reckoning
+    assert dgs.ape_team_se3_m[-1] < 0.2 * dgs.ape_team_se3_m.max()
+    never = replay(small.dataset_dir, tmp_path / "never", comms="never", every=50, backends=["dgs", "independent"])
+    alone, independent = never.runs
+    assert alone.messages.sum() == 0 and alone.bytes.sum() == 0
+    assert alone.ape_team_se3_m[-1] == pytest.approx(independent.ape_team_se3_m[-1], rel=0.05)

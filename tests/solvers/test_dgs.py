@@ -257,3 +257,30 @@ def test_robots_option_splits_a_single_g2o(tmp_path):
     assert bad.exit_code == 2
     assert "--robots: expected 0 (the default) or a count" in bad.output
     assert not (tmp_path / "x").exists()
+
+
+def test_rotation_momentum_shortens_the_rotation_stage_and_reaches_the_same_optimum():
+    problem, _ = team_problem(PoseKind.SE2, per_robot=60, inter=10, seed=7)
+    robot = problem.agent_of_vertex
+    assert robot is not None
+    kw = dict(max_rounds=2000, rotation_tol=1e-6, pose_tol=1e-7)
+    plain = dgs_rounds(problem, robot, rotation_momentum=0.0, **kw)  # type: ignore[arg-type]
+    fast = dgs_rounds(problem, robot, **kw)  # type: ignore[arg-type]  # momentum 0.9 by default
+    assert plain.converged and fast.converged
+    assert fast.rotation_rounds < plain.rotation_rounds
+    assert graph_chi2(problem, fast.poses) == pytest.approx(graph_chi2(problem, plain.poses), rel=1e-6)
+    with pytest.raises(ConfigError, match=r"rotation_momentum: expected a number in \[0, 1\)"):
+        dgs_rounds(problem, robot, rotation_momentum=1.0)
+    with pytest.raises(ConfigError, match=r"pose_momentum: expected a number in \[0, 1\)"):
+        dgs_rounds(problem, robot, pose_momentum=-0.1)
+
+
+def test_without_the_rotation_stage_rounds_start_at_the_given_poses():
+    problem, _ = team_problem(PoseKind.SE2)
+    robot = problem.agent_of_vertex
+    assert robot is not None
+    batch = get_method("gtsam")(problem, SolveOptions())
+    res = dgs_rounds(problem, robot, initial=batch.poses, rotation_stage=False, max_rounds=5)
+    assert res.rotation_rounds == 0 and res.pose_rounds >= 1
+    assert res.chi2_initial == pytest.approx(graph_chi2(problem, batch.poses), rel=1e-12)
+    assert graph_chi2(problem, res.poses) == pytest.approx(graph_chi2(problem, batch.poses), rel=1e-4)
