@@ -628,8 +628,7 @@ def replay(
     ``parquet``: each CSV table as Parquet too (pyarrow; ConfigError before any work without it)."""
     from studio.io.atomic import staged_outputs
 
-    out = Path(out)
-    names = _check_backends(backends)
+    out, names = Path(out), _check_backends(backends)
     _check_numbers(
         step_s=step_s,
         every=every,
@@ -640,23 +639,19 @@ def replay(
         final_updates=final_updates,
     )
     rrd_path = _rrd_target(rrd, parquet=parquet)
-    parsed = parse_comms(comms)
-    band = None if bandwidth is None else parse_bandwidth(bandwidth)
-    step_ns = round(step_s * NS_PER_S)
+    parsed, band = parse_comms(comms), None if bandwidth is None else parse_bandwidth(bandwidth)
     loaded, graph = _load(dataset)
     inputs: list[PathLike] = [dataset]
     model = _model(parsed, len(graph.agents), inputs)
     times = _times(graph, dataset, period_s)
     settings = IsamSettings(float(relinearize_threshold), relinearize_skip, 0, final_updates, bool(polish))
     _refuse_existing([out] + ([rrd_path] if rrd_path is not None else []), force=force, inputs=inputs)
-    schedule = build_schedule(graph, times, model, step_ns=step_ns, seed=seed, bandwidth=band)
+    schedule = build_schedule(graph, times, model, step_ns=round(step_s * NS_PER_S), seed=seed, bandwidth=band)
     report = comms_report(schedule)
     world = _world(loaded, graph, times, schedule, settings)
     checkpoints = _checkpoints(len(schedule.ticks_ns), every)
-    runs = tuple(
-        _run(name, world, graph, schedule, checkpoints, keep_beliefs=rrd_path is not None, progress=progress)
-        for name in names
-    )
+    keep = rrd_path is not None
+    runs = tuple(_run(n, world, graph, schedule, checkpoints, keep_beliefs=keep, progress=progress) for n in names)
     options = _options(dataset, schedule, names, settings, loaded.problem.kind.value, step_s, every, period_s)
     with staged_outputs(out.parent, [out.name], force=force, inputs=inputs) as staging:
         _write_folder(
