@@ -22,9 +22,11 @@ def _plain_hits(qx, qy, tx, ty, radius):
 
 
 @pytest.mark.parametrize("block_hits", [1 << 16, 1, 37])
-@pytest.mark.parametrize("dense", [True, False])
+@pytest.mark.parametrize("dense", [True, False, "small"])
 @pytest.mark.parametrize("trial", range(6))
 def test_hits_match_the_plain_circle_walk(trial, dense, block_hits, monkeypatch):
+    # the sorted-cell search unless "small": then every (query, table) pair compared at once
+    monkeypatch.setattr("studio.generator.loop_closures._SMALL_PAIRS", 1 << 40 if dense == "small" else -1)
     if not dense:  # the binary-search path used for sparse, far-flung cells
         monkeypatch.setattr("studio.generator.loop_closures._DENSE_COUNT_FACTOR", 0)
     # per-hit columns made a few queries at a time (one query per block with 1)
@@ -46,9 +48,11 @@ def test_hits_match_the_plain_circle_walk(trial, dense, block_hits, monkeypatch)
 
 
 @pytest.mark.parametrize("block_hits", [1 << 16, 1, 37])
+@pytest.mark.parametrize("small", [False, True])
 @pytest.mark.parametrize("trial", range(6))
-def test_packed_hits_give_the_same_probabilities_and_pairs(trial, block_hits, monkeypatch):
+def test_packed_hits_give_the_same_probabilities_and_pairs(trial, small, block_hits, monkeypatch):
     monkeypatch.setattr("studio.generator.loop_closures._LAYOUT_BLOCK_HITS", block_hits)
+    monkeypatch.setattr("studio.generator.loop_closures._SMALL_PAIRS", 1 << 40 if small else -1)
     rng = np.random.default_rng(100 + trial)
     radius = int(rng.integers(1, 7))
     side = int(rng.integers(3, 30))
