@@ -48,9 +48,26 @@ def load_kollagen(folder: str | None) -> Callable[[str, str, int, int], None] | 
     return generate_files
 
 
-def line(label: str, times: list[float]) -> str:
+def line(label: str, times: list[float], cpu: list[float]) -> str:
     med = statistics.median(times)
-    return f"{label:44} median {1e3 * med:7.1f} ms  best {1e3 * min(times):7.1f} ms  ({60 / med:6.0f} datasets/min)"
+    return (
+        f"{label:44} median {1e3 * med:7.1f} ms  best {1e3 * min(times):7.1f} ms  ({60 / med:6.0f} datasets/min)"
+        f"  cpu median {1e3 * statistics.median(cpu):6.1f} ms"
+    )
+
+
+class Timer:
+    """Wall and CPU time of this process around a block, appended to two lists."""
+
+    def __init__(self, wall: list[float], cpu: list[float]) -> None:
+        self.wall, self.cpu = wall, cpu
+
+    def __enter__(self) -> None:
+        self.t0, self.c0 = time.perf_counter(), time.process_time()
+
+    def __exit__(self, *exc: object) -> None:
+        self.wall.append(time.perf_counter() - self.t0)
+        self.cpu.append(time.process_time() - self.c0)
 
 
 def main() -> None:
@@ -70,6 +87,9 @@ def main() -> None:
     mem: list[float] = []
     disk: list[float] = []
     kol: list[float] = []
+    mem_cpu: list[float] = []
+    disk_cpu: list[float] = []
+    kol_cpu: list[float] = []
     differ: list[int] = []
     with tempfile.TemporaryDirectory(dir="/dev/shm" if Path("/dev/shm").is_dir() else None) as tmp:
         for k in range(args.repeat):  # interleaved, the same replicate for each
@@ -83,19 +103,16 @@ def main() -> None:
                 devnull = os.open(os.devnull, os.O_WRONLY)
                 os.dup2(devnull, 1)
                 try:
-                    t0 = time.perf_counter()
-                    kollagen(str(cfg_file), str(Path(tmp) / f"k{k}"), 1, 1)
-                    kol.append(time.perf_counter() - t0)
+                    with Timer(kol, kol_cpu):
+                        kollagen(str(cfg_file), str(Path(tmp) / f"k{k}"), 1, 1)
                 finally:
                     os.dup2(saved, 1)
                     os.close(saved)
                     os.close(devnull)
-            t0 = time.perf_counter()
-            generate(cfg, seed=k)
-            mem.append(time.perf_counter() - t0)
-            t0 = time.perf_counter()
-            synthesize(replicate, Path(tmp) / str(k), rrd=False, jobs=1)
-            disk.append(time.perf_counter() - t0)
+            with Timer(mem, mem_cpu):
+                generate(cfg, seed=k)
+            with Timer(disk, disk_cpu):
+                synthesize(replicate, Path(tmp) / str(k), rrd=False, jobs=1)
             if kollagen is not None:
                 for sub in (cfg.name, f"{cfg.name}_singleg2o"):
                     if not same_files(Path(tmp) / f"k{k}" / sub, Path(tmp) / str(k) / sub):
@@ -110,13 +127,15 @@ def main() -> None:
         f"config: {Path(args.config).name}, {cfg.number_of_agents} agents x {cfg.number_of_steps} steps ({poses} poses)"
     )
     if kol:
-        print(line("kollagen.generate (files, RAM disk)", kol))
-    print(line("studio synthesize (files, RAM disk, no .rrd)", disk))
-    print(line("studio generate (in memory)", mem))
+        print(line("kollagen.generate (files, RAM disk)", kol, kol_cpu))
+    print(line("studio synthesize (files, RAM disk, no .rrd)", disk, disk_cpu))
+    print(line("studio generate (in memory)", mem, mem_cpu))
     if kol:
         print(
             f"ratios: files {statistics.median(kol) / statistics.median(disk):.1f}x kollagen, "
-            f"in memory {statistics.median(kol) / statistics.median(mem):.1f}x kollagen's files (medians)"
+            f"in memory {statistics.median(kol) / statistics.median(mem):.1f}x kollagen's files (medians of wall time); "
+            f"by CPU time {statistics.median(kol_cpu) / statistics.median(disk_cpu):.1f}x and "
+            f"{statistics.median(kol_cpu) / statistics.median(mem_cpu):.1f}x"
         )
     if kol:
         print(

@@ -20,7 +20,6 @@ ALLOWED_LONG = {
     "studio/check.py": "check (110 lines); reworked by the outliers.txt change of issue 22",
     "studio/solve.py": "solve (99 lines); its per-method defaults move into the solver registry",
     "studio/convert.py": "convert (90 lines); its options are being declared once",
-    "studio/synth.py": "synthesize (83 lines); its generator modes move into a registry",
     "studio/solvers/dgs.py": "dgs_rounds (140 lines): the two stages' round loop, to be split into its stages",
     "converters/odometry_source.py": "apply_odometry_sources (83 lines), to be split into fit and apply",
     "studio/io/jrl.py": "read_jrl (179 lines): one pass over the JSON document, to be split per section",
