@@ -47,13 +47,9 @@ class RecordKind(str, enum.Enum):
 
 def _print_version(value: bool) -> None:
     if value:
-        from importlib.metadata import PackageNotFoundError, version
+        from studio.runtime.version import installed_version
 
-        try:
-            installed = version("cslam-studio")
-        except PackageNotFoundError:  # run from a source tree that was not installed
-            from studio import __version__ as installed
-        typer.echo(f"studio {installed}")
+        typer.echo(f"studio {installed_version()}")
         raise typer.Exit()
 
 
