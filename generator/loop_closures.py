@@ -241,20 +241,49 @@ numpy calls in all, instead of :func:`_hit_layout`'s sorted-cell search (whose p
 is most of the cost of a small dataset). The two give the same hits in the same order."""
 
 
+def _pair_dtype(qx: np.ndarray, qy: np.ndarray, tx: np.ndarray, ty: np.ndarray) -> type[np.signedinteger] | None:
+    """The integer type :func:`_small_hits` compares these cells in (32-bit for cells within
+    ``2**15`` of each other, whose squared distances cannot overflow it; else 64-bit), or None when
+    it cannot (few pairs but cells ``2**31`` or more apart: the sorted-cell search takes them)."""
+    if len(qx) * len(tx) > _SMALL_PAIRS:
+        return None
+    if len(qx) == 0 or len(tx) == 0:
+        return np.int64
+    span = max(int(qx.max()), int(tx.max())) - min(int(qx.min()), int(tx.min()))
+    span = max(span, max(int(qy.max()), int(ty.max())) - min(int(qy.min()), int(ty.min())))
+    return np.int32 if span < 1 << 15 else np.int64 if span < 1 << 31 else None
+
+
 def _small_hits(
-    qx: np.ndarray, qy: np.ndarray, tx: np.ndarray, ty: np.ndarray, circle: _CircleTable
+    qx: np.ndarray,
+    qy: np.ndarray,
+    tx: np.ndarray,
+    ty: np.ndarray,
+    circle: _CircleTable,
+    dtype: type[np.signedinteger],
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`_enumerate_hits` by comparing every (query, table) pair: ``(k, m, rank)`` in kollagen's
-    visiting order (by query, then rank; table cells are distinct, so a query's ranks are too)."""
+    """:func:`_enumerate_hits` by comparing every (query, table) pair in ``dtype``
+    (:func:`_pair_dtype`): ``(k, m, rank)`` in kollagen's visiting order (by query, then rank; table
+    cells are distinct, so a query's ranks are too). The sort key is 32-bit where it fits."""
     R = circle.radius
     side = 2 * R + 1
-    dx = tx[None, :] - qx[:, None]
-    dy = ty[None, :] - qy[:, None]
-    k, m = np.nonzero((np.abs(dx) <= R) & (np.abs(dy) <= R))  # by query, then table
-    rank = circle.rank.ravel()[(dx[k, m] + R) * side + (dy[k, m] + R)]
-    inside = np.flatnonzero(rank >= -1)  # -2: in the square, outside the circle
-    k, m, rank = k[inside], m[inside], rank[inside]
-    order = np.argsort(k * (circle.size + 1) + (rank + 1), kind="stable")
+    if len(qx) == 0 or len(tx) == 0:
+        z = np.zeros(0, dtype=np.int64)
+        return z, z, z
+    dx = tx.astype(dtype)[None, :] - qx.astype(dtype)[:, None]
+    dy = ty.astype(dtype)[None, :] - qy.astype(dtype)[:, None]
+    flat = dx * side
+    flat += dy  # the offset's flat index less the centre's (wraps only far outside the circle)
+    dx *= dx
+    dy *= dy
+    dx += dy
+    inside = dx <= R * R  # the discrete circle: |dy| <= isqrt(R^2 - dx^2)
+    k, m = np.nonzero(inside)  # by query, then table
+    rank = circle.rank.ravel()[flat[inside] + (R * side + R)]
+    key_type = np.int32 if len(qx) * (circle.size + 1) < 1 << 31 else np.int64
+    key = k.astype(key_type) * key_type(circle.size + 1)
+    key += (rank + 1).astype(key_type)
+    order = np.argsort(key, kind="stable")  # the keys come by query already: a merge sort's best case
     return k[order], m[order], rank[order]
 
 
@@ -267,8 +296,9 @@ def _enumerate_hits(
     then the circle's order. Table cells must be distinct. (See :func:`_hit_layout`; few pairs:
     :func:`_small_hits`.)
     """
-    if len(qx) * len(tx) <= _SMALL_PAIRS:
-        return _small_hits(qx, qy, tx, ty, circle)
+    dtype = _pair_dtype(qx, qy, tx, ty)
+    if dtype is not None:
+        return _small_hits(qx, qy, tx, ty, circle, dtype)
     layout = _hit_layout(qx, qy, tx, ty, circle)
     if layout is None:
         z = np.zeros(0, dtype=np.int64)
@@ -303,8 +333,9 @@ class _Hits:
         prob_by_rank: np.ndarray,
     ) -> None:
         self._small: tuple[np.ndarray, np.ndarray] | None = None
-        if len(qx) * len(tx) <= _SMALL_PAIRS:  # few pairs: every hit's (k, m) is cheap to keep
-            k, m, rank = _small_hits(qx, qy, tx, ty, circle)
+        dtype = _pair_dtype(qx, qy, tx, ty)
+        if dtype is not None:  # few pairs: every hit's (k, m) is cheap to keep
+            k, m, rank = _small_hits(qx, qy, tx, ty, circle, dtype)
             self._small = k, m
             self.probs = prob_by_rank[rank + 1]
             return
