@@ -36,6 +36,7 @@ def main() -> None:
         from studio.runtime.version import installed_version
 
         print(f"studio {installed_version()}")
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # as after any command (below)
         return
     limit_blas_threads()
     try:
