@@ -6,8 +6,9 @@ progress=None) -> list[Trajectory]``, where ``inputs`` are the paths given on th
 many inputs, what its agents are named after, its help line, how its paths are recognised, its
 agents' default body frames) are declared once in its entry, and :func:`check_inputs` checks them
 before any reader runs; ``studio convert``'s help and source list are built from the entries.
-Readers that need heavy libraries import them when called. A new source is one module with its
-reader and one entry here.
+Each entry names its reader, detection and other code by module and attribute
+(:class:`~studio.core.lazy.Lazy`): a module is imported when its source is used, so a command pays
+only for the sources it reads. A new source is one module with its reader and one entry here.
 """
 
 from __future__ import annotations
@@ -15,26 +16,16 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
-from studio.converters.airmuseum import BODY_FRAMES as AIRMUSEUM_BODY_FRAMES
-from studio.converters.airmuseum import is_airmuseum_sequence, read_airmuseum
-from studio.converters.dpgo import read_dpgo_graph, read_dpgo_trajectories
-from studio.converters.euroc import euroc_ground_truth, read_euroc
-from studio.converters.g2o import read_g2o_graph, read_g2o_trajectories
-from studio.converters.graph_split import GraphImportOptions, ImportedGraph
-from studio.converters.jrl import read_jrl_graph, read_jrl_trajectories
-from studio.converters.kimera_multi import SUFFIX as KIMERA_SUFFIX
-from studio.converters.kimera_multi import kimera_files, read_kimera_multi
-from studio.converters.kitti import read_kitti
-from studio.converters.mrclam import read_mrclam, read_mrclam_odometry, read_mrclam_sightings
-from studio.converters.s3e import is_s3e_sequence, read_s3e
-from studio.converters.symbols import read_symbols_graph, read_symbols_trajectories
-from studio.converters.tum import read_tum_sources
 from studio.core.errors import ConfigError
-from studio.core.trajectory import Trajectory, Warn
+from studio.core.lazy import Lazy, LazyMapping
 from studio.core.types import PathLike
-from studio.runtime.progress import Progress
+
+if TYPE_CHECKING:
+    from studio.converters.graph_split import GraphImportOptions, ImportedGraph
+    from studio.core.trajectory import Trajectory, Warn
+    from studio.runtime.progress import Progress
 
 __all__ = [
     "SourceReader",
@@ -145,10 +136,15 @@ def _is_bag(path: Path) -> bool:
 
 
 def _is_euroc(path: Path) -> bool:
+    from studio.converters.euroc import euroc_ground_truth
+
     return (path.is_dir() or path.name == "data.csv") and euroc_ground_truth(path) is not None
 
 
 def _is_kimera_multi(path: Path) -> bool:
+    from studio.converters.kimera_multi import SUFFIX as KIMERA_SUFFIX
+    from studio.converters.kimera_multi import kimera_files
+
     return bool(kimera_files(path)) if path.is_dir() else path.name.endswith(KIMERA_SUFFIX)
 
 
@@ -176,24 +172,28 @@ def _is_dpgo(path: Path) -> bool:
 
 SOURCES: dict[str, Source] = {
     "tum": Source(
-        read_tum_sources, "trajectory files", "their files", "TUM trajectories, one agent per file", detect=_is_tum
+        Lazy("studio.converters.tum", "read_tum_sources"),
+        "trajectory files",
+        "their files",
+        "TUM trajectories, one agent per file",
+        detect=_is_tum,
     ),
     "s3e": Source(
-        read_s3e,
+        Lazy("studio.converters.s3e", "read_s3e"),
         "one sequence folder",
         "alpha, bob and carol",
         "an S3E sequence (<agent>_gt.txt, or its bag's GNSS fixes)",
         one_input=True,
-        detect=is_s3e_sequence,
+        detect=Lazy("studio.converters.s3e", "is_s3e_sequence"),
     ),
     "airmuseum": Source(
-        read_airmuseum,
+        Lazy("studio.converters.airmuseum", "read_airmuseum"),
         "one sequence folder",
         "the robot folders",
         "an AirMuseum scenario (one ground truth per robot; its body frames by default)",
         one_input=True,
-        detect=is_airmuseum_sequence,
-        body_frames=AIRMUSEUM_BODY_FRAMES,
+        detect=Lazy("studio.converters.airmuseum", "is_airmuseum_sequence"),
+        body_frames=LazyMapping("studio.converters.airmuseum", "BODY_FRAMES"),
     ),
     "bag": Source(
         _read_bag,
@@ -204,61 +204,69 @@ SOURCES: dict[str, Source] = {
         detect=_is_bag,
     ),
     "euroc": Source(
-        read_euroc, "sequence folders (e.g. MH_01_easy)", "their sequences", "EuRoC MAV ground truth", detect=_is_euroc
+        Lazy("studio.converters.euroc", "read_euroc"),
+        "sequence folders (e.g. MH_01_easy)",
+        "their sequences",
+        "EuRoC MAV ground truth",
+        detect=_is_euroc,
     ),
     "kitti": Source(
-        read_kitti, "poses files (e.g. poses/00.txt)", "their files", "KITTI odometry poses", detect=_is_kitti
+        Lazy("studio.converters.kitti", "read_kitti"),
+        "poses files (e.g. poses/00.txt)",
+        "their files",
+        "KITTI odometry poses",
+        detect=_is_kitti,
     ),
     "kimera-multi": Source(
-        read_kimera_multi,
+        Lazy("studio.converters.kimera_multi", "read_kimera_multi"),
         "a ground-truth folder",
         "the robots' files",
         "Kimera-Multi ground truth (<robot>_gt_odom.csv)",
         detect=_is_kimera_multi,
     ),
     "jrl": Source(
-        read_jrl_trajectories,
+        Lazy("studio.converters.jrl", "read_jrl_trajectories"),
         "one JRL file",
         "its robots (the names it keeps)",
         "a JRL file (MESA, COSMO-Bench), the graph as it is",
         one_input=True,
-        read_graph=read_jrl_graph,
+        read_graph=Lazy("studio.converters.jrl", "read_jrl_graph"),
         detect=_is_jrl,
     ),
     "symbols": Source(
-        read_symbols_trajectories,
+        Lazy("studio.converters.symbols", "read_symbols_trajectories"),
         "one folder of Symbol-keyed g2o files (0.g2o, 1.g2o, ... or fullGraph.g2o)",
         "their Symbol characters",
         "per-robot g2o files with GTSAM Symbol keys (DGS, Kimera-Multi)",
         one_input=True,
-        read_graph=read_symbols_graph,
+        read_graph=Lazy("studio.converters.symbols", "read_symbols_graph"),
         detect=_is_symbols,
     ),
     "dpgo": Source(
-        read_dpgo_trajectories,
+        Lazy("studio.converters.dpgo", "read_dpgo_trajectories"),
         "a folder of measurements.csv files, or the files",
         "robot0..",
         "DPGO's per-robot measurements.csv",
-        read_graph=read_dpgo_graph,
+        read_graph=Lazy("studio.converters.dpgo", "read_dpgo_graph"),
         detect=_is_dpgo,
     ),
     "g2o": Source(
-        read_g2o_trajectories,
+        Lazy("studio.converters.g2o", "read_g2o_trajectories"),
         "one .g2o file",
         "the file (robot0.. with --split)",
         "any single g2o graph, split into robots with --split/--partition",
         one_input=True,
-        read_graph=read_g2o_graph,
+        read_graph=Lazy("studio.converters.g2o", "read_g2o_graph"),
         detect=_is_g2o,
     ),
     "mrclam": Source(
-        read_mrclam,
+        Lazy("studio.converters.mrclam", "read_mrclam"),
         "one dataset folder (e.g. MRCLAM_Dataset1)",
         "Robot1..Robot5",
         "UTIAS MR.CLAM (RobotK_Groundtruth.dat; its odometry and robot sightings)",
         one_input=True,
-        odometry=read_mrclam_odometry,
-        sightings=read_mrclam_sightings,
+        odometry=Lazy("studio.converters.mrclam", "read_mrclam_odometry"),
+        sightings=Lazy("studio.converters.mrclam", "read_mrclam_sightings"),
         detect=_is_mrclam,
     ),
 }

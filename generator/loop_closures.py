@@ -9,6 +9,7 @@ only the likely ones and the accepted ones (with their three normals) go through
 
 from __future__ import annotations
 
+import functools
 import math
 from bisect import bisect_left
 from collections.abc import Callable, Iterator, Sequence
@@ -80,10 +81,33 @@ class _CircleTable:
 
     def probabilities(self, same_cell: float, scale: float, radius_m: float) -> np.ndarray:
         """Probability per rank + 1: ``same_cell`` for the same-cell check, else kollagen's
-        ``scale * exp(-5 (dx^2 + dy^2) / r^2)`` (offsets in cells, radius in metres)."""
-        p = np.array([scale * math.exp(-5.0 * v / (radius_m * radius_m)) for v in self.d2_by_rank.tolist()])
-        p[0] = same_cell
-        return p
+        ``scale * exp(-5 (dx^2 + dy^2) / r^2)`` (offsets in cells, radius in metres). Read-only:
+        tables of the same arguments are made once (a small dataset would spend a tenth of its
+        time on them)."""
+        return _probabilities(self.radius, float(same_cell), float(scale), float(radius_m))
+
+    @staticmethod
+    def of_radius(radius: int) -> _CircleTable:
+        """The table of ``radius``, made once per process (read-only)."""
+        return _circle_table(radius)
+
+
+@functools.lru_cache(maxsize=64)
+def _circle_table(radius: int) -> _CircleTable:
+    table = _CircleTable(radius)
+    for v in (table.rank, table.d2_by_rank, table.diagonal_by_rank, table.ylim):
+        v.setflags(write=False)
+    return table
+
+
+@functools.lru_cache(maxsize=256)
+def _probabilities(radius: int, same_cell: float, scale: float, radius_m: float) -> np.ndarray:
+    d2 = _circle_table(radius).d2_by_rank
+    # math.exp per value: numpy's exp may differ from libm's in the last bit
+    p = np.array([scale * math.exp(-5.0 * v / (radius_m * radius_m)) for v in d2.tolist()])
+    p[0] = same_cell
+    p.setflags(write=False)
+    return p
 
 
 def _visits(cx: np.ndarray, cy: np.ndarray, which: str) -> np.ndarray:
@@ -211,6 +235,57 @@ class _HitLayout:
 _LAYOUT_BLOCK_HITS = 1 << 16
 """Hits per block of :meth:`_HitLayout.blocks` (each per-hit column then takes 512 KiB)."""
 
+_SMALL_PAIRS = 1 << 17
+"""At most this many (query, table) pairs: :func:`_small_hits` compares every pair at once, a dozen
+numpy calls in all, instead of :func:`_hit_layout`'s sorted-cell search (whose per-call overhead
+is most of the cost of a small dataset). The two give the same hits in the same order."""
+
+
+def _pair_dtype(qx: np.ndarray, qy: np.ndarray, tx: np.ndarray, ty: np.ndarray) -> type[np.signedinteger] | None:
+    """The integer type :func:`_small_hits` compares these cells in (32-bit for cells within
+    ``2**15`` of each other, whose squared distances cannot overflow it; else 64-bit), or None when
+    it cannot (few pairs but cells ``2**31`` or more apart: the sorted-cell search takes them)."""
+    if len(qx) * len(tx) > _SMALL_PAIRS:
+        return None
+    if len(qx) == 0 or len(tx) == 0:
+        return np.int64
+    span = max(int(qx.max()), int(tx.max())) - min(int(qx.min()), int(tx.min()))
+    span = max(span, max(int(qy.max()), int(ty.max())) - min(int(qy.min()), int(ty.min())))
+    return np.int32 if span < 1 << 15 else np.int64 if span < 1 << 31 else None
+
+
+def _small_hits(
+    qx: np.ndarray,
+    qy: np.ndarray,
+    tx: np.ndarray,
+    ty: np.ndarray,
+    circle: _CircleTable,
+    dtype: type[np.signedinteger],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_enumerate_hits` by comparing every (query, table) pair in ``dtype``
+    (:func:`_pair_dtype`): ``(k, m, rank)`` in kollagen's visiting order (by query, then rank; table
+    cells are distinct, so a query's ranks are too). The sort key is 32-bit where it fits."""
+    R = circle.radius
+    side = 2 * R + 1
+    if len(qx) == 0 or len(tx) == 0:
+        z = np.zeros(0, dtype=np.int64)
+        return z, z, z
+    dx = tx.astype(dtype)[None, :] - qx.astype(dtype)[:, None]
+    dy = ty.astype(dtype)[None, :] - qy.astype(dtype)[:, None]
+    flat = dx * side
+    flat += dy  # the offset's flat index less the centre's (wraps only far outside the circle)
+    dx *= dx
+    dy *= dy
+    dx += dy
+    inside = dx <= R * R  # the discrete circle: |dy| <= isqrt(R^2 - dx^2)
+    k, m = np.nonzero(inside)  # by query, then table
+    rank = circle.rank.ravel()[flat[inside] + (R * side + R)]
+    key_type = np.int32 if len(qx) * (circle.size + 1) < 1 << 31 else np.int64
+    key = k.astype(key_type) * key_type(circle.size + 1)
+    key += (rank + 1).astype(key_type)
+    order = np.argsort(key, kind="stable")  # the keys come by query already: a merge sort's best case
+    return k[order], m[order], rank[order]
+
 
 def _enumerate_hits(
     qx: np.ndarray, qy: np.ndarray, tx: np.ndarray, ty: np.ndarray, circle: _CircleTable
@@ -218,8 +293,12 @@ def _enumerate_hits(
     """Every (query k, table m) pair whose cells are at most the circle's radius apart.
 
     Returns ``(k, m, rank)`` sorted in kollagen's visiting order: by query, then the same-cell check,
-    then the circle's order. Table cells must be distinct. (See :func:`_hit_layout`.)
+    then the circle's order. Table cells must be distinct. (See :func:`_hit_layout`; few pairs:
+    :func:`_small_hits`.)
     """
+    dtype = _pair_dtype(qx, qy, tx, ty)
+    if dtype is not None:
+        return _small_hits(qx, qy, tx, ty, circle, dtype)
     layout = _hit_layout(qx, qy, tx, ty, circle)
     if layout is None:
         z = np.zeros(0, dtype=np.int64)
@@ -253,6 +332,13 @@ class _Hits:
         circle: _CircleTable,
         prob_by_rank: np.ndarray,
     ) -> None:
+        self._small: tuple[np.ndarray, np.ndarray] | None = None
+        dtype = _pair_dtype(qx, qy, tx, ty)
+        if dtype is not None:  # few pairs: every hit's (k, m) is cheap to keep
+            k, m, rank = _small_hits(qx, qy, tx, ty, circle, dtype)
+            self._small = k, m
+            self.probs = prob_by_rank[rank + 1]
+            return
         layout = _hit_layout(qx, qy, tx, ty, circle)
         if layout is None:
             self.probs = np.zeros(0)
@@ -272,6 +358,8 @@ class _Hits:
         if len(hits) == 0:
             z = np.zeros(0, dtype=np.int64)
             return z, z
+        if self._small is not None:
+            return self._small[0][hits], self._small[1][hits]
         k = np.searchsorted(self._query_first, hits, side="right") - 1
         m = self._order[self._packed[hits] >> self._bits]
         return k, m
@@ -361,7 +449,7 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     cx, cy = _grid_cells(walk.x, walk.y, cfg)
     n = len(cx)
     radius = _round_to_int(agent.intra_loop_closure_radius * cfg.step_fragment / cfg.stepsize)
-    circle = _CircleTable(radius)
+    circle = _CircleTable.of_radius(radius)
     first = np.sort(_visits(cx, cy, "first"))  # cells in order of their first visit
     table = circle.probabilities(
         agent.same_position_intra_loop_closure_probability,
@@ -376,7 +464,9 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     # Only the kept hits' probabilities and poses outlive their block (a block's hits take about ten
     # times as much memory, and fresh memory is what a cold process pays for most).
     probs, to_pose, from_pose = [], [], []
-    bounds = np.linspace(0, n, num=min(n, 16) + 1).astype(np.int64)
+    # (a small walk is one block: its every (pose, cell) pair is compared at once)
+    n_blocks = 1 if n * len(first) <= _SMALL_PAIRS else min(n, 16)
+    bounds = np.linspace(0, n, num=n_blocks + 1).astype(np.int64)
     for lo, hi in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
         known = first[: np.searchsorted(first, hi)]
         k, m, rank = _enumerate_hits(cx[lo:hi], cy[lo:hi], cx[known], cy[known], circle)
@@ -418,7 +508,7 @@ class _InterPairs:
         self._inter = p
         self._walks, self._cells = walks, cells
         radius = _round_to_int(p.loop_closure_radius * cfg.step_fragment / cfg.stepsize)
-        self._circle = _CircleTable(radius)
+        self._circle = _CircleTable.of_radius(radius)
         self._prob_by_rank = self._circle.probabilities(
             p.same_position_loop_closure_probability, p.loop_closure_probability_scaling, p.loop_closure_radius
         )

@@ -54,13 +54,9 @@ class RecordKind(str, enum.Enum):
 
 def _print_version(value: bool) -> None:
     if value:
-        from importlib.metadata import PackageNotFoundError, version
+        from studio.runtime.version import installed_version
 
-        try:
-            installed = version("cslam-studio")
-        except PackageNotFoundError:  # run from a source tree that was not installed
-            from studio import __version__ as installed
-        typer.echo(f"studio {installed}")
+        typer.echo(f"studio {installed_version()}")
         raise typer.Exit()
 
 
@@ -145,16 +141,44 @@ def synth(
     ),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
     rrd: bool = typer.Option(True, "--rrd/--no-rrd", help="Also write the Rerun recording OUT/<name>.rrd."),
+    seeds: str | None = typer.Option(
+        None,
+        "--seeds",
+        metavar="FIRST..LAST|SEED,...",
+        help="Replicates (sweep's seeds) into OUT/seed<k>/ each, in one process; a killed batch resumes "
+        "(finished seed folders are kept). Example: --seeds 0..999",
+    ),
 ) -> None:
     """Generate a multi-agent pose graph exactly as kollagen's `generate CONFIG OUT` does.
 
     Example: studio synth multi3500x8 -o out/
     """
     _tune_allocator()
-    from studio.synth import load_synth_config, synthesize
+    from studio.synth import load_synth_config, parse_seeds, synthesize, synthesize_seeds
 
     t0 = time.perf_counter()
     cfg = load_synth_config(config, warn=_warn)
+    if seeds is not None:
+        with terminal_progress(not quiet) as progress:
+            batch = synthesize_seeds(
+                cfg,
+                out,
+                parse_seeds(seeds),
+                force=force,
+                multi_records=multi_records.value,
+                single_records=single_records.value,
+                jobs=jobs or None,
+                max_memory_gb=max_memory_gb,
+                max_output_gb=max_output_gb,
+                rrd=rrd,
+                progress=progress,
+            )
+        if not quiet:
+            typer.echo(
+                f"{cfg.name}: {len(batch.written)} seeds written, {len(batch.kept)} kept (finished before) "
+                f"in {time.perf_counter() - t0:.2f} s\n  {batch.out_dir}/seed<k>"
+            )
+        return
     with terminal_progress(not quiet) as progress:
         res = synthesize(
             cfg,

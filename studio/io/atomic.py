@@ -41,6 +41,8 @@ from studio.runtime.interrupts import interrupts_deferred
 __all__ = [
     "staged_outputs",
     "check_outputs",
+    "is_studio_output",
+    "sync_file_system",
     "output_workspace",
     "write_replacing",
     "check_not_overlapping",
@@ -153,8 +155,9 @@ def start_writeback(f: IO[bytes]) -> None:
         pass
 
 
-def _fsync_tree(root: Path) -> None:
-    """fsync every file under ``root`` and the folders holding them; verify recordings."""
+def _fsync_tree(root: Path, *, sync: bool = True) -> None:
+    """fsync every file under ``root`` and the folders holding them (unless not ``sync``); verify
+    recordings."""
     paths = [root] if root.is_file() else [root, *sorted(root.rglob("*"))]
     for p in paths:
         if p.is_symlink():
@@ -162,13 +165,37 @@ def _fsync_tree(root: Path) -> None:
         if p.is_file():
             if p.suffix == ".rrd":
                 verify_rrd(p)
+            if not sync:
+                continue
             fd = os.open(p, os.O_RDONLY)
             try:
                 os.fsync(fd)
             finally:
                 os.close(fd)
-    for d in [p for p in paths if p.is_dir() and not p.is_symlink()]:
+    for d in [p for p in paths if p.is_dir() and not p.is_symlink()] if sync else []:
         _fsync_dir(d)
+
+
+def sync_file_system(path: PathLike) -> None:
+    """Make durable everything written to the file system holding ``path``: one ``syncfs`` (Linux;
+    elsewhere ``sync``), for a batch of outputs staged with ``durable=False`` (see
+    :func:`staged_outputs`). An error is an :class:`OutputError` naming the path."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        syncfs = libc.syncfs
+    except (OSError, AttributeError):
+        os.sync()
+        return
+    fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        if syncfs(fd) != 0:
+            err = ctypes.get_errno()
+            raise OutputError(os_error_message(OSError(err, os.strerror(err)), Path(path)))
+    finally:
+        os.close(fd)
 
 
 def _fsync_dir(d: Path) -> None:
@@ -310,6 +337,13 @@ def _is_marked(folder: Path) -> bool:
     return _marker(folder) == _OUTPUT
 
 
+def is_studio_output(folder: PathLike) -> bool:
+    """Whether ``folder`` is a folder a studio command wrote in one go (staged, marked and renamed
+    into place, so complete): a resumable batch keeps such folders."""
+    path = Path(folder)
+    return path.is_dir() and not path.is_symlink() and _is_marked(path)
+
+
 def _check_replaceable(dst: Path, staged: Path | None) -> None:
     """With ``--force``: ``dst`` may be replaced only by something of the same kind that a studio
     command wrote (a folder with the marker, or a regular file)."""
@@ -423,7 +457,12 @@ def check_workspace(folder: PathLike, *, kind: str, inputs: Iterable[PathLike] =
 
 @contextlib.contextmanager
 def staged_outputs(
-    parent: PathLike, names: list[str], *, force: bool = False, inputs: Iterable[PathLike] = ()
+    parent: PathLike,
+    names: list[str],
+    *,
+    force: bool = False,
+    inputs: Iterable[PathLike] = (),
+    durable: bool = True,
 ) -> Iterator[Path]:
     """Yield a staging folder; on success move ``staging/<name>`` to ``parent/<name>`` for each name.
 
@@ -433,6 +472,11 @@ def staged_outputs(
     target. Folders among the outputs get a ``.studio-output`` marker. Entries of ``names`` that
     the body did not create are skipped. An ``OSError`` in the body or the renames becomes an
     :class:`OutputError` naming the target path.
+
+    ``durable=False`` skips the fsyncs (the outputs are complete when renamed, but a crash of the
+    machine, not of the process, may lose them): for a batch of many small outputs that calls
+    :func:`sync_file_system` itself now and then (a dozen fsyncs per small dataset cost more than
+    writing it on a real disk: 200 datasets of 723 poses, 33 s against 10 s in RAM, at load 12).
     """
     parent = Path(parent)
     check_outputs(parent, names, force=force, inputs=inputs)
@@ -465,11 +509,11 @@ def staged_outputs(
                 for name in made_names:
                     if (staging / name).is_dir():
                         _mark(staging / name)
-                    _fsync_tree(staging / name)
+                    _fsync_tree(staging / name, sync=durable)
                 for name in made_names:
                     if (parent / name).exists() or (parent / name).is_symlink():
                         _check_replaceable(parent / name, staging / name)
-                _replace_all(staging, parent, made_names)
+                _replace_all(staging, parent, made_names, sync=durable)
                 finished = True
             except (OSError, OutputError) as err:
                 # one line naming the real target, never the staging folder (a full disk, a recording
@@ -486,7 +530,7 @@ def staged_outputs(
                 shutil.rmtree(staging, ignore_errors=True)
 
 
-def _replace_all(staging: Path, parent: Path, made: list[str]) -> None:
+def _replace_all(staging: Path, parent: Path, made: list[str], *, sync: bool = True) -> None:
     """Move old outputs aside, new ones in, journaled so that an interruption can be undone."""
     trash = staging / _REPLACED
     had_old = [n for n in made if (parent / n).exists() or (parent / n).is_symlink()]
@@ -499,7 +543,8 @@ def _replace_all(staging: Path, parent: Path, made: list[str]) -> None:
         os.replace(parent / name, trash / name)
     for name in made:
         os.replace(staging / name, parent / name)
-    _fsync_dir(parent)
+    if sync:
+        _fsync_dir(parent)
     state["done"] = True
     journal.write_text(json.dumps(state), encoding="utf-8")
 

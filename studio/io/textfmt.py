@@ -411,6 +411,13 @@ def _with_zero(col: TextColumn, values: np.ndarray, zero: str | None) -> TextCol
     return TextColumn(chars, lengths)
 
 
+_PYTHON_FORMAT_MAX = {"%.17g": 256, "%f": 4096}
+"""Up to this many values, :func:`_format_block` formats each with Python's ``%`` (which gives the
+same text as the numpy path, and as C): the numpy path's fixed cost of about 0.3 ms per block is
+more than Python's 0.5-0.7 us per value below these sizes (measured at load 14: 100 values, 80 us
+against 300 us for ``%.17g``; ``%f`` is no slower in Python up to 10,000 values)."""
+
+
 def _format_block(v: np.ndarray, fmt: str) -> tuple[np.ndarray, np.ndarray]:
     """Text of every value of a flat array: ``(chars (n, w), lengths (n,))``."""
     if fmt not in ("%.17g", "%f"):
@@ -418,6 +425,9 @@ def _format_block(v: np.ndarray, fmt: str) -> tuple[np.ndarray, np.ndarray]:
     n = len(v)
     if n == 0:
         return np.zeros((0, 1), dtype=np.uint8), np.zeros(0, dtype=np.int64)
+    if n <= _PYTHON_FORMAT_MAX[fmt]:  # few values: Python's % (C's digits) beats the numpy passes
+        few = _from_strings([fmt % val for val in v.tolist()])
+        return few.chars, few.lengths
     neg = np.signbit(v)
     a = np.abs(v)
     finite = np.isfinite(a)

@@ -5,8 +5,10 @@ The registry is an explicit dict of :class:`SolveMethod` entries, the whole decl
 method: its name, one line of help, the :class:`~studio.solvers.problem.SolveOptions` it reads and
 its own defaults for them. ``studio solve --method`` (choices and help), ``studio solve``'s
 defaults and ``studio bench``'s per-method options are built from it; an unknown name raises and
-lists the known ones. A method imports its library when called, and a missing library raises a
-one-line ConfigError naming the extra to install (``pip install 'cslam-studio[solve]'``).
+lists the known ones. An entry names its back-end by module and attribute
+(:class:`~studio.core.lazy.Lazy`), imported when the method is used; the back-end imports its
+library when called, and a missing library raises a one-line ConfigError naming the extra to
+install (``pip install 'cslam-studio[solve]'``).
 """
 
 from __future__ import annotations
@@ -17,11 +19,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from studio.core.errors import ConfigError
-from studio.solvers.command import solve_command
-from studio.solvers.dgs import DEFAULT_MAX_ROUNDS, solve_dgs
-from studio.solvers.g2o_method import G2O_DEFAULT_ITERATIONS, solve_g2o
-from studio.solvers.gtsam_method import solve_gnc, solve_gtsam
-from studio.solvers.problem import Method, SolveOptions
+from studio.core.lazy import Lazy
+from studio.solvers.problem import DEFAULT_MAX_ROUNDS, G2O_DEFAULT_ITERATIONS, Method, SolveOptions
 
 __all__ = [
     "METHODS",
@@ -74,19 +73,24 @@ _GTSAM_OPTIONS = ("optimizer", "init", "max_iterations", "relative_tolerance")
 METHODS: dict[str, SolveMethod] = {
     entry.name: entry
     for entry in (
-        SolveMethod("gtsam", solve_gtsam, "chordal guess + GN", _GTSAM_OPTIONS),
+        SolveMethod("gtsam", Lazy("studio.solvers.gtsam_method", "solve_gtsam"), "chordal guess + GN", _GTSAM_OPTIONS),
         SolveMethod(
             "g2o",
-            solve_g2o,
+            Lazy("studio.solvers.g2o_method", "solve_g2o"),
             "the paper's setup: spanning tree, then GN for exactly --iterations",
             ("init", "max_iterations"),
             {"max_iterations": G2O_DEFAULT_ITERATIONS},
         ),
-        SolveMethod("gnc", solve_gnc, "robust: rejects outlier loop closures", _GTSAM_OPTIONS),
-        SolveMethod("command", solve_command, "an external program", ("command",)),
+        SolveMethod(
+            "gnc",
+            Lazy("studio.solvers.gtsam_method", "solve_gnc"),
+            "robust: rejects outlier loop closures",
+            _GTSAM_OPTIONS,
+        ),
+        SolveMethod("command", Lazy("studio.solvers.command", "solve_command"), "an external program", ("command",)),
         SolveMethod(
             "dgs",
-            solve_dgs,
+            Lazy("studio.solvers.dgs", "solve_dgs"),
             "Distributed Gauss-Seidel: chordal rotations, then poses, each robot its own block, rounds counted",
             (
                 "max_iterations",

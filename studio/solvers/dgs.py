@@ -56,7 +56,7 @@ import numpy as np
 from studio.core.errors import ConfigError, GraphError
 from studio.core.geometry import normalize_angle, upper_to_matrix
 from studio.core.model import PoseKind
-from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
+from studio.solvers.problem import DEFAULT_MAX_ROUNDS, Iteration, Problem, Solution, SolveOptions, graph_chi2
 
 __all__ = [
     "Schedule",
@@ -78,8 +78,6 @@ __all__ = [
 Schedule = Literal["gauss-seidel", "jacobi"]
 Stage = Literal["rotation", "pose"]
 
-#: Rounds at most, both stages together.
-DEFAULT_MAX_ROUNDS = 100
 #: Rotation stage: stop when no entry of a rotation matrix changes by more than this in a round.
 DEFAULT_ROTATION_TOL = 0.2
 #: Pose stage: stop a linear system's rounds when no update entry (m, rad) changes by more than this.

@@ -17,12 +17,9 @@ import numpy as np
 from studio.core.errors import ConfigError, FormatError
 from studio.core.model import PoseKind
 from studio.io.g2o import G2oDocument, write_g2o
-from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
+from studio.solvers.problem import G2O_DEFAULT_ITERATIONS, Iteration, Problem, Solution, SolveOptions, graph_chi2
 
 __all__ = ["solve_g2o", "G2O_DEFAULT_ITERATIONS"]
-
-#: The paper's setup: 10 Gauss-Newton iterations.
-G2O_DEFAULT_ITERATIONS = 10
 
 
 def _g2o() -> Any:

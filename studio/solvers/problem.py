@@ -48,6 +48,12 @@ class Problem:
         return len(self.edge_from)
 
 
+#: g2o's default iterations: the paper's setup, 10 Gauss-Newton iterations.
+G2O_DEFAULT_ITERATIONS = 10
+#: DGS's default rounds at most, both stages together.
+DEFAULT_MAX_ROUNDS = 100
+
+
 @dataclass(frozen=True)
 class SolveOptions:
     """Options every method reads (each uses the ones that apply to it)."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -57,6 +58,15 @@ def _edge_values() -> np.ndarray:
     ties = np.arange(1, 2000) * 2.0**-21  # exact binary ties for %f's sixth decimal
     values = np.concatenate([near, special, ties, ties * 1e3])
     return np.concatenate([values, -values])
+
+
+@pytest.fixture(autouse=True, params=["numpy", "python"])
+def _format_path(request, monkeypatch):
+    """Every test on both paths of ``_format_block``: the numpy passes (forced for every size) and
+    Python's ``%`` (which small blocks take)."""
+    big = 1 << 60
+    limit = {"%.17g": 0, "%f": 0} if request.param == "numpy" else {"%.17g": big, "%f": big}
+    monkeypatch.setattr("studio.io.textfmt._PYTHON_FORMAT_MAX", limit)
 
 
 def test_edge_values_match_printf():

@@ -48,3 +48,33 @@ def test_synth_of_the_effective_config_keeps_the_dataset_name(tmp_path):
     assert res.exit_code == 0, res.output
     assert sorted(p.name for p in again.iterdir()) == ["tiny_three", "tiny_three.config.json", "tiny_three_singleg2o"]
     assert (again / "tiny_three.config.json").read_bytes() == (first / "tiny_three.config.json").read_bytes()
+
+
+def test_version_is_answered_without_loading_the_command_line():
+    """``studio --version`` is printed by the console script's entry point: neither typer nor numpy
+    (nor any registry's readers or solvers) is imported for it."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; sys.argv = ['studio', '--version']; from studio._entry import main; main(); "
+        "print(sorted(m for m in ('typer', 'numpy', 'studio.cli', 'studio.converters.tum') if m in sys.modules))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    from studio.runtime.version import installed_version
+
+    assert done.stdout.splitlines() == [f"studio {installed_version()}", "[]"]
+
+
+def test_the_registries_import_no_reader_or_solver_module():
+    """The registries name their entries' code by module path; building the command line imports
+    none of the readers' or solvers' modules (they load when a command uses them)."""
+    import subprocess
+    import sys
+
+    heavy = ["studio.converters.tum", "studio.converters.jrl", "studio.solvers.gtsam_method", "studio.solvers.dgs"]
+    code = f"import sys, studio.cli; print([m for m in {heavy!r} if m in sys.modules])"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
