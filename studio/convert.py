@@ -360,8 +360,8 @@ def _outlier_lines(build: BuildResult) -> str:
 DERIVED = "derived from motion"
 #: How report.json names each way of deriving headings.
 HEADING_METHOD_TEXT = {
-    "smoothed": "smoothed: yaw of central differences of positions box-filtered twice over +-0.5 s, "
-    "held below 0.02 m/s",
+    "smoothed": "smoothed: yaw of central differences of positions box-filtered twice over +-0.5 s; "
+    "below 0.02 m/s turning evenly from the heading before the stop to the one after it",
     "chord": "chord: yaw of the chord over {w:g} m of path, held while moving less than a quarter of it",
 }
 
