@@ -42,7 +42,7 @@ from studio.converters.odometry_source import (
     read_odometry_sources,
 )
 from studio.converters.registry import check_inputs, get_reader, get_source
-from studio.converters.sightings import SightingsFit, resolve_sightings
+from studio.converters.sightings import SightingsFit, resolve_sightings, sighting_closures, with_sighting_closures
 from studio.converters.transforms import (
     HEADING_METHODS,
     apply_body_frame,
@@ -141,6 +141,14 @@ class ConvertConfig:
         metavar="NAME=FILE",
     )
     """``NAME=FILE.tum`` or ``NAME=BAG:SPEC``: real odometry for agent NAME from a second source."""
+    sightings_as_closures: bool = _pipeline(
+        False,
+        "Also add an inter-agent loop closure per robot sighting (mrclam): position from range and "
+        "bearing, relative heading from the ground truth with --lc-sigma-rad noise.",
+    )
+    """Also turn every robot-to-robot sighting into an inter-agent loop closure
+    (:func:`studio.converters.sightings.sighting_closures`): its position is the range and bearing
+    measured, its relative heading (unobserved) the ground truth's with ``lc_sigma_rad`` noise."""
 
     def __post_init__(self) -> None:
         get_reader(self.source)  # unknown names raise and list the known ones
@@ -159,6 +167,16 @@ class ConvertConfig:
             raise ConfigError("odometry: real and odometry_from both name the odometry: give one")
         for spec in self.odometry_from:
             parse_odometry_spec(spec)
+        if not isinstance(self.sightings_as_closures, bool):
+            raise ConfigError(
+                f"sightings_as_closures: expected true or false, got {self.sightings_as_closures!r}",
+                option="sightings_as_closures",
+            )
+        if self.sightings_as_closures and get_source(self.source).sightings is None:
+            raise ConfigError(
+                f"sightings_as_closures: {self.source} has no robot-to-robot sightings (mrclam has)",
+                option="sightings_as_closures",
+            )
         if self.orientation not in ("auto", "keep", "derive"):
             raise ConfigError(
                 f"orientation: expected auto, keep or derive, got {self.orientation!r}", option="orientation"
@@ -227,7 +245,12 @@ def pipeline_flags() -> dict[str, str]:
 _TUPLE_FIELDS = ("body_frames", "odometry_from")
 #: Pipeline keys written to convert.json only when they differ from their default (so the files of
 #: a conversion that does not use them stay as they were).
-_OMITTED_AT_DEFAULT: dict[str, Any] = {"odometry": "synthetic", "odometry_from": (), "heading_method": "smoothed"}
+_OMITTED_AT_DEFAULT: dict[str, Any] = {
+    "odometry": "synthetic",
+    "odometry_from": (),
+    "heading_method": "smoothed",
+    "sightings_as_closures": False,
+}
 
 
 def convert_config_to_json(cfg: ConvertConfig) -> dict[str, Any]:
@@ -488,6 +511,8 @@ def convert(
         if rb is not None and sight_fit is not None:
             write_range_bearing(ds / RANGE_BEARING_NAME, rb)
             report["counts"]["range_bearing"] = len(rb)
+            if cfg.sightings_as_closures:
+                report["counts"]["sighting_closures"] = len(rb)
             report["range_bearing"] = sight_fit.to_dict()
         write_text(ds / "report.json", (json.dumps(report, indent=2) + "\n").encode("utf-8"))
         write_text(ds / "outliers.txt", _outlier_lines(build).encode("utf-8"))
@@ -549,6 +574,11 @@ def _real_measurements(
     rb = sight_fit = None
     if src.sightings is not None:
         rb, sight_fit = resolve_sightings(build.graph, src.sightings(cfg.inputs, warn=warn), trajs)
+        if cfg.sightings_as_closures and len(rb):
+            closures = sighting_closures(
+                build.graph, rb, trajs, sigma_heading_rad=cfg.options.lc_sigma_rad, seed=cfg.options.seed
+            )
+            build = dataclasses.replace(build, graph=with_sighting_closures(build.graph, closures))
     return build, fits, rb, sight_fit
 
 
