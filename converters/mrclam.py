@@ -114,6 +114,18 @@ def _read_fast(text: str, columns: int) -> np.ndarray | None:
     return values
 
 
+def _data_line(path: Path, row: int) -> int:
+    """The 1-based line number of data row ``row`` (0-based, ``#`` and blank lines skipped) of a
+    file :func:`_read_dat` has read (for error messages only)."""
+    n = -1
+    for lineno, line in enumerate(path.read_text(encoding="utf-8-sig").splitlines(), start=1):
+        if line.strip() and not line.lstrip().startswith("#"):
+            n += 1
+            if n == row:
+                return lineno
+    return 0
+
+
 def _stamps_ns(seconds: np.ndarray) -> np.ndarray:
     return np.round(seconds * 1e6).astype(np.int64) * _US
 
@@ -264,7 +276,7 @@ def read_mrclam_sightings(inputs: Sequence[PathLike], *, warn: Warn | None = Non
         counts["self_sightings"] += int(np.count_nonzero(target == k - 1))
         bad = np.flatnonzero(rows[:, 2] < 0)
         if bad.size:
-            raise FormatError(f"{path}: measurement {int(bad[0]) + 1} has a negative range")
+            raise FormatError(f"{path}:{_data_line(path, int(bad[0]))}: a negative range ({rows[bad[0], 2]:g} m)")
         sel = (target >= 0) & (target != k - 1)
         stamps.append(_stamps_ns(rows[sel, 0]))
         observer.append(np.full(int(sel.sum()), k - 1, dtype=np.int64))

@@ -138,3 +138,17 @@ def test_misread_barcodes_are_counted_and_warned(quirky):
     report = json.loads((out / "report.json").read_text())
     assert report["range_bearing"]["source_counts"]["unknown_barcodes"] == 5 + 3  # the writer's 99s too
     assert "8 measurements of barcodes not in Barcodes.dat left out" in output
+
+
+def test_a_negative_range_names_its_file_and_line_and_writes_nothing(tmp_path):
+    root = write_mrclam_dataset(tmp_path / "MRCLAM_Dataset1", seconds=10.0, seed=1, padded=True)
+    path = root / "Robot2_Measurement.dat"
+    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+    k = next(i for i, x in enumerate(lines) if not x.startswith("#")) + 2  # the third data row
+    parts = lines[k].split()
+    lines[k] = f"{parts[0]} \t {parts[1]} \t -1.2500 \t {parts[3]} \n"
+    path.write_text("".join(lines), encoding="utf-8")
+    res = run("mrclam", root, "-o", tmp_path / "out", "--no-rrd")
+    assert res.exit_code == 2
+    assert res.output.strip().splitlines() == [f"error: {path}:{k + 1}: a negative range (-1.25 m)"]
+    assert not (tmp_path / "out").exists()
