@@ -29,6 +29,7 @@ __all__ = [
     "SightingsFit",
     "resolve_sightings",
     "sighting_closures",
+    "sighting_stamps",
     "with_sighting_closures",
     "MIN_SIGMA_RANGE_M",
     "MIN_SIGMA_BEARING_RAD",
@@ -256,3 +257,15 @@ def with_sighting_closures(graph: PoseGraph, closures: InterAgentEdges) -> PoseG
         cat([old.information_upper, closures.information_upper]),
     )
     return replace(graph, inter=inter)
+
+
+def sighting_stamps(sightings: Sightings, agent_names: Sequence[str]) -> dict[str, np.ndarray]:
+    """Per agent name (a robot, or the parts ``name_1..`` of a split), the stamps of the sightings it
+    made or was seen in: where :func:`studio.converters.build.build_graph` puts keyframes when asked."""
+    s = sightings
+    out: dict[str, np.ndarray] = {}
+    for r, rname in enumerate(s.names):
+        stamps = np.unique(s.stamps_ns[(s.observer == r) | (s.observed == r)])
+        for k in _agent_of(rname, agent_names):
+            out[agent_names[k]] = stamps
+    return out

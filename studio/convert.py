@@ -42,7 +42,14 @@ from studio.converters.odometry_source import (
     read_odometry_sources,
 )
 from studio.converters.registry import check_inputs, get_reader, get_source
-from studio.converters.sightings import SightingsFit, resolve_sightings, sighting_closures, with_sighting_closures
+from studio.converters.sightings import (
+    Sightings,
+    SightingsFit,
+    resolve_sightings,
+    sighting_closures,
+    sighting_stamps,
+    with_sighting_closures,
+)
 from studio.converters.transforms import (
     HEADING_METHODS,
     apply_body_frame,
@@ -149,6 +156,13 @@ class ConvertConfig:
     """Also turn every robot-to-robot sighting into an inter-agent loop closure
     (:func:`studio.converters.sightings.sighting_closures`): its position is the range and bearing
     measured, its relative heading (unobserved) the ground truth's with ``lc_sigma_rad`` noise."""
+    keyframes_at_sightings: bool = _pipeline(
+        False,
+        "Put a keyframe where each robot sighting was made, on both robots (mrclam), so each "
+        "sighting's keyframes are at its time.",
+    )
+    """Make the pose nearest in time to every sighting a keyframe of both robots, so that each side of
+    a sighting is tied to a keyframe at its own time (offsets of at most half a ground-truth step)."""
 
     def __post_init__(self) -> None:
         get_reader(self.source)  # unknown names raise and list the known ones
@@ -167,16 +181,12 @@ class ConvertConfig:
             raise ConfigError("odometry: real and odometry_from both name the odometry: give one")
         for spec in self.odometry_from:
             parse_odometry_spec(spec)
-        if not isinstance(self.sightings_as_closures, bool):
-            raise ConfigError(
-                f"sightings_as_closures: expected true or false, got {self.sightings_as_closures!r}",
-                option="sightings_as_closures",
-            )
-        if self.sightings_as_closures and get_source(self.source).sightings is None:
-            raise ConfigError(
-                f"sightings_as_closures: {self.source} has no robot-to-robot sightings (mrclam has)",
-                option="sightings_as_closures",
-            )
+        for name in ("sightings_as_closures", "keyframes_at_sightings"):
+            value = getattr(self, name)
+            if not isinstance(value, bool):
+                raise ConfigError(f"{name}: expected true or false, got {value!r}", option=name)
+            if value and get_source(self.source).sightings is None:
+                raise ConfigError(f"{name}: {self.source} has no robot-to-robot sightings (mrclam has)", option=name)
         if self.orientation not in ("auto", "keep", "derive"):
             raise ConfigError(
                 f"orientation: expected auto, keep or derive, got {self.orientation!r}", option="orientation"
@@ -250,6 +260,7 @@ _OMITTED_AT_DEFAULT: dict[str, Any] = {
     "odometry_from": (),
     "heading_method": "smoothed",
     "sightings_as_closures": False,
+    "keyframes_at_sightings": False,
 }
 
 
@@ -477,8 +488,17 @@ def convert(
                 for t in trajs:
                     for line in planar_warnings(t):
                         _warn(line)
-            build = build_graph(trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb)
-            build, fits, rb, sight_fit = _real_measurements(cfg, build, read, trajs, _warn)
+            src = get_source(cfg.source)
+            raw = src.sightings(cfg.inputs, warn=_warn) if src.sightings is not None else None
+            forced = (
+                sighting_stamps(raw, [t.name for t in trajs])
+                if raw is not None and cfg.keyframes_at_sightings
+                else None
+            )
+            build = build_graph(
+                trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb, keyframe_stamps=forced
+            )
+            build, fits, rb, sight_fit = _real_measurements(cfg, build, read, trajs, raw, _warn)
     except FloatingPointError as err:
         raise FormatError(
             f"{', '.join(Path(p).name for p in cfg.inputs)}: numbers out of the finite range "
@@ -554,6 +574,7 @@ def _real_measurements(
     build: BuildResult,
     read: Sequence[Trajectory],
     trajs: Sequence[Trajectory],
+    sightings: Sightings | None,
     warn: Callable[[str], None],
 ) -> tuple[BuildResult, list[OdometryFit], RangeBearing | None, SightingsFit | None]:
     """Real odometry (``odometry``, ``odometry_from``) and the source's sightings, on the built graph."""
@@ -572,8 +593,8 @@ def _real_measurements(
         graph, fits = apply_odometry_sources(build.graph, sources)
         build = dataclasses.replace(build, graph=graph)
     rb = sight_fit = None
-    if src.sightings is not None:
-        rb, sight_fit = resolve_sightings(build.graph, src.sightings(cfg.inputs, warn=warn), trajs)
+    if sightings is not None:
+        rb, sight_fit = resolve_sightings(build.graph, sightings, trajs)
         if cfg.sightings_as_closures and len(rb):
             closures = sighting_closures(
                 build.graph, rb, trajs, sigma_heading_rad=cfg.options.lc_sigma_rad, seed=cfg.options.seed

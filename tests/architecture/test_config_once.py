@@ -89,6 +89,7 @@ def test_convert_pipeline_options_come_from_convert_config(tmp_path):
         "folder_names": "folder_names",
         "odometry": "odometry",
         "odometry_from": "odometry_from",
+        "keyframes_at_sightings": "keyframes_at_sightings",
         "sightings_as_closures": "sightings_as_closures",
     }
     for f in dataclasses.fields(ConvertConfig):

@@ -235,3 +235,22 @@ def test_sighting_noise_is_estimated_near_the_simulated_one(with_closures):
         i.measurements,
     )
     assert 0.6 < float(np.median(chi2_terms(e, i.information_upper))) / 3 < 1.4
+
+
+def test_keyframes_at_sightings_tie_each_side_to_its_own_time(dataset, tmp_path):
+    """``--keyframes-at-sightings``: the pose nearest to every sighting is a keyframe of both robots,
+    so the offsets are at most half a ground-truth step (10 ms here) and the check's bearings, free
+    of the robots' motion in between, are consistent."""
+    out = tmp_path / "at"
+    res = run("mrclam", dataset, "-o", out, "--planar", "--keyframes-at-sightings", *_FAST)
+    assert res.exit_code == 0, res.output
+    g = read_multi_g2o(out)
+    rb = read_range_bearing(out / "range_bearing.txt", g)
+    assert np.abs(rb.observer_offset_ns).max() <= 5_000_000 and np.abs(rb.observed_offset_ns).max() <= 5_000_000
+    c = check(out).range_bearing
+    assert c is not None and 0.6 < c.bearing_chi2_per_dof < 1.6 and 0.6 < c.range_chi2_per_dof < 1.6, c
+    assert json.loads((out / "convert.json").read_text())["keyframes_at_sightings"] is True
+    sparse = tmp_path / "sparse"
+    assert run("mrclam", dataset, "-o", sparse, "--planar", *_FAST).exit_code == 0
+    assert sum(a.num_poses for a in g.agents) > sum(a.num_poses for a in read_multi_g2o(sparse).agents)
+    assert "keyframes_at_sightings" not in json.loads((sparse / "convert.json").read_text())
