@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 
 from studio.converters.odometry_source import poses_at
-from studio.core.geometry import normalize_angle, planar_poses_to_se3, se2_information_to_se3, yaw_from_quat_xyzw
+from studio.core.errors import GraphError
+from studio.core.geometry import normalize_angle, yaw_from_quat_xyzw
 from studio.core.model import InterAgentEdges, PoseGraph, PoseKind, RangeBearing
 from studio.core.trajectory import Trajectory
 from studio.io.graph_table import matrix_to_upper
@@ -201,7 +202,10 @@ def sighting_closures(
     keyframe along that robot's ground truth (the keyframe offsets, as synthetic odometry would).
     The information is the inverse of the covariance propagated from ``sigma_range_m``,
     ``sigma_bearing_rad`` and ``sigma_heading_rad`` (first order), in the frame of the edge's error
-    (g2o's ``Z^-1 (Xi^-1 Xj)``), so range and bearing keep their own, unequal, weights."""
+    (g2o's ``Z^-1 (Xi^-1 Xj)``), so range and bearing keep their own, unequal, weights. Planar
+    graphs only (a 3D graph's z, roll and pitch would have no measurement)."""
+    if graph.kind is not PoseKind.SE2:
+        raise GraphError("sighting closures are planar: build the graph with planar=True (--planar)")
     n = len(rb)
     a_t = _planar_at(trajectories, rb.observer_agent, rb.stamps_ns)
     b_t = _planar_at(trajectories, rb.observed_agent, rb.stamps_ns)
@@ -234,10 +238,7 @@ def sighting_closures(
     info = np.linalg.inv(g @ cov @ g.transpose(0, 2, 1))
     info = (info + info.transpose(0, 2, 1)) / 2
     upper = matrix_to_upper(info)
-    if graph.kind is PoseKind.SE3:
-        meas_rows, upper = planar_poses_to_se3(z), se2_information_to_se3(upper)
-    else:
-        meas_rows = z
+    meas_rows = z
     return InterAgentEdges(
         graph.kind, rb.observer_agent, rb.observer_index, rb.observed_agent, rb.observed_index, meas_rows, upper
     )

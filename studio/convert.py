@@ -187,6 +187,12 @@ class ConvertConfig:
                 raise ConfigError(f"{name}: expected true or false, got {value!r}", option=name)
             if value and get_source(self.source).sightings is None:
                 raise ConfigError(f"{name}: {self.source} has no robot-to-robot sightings (mrclam has)", option=name)
+        if self.sightings_as_closures and not self.options.planar:
+            raise ConfigError(
+                "sightings_as_closures: a range and a bearing are planar: the closures need planar records "
+                "(add --planar)",
+                option="sightings_as_closures",
+            )
         if self.orientation not in ("auto", "keep", "derive"):
             raise ConfigError(
                 f"orientation: expected auto, keep or derive, got {self.orientation!r}", option="orientation"
@@ -489,7 +495,8 @@ def convert(
                     for line in planar_warnings(t):
                         _warn(line)
             src = get_source(cfg.source)
-            raw = src.sightings(cfg.inputs, warn=_warn) if src.sightings is not None else None
+            held: list[str] = []  # the sightings' warnings wait for the odometry: bad input prints one line
+            raw = src.sightings(cfg.inputs, warn=held.append) if src.sightings is not None else None
             forced = (
                 sighting_stamps(raw, [t.name for t in trajs])
                 if raw is not None and cfg.keyframes_at_sightings
@@ -498,7 +505,7 @@ def convert(
             build = build_graph(
                 trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb, keyframe_stamps=forced
             )
-            build, fits, rb, sight_fit = _real_measurements(cfg, build, read, trajs, raw, _warn)
+            build, fits, rb, sight_fit = _real_measurements(cfg, build, read, trajs, (raw, held), _warn)
     except FloatingPointError as err:
         raise FormatError(
             f"{', '.join(Path(p).name for p in cfg.inputs)}: numbers out of the finite range "
@@ -574,10 +581,12 @@ def _real_measurements(
     build: BuildResult,
     read: Sequence[Trajectory],
     trajs: Sequence[Trajectory],
-    sightings: Sightings | None,
+    sightings_read: tuple[Sightings | None, list[str]],
     warn: Callable[[str], None],
 ) -> tuple[BuildResult, list[OdometryFit], RangeBearing | None, SightingsFit | None]:
-    """Real odometry (``odometry``, ``odometry_from``) and the source's sightings, on the built graph."""
+    """Real odometry (``odometry``, ``odometry_from``) and the source's sightings (read before the
+    build, with the warnings their reading gave, said after the odometry's), on the built graph."""
+    sightings, held = sightings_read
     src = get_source(cfg.source)
     sources: dict[str, Trajectory] = {}
     if cfg.odometry == "real":
@@ -592,6 +601,8 @@ def _real_measurements(
     if sources:
         graph, fits = apply_odometry_sources(build.graph, sources)
         build = dataclasses.replace(build, graph=graph)
+    for line in held:
+        warn(line)
     rb = sight_fit = None
     if sightings is not None:
         rb, sight_fit = resolve_sightings(build.graph, sightings, trajs)

@@ -254,3 +254,13 @@ def test_keyframes_at_sightings_tie_each_side_to_its_own_time(dataset, tmp_path)
     assert run("mrclam", dataset, "-o", sparse, "--planar", *_FAST).exit_code == 0
     assert sum(a.num_poses for a in g.agents) > sum(a.num_poses for a in read_multi_g2o(sparse).agents)
     assert "keyframes_at_sightings" not in json.loads((sparse / "convert.json").read_text())
+
+
+def test_closures_need_planar_records(dataset, tmp_path):
+    """A 3D graph's z, roll and pitch would have no measurement: one line, exit 2, nothing written."""
+    res = run("mrclam", dataset, "-o", tmp_path / "o", "--sightings-as-closures", "--no-rrd")
+    assert res.exit_code == 2 and not (tmp_path / "o").exists()
+    assert res.output.strip().splitlines() == [
+        "error: --sightings-as-closures: a range and a bearing are planar: the closures need planar records "
+        "(add --planar)"
+    ]
