@@ -26,7 +26,7 @@ changing a loop-closure option does not change the odometry noise.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from typing import Any
 
@@ -188,12 +188,17 @@ def step_turns_rad(quat_xyzw: np.ndarray) -> np.ndarray:
 
 
 def select_keyframes(
-    stamps_ns: np.ndarray, positions: np.ndarray, step_turn_rad: np.ndarray, opts: GraphOptions
+    stamps_ns: np.ndarray,
+    positions: np.ndarray,
+    step_turn_rad: np.ndarray,
+    opts: GraphOptions,
+    forced_ns: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the keyframes, and the boolean "a gap follows this pose" of every pose.
 
     ``positions`` are ``(n, 2)`` or ``(n, 3)`` metres; ``step_turn_rad`` the ``n - 1`` rotation angles
-    between consecutive poses (:func:`step_turns_rad`, or the yaw increments of a planar path)."""
+    between consecutive poses (:func:`step_turns_rad`, or the yaw increments of a planar path).
+    ``forced_ns``: stamps whose nearest pose must be a keyframe (those within the span)."""
     n = len(stamps_ns)
     gap_after = np.zeros(n, dtype=bool)
     gap_after[:-1] = np.diff(stamps_ns) > int(round(opts.max_gap * NS_PER_S))
@@ -211,6 +216,12 @@ def select_keyframes(
     if opts.keyframe_time > 0:
         b = (stamps_ns - stamps_ns[0]) // max(1, int(round(opts.keyframe_time * NS_PER_S)))
         new[1:] |= b[1:] != b[:-1]
+    if forced_ns is not None and len(forced_ns):
+        f = np.asarray(forced_ns, dtype=np.int64)
+        f = f[(f >= stamps_ns[0]) & (f <= stamps_ns[-1])]
+        hi = np.clip(np.searchsorted(stamps_ns, f), 0, n - 1)
+        lo = np.maximum(hi - 1, 0)
+        new[np.where(np.abs(f - stamps_ns[lo]) <= np.abs(stamps_ns[hi] - f), lo, hi)] = True
     return np.flatnonzero(new), gap_after
 
 
@@ -375,8 +386,12 @@ def build_graph(
     *,
     progress: Progress | None = None,
     max_memory_gb: float | None = None,
+    keyframe_stamps: Mapping[str, np.ndarray] | None = None,
 ) -> BuildResult:
     """Build the pose graph of ``trajectories`` (agent order kept); see the module docstring.
+
+    ``keyframe_stamps``: per agent name, stamps whose nearest pose must be a keyframe (where a
+    source's sightings were made).
 
     ``max_memory_gb`` bounds the loop-closure search, checked before it allocates anything. The steps
     of the module docstring, in order: the shared origin (1), each agent's keyframes and odometry (2,
@@ -388,7 +403,7 @@ def build_graph(
     origin = trajectories[0].positions_xyz[0].copy()
     if opts.planar:
         origin[2] = 0.0
-    chains = _keyframe_chains(trajectories, origin, opts, progress)
+    chains = _keyframe_chains(trajectories, origin, opts, progress, keyframe_stamps)
     loops = _loop_closures(chains, opts, progress, max_memory_gb)
     j_out, outlier = _plant_outliers(chains, loops, opts)
     graph = _assemble(chains, loops, j_out, opts.planar)
@@ -444,7 +459,11 @@ class _Chains:
 
 
 def _keyframe_chains(
-    trajectories: Sequence[Trajectory], origin: np.ndarray, opts: GraphOptions, progress: Progress | None
+    trajectories: Sequence[Trajectory],
+    origin: np.ndarray,
+    opts: GraphOptions,
+    progress: Progress | None,
+    forced: Mapping[str, np.ndarray] | None = None,
 ) -> _Chains:
     """Steps 2 and 3 for every agent, in order (one odometry noise stream for all)."""
     rng_odo = _rng(opts.seed, _STREAM_ODOMETRY)
@@ -452,7 +471,7 @@ def _keyframe_chains(
     for a, traj in enumerate(trajectories):
         if progress:
             progress("keyframes and odometry", a, len(trajectories), "agents")
-        agents.append(_agent_chain(traj, origin, opts, rng_odo))
+        agents.append(_agent_chain(traj, origin, opts, rng_odo, (forced or {}).get(traj.name)))
     if progress:
         progress("keyframes and odometry", len(trajectories), len(trajectories), "agents")
     return _Chains(
@@ -466,21 +485,27 @@ def _keyframe_chains(
     )
 
 
-def _agent_chain(traj: Trajectory, origin: np.ndarray, opts: GraphOptions, rng_odo: np.random.Generator) -> _AgentChain:
+def _agent_chain(
+    traj: Trajectory,
+    origin: np.ndarray,
+    opts: GraphOptions,
+    rng_odo: np.random.Generator,
+    forced_ns: np.ndarray | None = None,
+) -> _AgentChain:
     """One agent's keyframes (step 2) and noisy odometry with its dead-reckoning estimate (step 3)."""
     planar = opts.planar
     if planar:
         # planar graphs are built in SE(2) from the start: x, y and the heading (ZYX yaw)
         pos = traj.positions_xyz[:, 0:2] - origin[0:2]
         yaw = yaw_from_quat_xyzw(traj.quat_xyzw)
-        kf, gap_after = select_keyframes(traj.stamps_ns, pos, np.abs(normalize_angle(np.diff(yaw))), opts)
+        kf, gap_after = select_keyframes(traj.stamps_ns, pos, np.abs(normalize_angle(np.diff(yaw))), opts, forced_ns)
         gt = np.column_stack([pos[kf], yaw[kf]])
         rel = _relative_se2(gt[:-1], gt[1:])
         dist = np.linalg.norm(rel[:, 0:2], axis=1)
         turn = np.abs(rel[:, 2])
     else:
         pos = traj.positions_xyz - origin
-        kf, gap_after = select_keyframes(traj.stamps_ns, pos, step_turns_rad(traj.quat_xyzw), opts)
+        kf, gap_after = select_keyframes(traj.stamps_ns, pos, step_turns_rad(traj.quat_xyzw), opts, forced_ns)
         p, q = pos[kf], quat_canonical(traj.quat_xyzw[kf])
         t_rel, q_rel = _relative(p[:-1], q[:-1], p[1:], q[1:])
         dist = np.linalg.norm(t_rel, axis=1)

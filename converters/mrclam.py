@@ -1,19 +1,21 @@
 """UTIAS MR.CLAM (Multi-Robot Cooperative Localization and Mapping, Leung et al. 2011) as it ships.
 
 A dataset folder ``MRCLAM_DatasetN/`` holds, for robots K = 1..5, ``RobotK_Groundtruth.dat``
-(``time [s]  x [m]  y [m]  orientation [rad]``, Vicon, about 100 Hz), ``RobotK_Odometry.dat``
+(``time [s]  x [m]  y [m]  orientation [rad]``, Vicon, about 60 Hz in the real files), ``RobotK_Odometry.dat``
 (``time [s]  forward velocity [m/s]  angular velocity [rad/s]``: the commanded velocities of the
-iRobot Create, about 67 Hz), ``RobotK_Measurement.dat`` (``time [s]  barcode #  range [m]
+iRobot Create, about 100 Hz), ``RobotK_Measurement.dat`` (``time [s]  barcode #  range [m]
 bearing [rad]``: barcodes seen by the robot's camera), and ``Barcodes.dat`` (``subject #  barcode #``:
 subjects 1-5 are the robots, 6-20 the landmarks) and ``Landmark_Groundtruth.dat``. Each file starts
-with four ``#`` lines; columns are separated by tabs or spaces; times are Unix seconds with
-millisecond digits (read to the nearest microsecond).
+with four ``#`` lines; columns are separated by tabs or spaces (the real files: right-aligned
+columns, each followed by a space, joined by tabs); times are Unix seconds with millisecond digits
+(read to the nearest microsecond).
 
 * :func:`read_mrclam`: one planar trajectory per robot, ``Robot1`` .. ``Robot5``, at the ground
   truth's own rate, z = 0, yaw = the file's orientation.
 * :func:`read_mrclam_odometry` (``--odometry real``): each robot's velocities integrated exactly as
   arcs (a command holds until the next; before the first one the robot stands still, after the last
-  one the last command holds to the end of the ground truth), a dead-reckoned trajectory that
+  one the last command holds to the end of the ground truth), shifted by the robot's lag behind its
+  commands (:func:`command_lag_ns`, 0.15-0.2 s on the real files), a dead-reckoned trajectory that
   :mod:`studio.converters.odometry_source` turns into odometry edges between the keyframes.
 * :func:`read_mrclam_sightings`: the measurements whose barcode is another robot's, as range-bearing
   sightings (:mod:`studio.converters.sightings`). Landmark sightings are left out (counted): the
@@ -30,7 +32,7 @@ import numpy as np
 from studio.converters.sightings import Sightings
 from studio.converters.text import MAX_TABLE_BYTES
 from studio.core.errors import FormatError
-from studio.core.geometry import yaw_to_quat_xyzw
+from studio.core.geometry import yaw_from_quat_xyzw, yaw_to_quat_xyzw
 from studio.core.trajectory import Trajectory, Warn, clean_trajectory
 from studio.core.types import PathLike
 from studio.core.units import MAX_STAMP_S
@@ -113,6 +115,18 @@ def _read_fast(text: str, columns: int) -> np.ndarray | None:
     return values
 
 
+def _data_line(path: Path, row: int) -> int:
+    """The 1-based line number of data row ``row`` (0-based, ``#`` and blank lines skipped) of a
+    file :func:`_read_dat` has read (for error messages only)."""
+    n = -1
+    for lineno, line in enumerate(path.read_text(encoding="utf-8-sig").splitlines(), start=1):
+        if line.strip() and not line.lstrip().startswith("#"):
+            n += 1
+            if n == row:
+                return lineno
+    return 0
+
+
 def _stamps_ns(seconds: np.ndarray, path: Path) -> np.ndarray:
     far = np.flatnonzero(~(np.abs(seconds) <= MAX_STAMP_S))
     if far.size:
@@ -191,6 +205,9 @@ def read_mrclam_odometry(
         keep = np.ones(len(stamps), dtype=bool)
         keep[:-1] = np.diff(stamps) != 0  # a repeated stamp: the last command of it holds
         stamps, v, w = stamps[keep], v[keep], w[keep]
+        gt = next(t for t in ground_truth if t.name == name)
+        lag_ns = command_lag_ns(stamps, w, gt)
+        stamps = stamps + lag_ns
         first, last = spans[name]
         if first < stamps[0]:  # standing still before the first command
             stamps, v, w = np.concatenate([[first], stamps]), np.concatenate([[0.0], v]), np.concatenate([[0.0], w])
@@ -198,8 +215,36 @@ def read_mrclam_odometry(
             stamps, v, w = np.concatenate([stamps, [last]]), np.concatenate([v, v[-1:]]), np.concatenate([w, w[-1:]])
         x, y, yaw = integrate_unicycle(stamps, v, w)
         pos = np.column_stack([x, y, np.zeros(len(x))])
-        out[name] = Trajectory(name, stamps, pos, yaw_to_quat_xyzw(yaw), str(path))
+        source = f"{path} (commands shifted by {lag_ns / 1e9:+.2f} s: {LAG_TEXT})"
+        out[name] = Trajectory(name, stamps, pos, yaw_to_quat_xyzw(yaw), source)
     return out
+
+
+#: How far [s] the robots' motion may follow their velocity commands (searched in 10 ms steps).
+MAX_COMMAND_LAG_S = 1.0
+LAG_TEXT = "the lag of the ground truth's yaw rate behind the angular velocity commands"
+
+
+def command_lag_ns(stamps_ns: np.ndarray, w_radps: np.ndarray, ground_truth: Trajectory) -> int:
+    """How long after its angular velocity command the robot turns: the shift in 0..1 s (10 ms steps)
+    that best correlates the commands (each holding until the next) with the ground truth's yaw rate
+    on a 20 Hz grid. 0 where the robot never turns or the spans do not overlap by 10 s."""
+    st = ground_truth.stamps_ns
+    lo, hi = max(int(st[0]), int(stamps_ns[0])), min(int(st[-1]), int(stamps_ns[-1]))
+    step = 50_000_000
+    if hi - lo < 10 * 1_000_000_000:
+        return 0
+    grid = np.arange(lo + 1_000_000_000, hi - 1_000_000_000, step)
+    yaw = np.unwrap(yaw_from_quat_xyzw(ground_truth.quat_xyzw))
+    rate = np.gradient(np.interp(grid.astype(np.float64), st.astype(np.float64), yaw), step / 1e9)
+    if not np.std(rate) > 0 or not np.std(w_radps) > 0:
+        return 0
+    best, best_lag = -np.inf, 0
+    for lag in range(0, int(MAX_COMMAND_LAG_S * 1e9) + 1, 10_000_000):
+        cmd = w_radps[np.clip(np.searchsorted(stamps_ns, grid - lag, side="right") - 1, 0, len(stamps_ns) - 1)]
+        if np.std(cmd) > 0 and (c := float(np.corrcoef(cmd, rate)[0, 1])) > best:
+            best, best_lag = c, lag
+    return best_lag
 
 
 def read_mrclam_sightings(inputs: Sequence[PathLike], *, warn: Warn | None = None) -> Sightings:
@@ -240,7 +285,7 @@ def read_mrclam_sightings(inputs: Sequence[PathLike], *, warn: Warn | None = Non
         counts["self_sightings"] += int(np.count_nonzero(target == k - 1))
         bad = np.flatnonzero(rows[:, 2] < 0)
         if bad.size:
-            raise FormatError(f"{path}: measurement {int(bad[0]) + 1} has a negative range")
+            raise FormatError(f"{path}:{_data_line(path, int(bad[0]))}: a negative range ({rows[bad[0], 2]:g} m)")
         sel = (target >= 0) & (target != k - 1)
         stamps.append(_stamps_ns(rows[sel, 0], path))
         observer.append(np.full(int(sel.sum()), k - 1, dtype=np.int64))

@@ -13,17 +13,28 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from studio.converters.odometry_source import poses_at
+from studio.core.errors import GraphError
 from studio.core.geometry import normalize_angle, yaw_from_quat_xyzw
-from studio.core.model import PoseGraph, RangeBearing
+from studio.core.model import InterAgentEdges, PoseGraph, PoseKind, RangeBearing
 from studio.core.trajectory import Trajectory
+from studio.io.graph_table import matrix_to_upper
 
-__all__ = ["Sightings", "SightingsFit", "resolve_sightings", "MIN_SIGMA_RANGE_M", "MIN_SIGMA_BEARING_RAD"]
+__all__ = [
+    "Sightings",
+    "SightingsFit",
+    "resolve_sightings",
+    "sighting_closures",
+    "sighting_stamps",
+    "with_sighting_closures",
+    "MIN_SIGMA_RANGE_M",
+    "MIN_SIGMA_BEARING_RAD",
+]
 
 MIN_SIGMA_RANGE_M = 1e-3
 MIN_SIGMA_BEARING_RAD = 1e-3
@@ -140,3 +151,123 @@ def resolve_sightings(
         dict(s.counts),
     )
     return rb, fit
+
+
+#: Seed stream of the drawn relative headings of sighting closures (build.py uses 1-3).
+STREAM_SIGHTING_HEADINGS = 4
+
+
+def _planar_at(trajectories: Sequence[Trajectory], agent: np.ndarray, stamps: np.ndarray) -> np.ndarray:
+    """``(n, 3)`` ground-truth ``x y yaw`` of ``agent[k]`` at ``stamps[k]`` (interpolated)."""
+    out = np.zeros((len(stamps), 3))
+    for a in np.unique(agent).tolist():
+        rows = np.flatnonzero(agent == a)
+        p, q = poses_at(trajectories[a], stamps[rows], what="the ground truth")
+        out[rows] = np.column_stack([p[:, 0:2], yaw_from_quat_xyzw(q)])
+    return out
+
+
+def _compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+    return np.column_stack(
+        [a[:, 0] + c * b[:, 0] - s * b[:, 1], a[:, 1] + s * b[:, 0] + c * b[:, 1], normalize_angle(a[:, 2] + b[:, 2])]
+    )
+
+
+def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a^-1 b`` of planar rows."""
+    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+    dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, normalize_angle(b[:, 2] - a[:, 2])])
+
+
+def _rot(theta: np.ndarray) -> np.ndarray:
+    c, s = np.cos(theta), np.sin(theta)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
+def sighting_closures(
+    graph: PoseGraph,
+    rb: RangeBearing,
+    trajectories: Sequence[Trajectory],
+    *,
+    sigma_heading_rad: float,
+    seed: int,
+) -> InterAgentEdges:
+    """One inter-agent closure per sighting, from the observer's keyframe to the observed one's.
+
+    The observed robot's position in the observer's frame at the sighting is the measurement
+    itself, ``range (cos bearing, sin bearing)``; the relative heading, which a range and a bearing
+    do not observe, is the ground truth's at that time plus N(0, ``sigma_heading_rad``) noise (seed
+    stream :data:`STREAM_SIGHTING_HEADINGS`). Each side is carried from the sighting's time to its
+    keyframe along that robot's ground truth (the keyframe offsets, as synthetic odometry would).
+    The information is the inverse of the covariance propagated from ``sigma_range_m``,
+    ``sigma_bearing_rad`` and ``sigma_heading_rad`` (first order), in the frame of the edge's error
+    (g2o's ``Z^-1 (Xi^-1 Xj)``), so range and bearing keep their own, unequal, weights. Planar
+    graphs only (a 3D graph's z, roll and pitch would have no measurement)."""
+    if graph.kind is not PoseKind.SE2:
+        raise GraphError("sighting closures are planar: build the graph with planar=True (--planar)")
+    n = len(rb)
+    a_t = _planar_at(trajectories, rb.observer_agent, rb.stamps_ns)
+    b_t = _planar_at(trajectories, rb.observed_agent, rb.stamps_ns)
+    kf_a = np.array([graph.agents[a].stamps_ns[i] for a, i in zip(rb.observer_agent, rb.observer_index)], np.int64)
+    kf_b = np.array([graph.agents[a].stamps_ns[i] for a, i in zip(rb.observed_agent, rb.observed_index)], np.int64)
+    off_a = _between(_planar_at(trajectories, rb.observer_agent, kf_a.reshape(-1)), a_t)  # A_i^-1 A(t)
+    off_b = _between(b_t, _planar_at(trajectories, rb.observed_agent, kf_b.reshape(-1)))  # B(t)^-1 B_j
+    rng = np.random.default_rng([seed, STREAM_SIGHTING_HEADINGS])
+    phi = normalize_angle(b_t[:, 2] - a_t[:, 2] + rng.normal(0.0, sigma_heading_rad, n))
+    r, b = rb.range_m, rb.bearing_rad
+    meas = np.column_stack([r * np.cos(b), r * np.sin(b), phi])
+    z = _compose(_compose(off_a, meas), off_b)
+    # first-order covariance of z in (range, bearing, heading)
+    ra = _rot(off_a[:, 2])
+    ob = off_b[:, 0:2]
+    d_phi = np.column_stack(
+        [-np.sin(phi) * ob[:, 0] - np.cos(phi) * ob[:, 1], np.cos(phi) * ob[:, 0] - np.sin(phi) * ob[:, 1]]
+    )
+    jac = np.zeros((n, 3, 3))
+    jac[:, 0:2, 0] = np.einsum("nij,nj->ni", ra, np.column_stack([np.cos(b), np.sin(b)]))
+    jac[:, 0:2, 1] = np.einsum("nij,nj->ni", ra, r[:, None] * np.column_stack([-np.sin(b), np.cos(b)]))
+    jac[:, 0:2, 2] = np.einsum("nij,nj->ni", ra, d_phi)
+    jac[:, 2, 2] = 1.0
+    sig = np.zeros((n, 3, 3))
+    sig[:, 0, 0], sig[:, 1, 1], sig[:, 2, 2] = rb.sigma_range_m**2, rb.sigma_bearing_rad**2, sigma_heading_rad**2
+    cov = jac @ sig @ jac.transpose(0, 2, 1)
+    g = np.zeros((n, 3, 3))
+    g[:, 0:2, 0:2] = _rot(z[:, 2]).transpose(0, 2, 1)
+    g[:, 2, 2] = 1.0
+    info = np.linalg.inv(g @ cov @ g.transpose(0, 2, 1))
+    info = (info + info.transpose(0, 2, 1)) / 2
+    upper = matrix_to_upper(info)
+    meas_rows = z
+    return InterAgentEdges(
+        graph.kind, rb.observer_agent, rb.observer_index, rb.observed_agent, rb.observed_index, meas_rows, upper
+    )
+
+
+def with_sighting_closures(graph: PoseGraph, closures: InterAgentEdges) -> PoseGraph:
+    """``graph`` with ``closures`` after its inter-agent loop closures."""
+    old = graph.inter
+    cat = np.concatenate
+    inter = InterAgentEdges(
+        graph.kind,
+        cat([old.from_agent, closures.from_agent]),
+        cat([old.from_index, closures.from_index]),
+        cat([old.to_agent, closures.to_agent]),
+        cat([old.to_index, closures.to_index]),
+        cat([old.measurements, closures.measurements]),
+        cat([old.information_upper, closures.information_upper]),
+    )
+    return replace(graph, inter=inter)
+
+
+def sighting_stamps(sightings: Sightings, agent_names: Sequence[str]) -> dict[str, np.ndarray]:
+    """Per agent name (a robot, or the parts ``name_1..`` of a split), the stamps of the sightings it
+    made or was seen in: where :func:`studio.converters.build.build_graph` puts keyframes when asked."""
+    s = sightings
+    out: dict[str, np.ndarray] = {}
+    for r, rname in enumerate(s.names):
+        stamps = np.unique(s.stamps_ns[(s.observer == r) | (s.observed == r)])
+        for k in _agent_of(rname, agent_names):
+            out[agent_names[k]] = stamps
+    return out

@@ -62,7 +62,7 @@ def orientation_is_uninformative(traj: Trajectory, tolerance_rad: float = 1e-6) 
 HEADING_METHODS = ("smoothed", "chord")
 #: Half-width [s] of the box filter, applied twice, that smooths positions for ``smoothed`` headings.
 SMOOTH_HALF_WIDTH_S = 0.5
-#: Below this speed [m/s] of the smoothed positions the robot stands still: the heading is held.
+#: Below this speed [m/s] of the smoothed positions the robot stands still (no heading of its own).
 STILL_SPEED_MPS = 0.02
 
 
@@ -92,11 +92,13 @@ def _smoothed_headings(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
 
 
 def derive_orientation(traj: Trajectory, window_m: float, method: str = "smoothed") -> Trajectory:
-    """Headings from the motion; roll and pitch are zero, and while the robot stands still (turning
-    on the spot included: positions cannot show it) the last heading is held.
+    """Headings from the motion; roll and pitch are zero. Positions cannot show a turn on the spot.
 
     ``smoothed``: the yaw of the central differences of lightly smoothed positions
-    (:func:`_smoothed_headings`). ``chord``: the yaw of the chord from ``window_m / 2`` of path behind
+    (:func:`_smoothed_headings`); while the robot stands still between two motions the heading turns
+    evenly from the one before the stop to the one after it (a turn on the spot spread over the stop;
+    a full turn, or a turn and back, stays invisible), and before the first and after the last motion
+    it is held. ``chord``: the yaw of the chord from ``window_m / 2`` of path behind
     each pose to ``window_m / 2`` ahead (clipped at the ends), held while the robot moves less than a
     quarter of the window."""
     if not window_m > 0:
@@ -111,7 +113,7 @@ def derive_orientation(traj: Trajectory, window_m: float, method: str = "smoothe
                 f"{traj.source or traj.name}: the trajectory never moves faster than {STILL_SPEED_MPS:g} m/s: "
                 "no heading can be derived from its motion"
             )
-        return _held(traj, yaw, moving)
+        return _held(traj, yaw, moving, spread_stops=True)
     step = np.linalg.norm(np.diff(p[:, 0:2], axis=0), axis=1)
     s = np.concatenate([[0.0], np.cumsum(step)])
     ahead = np.minimum(np.searchsorted(s, s + window_m / 2, side="left"), len(s) - 1)
@@ -126,14 +128,22 @@ def derive_orientation(traj: Trajectory, window_m: float, method: str = "smoothe
     return _held(traj, np.arctan2(chord[:, 1], chord[:, 0]), moving)
 
 
-def _held(traj: Trajectory, yaw: np.ndarray, moving: np.ndarray) -> Trajectory:
-    """``yaw`` where ``moving``, the last moving heading elsewhere (the first one before it)."""
+def _held(traj: Trajectory, yaw: np.ndarray, moving: np.ndarray, *, spread_stops: bool = False) -> Trajectory:
+    """``yaw`` where ``moving``; elsewhere the last moving heading (the first one before the first
+    motion, the last one after the last). With ``spread_stops``, a stop between two motions instead
+    turns evenly, by the shorter way, from the heading before it to the heading after it (in time):
+    a turn on the spot is spread over the stop instead of jumping when the robot drives off."""
     p = traj.positions_xyz
-    idx = np.where(moving, np.arange(len(yaw)), 0)
-    np.maximum.accumulate(idx, out=idx)  # hold the last heading
-    first = int(np.flatnonzero(moving)[0])
-    idx[:first] = first  # and before the first motion, the first heading
-    yaw = yaw[idx]
+    moving_at = np.flatnonzero(moving)
+    if spread_stops:
+        unwrapped = np.unwrap(yaw[moving_at])
+        yaw = np.interp(traj.stamps_ns.astype(np.float64), traj.stamps_ns[moving_at].astype(np.float64), unwrapped)
+        yaw = np.arctan2(np.sin(yaw), np.cos(yaw))
+    else:
+        idx = np.where(moving, np.arange(len(yaw)), 0)
+        np.maximum.accumulate(idx, out=idx)  # hold the last heading
+        idx[: int(moving_at[0])] = int(moving_at[0])  # and before the first motion, the first heading
+        yaw = yaw[idx]
     q = np.zeros((len(yaw), 4))
     q[:, 2], q[:, 3] = np.sin(yaw / 2), np.cos(yaw / 2)
     return Trajectory(traj.name, traj.stamps_ns, p, q, traj.source)

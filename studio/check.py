@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from studio._callable import make_callable
+from studio.check_sightings import RangeBearingCheck, check_range_bearing, format_range_bearing_check
 from studio.core.errors import FormatError
 from studio.core.geometry import is_planar_se3, se3_information_to_se2
 from studio.core.model import PoseKind
@@ -130,6 +131,8 @@ class CheckReport:
     listed_flagged: int | None = None
     """How many of the listed outliers are among the candidates."""
     notes: tuple[str, ...] = field(default=())
+    range_bearing: RangeBearingCheck | None = None
+    """The dataset's range-bearing sightings at the ground truth (studio/check_sightings.py)."""
 
     def summary(self, name: str) -> ClassCheck:
         return next(c for c in self.classes if c.name == name and c.agent == "all")
@@ -153,6 +156,7 @@ class CheckReport:
             "listed_outliers": self.listed_outliers,
             "listed_outliers_flagged": self.listed_flagged,
             "notes": list(self.notes),
+            **({"range_bearing": self.range_bearing.to_dict()} if self.range_bearing is not None else {}),
         }
 
     def to_json(self) -> str:
@@ -294,8 +298,9 @@ def check(dataset: PathLike, *, convention: Convention = "g2o") -> CheckReport:
         listed_n = len(listed)
         have = {tuple(r) for r in edges.rows[flagged].tolist()}
         listed_flagged = sum(tuple(r) in have for r in listed.tolist())
+    sightings = check_range_bearing(folder, truth) if folder.is_dir() else None
     return CheckReport(
-        str(folder), checked, convention, tuple(classes), candidates, listed_n, listed_flagged, tuple(notes)
+        str(folder), checked, convention, tuple(classes), candidates, listed_n, listed_flagged, tuple(notes), sightings
     )
 
 
@@ -451,6 +456,7 @@ def format_check(report: CheckReport, *, per_agent: bool = False) -> str:
         )
     if n > 10:
         lines.append(f"  ... {n - 10} more (--json lists all)")
+    lines += format_range_bearing_check(report.range_bearing)
     return "\n".join(lines) + "\n"
 
 

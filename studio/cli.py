@@ -534,6 +534,7 @@ def convert(
             typer.echo(
                 f"  range-bearing sightings: {sf.sightings} (sigma {sf.sigma_range_m:.3g} m, "
                 f"{sf.sigma_bearing_rad:.3g} rad; {sf.dropped_outside_time_span} outside the ground truth dropped)"
+                + (" and as many inter-agent loop closures" if res.config.sightings_as_closures else "")
             )
 
 

@@ -41,7 +41,14 @@ from studio.converters.odometry_source import (
     read_odometry_sources,
 )
 from studio.converters.registry import check_inputs, get_reader, get_source
-from studio.converters.sightings import SightingsFit, resolve_sightings
+from studio.converters.sightings import (
+    Sightings,
+    SightingsFit,
+    resolve_sightings,
+    sighting_closures,
+    sighting_stamps,
+    with_sighting_closures,
+)
 from studio.converters.transforms import (
     HEADING_METHODS,
     apply_body_frame,
@@ -153,6 +160,21 @@ class ConvertConfig:
         metavar="NAME=FILE",
     )
     """``NAME=FILE.tum`` or ``NAME=BAG:SPEC``: real odometry for agent NAME from a second source."""
+    sightings_as_closures: bool = _pipeline(
+        False,
+        "Also add an inter-agent loop closure per robot sighting (mrclam): position from range and "
+        "bearing, relative heading from the ground truth with --lc-sigma-rad noise.",
+    )
+    """Also turn every robot-to-robot sighting into an inter-agent loop closure
+    (:func:`studio.converters.sightings.sighting_closures`): its position is the range and bearing
+    measured, its relative heading (unobserved) the ground truth's with ``lc_sigma_rad`` noise."""
+    keyframes_at_sightings: bool = _pipeline(
+        False,
+        "Put a keyframe where each robot sighting was made, on both robots (mrclam), so each "
+        "sighting's keyframes are at its time.",
+    )
+    """Make the pose nearest in time to every sighting a keyframe of both robots, so that each side of
+    a sighting is tied to a keyframe at its own time (offsets of at most half a ground-truth step)."""
 
     def __post_init__(self) -> None:
         get_reader(self.source)  # unknown names raise and list the known ones
@@ -175,6 +197,18 @@ class ConvertConfig:
             raise ConfigError("odometry: real and odometry_from both name the odometry: give one")
         for spec in self.odometry_from:
             parse_odometry_spec(spec)
+        for name in ("sightings_as_closures", "keyframes_at_sightings"):
+            value = getattr(self, name)
+            if not isinstance(value, bool):
+                raise ConfigError(f"{name}: expected true or false, got {value!r}", option=name)
+            if value and get_source(self.source).sightings is None:
+                raise ConfigError(f"{name}: {self.source} has no robot-to-robot sightings (mrclam has)", option=name)
+        if self.sightings_as_closures and not self.options.planar:
+            raise ConfigError(
+                "sightings_as_closures: a range and a bearing are planar: the closures need planar records "
+                "(add --planar)",
+                option="sightings_as_closures",
+            )
         if self.split != 0 and not (
             not isinstance(self.split, bool) and isinstance(self.split, int) and 2 <= self.split <= MAX_SPLIT_ROBOTS
         ):
@@ -221,7 +255,13 @@ def pipeline_flags() -> dict[str, str]:
 _TUPLE_FIELDS = ("body_frames", "odometry_from")
 #: Pipeline keys written to convert.json only when they differ from their default (so the files of
 #: a conversion that does not use them stay as they were).
-_OMITTED_AT_DEFAULT: dict[str, Any] = {"odometry": "synthetic", "odometry_from": (), "heading_method": "smoothed"}
+_OMITTED_AT_DEFAULT: dict[str, Any] = {
+    "odometry": "synthetic",
+    "odometry_from": (),
+    "heading_method": "smoothed",
+    "sightings_as_closures": False,
+    "keyframes_at_sightings": False,
+}
 
 
 def convert_config_to_json(cfg: ConvertConfig) -> dict[str, Any]:
@@ -344,8 +384,8 @@ def _report(
 DERIVED = "derived from motion"
 #: How report.json names each way of deriving headings.
 HEADING_METHOD_TEXT = {
-    "smoothed": "smoothed: yaw of central differences of positions box-filtered twice over +-0.5 s, "
-    "held below 0.02 m/s",
+    "smoothed": "smoothed: yaw of central differences of positions box-filtered twice over +-0.5 s; "
+    "below 0.02 m/s turning evenly from the heading before the stop to the one after it",
     "chord": "chord: yaw of the chord over {w:g} m of path, held while moving less than a quarter of it",
 }
 
@@ -477,8 +517,18 @@ def _read_and_build(
                 for t in trajs:
                     for line in planar_warnings(t):
                         warn(line)
-            build = build_graph(trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb)
-            build, fits, rb, sight_fit = _real_measurements(cfg, build, read, trajs, warn)
+            src = get_source(cfg.source)
+            held: list[str] = []  # the sightings' warnings wait for the odometry: bad input prints one line
+            raw = src.sightings(cfg.inputs, warn=held.append) if src.sightings is not None else None
+            forced = (
+                sighting_stamps(raw, [t.name for t in trajs])
+                if raw is not None and cfg.keyframes_at_sightings
+                else None
+            )
+            build = build_graph(
+                trajs, cfg.options, progress=progress, max_memory_gb=max_memory_gb, keyframe_stamps=forced
+            )
+            build, fits, rb, sight_fit = _real_measurements(cfg, build, read, trajs, (raw, held), warn)
     except FloatingPointError as err:
         raise FormatError(
             f"{', '.join(Path(p).name for p in cfg.inputs)}: numbers out of the finite range "
@@ -522,6 +572,8 @@ def _write_dataset(
     if rb is not None and sight_fit is not None:
         write_range_bearing(ds / RANGE_BEARING_NAME, rb)
         report["counts"]["range_bearing"] = len(rb)
+        if cfg.sightings_as_closures:
+            report["counts"]["sighting_closures"] = len(rb)
         report["range_bearing"] = sight_fit.to_dict()
     write_text(ds / "report.json", (dumps_strict(report, f"{ds.name}/report.json", indent=2) + "\n").encode())
     write_outliers_txt(ds / "outliers.txt", build.outliers, [OUTLIER_KIND] * len(build.outliers))
@@ -552,9 +604,12 @@ def _real_measurements(
     build: BuildResult,
     read: Sequence[Trajectory],
     trajs: Sequence[Trajectory],
+    sightings_read: tuple[Sightings | None, list[str]],
     warn: Callable[[str], None],
 ) -> tuple[BuildResult, list[OdometryFit], RangeBearing | None, SightingsFit | None]:
-    """Real odometry (``odometry``, ``odometry_from``) and the source's sightings, on the built graph."""
+    """Real odometry (``odometry``, ``odometry_from``) and the source's sightings (read before the
+    build, with the warnings their reading gave, said after the odometry's), on the built graph."""
+    sightings, held = sightings_read
     src = get_source(cfg.source)
     sources: dict[str, Trajectory] = {}
     if cfg.odometry == "real":
@@ -569,9 +624,16 @@ def _real_measurements(
     if sources:
         graph, fits = apply_odometry_sources(build.graph, sources)
         build = dataclasses.replace(build, graph=graph)
+    for line in held:
+        warn(line)
     rb = sight_fit = None
-    if src.sightings is not None:
-        rb, sight_fit = resolve_sightings(build.graph, src.sightings(cfg.inputs, warn=warn), trajs)
+    if sightings is not None:
+        rb, sight_fit = resolve_sightings(build.graph, sightings, trajs)
+        if cfg.sightings_as_closures and len(rb):
+            closures = sighting_closures(
+                build.graph, rb, trajs, sigma_heading_rad=cfg.options.lc_sigma_rad, seed=cfg.options.seed
+            )
+            build = dataclasses.replace(build, graph=with_sighting_closures(build.graph, closures))
     return build, fits, rb, sight_fit
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from studio.core.errors import ConfigError, FormatError, GraphError
-from studio.core.model import PoseGraph, PoseKind
+from studio.core.model import PoseGraph, PoseKind, RangeBearing
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.io.atomic import staged_outputs
@@ -35,6 +35,7 @@ from studio.io.graph_table import graph_edge_table, information_matrix
 from studio.io.jrl import write_jrl
 from studio.io.multig2o import read_multi_g2o
 from studio.io.outliers_txt import read_outlier_kinds, write_outliers_txt
+from studio.io.range_bearing import RANGE_BEARING_NAME, read_range_bearing
 from studio.io.strict_json import dumps_strict
 from studio.io.symbol_g2o import robot_prefix, write_symbol_g2o_folder
 from studio.io.tum import write_tum
@@ -46,12 +47,14 @@ _EXPORT_FORMAT = "cslam-studio export 1"
 
 @dataclass(frozen=True)
 class ExportFormat:
-    """One export format: its help line, whether it writes a file or a folder, and its writer
-    ``write(graph, target, name, outliers, warn) -> [files written]``."""
+    """One export format: its help line, whether it writes a file or a folder, its writer
+    ``write(graph, target, name, outliers, warn, sightings) -> [files written]``, and whether it
+    carries range-bearing sightings (``range_bearing.txt``; the others say they leave them out)."""
 
     help: str
     folder: bool
-    write: Callable[[PoseGraph, Path, str, np.ndarray, Callable[[str], None]], list[str]]
+    write: Callable[[PoseGraph, Path, str, np.ndarray, Callable[[str], None], RangeBearing | None], list[str]]
+    sightings: bool = False
 
 
 @dataclass(frozen=True)
@@ -64,9 +67,20 @@ class ExportResult:
 
 
 def _write_jrl(
-    graph: PoseGraph, target: Path, name: str, outliers: np.ndarray, warn: Callable[[str], None]
+    graph: PoseGraph,
+    target: Path,
+    name: str,
+    outliers: np.ndarray,
+    warn: Callable[[str], None],
+    sightings: RangeBearing | None,
 ) -> list[str]:
-    write_jrl(target, graph, name=name, outliers=outliers)
+    if sightings is not None and len(sightings) and graph.kind is not PoseKind.SE2:
+        warn(
+            f"jrl: the {len(sightings)} range-bearing sightings (range_bearing.txt) are left out: the dataset has "
+            "3D records and JRL's 3D bearing is a Unit3; convert with --planar to carry them as BearingRangeFactorPose2"
+        )
+        sightings = None
+    write_jrl(target, graph, name=name, outliers=outliers, range_bearing=sightings)
     return [target.name]
 
 
@@ -85,7 +99,12 @@ def _anisotropic(graph: PoseGraph) -> int:
 
 
 def _write_dpgo(
-    graph: PoseGraph, target: Path, name: str, outliers: np.ndarray, warn: Callable[[str], None]
+    graph: PoseGraph,
+    target: Path,
+    name: str,
+    outliers: np.ndarray,
+    warn: Callable[[str], None],
+    sightings: RangeBearing | None = None,
 ) -> list[str]:
     target.mkdir()
     files = [f"{name}.g2o"]
@@ -123,7 +142,12 @@ def _write_dpgo(
 
 
 def _write_symbols(
-    graph: PoseGraph, target: Path, name: str, outliers: np.ndarray, warn: Callable[[str], None]
+    graph: PoseGraph,
+    target: Path,
+    name: str,
+    outliers: np.ndarray,
+    warn: Callable[[str], None],
+    sightings: RangeBearing | None = None,
 ) -> list[str]:
     target.mkdir()
     return write_symbol_g2o_folder(graph, target) + _write_outliers(target, outliers)
@@ -140,7 +164,7 @@ def _write_outliers(target: Path, outliers: np.ndarray) -> list[str]:
 
 #: The export formats, by name.
 EXPORT_FORMATS: dict[str, ExportFormat] = {
-    "jrl": ExportFormat("one JRL file (JRL, MESA, COSMO-Bench)", False, _write_jrl),
+    "jrl": ExportFormat("one JRL file (JRL, MESA, COSMO-Bench)", False, _write_jrl, sightings=True),
     "dpgo": ExportFormat("DPGO's single g2o and a measurements.csv per robot", True, _write_dpgo),
     "symbols": ExportFormat(
         "one GTSAM-Symbol g2o per robot and fullGraph.g2o (DGS, Kimera-Multi, gtsam.readG2o)", True, _write_symbols
@@ -184,6 +208,8 @@ def export_dataset(
         raise ConfigError(f"{out}: -o must name the {'folder' if spec.folder else 'file'} to write")
     graph = read_multi_g2o(dataset)
     outliers = read_dataset_outliers(dataset, graph)
+    rb_path = dataset / RANGE_BEARING_NAME
+    sightings = read_range_bearing(rb_path, graph) if rb_path.is_file() else None
     label = name or dataset.resolve().name
     warnings: list[str] = []
 
@@ -196,8 +222,12 @@ def export_dataset(
         robot_prefix(len(graph.agents) - 1)  # raises: Symbol characters name 52 robots at most
     with staged_outputs(out.parent, [out.name], force=force, inputs=[dataset]) as staging:
         target = staging / out.name
+        if sightings is not None and len(sightings) and not spec.sightings:
+            _warn(
+                f"{format}: the {len(sightings)} range-bearing sightings (range_bearing.txt) are left out: the format has none"
+            )
         try:
-            files = spec.write(graph, target, label, outliers, _warn)
+            files = spec.write(graph, target, label, outliers, _warn, sightings if spec.sightings else None)
         except GraphError as err:
             raise FormatError(f"{dataset}: {err}") from None
         if spec.folder:

@@ -164,7 +164,7 @@ def _kimera(work: Path) -> None:
 def _mrclam(work: Path) -> None:
     from tests.converters.mrclam_files import write_mrclam_dataset
 
-    write_mrclam_dataset(work / "MRCLAM_Dataset1")
+    write_mrclam_dataset(work / "MRCLAM_Dataset1", padded=True, lag_s=0.17)  # the real files' layout and lag
 
 
 def _vio(work: Path) -> None:

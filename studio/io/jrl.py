@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from studio.core.errors import FormatError, GraphError
-from studio.core.model import PoseGraph, PoseKind
+from studio.core.model import PoseGraph, PoseKind, RangeBearing
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.io.g2o import MAX_TEXT_BYTES
@@ -122,9 +122,47 @@ def _values(kind: PoseKind, prefix: str, poses: np.ndarray) -> list[dict[str, An
     return [{"key": base + i, "type": _VALUE[kind], **v} for i, v in enumerate(_pose_values(kind, poses))]
 
 
-def jrl_document(graph: PoseGraph, *, name: str, outliers: np.ndarray | None = None) -> dict[str, Any]:
+def _bearing_range_factors(
+    graph: PoseGraph, rb: RangeBearing | None, base: np.ndarray
+) -> tuple[np.ndarray, list[dict[str, Any]], np.ndarray]:
+    """JRL's ``BearingRangeFactorPose2`` of each sighting (observer keyframe to observed keyframe;
+    measurement ``BearingRange`` of a ``Rot2`` bearing and a ``Scalar`` range, covariance over
+    (bearing, range) as GTSAM's BearingRange orders them): stamps, factors, observer robots."""
+    if rb is None or not len(rb) or graph.kind is not PoseKind.SE2:
+        return np.zeros(0, np.int64), [], np.zeros(0, np.int64)
+    k1 = (base[rb.observer_agent] + rb.observer_index).tolist()
+    k2 = (base[rb.observed_agent] + rb.observed_index).tolist()
+    factors = [
+        {
+            "type": "BearingRangeFactorPose2",
+            "key1": a,
+            "key2": b,
+            "measurement": {
+                "type": "BearingRange",
+                "bearing": {"type": "Rot2", "theta": brg},
+                "range": {"type": "Scalar", "value": rng},
+            },
+            "covariance": [sb * sb, 0.0, 0.0, sr * sr],
+        }
+        for a, b, brg, rng, sb, sr in zip(
+            k1,
+            k2,
+            rb.bearing_rad.tolist(),
+            rb.range_m.tolist(),
+            rb.sigma_bearing_rad.tolist(),
+            rb.sigma_range_m.tolist(),
+        )
+    ]
+    return rb.stamps_ns, factors, rb.observer_agent
+
+
+def jrl_document(
+    graph: PoseGraph, *, name: str, outliers: np.ndarray | None = None, range_bearing: RangeBearing | None = None
+) -> dict[str, Any]:
     """The JRL object of ``graph`` (see the module doc). ``outliers``: ``(k, 4)`` rows
-    ``agent_from vertex_from agent_to vertex_to`` (0-based agents) of the labelled outliers."""
+    ``agent_from vertex_from agent_to vertex_to`` (0-based agents) of the labelled outliers.
+    ``range_bearing``: sightings written as ``BearingRangeFactorPose2`` at their stamps in the
+    observer's measurements (planar graphs only: JRL's 3D bearing is a ``Unit3``)."""
     kind = graph.kind
     prefixes = [robot_prefix(k) for k in range(len(graph.agents))]
     for a in graph.agents:
@@ -153,22 +191,30 @@ def jrl_document(graph: PoseGraph, *, name: str, outliers: np.ndarray | None = N
         view = np.ascontiguousarray(rows).view([("", np.int64)] * 4).ravel()
         wanted = np.ascontiguousarray(np.asarray(outliers, dtype=np.int64)).view([("", np.int64)] * 4).ravel()
         label = np.isin(view, wanted)
+    rb_stamp, rb_factor, rb_robot = _bearing_range_factors(graph, range_bearing, base)
     measurements: dict[str, list[dict[str, Any]]] = {}
     potential: dict[str, list[list[int]]] = {}
     labelled: dict[str, list[list[int]]] = {}
     for k, p in enumerate(prefixes):
         mine = np.flatnonzero(table.from_agent == k)
-        order = mine[np.argsort(stamp[mine], kind="stable")]
+        order = mine[np.argsort(stamp[mine], kind="stable")].tolist()
+        extra = np.flatnonzero(rb_robot == k).tolist()
+        # between factors by stamp, then the robot's sightings merged in (after factors of equal stamp)
+        items = [(int(stamp[e]), 0, e) for e in order] + [(int(rb_stamp[j]), 1, j) for j in extra]
+        if extra:
+            items.sort(key=lambda it: (it[0], it[1]))
         entries: list[dict[str, Any]] = []
         pot: list[list[int]] = []
         out: list[list[int]] = []
         last = None
-        for e in order.tolist():
-            s = int(stamp[e])
-            if s != last:
-                entries.append({"stamp": s, "measurements": []})
-                last = s
+        for at, is_rb, e in items:
+            if at != last:
+                entries.append({"stamp": at, "measurements": []})
+                last = at
             factors = entries[-1]["measurements"]
+            if is_rb:
+                factors.append(rb_factor[e])
+                continue
             if inter[e] or label[e]:
                 pot.append([len(entries) - 1, len(factors)])
             if label[e]:
@@ -193,9 +239,17 @@ def jrl_document(graph: PoseGraph, *, name: str, outliers: np.ndarray | None = N
     return doc
 
 
-def write_jrl(path: PathLike, graph: PoseGraph, *, name: str, outliers: np.ndarray | None = None) -> None:
+def write_jrl(
+    path: PathLike,
+    graph: PoseGraph,
+    *,
+    name: str,
+    outliers: np.ndarray | None = None,
+    range_bearing: RangeBearing | None = None,
+) -> None:
     """Write ``graph`` as a JRL file (compact JSON, numbers as Python's shortest round-trip repr)."""
-    text = dumps_strict(jrl_document(graph, name=name, outliers=outliers), str(path), separators=(",", ":"))
+    doc = jrl_document(graph, name=name, outliers=outliers, range_bearing=range_bearing)
+    text = dumps_strict(doc, str(path), separators=(",", ":"))
     with open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write(text)
         f.write("\n")

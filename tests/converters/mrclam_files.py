@@ -28,14 +28,19 @@ _HEAD = (
 )
 
 
-def _write(path: Path, columns: str, rows: np.ndarray, fmts: list[str]) -> None:
-    fmt = "\t".join(fmts)
+def _write(path: Path, columns: str, rows: np.ndarray, fmts: list[str], padded: bool = False) -> None:
+    """``padded``: as the real files are laid out (the copies in public repositories): each column
+    right-aligned and followed by a space, columns joined by a tab, a space before every tab and at
+    the end of the line (``1248444175.103 \t 1.41277290 \t -3.89107760 \t 2.26960000 ``)."""
+    fmt = " \t ".join(fmts) + " " if padded else "\t".join(fmts)
     lines = [fmt % tuple(r) for r in rows.tolist()]
     path.write_text(_HEAD + "# " + columns + "\n" + "\n".join(lines) + "\n", encoding="utf-8")
 
 
-def simulate(seconds: float, seed: int):
-    """Per robot: (gt_t, gt_x, gt_y, gt_th), (cmd_t, v, w), all numpy arrays, 1 ms integration."""
+def simulate(seconds: float, seed: int, lag_s: float = 0.0):
+    """Per robot: (gt_t, gt_x, gt_y, gt_th), (cmd_t, v, w), all numpy arrays, 1 ms integration.
+    ``lag_s``: the robots move ``lag_s`` after each command (the real robots follow theirs by
+    0.15-0.2 s)."""
     rng = np.random.default_rng(seed)
     robots = []
     n = int(seconds * 1000)
@@ -52,8 +57,8 @@ def simulate(seconds: float, seed: int):
         v_cmd, w_cmd = v_seg[seg], w_seg[seg]
         # the true motion at 1 kHz: the command in force, with a scale error and noise
         t_ms = np.arange(n) / 1000.0
-        idx = np.clip(np.searchsorted(cmd_t, t_ms, side="right") - 1, 0, len(cmd_t) - 1)
-        before = t_ms < cmd_t[0]
+        idx = np.clip(np.searchsorted(cmd_t, t_ms - lag_s, side="right") - 1, 0, len(cmd_t) - 1)
+        before = t_ms - lag_s < cmd_t[0]
         v = np.where(before, 0.0, v_cmd[idx]) * (1.03 + 0.02 * k) + rng.normal(0, 0.02, n)
         w = np.where(before, 0.0, w_cmd[idx]) * 0.97 + rng.normal(0, 0.05, n)
         v[before] = w[before] = 0.0
@@ -66,23 +71,28 @@ def simulate(seconds: float, seed: int):
     return robots
 
 
-def write_mrclam_dataset(root: Path, *, seconds: float = 60.0, seed: int = 0) -> Path:
-    """An ``MRCLAM_DatasetN``-layout folder at ``root``; returns it."""
+def write_mrclam_dataset(
+    root: Path, *, seconds: float = 60.0, seed: int = 0, lag_s: float = 0.0, padded: bool = False
+) -> Path:
+    """An ``MRCLAM_DatasetN``-layout folder at ``root``; returns it. ``lag_s``: see :func:`simulate`;
+    ``padded``: the real files' column layout (see :func:`_write`)."""
     root.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed + 100)
-    robots = simulate(seconds, seed)
+    robots = simulate(seconds, seed, lag_s)
     landmarks = np.column_stack([rng.uniform(-5, 5, 15), rng.uniform(-4, 4, 15)])
     _write(
         root / "Barcodes.dat",
         "Subject #\tBarcode #",
         np.array([[k + 1, b] for k, b in enumerate(ROBOT_BARCODES + LANDMARK_BARCODES)]),
         ["%d", "%d"],
+        padded,
     )
     _write(
         root / "Landmark_Groundtruth.dat",
         "Subject #\tx [m]\ty [m]\tx std-dev [m]\ty std-dev [m]",
         np.column_stack([np.arange(6, 21), landmarks, np.full(15, 0.001), np.full(15, 0.001)]),
         ["%d", "%.4f", "%.4f", "%.6f", "%.6f"],
+        padded,
     )
     for k, (truth, cmd, dense) in enumerate(robots):
         gt_t, gx, gy, gth = truth
@@ -92,12 +102,14 @@ def write_mrclam_dataset(root: Path, *, seconds: float = 60.0, seed: int = 0) ->
             "Time [s]\tx [m]\ty [m]\torientation [rad]",
             np.column_stack([T0_S + gt_t, gx, gy, th_wrapped]),
             ["%.3f", "%.4f", "%.4f", "%.4f"],
+            padded,
         )
         _write(
             root / f"Robot{k + 1}_Odometry.dat",
             "Time [s]\tforward velocity [m/s]\tangular velocity [rad/s]",
             np.column_stack([T0_S + cmd[0], cmd[1], cmd[2]]),
             ["%.3f", "%.3f", "%.3f"],
+            padded,
         )
         # camera frames every 0.2 s: other robots and landmarks within 5 m and +-30 degrees
         t_ms, x, y, th = dense
@@ -112,7 +124,12 @@ def write_mrclam_dataset(root: Path, *, seconds: float = 60.0, seed: int = 0) ->
                 b = float((np.arctan2(dy, dx) - th[i] + np.pi) % (2 * np.pi) - np.pi)
                 if r < 5.0 and abs(b) < np.radians(30):
                     rows.append(
-                        [T0_S + t_ms[i], code, r + rng.normal(0, RANGE_SIGMA_M), b + rng.normal(0, BEARING_SIGMA_RAD)]
+                        [
+                            T0_S + t_ms[i],
+                            code,
+                            abs(r + rng.normal(0, RANGE_SIGMA_M)),
+                            b + rng.normal(0, BEARING_SIGMA_RAD),
+                        ]
                     )
         rows.append([T0_S + 1.0, 99, 1.0, 0.0])  # a barcode nobody carries (misread)
         rows.sort(key=lambda r: r[0])
@@ -121,5 +138,6 @@ def write_mrclam_dataset(root: Path, *, seconds: float = 60.0, seed: int = 0) ->
             "Time [s]\tSubject #\trange [m]\tbearing [rad]",
             np.array(rows),
             ["%.3f", "%d", "%.4f", "%.4f"],
+            padded,
         )
     return root

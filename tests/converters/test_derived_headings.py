@@ -2,15 +2,17 @@
 first ``chord`` method.
 
 The issue asks for increments correlating >= 0.8 with the real ones on real-world ground-robot paths.
-No real-world path with orientation could be obtained inside a test here (tests do not touch the
-network and no such data is committed), so these tests use simulated paths: a 2 Hz UTM-sized drive
+Real data is never committed: ``test_real_ground_robot_paths`` reads it from the folder named by
+``STUDIO_REAL_DATA`` (skipped without it); the other tests use simulated paths: a 2 Hz UTM-sized drive
 (tests/converters/test_real_layouts.py's ``curved_path``) and the MR.CLAM-like robots of
-tests/converters/mrclam_files.py, whose turns on the spot no positions-only method can see.
+tests/converters/mrclam_files.py, which turn on the spot.
 """
 
 from __future__ import annotations
 
 import json
+import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -42,9 +44,10 @@ def test_smoothed_headings_follow_a_2hz_drive(seed):
     assert smoothed >= 0.93 and smoothed > chord
 
 
-def test_smoothed_headings_gain_on_slow_indoor_robots_but_miss_turns_on_the_spot():
+def test_smoothed_headings_spread_turns_on_the_spot_over_the_stop():
     """The MR.CLAM-like robots (0.05-0.3 m/s, 100 Hz ground truth, 15 % of their commands turns on
-    the spot): both methods lose the spot turns, the smoothed one keeps more of the rest."""
+    the spot): the smoothed method turns the heading across each stop, from the heading before it to
+    the one after it, so the spot turns are kept in sum; the chord method holds and jumps."""
     gains = []
     for truth, _, _ in simulate(120.0, 0)[:3]:
         t_s, x, y, th = truth
@@ -52,12 +55,52 @@ def test_smoothed_headings_gain_on_slow_indoor_robots_but_miss_turns_on_the_spot
         t = _positions_only(stamps, np.column_stack([x, y, np.zeros(len(x))]))
         smoothed = _increment_correlation(stamps, th, derive_orientation(t, 2.0), 50)  # at 2 Hz
         chord = _increment_correlation(stamps, th, derive_orientation(t, 2.0, "chord"), 50)
-        assert 0.45 < smoothed < 0.8  # measured 0.49-0.58: not the 0.8 the issue asks of real paths
+        assert smoothed > 0.7  # measured 0.73-0.81 (0.49-0.58 when the heading was held over stops)
         gains.append(smoothed - chord)
-    assert min(gains) > 0.15  # measured 0.19-0.51
+    assert min(gains) > 0.4  # measured 0.41-0.82
 
 
-def test_the_heading_is_held_while_standing_still():
+def _correlation_at_2hz(traj: Trajectory) -> float:
+    """Increments at 2 Hz (in time) of the headings derived from ``traj``'s positions alone against
+    those of its own orientation."""
+    derived = derive_orientation(_positions_only(traj.stamps_ns, traj.positions_xyz), 2.0)
+    st = traj.stamps_ns
+    at = np.clip(np.searchsorted(st, np.arange(st[0], st[-1], 500_000_000)), 0, len(st) - 1)
+    true_yaw = yaw_from_quat_xyzw(traj.quat_xyzw)[at]
+    got = yaw_from_quat_xyzw(derived.quat_xyzw)[at]
+    return float(np.corrcoef(normalize_angle(np.diff(got)), normalize_angle(np.diff(true_yaw)))[0, 1])
+
+
+def _real_paths(root: Path) -> list[tuple[str, Trajectory]]:
+    from studio.converters.kitti import read_kitti
+    from studio.converters.mrclam import read_mrclam
+
+    paths = []
+    for folder in sorted(root.glob("MRCLAM_Dataset*")):
+        paths += [(f"{folder.name}/{t.name}", t) for t in read_mrclam([folder])]
+    for poses in sorted(root.glob("**/KITTI_*_gt.txt")):
+        paths.append((poses.name, read_kitti([poses])[0]))
+    return paths
+
+
+@pytest.mark.skipif(not os.environ.get("STUDIO_REAL_DATA"), reason="STUDIO_REAL_DATA names no real data folder")
+def test_real_ground_robot_paths():
+    """Real ground-robot paths with orientation, positions only given to the method: the UTIAS MR.CLAM
+    ground truth (``MRCLAM_DatasetN/RobotK_Groundtruth.dat``, Vicon, five iRobot Create robots that
+    turn on the spot; Leung et al., IJRR 2011) and KITTI's ``poses/00.txt`` as evo ships it
+    (``test/data/KITTI_00_gt.txt`` with ``KITTI_00_gt_times.txt`` copied to ``times.txt`` beside it),
+    found anywhere under ``$STUDIO_REAL_DATA``. Measured (docs/converters.md): MR.CLAM datasets 6 and 7,
+    ten robots, 0.73-0.93 (eight of ten >= 0.8, median 0.83); KITTI 00 0.95."""
+    paths = _real_paths(Path(os.environ["STUDIO_REAL_DATA"]))
+    if not paths:
+        pytest.skip(f"no MRCLAM_Dataset* folder or KITTI_*_gt.txt under {os.environ['STUDIO_REAL_DATA']}")
+    got = {name: _correlation_at_2hz(t) for name, t in paths}
+    print(got)
+    assert min(got.values()) > 0.7, got
+    assert float(np.median(list(got.values()))) >= 0.8, got
+
+
+def test_a_stop_turns_the_heading_evenly_from_before_to_after():
     n = 700
     stamps = np.arange(n, dtype=np.int64) * 10_000_000  # 100 Hz: 1.5 s east, 4 s still, 1.5 s north
     x = np.concatenate([np.linspace(0, 2, 150), np.full(400, 2.0), 2 + np.zeros(150)])
@@ -66,8 +109,10 @@ def test_the_heading_is_held_while_standing_still():
     pos = np.column_stack([x, y, np.zeros(n)]) + rng.normal(0, 0.0005, (n, 3))  # 0.5 mm jitter
     yaw = yaw_from_quat_xyzw(derive_orientation(_positions_only(stamps, pos), 2.0).quat_xyzw)
     assert np.abs(yaw[20:140]).max() < 0.05  # east
-    still = yaw[300:400]  # a second from either end of the stop: one held value, not the jitter's
-    assert np.ptp(still) == 0.0 and abs(still[0]) < 0.05
+    still = yaw[300:400]  # a second from either end of the stop: a steady left turn, not the jitter's
+    steps = np.diff(still)
+    assert np.all(steps > 0) and np.ptp(steps) < 1e-9
+    assert 0.3 < steps.mean() * 100 < 1.0  # rad/s: 90 degrees over the part of the stop the filter sees
     assert np.abs(yaw[600:680] - np.pi / 2).max() < 0.05  # then north
 
 
