@@ -156,6 +156,17 @@ def _bearing_range_factors(
     return rb.stamps_ns, factors, rb.observer_agent
 
 
+def _labelled(table: EdgeTable, outliers: np.ndarray | None) -> np.ndarray:
+    """Which rows of ``table`` are among ``outliers`` (``(k, 4)`` rows ``agent_from vertex_from
+    agent_to vertex_to``)."""
+    if outliers is None or not len(outliers):
+        return np.zeros(len(table), dtype=bool)
+    view = np.ascontiguousarray(table.rows()).view([("", np.int64)] * 4).ravel()
+    wanted = np.ascontiguousarray(np.asarray(outliers, dtype=np.int64)).view([("", np.int64)] * 4).ravel()
+    label: np.ndarray = np.isin(view, wanted)
+    return label
+
+
 def jrl_document(
     graph: PoseGraph, *, name: str, outliers: np.ndarray | None = None, range_bearing: RangeBearing | None = None
 ) -> dict[str, Any]:
@@ -185,12 +196,7 @@ def jrl_document(
     meas = _pose_values(kind, table.measurements)
     tag = _BETWEEN[kind]
     inter = table.from_agent != table.to_agent
-    label = np.zeros(len(table), dtype=bool)
-    if outliers is not None and len(outliers):
-        rows = table.rows()
-        view = np.ascontiguousarray(rows).view([("", np.int64)] * 4).ravel()
-        wanted = np.ascontiguousarray(np.asarray(outliers, dtype=np.int64)).view([("", np.int64)] * 4).ravel()
-        label = np.isin(view, wanted)
+    label = _labelled(table, outliers)
     rb_stamp, rb_factor, rb_robot = _bearing_range_factors(graph, range_bearing, base)
     measurements: dict[str, list[dict[str, Any]]] = {}
     potential: dict[str, list[list[int]]] = {}
