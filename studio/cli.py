@@ -773,7 +773,7 @@ def solve(
         init=init.value,  # type: ignore[attr-defined]
         max_iterations=iterations,
         command=command,
-        dimension=dimension.value,  # type: ignore[arg-type]
+        dimension=dimension.value,
         force=force,
         rrd=rrd,
         robots=robots,

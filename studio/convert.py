@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from studio._callable import make_callable
-from studio.converters.build import OUTLIER_KIND, BuildResult, GraphOptions, Progress, build_graph
+from studio.converters.build import OUTLIER_KIND, BuildResult, GraphOptions, build_graph
 from studio.converters.odometry_source import (
     OdometryFit,
     apply_odometry_sources,
@@ -69,6 +69,7 @@ from studio.io.outliers_txt import write_outliers_txt
 from studio.io.range_bearing import RANGE_BEARING_NAME, write_range_bearing
 from studio.io.strict_json import dumps_strict
 from studio.io.textfmt import write_text
+from studio.runtime.progress import Progress
 
 __all__ = [
     "ConvertConfig",
