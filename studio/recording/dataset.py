@@ -22,6 +22,7 @@ from __future__ import annotations
 import hashlib
 import json
 import uuid
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -606,6 +607,20 @@ def no_plot_legend() -> Any:
     return rrb.PlotLegend(visible=False)
 
 
+def eye_over(centre_xyz: Sequence[float], extent_m: float, *, planar: bool) -> Any:
+    """The view's camera, one rule for every recording: planar data from straight above (at 1.1
+    times ``extent_m`` over ``centre_xyz``, north up), 3D data from an oblique corner."""
+    import rerun.blueprint as rrb
+
+    cx, cy, cz = (float(v) for v in centre_xyz)
+    if planar:
+        return rrb.EyeControls3D(
+            position=(cx, cy, cz + 1.1 * extent_m), look_target=(cx, cy, cz), eye_up=(0.0, 1.0, 0.0)
+        )
+    d = 0.9 * extent_m
+    return rrb.EyeControls3D(position=(cx - d, cy - d, cz + d), look_target=(cx, cy, cz), eye_up=(0.0, 0.0, 1.0))
+
+
 def default_blueprint(scene: _Scene) -> rrb.Blueprint:
     """The layout saved in every recording: 3D view of all agents, time series beside it, time panel
     on ``node``, following (a viewer opens the file at its last node, with everything shown).
@@ -618,14 +633,7 @@ def default_blueprint(scene: _Scene) -> rrb.Blueprint:
         rrb.VisibleTimeRange(t, start=rr.TimeRangeBoundary.infinite(), end=rr.TimeRangeBoundary.cursor_relative())
         for t in timelines
     ]
-    cx, cy, cz = scene.centre_xyz
-    if scene.planar:
-        eye = rrb.EyeControls3D(
-            position=(cx, cy, cz + 1.1 * scene.extent_m), look_target=(cx, cy, cz), eye_up=(0.0, 1.0, 0.0)
-        )
-    else:
-        d = 0.9 * scene.extent_m
-        eye = rrb.EyeControls3D(position=(cx - d, cy - d, cz + d), look_target=(cx, cy, cz), eye_up=(0.0, 0.0, 1.0))
+    eye = eye_over(scene.centre_xyz, scene.extent_m, planar=scene.planar)
     # Everything up to the cursor: loop closures accumulate (paths are static, and transforms are
     # always resolved at the cursor, so the pose markers do not leave a trail).
     # Many inter-agent closures: their segments (one entity per pair, toggled in the blueprint

@@ -36,7 +36,7 @@ import numpy as np
 
 from studio.core.types import PathLike
 from studio.recording.colours import GROUND_TRUTH_GREY, error_colours
-from studio.recording.dataset import LEGEND_HEADROOM, agent_colour, fixed_id, hash_columns, plot_legend
+from studio.recording.dataset import LEGEND_HEADROOM, agent_colour, eye_over, fixed_id, hash_columns, plot_legend
 from studio.recording.entities import (
     APPLICATION_ID,
     EVALUATION_ESTIMATE,
@@ -159,15 +159,7 @@ def evaluation_blueprint(series: Sequence[ErrorSeries]) -> Any:
         lo, hi = allp.min(axis=0), allp.max(axis=0)
         c = (lo + hi) / 2.0
         extent = float(max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1.0))
-        if float(hi[2] - lo[2]) < 1e-9:  # planar: from straight above
-            eye = rrb.EyeControls3D(
-                position=(c[0], c[1], c[2] + 1.1 * extent), look_target=tuple(c), eye_up=(0.0, 1.0, 0.0)
-            )
-        else:
-            d = 0.9 * extent
-            eye = rrb.EyeControls3D(
-                position=(c[0] - d, c[1] - d, c[2] + d), look_target=tuple(c), eye_up=(0.0, 0.0, 1.0)
-            )
+        eye = eye_over(c, extent, planar=float(hi[2] - lo[2]) < 1e-9)  # planar: from straight above
         views.append(
             _fixed(
                 rrb.Spatial3DView(

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from studio.core.model import PoseGraph
+from studio.core.model import PoseGraph, PoseKind
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.recording.colours import (
@@ -53,13 +53,23 @@ MAX_POINTS_PER_SNAPSHOT = 4000
 MAX_CLOSURE_SEGMENTS = 1500
 
 
-def replay_blueprint(backends: Sequence[str]) -> Any:
+def replay_blueprint(backends: Sequence[str], truth_xyz: np.ndarray | None = None, *, planar: bool = False) -> Any:
+    """One view per back-end beside the APE and communication plots, the time panel following
+    (a viewer opens at the end). With ``truth_xyz`` (the ground-truth positions) every view looks
+    at the whole team; planar data is seen from straight above with no ground grid."""
     import rerun.blueprint as rrb
 
-    from studio.recording.dataset import fixed_id
+    from studio.recording.dataset import eye_over, fixed_id
 
     def fixed(part: Any, label: str) -> Any:
         return fixed_id(part, _NAMESPACE, f"blueprint/{label}")
+
+    view: dict[str, Any] = {}
+    if truth_xyz is not None and len(truth_xyz):
+        lo, hi = truth_xyz.min(axis=0), truth_xyz.max(axis=0)
+        view["eye_controls"] = eye_over(0.5 * (lo + hi), float(max(np.max(hi - lo), 1.0)), planar=planar)
+        if planar:
+            view["line_grid"] = rrb.LineGrid3D(visible=False)
 
     return rrb.Blueprint(
         fixed(
@@ -77,6 +87,7 @@ def replay_blueprint(backends: Sequence[str]) -> Any:
                                         f"+ {REPLAY_LINKS}",
                                         f"+ {REPLAY_CLOSURES}",
                                     ],
+                                    **view,
                                 ),
                                 f"space/{b}",
                             )
@@ -97,7 +108,7 @@ def replay_blueprint(backends: Sequence[str]) -> Any:
             ),
             "root",
         ),
-        rrb.TimePanel(timeline=TIMELINE_REPLAY),
+        rrb.TimePanel(timeline=TIMELINE_REPLAY, play_state="following"),
         collapse_panels=True,
     )
 
@@ -254,11 +265,14 @@ def write_replay_recording(
 
     path = Path(path)
     backends = [r[0] for r in columns["runs"]]
+    g3 = graph.to_se3()
+    truth = np.concatenate([np.asarray(a.ground_truth)[:, 0:3] for a in g3.agents])
+    planar = graph.kind is PoseKind.SE2 or bool(np.ptp(truth[:, 2]) < 1e-9)
     with staged_outputs(path.parent, [path.name], force=force, inputs=inputs) as staging:
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id_for(graph), send_properties=False)
         rec.set_log_time_enabled(False)
         try:
-            rec.save(staging / path.name, default_blueprint=replay_blueprint(backends))
+            rec.save(staging / path.name, default_blueprint=replay_blueprint(backends, truth, planar=planar))
             rec.send_recording_name(name)
             log_replay(rec, graph, **columns)
         finally:

@@ -60,7 +60,7 @@ def solve_blueprint(names: Sequence[str], positions_xyz: np.ndarray | None = Non
     above ``positions_xyz``'s centre, with no ground grid, as in dataset recordings."""
     import rerun.blueprint as rrb
 
-    from studio.recording.dataset import fixed_id
+    from studio.recording.dataset import eye_over, fixed_id
 
     def fixed(part: Any, label: str) -> Any:
         return fixed_id(part, _NAMESPACE, f"blueprint/{label}")
@@ -68,11 +68,7 @@ def solve_blueprint(names: Sequence[str], positions_xyz: np.ndarray | None = Non
     view: dict[str, Any] = {}
     if planar and positions_xyz is not None and len(positions_xyz):
         lo, hi = positions_xyz.min(axis=0), positions_xyz.max(axis=0)
-        cx, cy, cz = (float(v) for v in 0.5 * (lo + hi))
-        extent = float(max(np.max(hi - lo), 1.0))
-        view["eye_controls"] = rrb.EyeControls3D(
-            position=(cx, cy, cz + 1.1 * extent), look_target=(cx, cy, cz), eye_up=(0.0, 1.0, 0.0)
-        )
+        view["eye_controls"] = eye_over(0.5 * (lo + hi), float(max(np.max(hi - lo), 1.0)), planar=True)
         view["line_grid"] = rrb.LineGrid3D(visible=False)
     return rrb.Blueprint(
         fixed(

@@ -26,7 +26,7 @@ from typing import IO, Any
 from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.types import PathLike
 from studio.recording.colours import LIGHT_BACKGROUND_RGB
-from studio.recording.entities import TIMELINE_CELL, TIMELINE_ITERATION, TIMELINE_NODE
+from studio.recording.entities import TIMELINE_CELL, TIMELINE_ITERATION, TIMELINE_NODE, TIMELINE_REPLAY_TICK
 from studio.runtime.progress import Progress, report
 
 __all__ = [
@@ -374,10 +374,11 @@ def _snapshot_into(
         report(progress, step, 2, 4, "stages")
         rec = state.recordings[0]
         timelines = {t.name: t for t in rec.timelines}
-        # a dataset's `node`, a solve's `iteration`, a sweep's `cell`
-        name = next((t for t in (TIMELINE_NODE, TIMELINE_ITERATION, TIMELINE_CELL) if t in timelines), None)
+        # a dataset's `node`, a solve's `iteration`, a sweep's `cell`, a replay's `tick`
+        order = (TIMELINE_NODE, TIMELINE_ITERATION, TIMELINE_CELL, TIMELINE_REPLAY_TICK)
+        name = next((t for t in order if t in timelines), None)
         if name is None:
-            raise FormatError(f"{rrd}: no `node`, `iteration` or `cell` timeline (not a studio recording?)")
+            raise FormatError(f"{rrd}: no `node`, `iteration`, `cell` or `tick` timeline (not a studio recording?)")
         tl = timelines[name]
         at = tl.end if node is None else node
         if at is not None and tl.start is not None and not tl.start <= at <= tl.end:
