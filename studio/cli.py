@@ -342,7 +342,11 @@ class ThemeChoice(str, enum.Enum):
 def snapshot(
     rrd: Path = typer.Argument(..., metavar="FILE.rrd", help="A recording (studio record / studio synth)."),
     out: Path = typer.Option(..., "-o", "--out", help="The picture to write (PNG)."),
-    node: int = typer.Option(None, "--node", help="Put the time cursor here on the recording's node, iteration, cell or tick timeline (default: the end)."),
+    node: int = typer.Option(
+        None,
+        "--node",
+        help="Put the time cursor here on the recording's node, iteration, cell or tick timeline (default: the end).",
+    ),
     size: str = typer.Option("1400x900", "--size", help="Window size WIDTHxHEIGHT."),
     theme: ThemeChoice = typer.Option(
         ThemeChoice.dark,
