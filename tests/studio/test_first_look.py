@@ -48,10 +48,21 @@ def recordings(tmp_path_factory) -> dict[str, Path]:
     assert solved.exit_code == 0, solved.output
     ev = runner.invoke(app, ["evaluate", str(ds), "--rrd", str(out / "evaluate.rrd")])
     assert ev.exit_code == 0, ev.output
-    return {"dataset": res.rrd_path, "solve": out / "solve.rrd", "evaluate": out / "evaluate.rrd"}
+    rp = runner.invoke(
+        app,
+        ["replay", str(ds), "-o", str(out / "replay"), "-b", "independent", "--every", "100"]
+        + ["--rrd", str(out / "replay.rrd")],
+    )
+    assert rp.exit_code == 0, rp.output
+    return {
+        "dataset": res.rrd_path,
+        "solve": out / "solve.rrd",
+        "evaluate": out / "evaluate.rrd",
+        "replay": out / "replay.rrd",
+    }
 
 
-@pytest.mark.parametrize("kind", ["dataset", "solve", "evaluate"])
+@pytest.mark.parametrize("kind", ["dataset", "solve", "evaluate", "replay"])
 def test_every_recording_kind_follows_its_data_so_it_opens_at_the_end(recordings, kind):
     assert _play_state(recordings[kind]) == _FOLLOWING
 
