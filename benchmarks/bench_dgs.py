@@ -46,7 +46,7 @@ def _plot(path: Path, curves: dict[str, dict], batch: dict[str, dict[str, float]
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(curves), figsize=(5.5 * len(curves), 4), squeeze=False)
+    fig, axes = plt.subplots(1, len(curves), figsize=(5.5 * len(curves), 4), squeeze=False, layout="tight")
     for ax, (name, curve) in zip(axes[0], curves.items()):
         for key, align, color in (("first_pose_mean_m", "first-pose", "C0"), ("se3_mean_m", "se3", "C1")):
             ax.plot(curve["round"], curve[key], "o-", ms=2.5, color=color, label=f"DGS, {align}")
@@ -57,7 +57,6 @@ def _plot(path: Path, curves: dict[str, dict], batch: dict[str, dict[str, float]
         ax.set_title(f"{name}: Distributed Gauss-Seidel")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    fig.tight_layout()
     fig.savefig(path, dpi=110)
 
 

@@ -131,7 +131,7 @@ def plot(rows: list[dict], path: Path, args: argparse.Namespace) -> None:
     import matplotlib.pyplot as plt
 
     labels = {"agents": "agents", "steps": "steps per agent", "radius": "loop-closure radius [m]"}
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), layout="tight")
     for ax, panel in zip(axes, labels):
         for tool, style in (("studio", "o-"), ("kollagen", "s--")):
             pts = [(r["x"], r["wall_s"]) for r in rows if r["panel"] == panel and r["tool"] == tool]
@@ -147,7 +147,6 @@ def plot(rows: list[dict], path: Path, args: argparse.Namespace) -> None:
         f"R = {args.radius:g} m; 1-min load {min(loads):.1f}-{max(loads):.1f} on {os.cpu_count()} cores)",
         fontsize=9,
     )
-    fig.tight_layout()
     fig.savefig(path, dpi=90)
 
 

@@ -522,7 +522,9 @@ def _plot(spec: BenchSpec, out: Path, rows: list[dict[str, Any]]) -> Path | None
         return None
     keys = list(dict.fromkeys((r["dataset"], r["case"]) for r in rows))
     methods = list(spec.methods)
-    fig, axes = plt.subplots(1, len(spec.alignments), figsize=(4.5 * len(spec.alignments), 3.6), squeeze=False)
+    fig, axes = plt.subplots(
+        1, len(spec.alignments), figsize=(4.5 * len(spec.alignments), 3.6), squeeze=False, layout="tight"
+    )
     width = 0.8 / max(1, len(methods))
     for ax, align in zip(axes[0], spec.alignments):
         for k, m in enumerate(methods):
@@ -536,7 +538,6 @@ def _plot(spec: BenchSpec, out: Path, rows: list[dict[str, Any]]) -> Path | None
         ax.set_ylabel("APE translation mean [m]")
         ax.set_title(f"alignment: {align}")
         ax.legend(fontsize=8)
-    fig.tight_layout()
     path = out / "bench.png"
     write_replacing(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
     plt.close(fig)

@@ -691,7 +691,7 @@ def _plots(spec: SweepSpec, out: Path, df: Any) -> list[Path]:
         numeric = df[p].dtype.kind in "fiu"
         order = sorted(df[p].unique()) if numeric else list(dict.fromkeys(df[p].astype(str)))
         x = df[p].to_numpy(dtype=float) if numeric else df[p].astype(str).map(order.index).to_numpy(dtype=float)
-        fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 2.6 * rows), squeeze=False)
+        fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 2.6 * rows), squeeze=False, layout="tight")
         for ax in axes.ravel()[len(metrics) :]:
             ax.set_visible(False)
         for ax, m in zip(axes.ravel(), metrics):
@@ -707,7 +707,6 @@ def _plots(spec: SweepSpec, out: Path, df: Any) -> list[Path]:
             ax.grid(alpha=0.3)
         axes.ravel()[0].legend(fontsize=7, frameon=False)
         fig.suptitle(f"{spec.name}: metrics against {label} ({len(df)} cells)", fontsize=10)
-        fig.tight_layout()
         path = out / "plots" / f"{safe_file_name(label.replace('.', '_'), fallback='parameter')}.png"
         write_replacing(path, functools.partial(_save_png, fig))
         plt.close(fig)

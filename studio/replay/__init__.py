@@ -387,7 +387,7 @@ def _plot(path: Path, runs: tuple[BackendRun, ...], schedule: Schedule, title: s
     except ImportError:
         return False
     t0 = int(schedule.ticks_ns[0])
-    fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True, layout="tight")
     for run in runs:
         ts = (schedule.ticks_ns[run.checkpoint_ticks] - t0) / NS_PER_S
         # the first checkpoints (one pose per robot) score 0 or rounding noise: not on a log axis
@@ -410,7 +410,6 @@ def _plot(path: Path, runs: tuple[BackendRun, ...], schedule: Schedule, title: s
     ax2.set_ylabel("inter-agent closures")
     axes[1].set_xlabel("time [s]")
     ax2.legend(fontsize=7, loc="upper left")
-    fig.tight_layout()
     fig.savefig(path, dpi=100, metadata={"Software": None})
     plt.close(fig)
     return True
