@@ -158,21 +158,18 @@ def synth(
 
     t0 = time.perf_counter()
     cfg = load_synth_config(config, warn=_warn)
+    options: dict[str, Any] = {
+        "force": force,
+        "multi_records": multi_records.value,
+        "single_records": single_records.value,
+        "jobs": jobs or None,
+        "max_memory_gb": max_memory_gb,
+        "max_output_gb": max_output_gb,
+        "rrd": rrd,
+    }
     if seeds is not None:
         with terminal_progress(not quiet) as progress:
-            batch = synthesize_seeds(
-                cfg,
-                out,
-                parse_seeds(seeds),
-                force=force,
-                multi_records=multi_records.value,
-                single_records=single_records.value,
-                jobs=jobs or None,
-                max_memory_gb=max_memory_gb,
-                max_output_gb=max_output_gb,
-                rrd=rrd,
-                progress=progress,
-            )
+            batch = synthesize_seeds(cfg, out, parse_seeds(seeds), progress=progress, **options)
         if not quiet:
             typer.echo(
                 f"{cfg.name}: {len(batch.written)} seeds written, {len(batch.kept)} kept (finished before) "
@@ -180,18 +177,7 @@ def synth(
             )
         return
     with terminal_progress(not quiet) as progress:
-        res = synthesize(
-            cfg,
-            out,
-            force=force,
-            multi_records=multi_records.value,
-            single_records=single_records.value,
-            jobs=jobs or None,
-            max_memory_gb=max_memory_gb,
-            max_output_gb=max_output_gb,
-            rrd=rrd,
-            progress=progress,
-        )
+        res = synthesize(cfg, out, progress=progress, **options)
     if not quiet:
         counts = res.output.graph.edge_counts()
         typer.echo(
