@@ -28,10 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
+from studio.converters.transforms import time_windows
 from studio.core.errors import ConfigError, FormatError
 from studio.core.model import PoseGraph, PoseKind
 from studio.core.option_values import check_option
-from studio.core.units import MAX_SPLIT_ROBOTS, NS_PER_S
+from studio.core.units import MAX_SPLIT_ROBOTS
 from studio.io.dpgo import contiguous_split
 from studio.io.graph_table import AgentPoses, EdgeTable, assemble_graph
 
@@ -123,21 +124,8 @@ def partition_vertices(graph: SingleGraph, parts: int, partition: str, overlap_s
     elif partition == "metis":
         robot = _metis(graph, parts)
     else:
-        t = graph.stamps_ns
-        t0, t1 = int(t[0]), int(t[-1])
-        overlap_ns = int(round(overlap_s * NS_PER_S))
-        length = (t1 - t0 + (parts - 1) * overlap_ns) / parts
-        if length <= overlap_ns:
-            raise ConfigError(
-                f"--overlap: {overlap_s:g} s is not shorter than each of the {parts} windows "
-                f"({length / NS_PER_S:.3g} s) of {graph.where}"
-            )
-        out = []
-        for k in range(parts):
-            start = t0 + k * (length - overlap_ns)
-            end = start + length
-            sel = (t >= start) & (t <= end if k == parts - 1 else t < end)
-            out.append(np.flatnonzero(sel))
+        windows = time_windows(graph.stamps_ns, parts, overlap_s, graph.where, label="--overlap")
+        out = [np.flatnonzero(sel) for sel in windows]
         return _checked(graph, out, partition)
     return _checked(graph, [np.flatnonzero(robot == r) for r in range(parts)], partition)
 

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from studio.converters.sightings import Sightings
-from studio.converters.text import MAX_TABLE_BYTES
+from studio.converters.text import read_text_bounded
 from studio.core.errors import FormatError
 from studio.core.geometry import yaw_from_quat_xyzw, yaw_to_quat_xyzw
 from studio.core.trajectory import Trajectory, Warn, clean_trajectory
@@ -62,14 +62,7 @@ def mrclam_files(root: Path, kind: str) -> list[Path]:
 
 def _read_dat(path: Path, columns: int, what: str) -> np.ndarray:
     """The numeric rows of an MR.CLAM ``.dat`` file (``#`` lines skipped), errors naming ``file:line``."""
-    try:
-        if path.stat().st_size > MAX_TABLE_BYTES:
-            raise FormatError(f"{path}: larger than {MAX_TABLE_BYTES >> 30} GiB")
-        text = path.read_bytes().decode("utf-8-sig")
-    except UnicodeDecodeError as err:
-        raise FormatError(f"{path}: not UTF-8 text (byte {err.start})") from None
-    except OSError as err:
-        raise FormatError(f"{path}: cannot read ({err.strerror})") from None
+    text = read_text_bounded(path)
     fast = _read_fast(text, columns)
     if fast is not None:
         return fast

@@ -13,7 +13,7 @@ import numpy as np
 from studio.core.errors import FormatError
 from studio.core.types import PathLike
 
-__all__ = ["read_table"]
+__all__ = ["read_table", "read_text_bounded"]
 
 #: Larger files are refused before reading (ground-truth files of real datasets are a few MB).
 MAX_TABLE_BYTES = 1 << 30
@@ -31,6 +31,19 @@ def _quaternion_order(header: str) -> str:
     if len(names) == 1:
         names = header.lstrip("#").lower().split()
     return "".join(m.group(1) for m in map(_QUAT_NAME.match, names) if m)
+
+
+def read_text_bounded(path: Path) -> str:
+    """The whole of ``path`` as UTF-8 text (a BOM skipped), refused from its size before reading when
+    larger than :data:`MAX_TABLE_BYTES`; every failure a one-line FormatError naming the file."""
+    try:
+        if path.stat().st_size > MAX_TABLE_BYTES:
+            raise FormatError(f"{path}: larger than {MAX_TABLE_BYTES >> 30} GiB")
+        return path.read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        raise FormatError(f"{path}: not UTF-8 text (byte {err.start})") from None
+    except OSError as err:
+        raise FormatError(f"{path}: cannot read ({err.strerror})") from None
 
 
 def read_table(
@@ -53,14 +66,7 @@ def read_table(
     """
     path = Path(path)
     counts = (columns,) if isinstance(columns, int) else columns
-    try:
-        if path.stat().st_size > MAX_TABLE_BYTES:
-            raise FormatError(f"{path}: larger than {MAX_TABLE_BYTES >> 30} GiB")
-        text = path.read_bytes().decode("utf-8-sig")
-    except UnicodeDecodeError as err:
-        raise FormatError(f"{path}: not UTF-8 text (byte {err.start})") from None
-    except OSError as err:
-        raise FormatError(f"{path}: cannot read ({err.strerror})") from None
+    text = read_text_bounded(path)
     rows: list[list[float]] = []
     firsts: list[int] = []
     width = None

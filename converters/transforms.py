@@ -149,6 +149,29 @@ def _held(traj: Trajectory, yaw: np.ndarray, moving: np.ndarray, *, spread_stops
     return Trajectory(traj.name, traj.stamps_ns, p, q, traj.source)
 
 
+def time_windows(
+    stamps_ns: np.ndarray, parts: int, overlap_s: float, where: str, *, label: str = "overlap"
+) -> list[np.ndarray]:
+    """Boolean selections of ``stamps_ns`` (sorted) in ``parts`` consecutive windows of equal length,
+    each overlapping the next by ``overlap_s`` (half-open, the last closed at the last stamp): the
+    one window rule of ``--split`` on trajectories and of the g2o ``time`` partition. An overlap not
+    shorter than a window is a ConfigError starting ``label:`` and naming ``where``."""
+    t0, t1 = int(stamps_ns[0]), int(stamps_ns[-1])
+    overlap_ns = int(round(overlap_s * NS_PER_S))
+    length = (t1 - t0 + (parts - 1) * overlap_ns) / parts
+    if length <= overlap_ns:
+        raise ConfigError(
+            f"{label}: {overlap_s:g} s is not shorter than each of the {parts} windows "
+            f"({length / NS_PER_S:.3g} s) of {where}"
+        )
+    out = []
+    for k in range(parts):
+        start = t0 + k * (length - overlap_ns)
+        end = start + length
+        out.append((stamps_ns >= start) & (stamps_ns <= end if k == parts - 1 else stamps_ns < end))
+    return out
+
+
 def split_trajectory(traj: Trajectory, parts: int, overlap_s: float) -> list[Trajectory]:
     """``parts`` agents over consecutive windows of equal length overlapping by ``overlap_s``, named
     ``<name>_1 .. <name>_N``; each keeps its own slice of the poses (its own ground truth)."""
@@ -156,19 +179,8 @@ def split_trajectory(traj: Trajectory, parts: int, overlap_s: float) -> list[Tra
         raise ConfigError(f"split: expected an integer of at least 2, got {parts!r}")
     if not (overlap_s >= 0):
         raise ConfigError(f"overlap: expected a non-negative number of seconds, got {overlap_s!r}")
-    t0, t1 = int(traj.stamps_ns[0]), int(traj.stamps_ns[-1])
-    overlap_ns = int(round(overlap_s * NS_PER_S))
-    length = (t1 - t0 + (parts - 1) * overlap_ns) / parts
-    if length <= overlap_ns:
-        raise ConfigError(
-            f"overlap: {overlap_s:g} s is not shorter than each of the {parts} windows "
-            f"({length / NS_PER_S:.3g} s) of {traj.name}"
-        )
     out = []
-    for k in range(parts):
-        start = t0 + k * (length - overlap_ns)
-        end = start + length
-        sel = (traj.stamps_ns >= start) & (traj.stamps_ns <= end if k == parts - 1 else traj.stamps_ns < end)
+    for k, sel in enumerate(time_windows(traj.stamps_ns, parts, overlap_s, traj.name, label="overlap")):
         if sel.sum() < 2:
             raise FormatError(
                 f"{traj.source or traj.name}: window {k + 1} of {parts} holds {int(sel.sum())} poses; "
