@@ -66,6 +66,7 @@ from studio.recording.entities import (
     TIMELINE_TIME,
     WORLD,
 )
+from studio.recording.sink import closing
 from studio.runtime.interrupts import interrupts_deferred
 from studio.runtime.progress import Progress, report
 
@@ -720,7 +721,7 @@ def record_graph(
     rid = recording_id_for(g)  # the id is computed on the SE3 form anyway: lift once
     with interrupts_deferred():  # Ctrl-C waits for Rerun's writer (a few tenths of a second)
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)
-        try:
+        with closing(rec, path, shown=path):  # a stuck writer (a full disk) is one OutputError, never a hang
             rec.save(path, default_blueprint=default_blueprint(scene))
             log_properties(rec, graph, name, config_json)
             log_world(rec)
@@ -742,8 +743,6 @@ def record_graph(
             if range_bearing is not None and len(range_bearing):
                 log_range_bearing(rec, g, range_bearing, real_time)
             report(progress, "recording", steps, steps, "parts")
-        finally:
-            rec.disconnect()
     return RecordResult(path, rid, graph.num_poses, graph.edge_counts(), real_time)
 
 

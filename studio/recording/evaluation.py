@@ -47,6 +47,7 @@ from studio.recording.entities import (
     TIMELINE_NODE,
     TIMELINE_TIME,
 )
+from studio.recording.sink import closing
 
 __all__ = [
     "ErrorSeries",
@@ -220,14 +221,10 @@ def save_evaluation_recording(
     if recording_id is None:
         recording_id = evaluation_recording_id(summary_markdown, series)
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
-    rec.save(path, default_blueprint=evaluation_blueprint(series))
-    try:
-        log_evaluation(rec, summary_markdown, series)
-        rec.flush()
-    except RuntimeError:
-        # Rerun's file writer stopped (a full disk): the output guard's check of the file
-        # (studio.io.atomic.verify_rrd) names what went wrong, in one line
-        pass
-    finally:
-        rec.disconnect()
+    with closing(rec, path, shown=path):  # a stuck writer (a full disk) is one OutputError, never a hang
+        rec.save(path, default_blueprint=evaluation_blueprint(series))
+        try:
+            log_evaluation(rec, summary_markdown, series)
+        except RuntimeError:  # Rerun's writer stopped (a full disk): verify_rrd names it in one line
+            pass
     return path

@@ -43,6 +43,7 @@ from studio.recording.entities import (
     TIMELINE_REPLAY,
     TIMELINE_REPLAY_TICK,
 )
+from studio.recording.sink import closing
 
 __all__ = ["log_replay", "write_replay_recording", "replay_blueprint", "MAX_POINTS_PER_SNAPSHOT"]
 
@@ -271,10 +272,8 @@ def write_replay_recording(
     with staged_outputs(path.parent, [path.name], force=force, inputs=inputs) as staging:
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id_for(graph), send_properties=False)
         rec.set_log_time_enabled(False)
-        try:
+        with closing(rec, staging / path.name, shown=path):
             rec.save(staging / path.name, default_blueprint=replay_blueprint(backends, truth, planar=planar))
             rec.send_recording_name(name)
             log_replay(rec, graph, **columns)
-        finally:
-            rec.disconnect()
     return path

@@ -35,6 +35,7 @@ from studio.recording.entities import (
     SOLVE_SCALE,
     TIMELINE_ITERATION,
 )
+from studio.recording.sink import STALL_TIMEOUT_S, disk_full_note, first_line
 
 __all__ = ["log_solve", "write_solve_recording", "solve_blueprint", "solve_recording_id"]
 
@@ -202,9 +203,6 @@ def write_solve_recording(
 FLUSH_TIMEOUT_S = 3.0
 #: Seconds a recording's writing process may take at most, flush included.
 WRITE_TIMEOUT_S = 600.0
-#: Seconds the recording's file may stay the same size while its writer runs before the writer is
-#: given up as stuck (Rerun's batcher writes every few milliseconds while logging).
-STALL_TIMEOUT_S = 5.0
 
 
 def write_bounded(write: Callable[[Path], None], target: Path, *, shown: Path) -> None:
@@ -225,7 +223,7 @@ def write_bounded(write: Callable[[Path], None], target: Path, *, shown: Path) -
         try:
             write(target)
         except RuntimeError as err:
-            raise OutputError(f"{shown}: Rerun could not write the recording ({_first_line(err)})") from None
+            raise OutputError(f"{shown}: Rerun could not write the recording ({first_line(err)})") from None
         return
     read_end, write_end = os.pipe()  # the writer's stderr: Rerun's log lines of a failed write
     pid = os.fork()
@@ -253,12 +251,12 @@ def write_bounded(write: Callable[[Path], None], target: Path, *, shown: Path) -
         raise OutputError(f"{shown}: Rerun could not write the recording ({failed})")
     if stalled:
         raise OutputError(
-            f"{shown}: Rerun could not write the recording (stuck for {STALL_TIMEOUT_S:g} s){_disk_full(target)}"
+            f"{shown}: Rerun could not write the recording (stuck for {STALL_TIMEOUT_S:g} s){disk_full_note(target)}"
         )
     if status is None:
         raise OutputError(f"{shown}: the recording was not written within {WRITE_TIMEOUT_S:g} s")
     if os.waitstatus_to_exitcode(status) != 0:
-        raise OutputError(f"{shown}: Rerun could not write the recording{_disk_full(target)}")
+        raise OutputError(f"{shown}: Rerun could not write the recording{disk_full_note(target)}")
 
 
 #: What Rerun's file sink logs when a write fails: ``Failed to write: <strerror> (os error N)``.
@@ -316,15 +314,3 @@ def _watch_writer(pid: int, target: Path, log_fd: int) -> tuple[int | None, bool
     if found is not None:
         failed = os.strerror(int(found.group(1)))
     return (None if failed or stalled else status), stalled, failed
-
-
-def _first_line(err: BaseException) -> str:
-    return next((ln.strip() for ln in str(err).splitlines() if ln.strip()), type(err).__name__)[:160]
-
-
-def _disk_full(target: Path) -> str:
-    try:
-        st = os.statvfs(target.parent)
-    except OSError:
-        return ""
-    return " (No space left on device)" if st.f_bavail * st.f_frsize < (1 << 20) else ""

@@ -13,6 +13,7 @@ import numpy as np
 
 from studio.core.types import PathLike
 from studio.recording.entities import APPLICATION_ID, SWEEP_SERIES, SWEEP_TABLE, TIMELINE_CELL
+from studio.recording.sink import closing
 
 __all__ = ["log_sweep", "write_sweep_recording"]
 
@@ -39,11 +40,9 @@ def write_sweep_recording(path: PathLike, name: str, table: Any) -> Path:
 
     def write(tmp: Path) -> None:
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=f"sweep-{name}", send_properties=False)
-        try:
+        with closing(rec, tmp, shown=Path(path)):
             rec.save(tmp)
             rec.send_recording_name(f"sweep {name}")
             log_sweep(rec, table)
-        finally:
-            rec.disconnect()
 
     return write_replacing(path, write)
