@@ -77,6 +77,7 @@ if TYPE_CHECKING:
 __all__ = [
     "MANY_INTER_LOOP_CLOSURES",
     "fixed_id",
+    "is_planar_graph",
     "hash_columns",
     "RecordResult",
     "inter_pair_path",
@@ -197,7 +198,7 @@ def has_real_stamps(graph: PoseGraph) -> bool:
     return any(not np.array_equal(a.stamps_ns, np.arange(a.num_poses, dtype=np.int64) * NS_PER_S) for a in graph.agents)
 
 
-def _is_planar(graph: PoseGraph) -> bool:
+def is_planar_graph(graph: PoseGraph) -> bool:
     """SE2 graphs, and SE3 graphs whose poses all lie in z = 0 and turn about z only."""
     if graph.kind is PoseKind.SE2:
         return True
@@ -212,7 +213,7 @@ def _is_planar(graph: PoseGraph) -> bool:
 def pose_kind_of(graph: PoseGraph) -> PoseKind:
     """The pose kind a recording states: SE2 for planar data whether it was read from 2D or 3D
     records (kollagen writes its planar graphs as 3D records), SE3 otherwise."""
-    return PoseKind.SE2 if _is_planar(graph) else PoseKind.SE3
+    return PoseKind.SE2 if is_planar_graph(graph) else PoseKind.SE3
 
 
 def _edge_keys(
@@ -568,7 +569,7 @@ def _scene(graph: PoseGraph, real_time: bool) -> _Scene:
     most_lcs = max([len(a.loop_closures) for a in graph.agents] + [1])
     return _Scene(
         names=tuple(a.name for a in graph.agents),
-        planar=_is_planar(graph),
+        planar=is_planar_graph(graph),
         centre_xyz=(float(centre[0]), float(centre[1]), float(centre[2])),
         extent_m=extent,
         num_nodes=max(a.num_poses for a in graph.agents),

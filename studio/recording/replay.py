@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from studio.core.model import PoseGraph, PoseKind
+from studio.core.model import PoseGraph
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.recording.colours import (
@@ -262,13 +262,12 @@ def write_replay_recording(
     import rerun as rr
 
     from studio.io.atomic import staged_outputs
-    from studio.recording.dataset import recording_id_for
+    from studio.recording.dataset import is_planar_graph, recording_id_for
 
     path = Path(path)
     backends = [r[0] for r in columns["runs"]]
-    g3 = graph.to_se3()
-    truth = np.concatenate([np.asarray(a.ground_truth)[:, 0:3] for a in g3.agents])
-    planar = graph.kind is PoseKind.SE2 or bool(np.ptp(truth[:, 2]) < 1e-9)
+    truth = np.concatenate([np.asarray(a.ground_truth)[:, 0:3] for a in graph.to_se3().agents])
+    planar = is_planar_graph(graph)  # the dataset recording's rule: seen from above when planar
     with staged_outputs(path.parent, [path.name], force=force, inputs=inputs) as staging:
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id_for(graph), send_properties=False)
         rec.set_log_time_enabled(False)
