@@ -62,6 +62,10 @@ def orientation_is_uninformative(traj: Trajectory, tolerance_rad: float = 1e-6) 
 HEADING_METHODS = ("smoothed", "chord")
 #: Half-width [s] of the box filter, applied twice, that smooths positions for ``smoothed`` headings.
 SMOOTH_HALF_WIDTH_S = 0.5
+#: Half-width [s] of the shorter box filter, applied twice (a 0.5 s triangle), whose speed must also
+#: reach :data:`STILL_SPEED_MPS` for the robot to move: the 1 s triangle alone carries a drive's
+#: motion up to half a second into each stop (and out of it before the robot drives off).
+SHORT_HALF_WIDTH_S = 0.25
 #: Below this speed [m/s] of the smoothed positions the robot stands still (no heading of its own).
 STILL_SPEED_MPS = 0.02
 
@@ -74,21 +78,30 @@ def _box_mean(stamps_ns: np.ndarray, xy: np.ndarray, half_ns: int) -> np.ndarray
     return (c[hi] - c[lo]) / (hi - lo)[:, None]
 
 
-def _smoothed_headings(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
-    """Yaw of the central differences of the positions smoothed by a box filter of half-width
-    :data:`SMOOTH_HALF_WIDTH_S` applied twice (a triangle of 1 s), and where the smoothed speed is
-    at least :data:`STILL_SPEED_MPS`."""
-    st = traj.stamps_ns
-    xy = traj.positions_xyz[:, 0:2] - traj.positions_xyz[0, 0:2]  # UTM-sized sums lose digits
-    half = int(round(SMOOTH_HALF_WIDTH_S * 1e9))
-    smooth = _box_mean(st, _box_mean(st, xy, half), half)
-    n = len(st)
+def _central_velocity(stamps_ns: np.ndarray, xy: np.ndarray, half_s: float) -> np.ndarray:
+    """Velocity [m/s] of the central differences of ``xy`` smoothed by a box filter of half-width
+    ``half_s`` applied twice (a triangle of ``2 half_s``)."""
+    half = int(round(half_s * 1e9))
+    smooth = _box_mean(stamps_ns, _box_mean(stamps_ns, xy, half), half)
+    n = len(stamps_ns)
     ahead = np.minimum(np.arange(n) + 1, n - 1)
     behind = np.maximum(np.arange(n) - 1, 0)
-    d = smooth[ahead] - smooth[behind]
-    dt = (st[ahead] - st[behind]) / 1e9
-    moving = np.linalg.norm(d, axis=1) >= STILL_SPEED_MPS * dt
-    return np.arctan2(d[:, 1], d[:, 0]), moving
+    dt_s = (stamps_ns[ahead] - stamps_ns[behind]) / 1e9
+    out: np.ndarray = (smooth[ahead] - smooth[behind]) / np.maximum(dt_s, 1e-9)[:, None]
+    return out
+
+
+def _smoothed_headings(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Yaw of the central differences of the positions smoothed by a box filter of half-width
+    :data:`SMOOTH_HALF_WIDTH_S` applied twice (a triangle of 1 s), and where the robot moves: the
+    speed of those smoothed positions, and of the positions smoothed over the shorter
+    :data:`SHORT_HALF_WIDTH_S`, both at least :data:`STILL_SPEED_MPS`."""
+    st = traj.stamps_ns
+    xy = traj.positions_xyz[:, 0:2] - traj.positions_xyz[0, 0:2]  # UTM-sized sums lose digits
+    v = _central_velocity(st, xy, SMOOTH_HALF_WIDTH_S)
+    v_short = _central_velocity(st, xy, SHORT_HALF_WIDTH_S)
+    moving = (np.linalg.norm(v, axis=1) >= STILL_SPEED_MPS) & (np.linalg.norm(v_short, axis=1) >= STILL_SPEED_MPS)
+    return np.arctan2(v[:, 1], v[:, 0]), moving
 
 
 def derive_orientation(traj: Trajectory, window_m: float, method: str = "smoothed") -> Trajectory:

@@ -55,9 +55,11 @@ def test_smoothed_headings_spread_turns_on_the_spot_over_the_stop():
         t = _positions_only(stamps, np.column_stack([x, y, np.zeros(len(x))]))
         smoothed = _increment_correlation(stamps, th, derive_orientation(t, 2.0), 50)  # at 2 Hz
         chord = _increment_correlation(stamps, th, derive_orientation(t, 2.0, "chord"), 50)
-        assert smoothed > 0.7  # measured 0.73-0.81 (0.49-0.58 when the heading was held over stops)
+        # measured 0.86-0.94 (0.73-0.81 when the 1 s triangle's speed alone decided the stops,
+        # 0.49-0.58 when the heading was held over stops)
+        assert smoothed > 0.8
         gains.append(smoothed - chord)
-    assert min(gains) > 0.4  # measured 0.41-0.82
+    assert min(gains) > 0.5  # measured 0.55-0.96
 
 
 def _correlation_at_2hz(traj: Trajectory) -> float:
@@ -90,14 +92,19 @@ def test_real_ground_robot_paths():
     turn on the spot; Leung et al., IJRR 2011) and KITTI's ``poses/00.txt`` as evo ships it
     (``test/data/KITTI_00_gt.txt`` with ``KITTI_00_gt_times.txt`` copied to ``times.txt`` beside it),
     found anywhere under ``$STUDIO_REAL_DATA``. Measured (docs/converters.md): MR.CLAM datasets 6 and 7,
-    ten robots, 0.73-0.93 (eight of ten >= 0.8, median 0.83); KITTI 00 0.95."""
+    ten robots, 0.73-0.93 (nine of ten >= 0.8, median 0.84); KITTI 00 0.95. The one below, MR.CLAM 7
+    Robot5 (0.73), spends its longest stops turning on the spot back and forth or by half a turn,
+    which positions cannot show: with the true heading wherever the robot moves and the method's
+    turn across each stop it would reach only 0.85, so the bounds are: all paths but the worst
+    >= 0.8, the worst > 0.7."""
     paths = _real_paths(Path(os.environ["STUDIO_REAL_DATA"]))
     if not paths:
         pytest.skip(f"no MRCLAM_Dataset* folder or KITTI_*_gt.txt under {os.environ['STUDIO_REAL_DATA']}")
     got = {name: _correlation_at_2hz(t) for name, t in paths}
     print(got)
-    assert min(got.values()) > 0.7, got
-    assert float(np.median(list(got.values()))) >= 0.8, got
+    ordered = sorted(got.values())
+    assert ordered[0] > 0.7, got
+    assert ordered[1] >= 0.8, got
 
 
 def test_a_stop_turns_the_heading_evenly_from_before_to_after():
