@@ -30,7 +30,7 @@ import numpy as np
 
 from studio.converters.transforms import time_windows
 from studio.core.errors import ConfigError, FormatError
-from studio.core.model import PoseGraph, PoseKind
+from studio.core.model import PoseGraph, PoseKind, RangeBearing
 from studio.core.option_values import check_option
 from studio.core.units import MAX_SPLIT_ROBOTS
 from studio.io.dpgo import contiguous_split
@@ -53,11 +53,13 @@ PARTITIONS = ("contiguous", "metis", "time")
 
 @dataclass(frozen=True, eq=False)
 class ImportedGraph:
-    """What a graph source reads: the graph and its labelled outliers (``(k, 4)`` rows
-    ``agent_from vertex_from agent_to vertex_to``, 0-based agents)."""
+    """What a graph source reads: the graph, its labelled outliers (``(k, 4)`` rows
+    ``agent_from vertex_from agent_to vertex_to``, 0-based agents) and its range-bearing sightings
+    (JRL's ``BearingRangeFactorPose2``; None when the source has none)."""
 
     graph: PoseGraph
     outliers: np.ndarray
+    range_bearing: RangeBearing | None = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -572,10 +572,11 @@ def _convert_graph(
     if not quiet:
         g = res.graph
         counts = g.edge_counts()
+        sightings = f", {len(res.range_bearing)} range-bearing sightings" if res.range_bearing is not None else ""
         typer.echo(
             f"{res.dataset_dir.name}: {len(g.agents)} agents, {g.num_poses} poses, {counts['odometry']} odometry "
             f"edges, {counts['intra_loop_closures']} intra-agent and {counts['inter_loop_closures']} inter-agent "
-            f"loop closures ({len(res.outliers)} labelled outliers) from {source}, in "
+            f"loop closures ({len(res.outliers)} labelled outliers){sightings} from {source}, in "
             f"{time.perf_counter() - t0:.2f} s\n  {res.dataset_dir}"
         )
 

@@ -8,6 +8,7 @@ its measurements, and they are written as they are::
     ├── agents.json                                  # agentK -> the robots' names
     ├── inter_agent_lc.dat
     ├── outliers.txt                                 # the labelled outliers (JRL's outlier_factors)
+    ├── range_bearing.txt                            # JRL's BearingRangeFactorPose2 sightings, if any
     ├── import.json                                  # source, inputs, options, counts, warnings
     └── OUT.rrd                                      # the recording (unless rrd=False)
 
@@ -23,17 +24,19 @@ import json
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from studio.converters.graph_split import GraphImportOptions
+from studio.converters.graph_split import GraphImportOptions, ImportedGraph
 from studio.converters.registry import check_inputs, get_source
 from studio.core.errors import ConfigError, FormatError, OutputError
-from studio.core.model import PoseGraph, PoseKind
+from studio.core.model import PoseGraph, PoseKind, RangeBearing
 from studio.core.types import PathLike
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
 from studio.io.outliers_txt import write_outliers_txt
+from studio.io.range_bearing import RANGE_BEARING_NAME, write_range_bearing
 from studio.io.strict_json import dumps_strict
 from studio.runtime.progress import Progress
 
@@ -51,6 +54,7 @@ class ImportResult:
     outliers: np.ndarray
     warnings: tuple[str, ...]
     rrd_path: Path | None
+    range_bearing: RangeBearing | None = None
 
 
 def graph_source_names() -> list[str]:
@@ -106,7 +110,7 @@ def import_graph(
             ) from None
         except np.linalg.LinAlgError as err:
             raise FormatError(f"{', '.join(Path(p).name for p in paths)}: a singular matrix ({err})") from None
-    graph, outliers = imported.graph, imported.outliers
+    graph, outliers, sightings = imported.graph, imported.outliers, imported.range_bearing
     meta = {
         "format": _FORMAT,
         "source": source,
@@ -115,26 +119,44 @@ def import_graph(
         "agents": [
             {"folder": f"agent{k + 1}", "name": a.name, "poses": a.num_poses} for k, a in enumerate(graph.agents)
         ],
-        "counts": {**graph.edge_counts(), "outliers": len(outliers)},
+        "counts": {
+            **graph.edge_counts(),
+            "outliers": len(outliers),
+            **({"range_bearing": len(sightings)} if sightings is not None else {}),
+        },
         "warnings": warnings,
     }
     with staged_outputs(out.parent, [out.name], force=force, inputs=paths) as staging:
         ds = staging / out.name
         ds.mkdir()
-        write_multi_g2o(
-            graph, ds, records="2d" if graph.kind is PoseKind.SE2 else "3d", precision="full", folder_names="agents"
-        )
-        write_outliers_txt(ds / "outliers.txt", outliers, [f"labelled in the {source} input"] * len(outliers))
-        (ds / IMPORT_NAME).write_text(dumps_strict(meta, str(out / IMPORT_NAME), indent=2) + "\n", encoding="utf-8")
-        if rrd:
-            from studio.recording.dataset import record_graph
+        _write_imported(ds, imported, meta, out, rrd, progress)
+    rrd_path = out / f"{out.name}.rrd" if rrd else None
+    return ImportResult(source, out, graph, outliers, tuple(warnings), rrd_path, sightings)
 
-            record_graph(
-                graph,
-                ds / f"{out.name}.rrd",
-                name=out.name,
-                config_json=json.dumps(meta, sort_keys=True),
-                outliers=outliers,
-                progress=progress,
-            )
-    return ImportResult(source, out, graph, outliers, tuple(warnings), out / f"{out.name}.rrd" if rrd else None)
+
+def _write_imported(
+    ds: Path, imported: ImportedGraph, meta: dict[str, Any], out: Path, rrd: bool, progress: Progress | None
+) -> None:
+    """The dataset's files in the staged folder ``ds`` of ``out`` (see the module doc); ``meta``:
+    import.json."""
+    name = out.name
+    graph, outliers, sightings = imported.graph, imported.outliers, imported.range_bearing
+    write_multi_g2o(
+        graph, ds, records="2d" if graph.kind is PoseKind.SE2 else "3d", precision="full", folder_names="agents"
+    )
+    write_outliers_txt(ds / "outliers.txt", outliers, [f"labelled in the {meta['source']} input"] * len(outliers))
+    if sightings is not None:
+        write_range_bearing(ds / RANGE_BEARING_NAME, sightings)
+    (ds / IMPORT_NAME).write_text(dumps_strict(meta, str(out / IMPORT_NAME), indent=2) + "\n", encoding="utf-8")
+    if rrd:
+        from studio.recording.dataset import record_graph
+
+        record_graph(
+            graph,
+            ds / f"{name}.rrd",
+            name=name,
+            config_json=json.dumps(meta, sort_keys=True),
+            outliers=outliers,
+            progress=progress,
+            range_bearing=sightings,
+        )

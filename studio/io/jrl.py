@@ -31,8 +31,17 @@ What the studio writes, following jrl's ``Writer`` and ``Parser`` (``src/Writer.
   the entry holding the odometry into it.
 
 Reading accepts ``BetweenFactorPose2/3`` and ``PriorFactorPose2/3`` (priors are dropped: the studio's
-graphs have no priors); range, bearing-range and point factors are counted in one warning and
-skipped. Missing keys, robots not in ``robots``, keys of unknown robots and mixed Pose2/Pose3 are a
+graphs have no priors) and ``BearingRangeFactorPose2`` between two robots' poses, read back into the
+sightings table :mod:`studio.io.range_bearing` holds (:attr:`JrlGraph.range_bearing`, in stamp order
+as ``studio convert mrclam`` makes it); range factors, bearing-range factors of other kinds
+(``Pose3``'s ``Unit3`` bearing, landmarks' ``2D``/``3D``) and point factors are counted in one
+warning and skipped. A ``BearingRangeFactorPose2`` is read as jrl's ``Parser`` reads it
+(``parseBearingRange``: the bearing a ``Rot2`` object's ``theta``, the range a ``Scalar`` object's
+``value``; the bare numbers ``format/VALUE_FORMAT.md`` lists are accepted too) with its covariance
+row-major over (bearing, range); a bearing-range correlation is dropped with one warning (the
+sightings table holds two standard deviations). Missing keys, robots not in ``robots``, keys of
+unknown robots, mixed Pose2/Pose3, a bearing-range factor in a Pose3 graph or between poses of one
+robot, a negative range and a covariance that is not symmetric positive definite are a
 :class:`FormatError` naming the JSON path.
 """
 
@@ -80,6 +89,7 @@ _HALF = np.array([1.0, 1.0, 1.0, 0.5, 0.5, 0.5])
 _BETWEEN = {PoseKind.SE2: "BetweenFactorPose2", PoseKind.SE3: "BetweenFactorPose3"}
 _PRIOR = {PoseKind.SE2: "PriorFactorPose2", PoseKind.SE3: "PriorFactorPose3"}
 _VALUE = {PoseKind.SE2: "Pose2", PoseKind.SE3: "Pose3"}
+_BEARING_RANGE = "BearingRangeFactorPose2"
 _SKIPPED_TYPES = (
     "RangeFactor",
     "BearingRangeFactor",
@@ -270,7 +280,9 @@ class JrlGraph:
     """``(k, 4)`` rows ``agent_from vertex_from agent_to vertex_to`` (0-based agents)."""
     name: str
     skipped: dict[str, int]
-    """Factor types skipped (range, bearing-range, point factors, priors), with their counts."""
+    """Factor types skipped (range, bearing-range but Pose2's, point factors, priors), with their counts."""
+    range_bearing: RangeBearing | None = None
+    """The ``BearingRangeFactorPose2`` sightings (None when the file has none)."""
 
 
 class _Reader:
@@ -378,7 +390,8 @@ def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> 
     table = EdgeTable(kind, edge[:, 0], fi, edge[:, 2], ti, meas, covariance_to_information(kind, cov))
     graph = assemble_graph(agents, table, where=where, metadata={"source": where, "name": str(name)})
     outliers = _outlier_rows(r, data, factors.ids, table)
-    return JrlGraph(graph, outliers, str(name), factors.skipped)
+    sightings = _sightings(r, kind, factors.bearing_range, local, agents, warn)
+    return JrlGraph(graph, outliers, str(name), factors.skipped, sightings)
 
 
 def _read_header(r: _Reader, data: Any) -> tuple[Any, list[str], dict[str, Any] | None]:
@@ -443,6 +456,22 @@ class _Factors:
     paths: list[str] = field(default_factory=list)
     first_stamp: dict[int, int] = field(default_factory=dict)
     """Each robot's first entry's stamp."""
+    bearing_range: list[_BearingRange] = field(default_factory=list)
+    """The ``BearingRangeFactorPose2`` factors, in reading order."""
+
+
+@dataclass(frozen=True, eq=False)
+class _BearingRange:
+    """One ``BearingRangeFactorPose2`` as read (keys decoded, values checked)."""
+
+    path: str
+    stamp: int
+    observer: tuple[int, int]
+    observed: tuple[int, int]
+    bearing_rad: float
+    range_m: float
+    covariance: list[float]
+    """Row-major over (bearing, range)."""
 
 
 def _read_factors(r: _Reader, keys: _Keys, measurements: dict[str, Any]) -> _Factors:
@@ -468,6 +497,9 @@ def _read_factors(r: _Reader, keys: _Keys, measurements: dict[str, Any]) -> _Fac
                 tag = r.get(factor, "type", fpath)
                 if not isinstance(tag, str):
                     raise r.fail(f"{fpath}.type", "expected a type tag")
+                if tag == _BEARING_RANGE:
+                    out.bearing_range.append(_read_bearing_range(r, keys, factor, fpath, stamp))
+                    continue
                 if tag in _PRIOR.values() or tag.startswith(_SKIPPED_TYPES):
                     out.skipped[tag] = out.skipped.get(tag, 0) + 1
                     continue
@@ -487,6 +519,87 @@ def _read_factors(r: _Reader, keys: _Keys, measurements: dict[str, Any]) -> _Fac
                 out.rows.append((a, i, b, j))
                 out.stamps.append(stamp)
     return out
+
+
+def _read_bearing_range(r: _Reader, keys: _Keys, factor: Any, path: str, stamp: int) -> _BearingRange:
+    """One ``BearingRangeFactorPose2`` at ``path`` (see the module doc)."""
+    k1 = keys.decode(r.uint(r.get(factor, "key1", path), f"{path}.key1"), f"{path}.key1")
+    k2 = keys.decode(r.uint(r.get(factor, "key2", path), f"{path}.key2"), f"{path}.key2")
+    if k1[0] == k2[0]:
+        raise r.fail(path, f"key1 and key2 are poses of robot {keys.robots[k1[0]]!r}: a robot does not sight itself")
+    m = r.get(factor, "measurement", path)
+    mpath = f"{path}.measurement"
+
+    def part(name: str, inner: str) -> float:
+        value = r.get(m, name, mpath)
+        if type(value) is dict:
+            return r.number(r.get(value, inner, f"{mpath}.{name}"), f"{mpath}.{name}.{inner}")
+        return r.number(value, f"{mpath}.{name}")
+
+    bearing, rng = part("bearing", "theta"), part("range", "value")
+    if rng < 0:
+        raise r.fail(f"{mpath}.range", f"a range cannot be negative, got {rng!r}")
+    cpath = f"{path}.covariance"
+    cov = r.numbers(r.get(factor, "covariance", path), 4, cpath)
+    if abs(cov[1] - cov[2]) > 1e-12 * max(abs(cov[0]), abs(cov[3])) or not (
+        cov[0] > 0 and cov[3] > 0 and cov[0] * cov[3] - cov[1] * cov[2] > 0
+    ):
+        raise r.fail(cpath, "not a symmetric positive definite 2x2 covariance over (bearing, range)")
+    return _BearingRange(path, stamp, k1, k2, bearing, rng, cov)
+
+
+def _sightings(
+    r: _Reader,
+    kind: PoseKind,
+    factors: list[_BearingRange],
+    local: list[dict[int, int]],
+    agents: list[AgentPoses],
+    warn: Callable[[str], None] | None,
+) -> RangeBearing | None:
+    """The sightings table of the ``BearingRangeFactorPose2`` factors (None without any): each side
+    the robot's pose its key names, offsets from the entry's stamp, rows in stamp order."""
+    if not factors:
+        return None
+    if kind is not PoseKind.SE2:
+        raise r.fail(factors[0].path, f"{_BEARING_RANGE} in a graph of {_BETWEEN[kind]} measurements")
+    sides = []
+    for f in factors:
+        for (a, i), key in ((f.observer, "key1"), (f.observed, "key2")):
+            if i not in local[a]:
+                raise r.fail(
+                    f"{f.path}.{key}", f"pose {i} of {agents[a].name!r} is in no values or pose-graph measurement"
+                )
+        sides.append(
+            (f.observer[0], local[f.observer[0]][f.observer[1]], f.observed[0], local[f.observed[0]][f.observed[1]])
+        )
+    order = np.argsort(np.array([f.stamp for f in factors], dtype=np.int64), kind="stable")
+    rows = [factors[k] for k in order.tolist()]
+    side = np.array([sides[k] for k in order.tolist()], dtype=np.int64).reshape(-1, 4)
+    cov = np.array([f.covariance for f in rows], dtype=np.float64)
+    correlated = int(np.count_nonzero(cov[:, 1] != 0))
+    if correlated and warn is not None:
+        warn(
+            f"{r.where}: {correlated} {_BEARING_RANGE} covariances correlate bearing and range; "
+            "the sightings keep their two standard deviations only"
+        )
+    stamps = np.array([f.stamp for f in rows], dtype=np.int64)
+
+    def offsets(agent: np.ndarray, index: np.ndarray) -> np.ndarray:
+        return stamps - np.array([agents[a].stamps_ns[i] for a, i in zip(agent.tolist(), index.tolist())], np.int64)
+
+    return RangeBearing(
+        stamps,
+        side[:, 0],
+        side[:, 1],
+        side[:, 2],
+        side[:, 3],
+        np.array([f.range_m for f in rows]),
+        np.array([f.bearing_rad for f in rows]),
+        np.sqrt(cov[:, 3]),
+        np.sqrt(cov[:, 0]),
+        offsets(side[:, 0], side[:, 1]),
+        offsets(side[:, 2], side[:, 3]),
+    )
 
 
 def _read_values(
