@@ -84,16 +84,30 @@ def _as_flags(err: StudioError) -> str:
     return re.sub(rf"(?<![\w.-]){re.escape(option)}(?![\w-])", flag, text)
 
 
+#: The warnings of the running command, held until it ends (a stack: one list per command).
+_HELD_WARNINGS: list[list[str]] = []
+
+
 def cli_errors(func):
-    """Turn a StudioError into one line on stderr and exit code 2 (no traceback)."""
+    """Turn a StudioError into one line on stderr and exit code 2 (no traceback). The command's
+    warnings are held until it ends: printed after it succeeds, dropped when it fails on bad input,
+    so that bad input is one line (a reader that warned of skipped records before it met the error
+    would otherwise print two)."""
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
+        held: list[str] = []
+        _HELD_WARNINGS.append(held)
         try:
             return func(*args, **kwargs)
         except StudioError as err:
+            held.clear()
             typer.echo(f"error: {_as_flags(err)}", err=True)
             raise typer.Exit(2) from None
+        finally:
+            _HELD_WARNINGS.pop()
+            for msg in held:
+                _warn(msg)
 
     return wrapper
 
@@ -111,7 +125,11 @@ def _output_columns() -> int | None:
 
 
 def _warn(msg: str) -> None:
-    typer.echo(f"warning: {msg}", err=True)
+    """One warning line on stderr; inside a command, held until the command ends (``cli_errors``)."""
+    if _HELD_WARNINGS:
+        _HELD_WARNINGS[-1].append(msg)
+    else:
+        typer.echo(f"warning: {msg}", err=True)
 
 
 @app.command()

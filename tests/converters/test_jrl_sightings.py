@@ -233,3 +233,25 @@ def test_bad_bearing_range_factors_fail_in_one_line_naming_the_json_path(exporte
     assert len(lines) == 1 and "Traceback" not in res.output, res.output
     assert f"bad.jrl: {path}{place}: " in lines[0] and needle in lines[0], lines[0]
     assert not out.exists() and not list(tmp_path.glob(".studio-staging-*"))
+
+
+def test_a_skipped_factor_before_an_error_is_still_one_line(exported, tmp_path):
+    """A reader warns of the factors it skips as it meets them; when it then fails, the command
+    prints the error alone (the CLI holds a command's warnings until it ends)."""
+    doc = json.loads(json.dumps(exported))
+    places = _factor_places(doc)
+    c, e, m = places[0]
+    doc["measurements"][c][e]["measurements"][m]["type"] = "BearingRangeFactor2D"  # skipped, warned
+    robot = next(iter(doc["groundtruth"]))
+    x = doc["groundtruth"][robot][0]["x"]
+    doc["groundtruth"][robot][0]["x"] = "far"  # read after the factors (and their warning)
+    out = tmp_path / "o"
+    res = _run("convert", "jrl", _write(tmp_path / "both.jrl", doc), "-o", out, "--no-rrd")
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and f"groundtruth.{robot}[0]" in lines[0], res.output
+    assert not out.exists()
+    doc["groundtruth"][robot][0]["x"] = x
+    res = _run("convert", "jrl", _write(tmp_path / "skip.jrl", doc), "-o", out, "--no-rrd")
+    assert res.exit_code == 0, res.output
+    assert "warning: " in res.output and "1 BearingRangeFactor2D" in res.output
