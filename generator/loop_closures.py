@@ -277,9 +277,9 @@ def _small_hits(
     dx *= dx
     dy *= dy
     dx += dy
-    inside = dx <= R * R  # the discrete circle: |dy| <= isqrt(R^2 - dx^2)
-    k, m = np.nonzero(inside)  # by query, then table
-    rank = circle.rank.ravel()[flat[inside] + (R * side + R)]
+    at = np.flatnonzero(dx <= R * R)  # the discrete circle: |dy| <= isqrt(R^2 - dx^2); by query, then table
+    k, m = np.divmod(at, len(tx))  # (a 2D nonzero takes six times as long)
+    rank = circle.rank.ravel()[flat.ravel()[at] + (R * side + R)]
     key_type = np.int32 if len(qx) * (circle.size + 1) < 1 << 31 else np.int64
     key = k.astype(key_type) * key_type(circle.size + 1)
     key += (rank + 1).astype(key_type)
@@ -514,10 +514,15 @@ class _InterPairs:
         )
         self._pairs = agent_pairs(len(walks))
         # kollagen seeds a new generator for every pair with the same seed: all pairs read one tape
-        self._tape = UniformTape(MT19937Stream(p.random_number_generator_seed), owns=True)
+        self._stream = MT19937Stream(p.random_number_generator_seed)
+        self._tape = UniformTape(self._stream, owns=True)
 
     def __len__(self) -> int:
         return len(self._pairs)
+
+    def release(self) -> None:
+        """Hand the inter-agent stream's generator back (see :meth:`MT19937Stream.release`)."""
+        self._stream.release()
 
     def __call__(self, index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         p = self._inter

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from itertools import chain
 from typing import IO
 
 import numpy as np
@@ -630,7 +631,7 @@ def _percent_lines(fields: Sequence[Field], n: int, sep: bytes, end: bytes) -> b
     values = [v for _, v in slots if v is not None]
     if not values:
         return template * n
-    flat = values[0] if len(values) == 1 else [x for row in zip(*values) for x in row]
+    flat = values[0] if len(values) == 1 else chain.from_iterable(zip(*values))
     return (template * n) % tuple(flat)
 
 
