@@ -635,6 +635,10 @@ def _percent_lines(fields: Sequence[Field], n: int, sep: bytes, end: bytes) -> b
     return (template * n) % tuple(flat)
 
 
+_FEW_ROWS = 8
+"""Repeated rows of more distinct values than this are written column by column."""
+
+
 def _percent_floats(f: Floats) -> list[_Slot]:
     values = np.ascontiguousarray(f.values, dtype=np.float64)
     k = values.shape[1]
@@ -643,11 +647,18 @@ def _percent_floats(f: Floats) -> list[_Slot]:
         bits = values.view(np.uint64).reshape(len(values), k)
         if (bits == bits[0]).all():
             return [(b" ".join(_percent_text(values[0, c], f.fmts[c], zeros[c]) for c in range(k)), None)]
-        rows = bits.view(np.dtype((np.void, 8 * k))).ravel()
-        _, first, inv = np.unique(rows, return_index=True, return_inverse=True)
-        if 2 * len(first) <= len(values):  # few distinct rows: each one's text once
+        # the distinct rows (a few classes of edges), peeled off one at a time
+        inv = np.empty(len(values), dtype=np.int64)
+        first: list[int] = []
+        todo = np.arange(len(values))
+        while len(todo) and len(first) < _FEW_ROWS:
+            same = (bits[todo] == bits[todo[0]]).all(axis=1)
+            first.append(int(todo[0]))
+            inv[todo[same]] = len(first) - 1
+            todo = todo[~same]
+        if not len(todo):  # few distinct rows: each one's text once
             texts = [b" ".join(_percent_text(values[r, c], f.fmts[c], zeros[c]) for c in range(k)) for r in first]
-            return [(b"%s", [texts[i] for i in inv.ravel().tolist()])]
+            return [(b"%s", list(map(texts.__getitem__, inv.tolist())))]
     return [_percent_column(values[:, c], f.fmts[c], zeros[c]) for c in range(k)]
 
 
