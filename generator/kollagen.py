@@ -154,7 +154,13 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
         if done >= n_agents and n_pairs:
             report(progress, "synth: inter-agent loop closures", done - n_agents, n_pairs, "pairs")
 
-    done = parallel_map(task, n_agents + n_pairs, jobs, on_done=on_done)
+    try:
+        done = parallel_map(task, n_agents + n_pairs, jobs, on_done=on_done)
+    finally:  # every draw is made: the generators go back for the next dataset
+        for stream in streams:
+            stream.release()
+        if pairs is not None:
+            pairs.release()
     per_agent = done[:n_agents]  # (intra-agent loop closures, odometry measurements, initial estimate)
     inter = pairs.edges(done[n_agents:]) if pairs is not None else InterAgentEdges.empty(PoseKind.SE2)
     walks = aligned

@@ -67,6 +67,7 @@ class _CircleTable:
         self.rank = np.full((size, size), -2, dtype=np.int64)
         self.rank[circle[:, 0] + radius, circle[:, 1] + radius] = np.arange(len(circle))
         self.rank[radius, radius] = -1
+        self.rank32 = self.rank.astype(np.int32)
         self.size = len(circle)
         #: squared offset length and "diagonal or centre" per rank + 1
         d2 = np.zeros(self.size + 1, dtype=np.int64)
@@ -95,7 +96,7 @@ class _CircleTable:
 @functools.lru_cache(maxsize=64)
 def _circle_table(radius: int) -> _CircleTable:
     table = _CircleTable(radius)
-    for v in (table.rank, table.d2_by_rank, table.diagonal_by_rank, table.ylim):
+    for v in (table.rank, table.rank32, table.d2_by_rank, table.diagonal_by_rank, table.ylim):
         v.setflags(write=False)
     return table
 
@@ -277,14 +278,29 @@ def _small_hits(
     dx *= dx
     dy *= dy
     dx += dy
-    inside = dx <= R * R  # the discrete circle: |dy| <= isqrt(R^2 - dx^2)
-    k, m = np.nonzero(inside)  # by query, then table
-    rank = circle.rank.ravel()[flat[inside] + (R * side + R)]
-    key_type = np.int32 if len(qx) * (circle.size + 1) < 1 << 31 else np.int64
-    key = k.astype(key_type) * key_type(circle.size + 1)
-    key += (rank + 1).astype(key_type)
+    at = np.flatnonzero(dx <= R * R)  # the discrete circle: |dy| <= isqrt(R^2 - dx^2); by query, then table
+    offsets = flat.ravel()[at] + (R * side + R)
+    width = circle.size + 1
+    if len(qx) * width >= 1 << 31:
+        k, m = np.divmod(at, len(tx))
+        rank = circle.rank.ravel()[offsets]
+        order = np.argsort(k * width + rank + 1, kind="stable")
+        return k[order], m[order], rank[order]
+    # in 32 bits (pairs and keys fit): the key of a hit is query * width + rank + 1, from which the
+    # sorted hits' queries and ranks come back by one division (fewer, narrower gathers)
+    at32 = at.astype(np.int32)
+    key = at32 // np.int32(len(tx))  # the query
+    key *= np.int32(width)
+    key += circle.rank32.ravel()[offsets]
+    key += np.int32(1)
     order = np.argsort(key, kind="stable")  # the keys come by query already: a merge sort's best case
-    return k[order], m[order], rank[order]
+    key = key[order]
+    k = key // np.int32(width)
+    rank = key - k * np.int32(width)
+    rank -= np.int32(1)
+    m = at32[order]
+    m -= k * np.int32(len(tx))
+    return k, m, rank
 
 
 def _enumerate_hits(
@@ -450,7 +466,8 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     n = len(cx)
     radius = _round_to_int(agent.intra_loop_closure_radius * cfg.step_fragment / cfg.stepsize)
     circle = _CircleTable.of_radius(radius)
-    first = np.sort(_visits(cx, cy, "first"))  # cells in order of their first visit
+    visits = _visits(cx, cy, "first")  # each cell's first visit, in cell order
+    first = np.sort(visits)  # cells in order of their first visit
     table = circle.probabilities(
         agent.same_position_intra_loop_closure_probability,
         agent.intra_loop_closure_probability_scaling,
@@ -468,7 +485,8 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     n_blocks = 1 if n * len(first) <= _SMALL_PAIRS else min(n, 16)
     bounds = np.linspace(0, n, num=n_blocks + 1).astype(np.int64)
     for lo, hi in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
-        known = first[: np.searchsorted(first, hi)]
+        # (one block: every cell, in cell order, which sorts its hits faster; the hits are the same)
+        known = visits if n_blocks == 1 else first[: np.searchsorted(first, hi)]
         k, m, rank = _enumerate_hits(cx[lo:hi], cy[lo:hi], cx[known], cy[known], circle)
         p = allowed[rank + 1]
         m = known[m]  # the table entry's pose
@@ -514,10 +532,15 @@ class _InterPairs:
         )
         self._pairs = agent_pairs(len(walks))
         # kollagen seeds a new generator for every pair with the same seed: all pairs read one tape
-        self._tape = UniformTape(MT19937Stream(p.random_number_generator_seed), owns=True)
+        self._stream = MT19937Stream(p.random_number_generator_seed)
+        self._tape = UniformTape(self._stream, owns=True)
 
     def __len__(self) -> int:
         return len(self._pairs)
+
+    def release(self) -> None:
+        """Hand the inter-agent stream's generator back (see :meth:`MT19937Stream.release`)."""
+        self._stream.release()
 
     def __call__(self, index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         p = self._inter

@@ -59,7 +59,7 @@ class _Walk:
     odom_ang: np.ndarray
 
 
-_SPARE_WORDS = 4096
+_SPARE_WORDS = 512
 """Words :func:`_walk_draws` reads beyond its estimate (about 5.1 words per sub-step) before it has to
 read more."""
 

@@ -76,6 +76,12 @@ def upper_to_matrix(upper: np.ndarray, dim: int) -> np.ndarray:
     return out
 
 
+#: Where each planar information entry (xx, xy, xt, yy, yt, tt) goes in the 21 of (x, y, z, rx, ry, rz).
+_SE3_FROM_SE2_INFORMATION = [0, 1, 5, 6, 10, 20]
+#: The z, roll and pitch diagonal entries of the 21.
+_SE3_Z_ENTRY, _SE3_ROLL_PITCH_ENTRIES = 11, [15, 18]
+
+
 def se2_information_to_se3(upper: np.ndarray) -> np.ndarray:
     """Lift ``(n, 6)`` planar information (x, y, theta) to ``(n, 21)`` for (x, y, z, rx, ry, rz).
 
@@ -83,18 +89,11 @@ def se2_information_to_se3(upper: np.ndarray) -> np.ndarray:
     and pitch get the yaw information. With zero cross terms this is exactly what kollagen writes.
     """
     upper = np.asarray(upper, dtype=np.float64)
-    n = upper.shape[0]
-    full = np.zeros((n, 6, 6))
-    m = upper_to_matrix(upper, 3)
-    idx = [0, 1, 5]
-    for a in range(3):
-        for b in range(3):
-            full[:, idx[a], idx[b]] = m[:, a, b]
-    full[:, 2, 2] = SE3_Z_INFORMATION
-    full[:, 3, 3] = m[:, 2, 2]
-    full[:, 4, 4] = m[:, 2, 2]
-    rows, cols = np.triu_indices(6)
-    return full[:, rows, cols]
+    out = np.zeros((upper.shape[0], 21))
+    out[:, _SE3_FROM_SE2_INFORMATION] = upper
+    out[:, _SE3_Z_ENTRY] = SE3_Z_INFORMATION
+    out[:, _SE3_ROLL_PITCH_ENTRIES] = upper[:, 5:6]
+    return out
 
 
 def planar_poses_to_se3(poses: np.ndarray) -> np.ndarray:
@@ -125,7 +124,7 @@ def se3_poses_to_planar(poses: np.ndarray) -> np.ndarray:
 
 
 #: The (x, y, yaw) entries of a 6x6 information upper triangle over (x, y, z, rx, ry, rz).
-_SE2_FROM_SE3_INFORMATION = [0, 1, 5, 6, 10, 20]
+_SE2_FROM_SE3_INFORMATION = _SE3_FROM_SE2_INFORMATION
 
 
 def se3_information_to_se2(upper: np.ndarray) -> np.ndarray:

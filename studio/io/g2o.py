@@ -25,12 +25,9 @@ from studio.core.errors import FormatError
 from studio.core.model import PoseKind
 from studio.core.types import PathLike
 from studio.io.textfmt import (
-    TextColumn,
-    float_columns,
-    float_rows,
-    int_column,
-    join_array,
-    literal,
+    Floats,
+    Ints,
+    format_lines,
     row_blocks,
     write_text,
 )
@@ -76,34 +73,32 @@ class G2oDocument:
     edge_information_upper: np.ndarray
 
 
-def _pose_texts(poses: np.ndarray, kind: PoseKind) -> list[TextColumn]:
+def _pose_fields(poses: np.ndarray, kind: PoseKind) -> Floats:
     if kind is PoseKind.SE2:
-        return float_columns(poses, ["%.17g"] * 3)
-    return float_columns(poses, ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
+        return Floats(poses, ["%.17g"] * 3)
+    return Floats(poses, ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
 
 
-def _info_texts(info: np.ndarray, kind: PoseKind) -> list[TextColumn]:
+def _info_fields(info: np.ndarray, kind: PoseKind) -> Floats:
     if kind is PoseKind.SE2:
-        return float_rows(info, ["%.17g"] * 6)
-    return float_rows(info, ["%.17g"] * 21, SE3_INFO_ZERO_LITERAL)
+        return Floats(info, ["%.17g"] * 6, repeated_rows=True)
+    return Floats(info, ["%.17g"] * 21, SE3_INFO_ZERO_LITERAL, repeated_rows=True)
 
 
 def g2o_pieces(doc: G2oDocument) -> Iterator[np.ndarray]:
     """The text of a g2o file in pieces (vertices, then edges, a block of lines at a time), as
-    :func:`join_array` gives them; each piece is made when it is asked for."""
+    :func:`~studio.io.textfmt.format_lines` gives them; each piece is made when it is asked for."""
     vtag, etag = _TAGS[doc.kind]
     for rows in row_blocks(len(doc.vertex_ids)):
-        yield join_array(
-            [literal(vtag), int_column(doc.vertex_ids[rows]), *_pose_texts(doc.vertex_poses[rows], doc.kind)]
-        )
+        yield format_lines([vtag, Ints(doc.vertex_ids[rows]), _pose_fields(doc.vertex_poses[rows], doc.kind)])
     for rows in row_blocks(len(doc.edge_from)):
-        yield join_array(
+        yield format_lines(
             [
-                literal(etag),
-                int_column(doc.edge_from[rows]),
-                int_column(doc.edge_to[rows]),
-                *_pose_texts(doc.edge_measurements[rows], doc.kind),
-                *_info_texts(doc.edge_information_upper[rows], doc.kind),
+                etag,
+                Ints(doc.edge_from[rows]),
+                Ints(doc.edge_to[rows]),
+                _pose_fields(doc.edge_measurements[rows], doc.kind),
+                _info_fields(doc.edge_information_upper[rows], doc.kind),
             ]
         )
 

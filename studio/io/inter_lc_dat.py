@@ -20,7 +20,7 @@ from studio.core.errors import FormatError
 from studio.core.model import InterAgentEdges, PoseKind
 from studio.core.types import PathLike
 from studio.io.g2o import SE3_INFO_ZERO_LITERAL, SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
-from studio.io.textfmt import float_columns, float_rows, int_column, join_array, row_blocks, write_text
+from studio.io.textfmt import Floats, Ints, format_lines, row_blocks, write_text
 
 __all__ = ["write_inter_lc_dat", "read_inter_lc_dat", "inter_lc_text", "Precision"]
 
@@ -32,18 +32,20 @@ def _inter_lc_pieces(inter: InterAgentEdges, precision: Precision) -> Iterator[n
     fmt = "%f" if precision == "kollagen" else "%.17g"
     for rows in row_blocks(len(inter)):
         if inter.kind is PoseKind.SE3:
-            meas = float_columns(inter.measurements[rows], [fmt] * 7, SE3_POSE_ZERO_LITERAL)
-            info = float_rows(inter.information_upper[rows], [fmt] * 21, SE3_INFO_ZERO_LITERAL)
+            meas = Floats(inter.measurements[rows], [fmt] * 7, SE3_POSE_ZERO_LITERAL)
+            info = Floats(inter.information_upper[rows], [fmt] * 21, SE3_INFO_ZERO_LITERAL, repeated_rows=True)
         else:
-            meas = float_columns(inter.measurements[rows], [fmt] * 3)
-            info = float_rows(inter.information_upper[rows], [fmt] * 6, [None, "0.0", "0.0", None, "0.0", None])
+            meas = Floats(inter.measurements[rows], [fmt] * 3)
+            info = Floats(
+                inter.information_upper[rows], [fmt] * 6, [None, "0.0", "0.0", None, "0.0", None], repeated_rows=True
+            )
         ids = [
-            int_column(inter.from_agent[rows] + 1),
-            int_column(inter.from_index[rows]),
-            int_column(inter.to_agent[rows] + 1),
-            int_column(inter.to_index[rows]),
+            Ints(inter.from_agent[rows] + 1),
+            Ints(inter.from_index[rows]),
+            Ints(inter.to_agent[rows] + 1),
+            Ints(inter.to_index[rows]),
         ]
-        yield join_array([*ids, *meas, *info])
+        yield format_lines([*ids, meas, info])
 
 
 def inter_lc_text(inter: InterAgentEdges, precision: Precision = "kollagen") -> bytes:

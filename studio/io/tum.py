@@ -27,12 +27,14 @@ from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.io.g2o import SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
 from studio.io.textfmt import (
+    Field,
+    Floats,
     TextColumn,
     concat,
     digit_matrix,
     float_columns,
+    format_lines,
     int_column,
-    join_array,
     literal,
     row_blocks,
     write_text,
@@ -55,12 +57,18 @@ def format_stamps(stamps_ns: np.ndarray) -> TextColumn:
     return concat([sign, int_column(sec), literal("."), decimals])
 
 
+def _stamp_field(stamps_ns: np.ndarray) -> Field:
+    """:func:`format_stamps` as a field of :func:`~studio.io.textfmt.format_lines`."""
+    if np.all(stamps_ns % NS_PER_S == 0):
+        return Floats((stamps_ns // NS_PER_S).astype(np.float64).reshape(-1, 1), ["%.17g"])
+    return format_stamps(stamps_ns)
+
+
 def _tum_pieces(traj: Trajectory) -> Iterator[np.ndarray]:
     """The text of a TUM file, a block of lines at a time (each made when asked for)."""
     poses, stamps = traj.poses_xyz_quat_xyzw, traj.stamps_ns
     for rows in row_blocks(len(stamps)):
-        body = float_columns(poses[rows], ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)
-        yield join_array([format_stamps(stamps[rows]), *body])
+        yield format_lines([_stamp_field(stamps[rows]), Floats(poses[rows], ["%.17g"] * 7, SE3_POSE_ZERO_LITERAL)])
 
 
 def tum_text(traj: Trajectory) -> bytes:

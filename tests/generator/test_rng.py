@@ -1,6 +1,7 @@
 import math
 
 import numpy as np
+import pytest
 
 from studio.generator.rng import MT19937Stream, canonical_doubles, polar_normal
 
@@ -44,3 +45,22 @@ def test_polar_normal_rejects_outside_unit_disc_and_caches_x():
     assert q == 4
     assert ret == y * mult
     assert keep == x * mult
+
+
+def test_a_released_generator_is_reseeded_into_the_same_stream():
+    # streams re-seed generators handed back by earlier streams (RandomState.seed is the
+    # constructor's own seeding): the words are those of a fresh std::mt19937 of the seed
+    first = MT19937Stream(5)
+    first.words(10_000)  # leave the generator mid-stream
+    first.release()
+    for seed in (5, -1, 2**31 - 1, 0):
+        reused = MT19937Stream(seed)
+        fresh = np.random.RandomState(seed % 2**32).randint(0, 2**32, size=9000, dtype=np.uint32)
+        assert np.array_equal(reused.words(9000), fresh)
+        reused.release()
+    done = MT19937Stream(1)
+    got = done.words(5000).copy()
+    done.release()
+    assert np.array_equal(done.words(5000), got)  # words drawn before release stay readable
+    with pytest.raises(RuntimeError, match="after release"):
+        done.words(10_000)

@@ -173,3 +173,44 @@ def test_join_array_matches_line_by_line_formatting():
     ids = rng.integers(-(10**6), 10**6, 500)
     text = join_array([literal("EDGE"), int_column(ids), *float_columns(values, ["%.17g", "%f"])]).tobytes()
     assert text == b"".join(b"EDGE %d %.17g %f\n" % (i, a, b) for i, (a, b) in zip(ids.tolist(), values.tolist()))
+
+
+# ---------------------------------------------------------------------------------------------------
+# format_lines: Python's % for few lines, numpy columns for many, the same bytes
+
+
+def _line_fields(rng: np.random.Generator, n: int) -> list:
+    from studio.io.textfmt import Floats, Ints
+
+    values = rng.normal(size=(n, 7)) * 10.0 ** rng.integers(-12, 18, size=(n, 7))
+    values[:, 2] = 0.0  # a constant zero with a literal
+    values[rng.random(n) < 0.2, 3] = 0.0  # zeros among other values, a literal for the positive ones
+    values[rng.random(n) < 0.1, 3] = -0.0
+    values[rng.random(n) < 0.05, 4] = rng.choice([np.inf, -np.inf, np.nan, 1e300, 5e-324])
+    values[:, 5] = rng.choice([0.25, -0.5, 3.0], n)  # few distinct values
+    info = np.tile([2500.0, 0.0, -0.0, 2500.0, 0.0, 1e-7], (n, 1))
+    info[rng.random(n) < 0.3] = [1600.0, 0.5, 0.0, 1600.0, 0.0, 1111.1111111111111]
+    if n % 2:
+        info[rng.random(n) < 0.5] = rng.normal(size=6)  # mostly distinct rows
+    return [
+        "EDGE_SE3:QUAT",
+        Ints(rng.integers(-(2**62), 2**62, n)),
+        Ints(np.full(n, 7)),
+        Floats(values, ["%.17g"] * 5 + ["%f", "%.17g"], [None, None, "0.0", "0.0", None, None, None]),
+        Floats(info, ["%.17g", "%f"] * 3, [None, "0.0", "0.0", None, "0.0", None], repeated_rows=True),
+        TextColumn(np.array([[ord("a"), 0]] * n, dtype=np.uint8), np.ones(n, dtype=np.int64)),
+    ]
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 64, 257, 1000, 3001])
+def test_format_lines_small_and_large_paths_write_the_same_bytes(n, monkeypatch):
+    from studio.io import textfmt
+
+    fields = _line_fields(np.random.default_rng(n), n)
+    small = textfmt.format_lines(fields).tobytes()
+    monkeypatch.setattr(textfmt, "SMALL_LINES", 0)
+    columns = textfmt.format_lines(fields).tobytes()
+    assert small == columns
+    assert small.count(b"\n") == n
+    first = small.split(b"\n")[0].split(b" ")
+    assert first[0] == b"EDGE_SE3:QUAT" and first[2] == b"7" and first[5] == b"0.0"
