@@ -71,6 +71,9 @@ def _teams(world: World, group: tuple[int, ...], edges: np.ndarray) -> list[tupl
 
 
 class Dgs(_Base):
+    #: the information of a kept closure to a held neighbour pose: the closure's own times this
+    NEIGHBOUR_INFORMATION_SCALE = 1.0
+
     def __init__(self, world: World) -> None:
         super().__init__(world)
         self.believed = np.zeros(world.problem.num_vertices, dtype=bool)
@@ -105,7 +108,7 @@ class Dgs(_Base):
         vertices, edges = self._known(tick, team)
         ids = np.flatnonzero(vertices)
         edge_ids = np.flatnonzero(edges)
-        fixed = self.memory.fixed(tick, team, 1.0)
+        fixed = self.memory.fixed(tick, team, self.NEIGHBOUR_INFORMATION_SCALE)
         n, k = len(ids), len(fixed.edges)
         local = np.full(p.num_vertices, -1, dtype=np.int64)
         local[ids] = np.arange(n)
@@ -118,13 +121,15 @@ class Dgs(_Base):
         robot_local = np.searchsorted(np.asarray(team), agents)
         all_edges = np.concatenate([edge_ids, fe])
         start = np.concatenate([self._start(ids), fixed.held_poses])
+        information = p.information_upper[all_edges].copy()
+        information[len(edge_ids) :] *= fixed.information_scale
         sub = Problem(
             p.kind,
             start,
             fr,
             to,
             p.measurements[all_edges],
-            p.information_upper[all_edges],
+            information,
             p.robust[all_edges],
             anchor=int(np.flatnonzero(robot_local == 0)[0]),
             agent_of_vertex=robot_local,
