@@ -15,8 +15,10 @@ what it sent on each link. The registry :data:`BACKENDS` is the one place a back
   inter-agent closures between members), solves it and sends each member its estimate. A group
   that was the same at the last checkpoint goes on incrementally; a new group starts an ISAM2
   from the members' current beliefs (the lowest-id member's frame kept). A robot alone is a group
-  of one (its own graph, as ``independent``). Messages: per member and solve, its new measurements
-  up to the solver and its estimate back, counted on the pair (solver, member).
+  of one: its own graph and what it kept from others (:class:`Memory`: the delivered closures to
+  non-members as unary factors at the neighbours' poses it last received; Swarm-SLAM's lone robot
+  does not optimize). Messages: per member and solve, its new measurements up to the solver and its
+  estimate and the neighbour poses it keeps back, counted on the pair (solver, member).
 """
 
 from __future__ import annotations

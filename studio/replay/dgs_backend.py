@@ -8,7 +8,9 @@ closures so far, the delivered closures between members), each robot its own blo
 from its members' beliefs, new poses continued from each robot's latest belief by the dataset's dead
 reckoning, the pose stage keeping those translations (``warm_start``); the gauge is the lowest-id
 member's first pose, held where that robot believes it. A robot alone is a team of one (its one
-block solved exactly: Gauss-Newton on its own graph). After the last checkpoint every team runs
+block solved exactly: Gauss-Newton on its own graph). Each member's delivered closures to robots
+outside its team enter at the neighbours' poses it kept from earlier teams (:class:`Memory`), held
+vertices in its block. After the last checkpoint every team runs
 :data:`FINAL` (100) more rounds. A solve whose result has a higher chi2 than its start is not
 taken (each robot can sum its own edges' chi2; the team needs the total, one number each). Messages
 and bytes are DGS's own (each round every robot sends each neighbour its separator values), counted
