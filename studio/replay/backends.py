@@ -15,8 +15,10 @@ what it sent on each link. The registry :data:`BACKENDS` is the one place a back
   inter-agent closures between members), solves it and sends each member its estimate. A group
   that was the same at the last checkpoint goes on incrementally; a new group starts an ISAM2
   from the members' current beliefs (the lowest-id member's frame kept). A robot alone is a group
-  of one (its own graph, as ``independent``). Messages: per member and solve, its new measurements
-  up to the solver and its estimate back, counted on the pair (solver, member).
+  of one: its own graph and what it kept from others (:class:`Memory`: the delivered closures to
+  non-members as unary factors at the neighbours' poses it last received; Swarm-SLAM's lone robot
+  does not optimize). Messages: per member and solve, its new measurements up to the solver and its
+  estimate and the neighbour poses it keeps back, counted on the pair (solver, member).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from typing import Protocol
 import numpy as np
 
 from studio.core.comms import robot_pairs
-from studio.solvers.incremental import IncrementalSolver, IsamSettings
+from studio.solvers.incremental import FixedEnds, IncrementalSolver, IsamSettings
 from studio.solvers.problem import Problem
 
 __all__ = ["World", "Backend", "BACKENDS", "backend_names", "get_backend", "Step"]
@@ -136,6 +138,60 @@ class _Base:
         return out
 
 
+class Memory:
+    """What each robot keeps of what it learned from others: per robot and vertex of another robot,
+    the latest estimate of it the robot received and the tick it received it (-1: never). A robot
+    receives the estimates of the other ends of the inter-agent closures delivered to it whose
+    other robot was in its group (swarm: in the solution its group's solver shares; dgs: in the
+    separator values its team's rounds exchange); it knows every closure delivered to it. A group
+    solving later enters each delivered closure between a member and a non-member as a unary factor
+    on the member's pose, the closure composed with the non-member's pose the member keeps."""
+
+    def __init__(self, world: World) -> None:
+        self.world = world
+        p = world.problem
+        self.edges = np.flatnonzero(world.edge_closure >= 0)
+        self.robot_from = world.agent_of_vertex[p.edge_from[self.edges]]
+        self.robot_to = world.agent_of_vertex[p.edge_to[self.edges]]
+        self.delivered_tick = world.delivered_tick[world.edge_closure[self.edges]]
+        self.poses = np.zeros((world.num_robots, p.num_vertices, p.kind.pose_width))
+        self.tick = np.full((world.num_robots, p.num_vertices), -1, dtype=np.int64)
+
+    def _delivered(self, tick: int, group: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        member = np.zeros(self.world.num_robots, dtype=bool)
+        member[list(group)] = True
+        known = (self.delivered_tick >= 0) & (self.delivered_tick <= tick)
+        return known, member[self.robot_from], member[self.robot_to]
+
+    def learn(self, tick: int, group: tuple[int, ...], estimate: np.ndarray) -> dict[int, int]:
+        """After ``group`` solved at ``tick`` (``estimate``: its poses, global rows): each member keeps
+        the other ends of its delivered closures inside the group; per member, how many poses."""
+        known, from_in, to_in = self._delivered(tick, group)
+        inside = known & from_in & to_in
+        p = self.world.problem
+        e = self.edges[inside]
+        robots = np.concatenate([self.robot_from[inside], self.robot_to[inside]])
+        others = np.concatenate([p.edge_to[e], p.edge_from[e]])
+        keys = np.unique(robots * p.num_vertices + others)
+        robots, others = keys // p.num_vertices, keys % p.num_vertices
+        self.poses[robots, others] = estimate[others]
+        self.tick[robots, others] = tick
+        counts = np.bincount(robots, minlength=self.world.num_robots)
+        return {r: int(counts[r]) for r in group}
+
+    def fixed(self, tick: int, group: tuple[int, ...], information_scale: float) -> FixedEnds:
+        """The delivered closures between a member of ``group`` and a non-member whose pose the
+        member keeps, the non-member's end held there."""
+        known, from_in, to_in = self._delivered(tick, group)
+        p = self.world.problem
+        held_is_from = ~from_in
+        member = np.where(held_is_from, self.robot_to, self.robot_from)
+        held = np.where(held_is_from, p.edge_from[self.edges], p.edge_to[self.edges])
+        take = known & (from_in != to_in)
+        take[take] = self.tick[member[take], held[take]] >= 0
+        return FixedEnds(self.edges[take], self.poses[member[take], held[take]], held_is_from[take], information_scale)
+
+
 def _add_known(solver: IncrementalSolver, vertices: np.ndarray, edges: np.ndarray, **kwargs) -> tuple[int, int]:
     new_v = np.flatnonzero(vertices & ~solver.vertices)
     new_e = np.flatnonzero(edges & ~solver.edges)
@@ -198,12 +254,52 @@ class Independent(_Base):
 class Swarm(_Base):
     #: further ISAM2 updates when a group starts from its members' beliefs (their frames disagree)
     REBUILD_UPDATES = 3
+    #: the information of a kept closure's unary factor: the closure's own (docs/replay.md)
+    NEIGHBOUR_INFORMATION_SCALE = 1.0
 
     def __init__(self, world: World) -> None:
         super().__init__(world)
         self.groups: dict[tuple[int, ...], IncrementalSolver] = {}
+        self.fixed_edges: dict[tuple[int, ...], np.ndarray] = {}
+        """Per group, the mask of the kept closures its solver holds as unary factors."""
         self.believed = np.zeros(world.problem.num_vertices, dtype=bool)
+        self.memory = Memory(world)
         self.rebuilds = 0
+
+    def _new_group(self, group: tuple[int, ...], vertices: np.ndarray, edges: np.ndarray, fixed: FixedEnds):
+        w = self.world
+        solver = IncrementalSolver(w.problem, w.agent_of_vertex, w.settings)
+        solver.estimate = self.own.copy()
+        new_v = np.flatnonzero(vertices)
+        start = solver.dead_reckon(new_v, self.believed)
+        held = self.believed[new_v]
+        start[held] = self.own[new_v[held]]
+        lead = new_v[w.agent_of_vertex[new_v] == group[0]]
+        anchor = self.own[lead[0]] if len(lead) and self.believed[lead[0]] else None
+        solver.add(new_v, np.flatnonzero(edges), start=start, anchor_pose=anchor, fixed=fixed)
+        if len(group) > 1 or len(fixed.edges):
+            solver.refine(self.REBUILD_UPDATES)
+            self.rebuilds += 1
+        return solver
+
+    def _solve(self, tick: int, group: tuple[int, ...], vertices: np.ndarray, edges: np.ndarray):
+        """The group's solver after its update at ``tick`` and the edges sent up to it."""
+        w = self.world
+        fixed = self.memory.fixed(tick, group, self.NEIGHBOUR_INFORMATION_SCALE)
+        held = np.zeros(w.problem.num_edges, dtype=bool)
+        held[fixed.edges] = True
+        solver = self.groups.get(group)
+        if solver is None:
+            self.fixed_edges[group] = held
+            return self._new_group(group, vertices, edges, fixed), edges.copy()
+        sent_edges = edges & ~solver.edges
+        new = held[fixed.edges] & ~self.fixed_edges[group][fixed.edges]
+        self.fixed_edges[group] |= held
+        more = FixedEnds(fixed.edges[new], fixed.held_poses[new], fixed.held_is_from[new], fixed.information_scale)
+        _add_known(solver, vertices, edges)
+        if len(more.edges):
+            solver.add(np.zeros(0, np.int64), np.zeros(0, np.int64), fixed=more)
+        return solver, sent_edges
 
     def advance(self, tick: int, groups: list[tuple[int, ...]]) -> Step:
         w = self.world
@@ -213,36 +309,23 @@ class Swarm(_Base):
             vertices, edges = self._known(tick, group)
             if not vertices.any():
                 continue
-            solver = self.groups.get(group)
-            before = 0.0 if solver is None else solver.seconds
-            if solver is None:
-                solver = IncrementalSolver(w.problem, w.agent_of_vertex, w.settings)
-                solver.estimate = self.own.copy()
-                new_v = np.flatnonzero(vertices)
-                start = solver.dead_reckon(new_v, self.believed)
-                held = self.believed[new_v]
-                start[held] = self.own[new_v[held]]
-                lead = new_v[w.agent_of_vertex[new_v] == group[0]]
-                anchor = self.own[lead[0]] if len(lead) and self.believed[lead[0]] else None
-                sent_edges = edges.copy()
-                solver.add(new_v, np.flatnonzero(edges), start=start, anchor_pose=anchor)
-                if len(group) > 1:
-                    solver.refine(self.REBUILD_UPDATES)
-                    self.rebuilds += 1
-            else:
-                sent_edges = edges & ~solver.edges
-                _add_known(solver, vertices, edges)
+            old = self.groups.get(group)
+            before = 0.0 if old is None else old.seconds
+            solver, sent_edges = self._solve(tick, group, vertices, edges)
             ids = np.flatnonzero(solver.vertices)
             self.own[ids] = solver.solve()
             self.believed[ids] = True
             seconds += solver.seconds - before
             kept[group] = solver
+            learned = self.memory.learn(tick, group, self.own)
             lead_robot = group[0]
             for m in group[1:]:
+                # up: its new measurements; down: its estimate and the poses it keeps of the others
                 n_edges = int((sent_edges & (w.agent_of_vertex[w.problem.edge_from] == m)).sum())
-                n_poses = int((w.agent_of_vertex[ids] == m).sum())
+                n_poses = int((w.agent_of_vertex[ids] == m).sum()) + learned[m]
                 self._count(lead_robot, m, 2, n_edges * w.edge_bytes + n_poses * w.pose_bytes)
         self.groups = kept
+        self.fixed_edges = {g: self.fixed_edges[g] for g in kept}
         return Step(self.own.copy(), seconds)
 
     def finish(self) -> Step:

@@ -8,7 +8,9 @@ closures so far, the delivered closures between members), each robot its own blo
 from its members' beliefs, new poses continued from each robot's latest belief by the dataset's dead
 reckoning, the pose stage keeping those translations (``warm_start``); the gauge is the lowest-id
 member's first pose, held where that robot believes it. A robot alone is a team of one (its one
-block solved exactly: Gauss-Newton on its own graph). After the last checkpoint every team runs
+block solved exactly: Gauss-Newton on its own graph). Each member's delivered closures to robots
+outside its team enter at the neighbours' poses it kept from earlier teams (:class:`Memory`), held
+vertices in its block. After the last checkpoint every team runs
 :data:`FINAL` (100) more rounds. A solve whose result has a higher chi2 than its start is not
 taken (each robot can sum its own edges' chi2; the team needs the total, one number each). Messages
 and bytes are DGS's own (each round every robot sends each neighbour its separator values), counted
@@ -22,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from studio.replay.backends import Step, World, _Base
+from studio.replay.backends import Memory, Step, World, _Base
 from studio.solvers.dgs import DEFAULT_POSE_TOL, dgs_rounds
 from studio.solvers.incremental import compose, inverse
 from studio.solvers.problem import Problem, graph_chi2
@@ -71,6 +73,9 @@ def _teams(world: World, group: tuple[int, ...], edges: np.ndarray) -> list[tupl
 
 
 class Dgs(_Base):
+    #: the information of a kept closure to a held neighbour pose: the closure's own times this
+    NEIGHBOUR_INFORMATION_SCALE = 1.0
+
     def __init__(self, world: World) -> None:
         super().__init__(world)
         self.believed = np.zeros(world.problem.num_vertices, dtype=bool)
@@ -78,6 +83,7 @@ class Dgs(_Base):
         self.last_tick = 0
         self.teams: set[tuple[int, ...]] = set()
         """The teams of the last checkpoint: a team seen again skips the rotation stage."""
+        self.memory = Memory(world)
         self.rounds = 0
         self.rejected = 0
         """Solves whose result was not taken (chi2 not below the start's)."""
@@ -96,32 +102,52 @@ class Dgs(_Base):
             out[rows] = compose(np.repeat(base, len(rows), axis=0), w.problem.initial[vertices[rows]], kind)
         return out
 
-    def _solve(self, team: tuple[int, ...], tick: int, budget: Budget) -> float:
-        """DGS rounds of one team on what it knows; the seconds it took. A result whose chi2 is not
-        below the start's (Gauss-Newton steps can diverge far from the optimum) is not taken."""
+    def _sub_problem(self, team: tuple[int, ...], tick: int) -> tuple[np.ndarray, Problem, np.ndarray, np.ndarray]:
+        """What ``team`` solves: its known vertices (global ids), the problem over them plus one held
+        vertex per kept closure to a non-member (its pose as the member keeps it, in the member's
+        block), each vertex's robot in the team and the held mask."""
         w, p = self.world, self.world.problem
         vertices, edges = self._known(tick, team)
         ids = np.flatnonzero(vertices)
         edge_ids = np.flatnonzero(edges)
-        if not len(edge_ids):
-            self.own[ids] = self._start(ids)
-            self.believed[ids] = True
-            return 0.0
+        fixed = self.memory.fixed(tick, team, self.NEIGHBOUR_INFORMATION_SCALE)
+        n, k = len(ids), len(fixed.edges)
         local = np.full(p.num_vertices, -1, dtype=np.int64)
-        local[ids] = np.arange(len(ids))
-        robot_local = np.searchsorted(np.asarray(team), w.agent_of_vertex[ids])
-        start = self._start(ids)
+        local[ids] = np.arange(n)
+        held = np.arange(n, n + k)
+        fe = fixed.edges
+        fr = np.concatenate([local[p.edge_from[edge_ids]], np.where(fixed.held_is_from, held, local[p.edge_from[fe]])])
+        to = np.concatenate([local[p.edge_to[edge_ids]], np.where(fixed.held_is_from, local[p.edge_to[fe]], held)])
+        member_vertex = np.where(fixed.held_is_from, p.edge_to[fe], p.edge_from[fe])
+        agents = np.concatenate([w.agent_of_vertex[ids], w.agent_of_vertex[member_vertex]])
+        robot_local = np.searchsorted(np.asarray(team), agents)
+        all_edges = np.concatenate([edge_ids, fe])
+        start = np.concatenate([self._start(ids), fixed.held_poses])
+        information = p.information_upper[all_edges].copy()
+        information[len(edge_ids) :] *= fixed.information_scale
         sub = Problem(
             p.kind,
             start,
-            local[p.edge_from[edge_ids]],
-            local[p.edge_to[edge_ids]],
-            p.measurements[edge_ids],
-            p.information_upper[edge_ids],
-            p.robust[edge_ids],
+            fr,
+            to,
+            p.measurements[all_edges],
+            information,
+            p.robust[all_edges],
             anchor=int(np.flatnonzero(robot_local == 0)[0]),
             agent_of_vertex=robot_local,
         )
+        return ids, sub, robot_local, np.arange(n + k) >= n
+
+    def _solve(self, team: tuple[int, ...], tick: int, budget: Budget) -> float:
+        """DGS rounds of one team on what it knows and the neighbour poses its members keep; the
+        seconds it took. A result whose chi2 is not below the start's (Gauss-Newton steps can
+        diverge far from the optimum) is not taken."""
+        ids, sub, robot_local, held = self._sub_problem(team, tick)
+        if not sub.num_edges:
+            self.own[ids] = sub.initial[: len(ids)]
+            self.believed[ids] = True
+            return 0.0
+        start = sub.initial
         t0 = time.perf_counter()
         result = dgs_rounds(
             sub,
@@ -132,15 +158,18 @@ class Dgs(_Base):
             pose_tol=budget.pose_tol,
             warm_start=True,
             rotation_stage=team not in self.teams,
+            fixed=held if held.any() else None,
         )
         better = bool(graph_chi2(sub, result.poses) < graph_chi2(sub, start))  # nan: not better
         seconds = time.perf_counter() - t0
-        self.own[ids] = result.poses if better else start
+        self.own[ids] = (result.poses if better else start)[: len(ids)]
         self.rejected += not better
         self.believed[ids] = True
         self.rounds += result.num_rounds
         for a, b in zip(*np.nonzero(result.bytes_per_link)):
             self._count(team[int(a)], team[int(b)], result.num_rounds, int(result.bytes_per_link[a, b]))
+        # the separator values the rounds exchanged: already counted in DGS's bytes
+        self.memory.learn(tick, team, self.own)
         return seconds
 
     def _advance(self, tick: int, groups: list[tuple[int, ...]], budget: Budget) -> Step:

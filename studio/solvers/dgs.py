@@ -451,6 +451,8 @@ class _Run:
     max_rounds: int
     schedule: Schedule
     on_round: OnRound | None
+    fixed: np.ndarray | None = None
+    """Vertices held at their starting values (no one's unknowns: a replay's neighbour poses)."""
     handshake: int = 0
     """Bytes still to be counted with the next pose round (the separator poses at the first point)."""
     step: float = 0.0
@@ -471,11 +473,14 @@ class _Run:
         return int(sent.sum())
 
     def dofs_of(self, b: int, fix_anchor: bool = True) -> list[np.ndarray]:
-        """Each robot's unknowns, ``b`` per vertex (without the anchor's with ``fix_anchor``)."""
+        """Each robot's unknowns, ``b`` per vertex (without the anchor's with ``fix_anchor``, never
+        the fixed vertices')."""
         out = []
         for verts in self.members:
             if fix_anchor:
                 verts = verts[verts != self.problem.anchor]
+            if self.fixed is not None:
+                verts = verts[~self.fixed[verts]]
             out.append((verts[:, None] * b + np.arange(b)[None, :]).ravel())
         return out
 
@@ -493,6 +498,15 @@ def _robot_indices(problem: Problem, agent_of_vertex: np.ndarray) -> np.ndarray:
     if n and robot.min() < 0:
         raise ConfigError("agent_of_vertex: robot indices must be 0 or more")
     return robot.astype(np.int64)
+
+
+def _fixed_mask(problem: Problem, fixed: np.ndarray | None) -> np.ndarray | None:
+    if fixed is None:
+        return None
+    mask = np.asarray(fixed, dtype=bool)
+    if mask.shape != (problem.num_vertices,):
+        raise ConfigError(f"fixed: expected a mask of {problem.num_vertices} vertices, got shape {mask.shape}")
+    return mask
 
 
 def _check_options(max_rounds: int, tols: dict[str, float], gammas: dict[str, float], schedule: str) -> None:
@@ -541,14 +555,19 @@ def _rotation_stage(run: _Run, start: np.ndarray, opt: _StageOptions) -> tuple[n
     return rot, converged
 
 
-def _pose_start(problem: Problem, start: np.ndarray, rot: np.ndarray, warm_start: bool) -> np.ndarray:
+def _pose_start(
+    problem: Problem, start: np.ndarray, rot: np.ndarray, warm_start: bool, fixed: np.ndarray | None = None
+) -> np.ndarray:
     """The pose stage's first linearization point: the estimated rotations, every translation at the
-    anchor's (the paper's) or, with ``warm_start``, the given translations; the anchor as given."""
+    anchor's (the paper's) or, with ``warm_start``, the given translations; the anchor and the
+    ``fixed`` vertices as given."""
     n, kind, anchor = problem.num_vertices, problem.kind, problem.anchor
     tw = 2 if kind is PoseKind.SE2 else 3
     translations = start[:, 0:tw].copy() if warm_start else np.repeat(start[anchor : anchor + 1, 0:tw], n, axis=0)
     lin = _with_rotations(kind, translations, rot)
     lin[anchor] = start[anchor]
+    if fixed is not None:
+        lin[fixed] = start[fixed]
     return lin
 
 
@@ -562,7 +581,9 @@ def _pose_system(run: _Run, lin: np.ndarray, anchor_pose: np.ndarray, opt: _Stag
     h = _assemble(fr, to, ji, jj, omega, n, b)
     g = _gradient(fr, to, ji, jj, omega, e0, n, b)
     # Jacobi rounds on the anchor-free (singular) system would keep oscillating in its gauge
-    blocks = _factorise(h, run.dofs_of(b, fix_anchor=run.robots == 1 or run.schedule == "jacobi"), n * b)
+    # with fixed vertices the anchor is held too: the rigid move onto it would move them
+    hold = run.robots == 1 or run.schedule == "jacobi" or (run.fixed is not None and bool(run.fixed.any()))
+    blocks = _factorise(h, run.dofs_of(b, fix_anchor=hold), n * b)
     delta = np.zeros(n * b)
     previous = delta.copy()
     poses = lin
@@ -609,6 +630,7 @@ def dgs_rounds(
     schedule: Schedule = "gauss-seidel",
     warm_start: bool = False,
     rotation_stage: bool = True,
+    fixed: np.ndarray | None = None,
     on_round: OnRound | None = None,
 ) -> DgsResult:
     """Run DGS on ``problem`` with vertex ``v`` owned by robot ``agent_of_vertex[v]`` (ints ``0..R-1``).
@@ -619,7 +641,9 @@ def dgs_rounds(
     ``rotation_stage`` the pose stage starts at ``initial`` itself (a replay's later solves, whose
     rotations are already refined: a chordal stage cut short would only move them away).
     ``on_round(round, poses)`` is called after each round, ``poses`` the current estimate in the pose
-    stage and None in the rotation stage. At most ``max_rounds`` rounds over both stages."""
+    stage and None in the rotation stage. At most ``max_rounds`` rounds over both stages. ``fixed``
+    (a mask over the vertices) holds vertices at ``initial``, no robot's unknowns (the anchor is then
+    held too): a replay's neighbour poses, each in the block of the robot its edges tie it to."""
     t0 = time.perf_counter()
     robot = _robot_indices(problem, agent_of_vertex)
     robots = int(robot.max()) + 1 if problem.num_vertices else 0
@@ -633,6 +657,7 @@ def dgs_rounds(
     start = problem.initial if initial is None else np.asarray(initial, dtype=np.float64)
     if start.shape != problem.initial.shape:
         raise ConfigError(f"initial: expected shape {problem.initial.shape}, got {start.shape}")
+    fixed = _fixed_mask(problem, fixed)
     _check_connected(problem)
     if robots == 1:  # one block is the whole system, solved exactly: over-relaxing it only overshoots
         rotation_gamma = pose_gamma = 1.0
@@ -646,10 +671,11 @@ def dgs_rounds(
         max_rounds,
         schedule,
         on_round,
+        fixed,
     )
     if rotation_stage:
         rot, converged_rot = _rotation_stage(run, start, _StageOptions(rotation_tol, rotation_gamma, rotation_momentum))
-        lin = _pose_start(problem, start, rot, warm_start)
+        lin = _pose_start(problem, start, rot, warm_start, fixed)
     else:
         lin, converged_rot = start.copy(), True
     rotation_rounds = len(run.rounds)

@@ -28,7 +28,15 @@ from studio.core.geometry import normalize_angle, quat_conj, quat_mul, quat_rota
 from studio.core.model import PoseKind
 from studio.solvers.problem import Problem
 
-__all__ = ["IsamSettings", "IncrementalSolver", "compose", "inverse", "gtsam_information", "LOOSE_PRIOR_SIGMA"]
+__all__ = [
+    "IsamSettings",
+    "IncrementalSolver",
+    "FixedEnds",
+    "compose",
+    "inverse",
+    "gtsam_information",
+    "LOOSE_PRIOR_SIGMA",
+]
 
 #: Sigma [m, rad] of the prior holding an agent's first pose until loop closures tie it to others.
 LOOSE_PRIOR_SIGMA = 10.0
@@ -94,6 +102,23 @@ def gtsam_information(problem: Problem) -> np.ndarray:
         half = np.array([1.0, 1.0, 1.0, 0.5, 0.5, 0.5])
         omega = (omega * half[None, :, None] * half[None, None, :])[:, _PERMUTE_SE3][:, :, _PERMUTE_SE3]
     return omega
+
+
+@dataclass(frozen=True, eq=False)
+class FixedEnds:
+    """Edges of the problem with one end held at a given pose (a neighbour's pose another robot
+    shared): each enters as a unary factor on its other end, the edge's measurement composed with
+    the held pose; exactly the edge's factor with that end fixed (the information moved through the
+    measurement's adjoint where the held end is the edge's ``to``)."""
+
+    edges: np.ndarray
+    """Global edge ids."""
+    held_poses: np.ndarray
+    """``(len(edges), w)``: the pose at which each edge's held end is fixed."""
+    held_is_from: np.ndarray
+    """Per edge, True where the held end is the edge's ``from`` (the factor is then on ``to``)."""
+    information_scale: float = 1.0
+    """The edge's information times this (1: the edge's own noise)."""
 
 
 class IncrementalSolver:
@@ -171,11 +196,13 @@ class IncrementalSolver:
         *,
         start: np.ndarray | None = None,
         anchor_pose: np.ndarray | None = None,
+        fixed: FixedEnds | None = None,
     ) -> None:
         """Add ``vertices`` and ``edges`` (global ids not yet added) in one batch and update.
 
         ``start`` gives their starting values (default :meth:`dead_reckon`); ``anchor_pose`` the
-        pose at which the gauge is held (default: the first vertex's starting value)."""
+        pose at which the gauge is held (default: the first vertex's starting value); ``fixed``
+        edges whose other end is added now or was before enter as unary factors."""
         gtsam = self._gtsam
         t0 = time.perf_counter()
         p = self.problem
@@ -208,6 +235,8 @@ class IncrementalSolver:
         fr, to = p.edge_from[edges].tolist(), p.edge_to[edges].tolist()
         for k, e in enumerate(edges.tolist()):
             graph.add(factor(fr[k], to[k], self._pose(p.measurements[e]), gaussian(self.omega[e])))
+        if fixed is not None:
+            self._add_fixed(graph, fixed)
         self.vertices[vertices] = True
         self.edges[edges] = True
         self.estimate[vertices] = start
@@ -218,6 +247,26 @@ class IncrementalSolver:
             for _ in range(self.settings.extra_updates):
                 self.isam.update()
         self.seconds += time.perf_counter() - t0
+
+    def _add_fixed(self, graph: Any, fixed: FixedEnds) -> None:
+        """The unary factors of :class:`FixedEnds` into ``graph``. GTSAM's between error is
+        ``Log(z^-1 a^-1 b)``: with ``a`` held it is the prior ``a z`` on ``b`` as is; with ``b``
+        held, ``-Ad(z^-1) Log((b z^-1)^-1 a)``, the prior ``b z^-1`` on ``a`` with information
+        ``Ad^T omega Ad``."""
+        gtsam = self._gtsam
+        p = self.problem
+        prior = gtsam.PriorFactorPose2 if self.kind is PoseKind.SE2 else gtsam.PriorFactorPose3
+        gaussian = gtsam.noiseModel.Gaussian.Information
+        edges = np.asarray(fixed.edges, dtype=np.int64)
+        for k, e in enumerate(edges.tolist()):
+            z = self._pose(p.measurements[e])
+            held = self._pose(fixed.held_poses[k])
+            omega = self.omega[e] * fixed.information_scale
+            if fixed.held_is_from[k]:
+                graph.add(prior(int(p.edge_to[e]), held.compose(z), gaussian(omega)))
+            else:
+                ad = np.asarray(z.inverse().AdjointMap())
+                graph.add(prior(int(p.edge_from[e]), held.compose(z.inverse()), gaussian(ad.T @ omega @ ad)))
 
     def refine(self, updates: int) -> None:
         t0 = time.perf_counter()

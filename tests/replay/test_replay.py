@@ -254,3 +254,31 @@ def test_dgs_with_always_connected_comms_ends_close_to_centralized(always, small
     alone, independent = never.runs
     assert alone.messages.sum() == 0 and alone.bytes.sum() == 0
     assert alone.ape_team_se3_m[-1] == pytest.approx(independent.ape_team_se3_m[-1], rel=0.05)
+
+
+def test_a_robot_keeps_what_it_learned_after_the_last_rendezvous(small, tmp_path):
+    """Windows that end half-way (200 s of 400): swarm and dgs keep the closures delivered and the
+    neighbour poses received, so each ends strictly better than independent and not better than
+    centralized, which holds everything anyone knows."""
+    sched = tmp_path / "rdv.txt"
+    sched.write_text("0,0,200\n1,0,200\n2,0,200\n")
+    backends = ["centralized", "independent", "swarm", "dgs"]
+    res = replay(small.dataset_dir, tmp_path / "r", comms=f"rendezvous:{sched}", every=20, backends=backends)
+    runs = {r.name: r for r in res.runs}
+    c, i = runs["centralized"], runs["independent"]
+    for name in ("swarm", "dgs"):
+        r = runs[name]
+        for ape in ("ape_team_first_pose_m", "ape_team_se3_m"):
+            assert getattr(c, ape)[-1] <= getattr(r, ape)[-1] < 0.9 * getattr(i, ape)[-1], (name, ape)
+    # after the windows close each robot is alone yet stays near the team's map: it no longer
+    # falls back to its own graph (the first-pose APE was independent's before robots kept memory)
+    assert runs["swarm"].ape_team_first_pose_m[-1] < 0.6 * i.ape_team_first_pose_m[-1]
+    assert (res.schedule.windows()[:, 3] <= 200).all()
+
+
+def test_never_connected_swarm_is_independent_exactly(small, tmp_path):
+    res = replay(small.dataset_dir, tmp_path / "never", comms="never", every=20, backends=["independent", "swarm"])
+    independent, swarm = res.runs
+    assert np.array_equal(swarm.final_poses, independent.final_poses)
+    assert np.array_equal(swarm.ape_team_se3_m, independent.ape_team_se3_m)
+    assert swarm.bytes.sum() == 0

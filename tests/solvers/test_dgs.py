@@ -284,3 +284,26 @@ def test_without_the_rotation_stage_rounds_start_at_the_given_poses():
     assert res.rotation_rounds == 0 and res.pose_rounds >= 1
     assert res.chi2_initial == pytest.approx(graph_chi2(problem, batch.poses), rel=1e-12)
     assert graph_chi2(problem, res.poses) == pytest.approx(graph_chi2(problem, batch.poses), rel=1e-4)
+
+
+@pytest.mark.parametrize("kind", [PoseKind.SE2, PoseKind.SE3])
+def test_fixed_vertices_held_at_the_optimum_leave_the_others_at_it(kind):
+    """A replay's neighbour poses: robot 2 held where the batch optimum puts it, robots 0 and 1
+    start drifted and end at the joint optimum; the held vertices do not move and send nothing."""
+    problem, _ = team_problem(kind)
+    robot = problem.agent_of_vertex
+    assert robot is not None
+    batch = get_method("gtsam")(problem, SolveOptions())
+    start = problem.initial.copy()
+    held = robot == 2
+    start[held] = batch.poses[held]
+    start[problem.anchor] = batch.poses[problem.anchor]
+    res = dgs_rounds(
+        problem, robot, initial=start, fixed=held, warm_start=True, max_rounds=1500, rotation_tol=1e-6, pose_tol=1e-7
+    )
+    np.testing.assert_allclose(res.poses[held], start[held], atol=1e-12)  # rounding of the retraction
+    width = 2 if kind is PoseKind.SE2 else 3
+    np.testing.assert_allclose(res.poses[:, 0:width], batch.poses[:, 0:width], atol=1e-4)
+    assert res.bytes_per_link[2].sum() > 0  # robot 2 is still a neighbour: it sends its separators
+    with pytest.raises(ConfigError, match="fixed: expected a mask of 120 vertices"):
+        dgs_rounds(problem, robot, fixed=held[:5])
