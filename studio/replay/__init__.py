@@ -378,38 +378,59 @@ def _report_text(schedule: Schedule, report: CommsReport, runs: tuple[BackendRun
     return "\n".join(out)
 
 
+def _model_title(model: str) -> str:
+    """The comms model as a plot names it: a rendezvous file by its name, not its folder."""
+    kind, sep, arg = model.partition(":")
+    return f"{kind}:{Path(arg).name}" if sep and kind == "rendezvous" else model
+
+
+def _two_or_five(value: float, _pos: object = None) -> str:
+    """A log axis' minor label: 0.2, 0.5, 2, 5, 20 ... written plainly, the others left out."""
+    if value <= 0:
+        return ""
+    lead = value / 10 ** np.floor(np.log10(value))
+    return f"{value:g}" if round(lead) in (2, 5) and abs(lead - round(lead)) < 1e-6 else ""
+
+
 def _plot(path: Path, runs: tuple[BackendRun, ...], schedule: Schedule, title: str) -> bool:
     try:
         import matplotlib
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
+        from matplotlib.ticker import FuncFormatter, MaxNLocator
     except ImportError:
         return False
     t0 = int(schedule.ticks_ns[0])
-    fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True, layout="tight")
-    for run in runs:
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True, layout="constrained")
+    for k, run in enumerate(runs):
         ts = (schedule.ticks_ns[run.checkpoint_ticks] - t0) / NS_PER_S
         # the first checkpoints (one pose per robot) score 0 or rounding noise: not on a log axis
         few = run.poses_seen.sum(axis=1) <= 3 * len(schedule.robots)
         se3 = np.where(few, np.nan, run.ape_team_se3_m)
         fp = np.where(few, np.nan, run.ape_team_first_pose_m)
-        axes[0].plot(ts, se3, label=f"{run.name} (se3)")
-        axes[0].plot(ts, fp, linestyle="--", label=f"{run.name} (first-pose)")
+        colour = f"C{k % 10}"  # one colour per back-end: solid se3, dashed first-pose
+        axes[0].plot(ts, se3, color=colour, label=f"{run.name} (se3)")
+        axes[0].plot(ts, fp, color=colour, linestyle="--", linewidth=1.0, label=f"{run.name} (first-pose)")
     axes[0].set_ylabel("team APE mean [m]")
     axes[0].set_yscale("log")
-    axes[0].legend(fontsize=7)
+    # decades and their 2s and 5s, as plain numbers (0.2, 5: not 2 x 10^-1, 5 x 10^0)
+    axes[0].yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+    axes[0].yaxis.set_minor_formatter(FuncFormatter(_two_or_five))
+    axes[0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the curves, not on them
     axes[0].set_title(title)
     report = comms_report(schedule)
     ts_all = (schedule.ticks_ns - t0) / NS_PER_S
-    axes[1].plot(ts_all, report.robots_in_contact, label="robots in contact")
+    axes[1].plot(ts_all, report.robots_in_contact, color="tab:purple", label="robots in contact")
     ax2 = axes[1].twinx()
     ax2.plot(ts_all, report.detected, color="grey", linestyle=":", label="closures detected")
     ax2.plot(ts_all, report.delivered, color="black", label="closures delivered")
     axes[1].set_ylabel("robots in contact")
+    axes[1].yaxis.set_major_locator(MaxNLocator(integer=True))
+    axes[1].set_ylim(bottom=0)  # a count: from zero, so 6 of 8 does not read as none
     ax2.set_ylabel("inter-agent closures")
     axes[1].set_xlabel("time [s]")
-    ax2.legend(fontsize=7, loc="upper left")
+    ax2.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.12, 1.0))  # beside the twin axis
     fig.savefig(path, dpi=100, metadata={"Software": None})
     plt.close(fig)
     return True
@@ -556,7 +577,7 @@ def _write_folder(
     (folder / REPLAY_JSON).write_text(
         dumps_strict(options, f"{folder.name}/{REPLAY_JSON}", indent=2) + "\n", encoding="utf-8"
     )
-    _plot(folder / "ape.png", runs, schedule, f"{Path(dataset).name}: {schedule.model}")
+    _plot(folder / "ape.png", runs, schedule, f"{Path(dataset).name}: {_model_title(schedule.model)}")
     if parquet:
         from studio.io.parquet_table import write_parquet_from_csv
 
