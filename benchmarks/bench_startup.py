@@ -85,7 +85,8 @@ def timed(cmd: list[str], notes: Path | None = None) -> tuple[float, dict[str, f
     res = subprocess.run(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     wall = time.perf_counter() - t0
     if res.returncode:
-        raise SystemExit(f"{' '.join(cmd)} failed ({res.returncode}): {res.stderr.decode()[-500:]}")
+        shown = " ".join(w for w in cmd if w != BOOT)
+        raise SystemExit(f"{shown} failed ({res.returncode}): {res.stderr.decode()[-500:]}")
     return wall, (json.loads(notes.read_text()) if notes else {})
 
 
