@@ -37,6 +37,7 @@ def main() -> None:
         help="kollagen JSON of one dataset",
     )
     ap.add_argument("--out", type=Path, default=None, help="work folder (default: a temporary folder)")
+    ap.add_argument("--sweep-only", action="store_true", help="time the sweep alone (no loop of CLI calls)")
     args = ap.parse_args()
     studio = shutil.which("studio") or str(Path(sys.executable).parent / "studio")
     work = work_folder(args.out)
@@ -60,7 +61,15 @@ def main() -> None:
     rss_sweep = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
     rows = [json.loads(p.read_text()) for p in (work / "sweep" / "cells").glob("*/result.json")]
     work_s = sum(r["cell_s"] for r in rows)
-    configs = sorted((work / "sweep" / "configs").glob("*.json"))
+    # each cell's own config (configs/ also holds the seed group's config at replicate 0)
+    configs = sorted(work / "sweep" / "configs" / f"{r['cell']}.json" for r in rows)
+    print(
+        f"sweep ({args.workers} workers): {t_sweep:8.1f} s  ({t_sweep / len(configs) * 1000:.0f} ms per cell; "
+        f"cells' own work {work_s / len(rows) * 1000:.0f} ms each); load {load_sweep[0]:.2f} -> {load_sweep[1]:.2f}; "
+        f"largest process {rss_sweep:.0f} MB"
+    )
+    if args.sweep_only:
+        return
     loop_dir = work / "loop"
     rss_loop = 0.0
     load0 = os.getloadavg()[0]
@@ -78,11 +87,6 @@ def main() -> None:
             rss_loop = max(rss_loop, usage.ru_maxrss / 1024)
     t_loop = time.perf_counter() - t0
     load_loop = (load0, os.getloadavg()[0])
-    print(
-        f"sweep ({args.workers} workers): {t_sweep:8.1f} s  ({t_sweep / len(configs) * 1000:.0f} ms per cell; "
-        f"cells' own work {work_s / len(rows) * 1000:.0f} ms each); load {load_sweep[0]:.2f} -> {load_sweep[1]:.2f}; "
-        f"largest process {rss_sweep:.0f} MB"
-    )
     print(
         f"CLI loop (sequential):  {t_loop:8.1f} s  ({t_loop / len(configs) * 1000:.0f} ms per cell); "
         f"load {load_loop[0]:.2f} -> {load_loop[1]:.2f}; largest process {rss_loop:.0f} MB"

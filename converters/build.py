@@ -27,11 +27,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, fields
-from typing import Any
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from studio.converters.options import GraphOptions, option_help
 from studio.core.errors import ConfigError
 from studio.core.geometry import (
     normalize_angle,
@@ -45,7 +45,6 @@ from studio.core.geometry import (
     yaw_from_quat_xyzw,
 )
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
-from studio.core.option_values import check_option
 from studio.core.outliers import WrongVertexRule, plant_wrong_vertices
 from studio.core.trajectory import Trajectory
 from studio.core.units import NS_PER_S
@@ -66,89 +65,6 @@ __all__ = [
 _DIAG21 = np.array([0, 6, 11, 15, 18, 20])  # diagonal entries of a 6x6 upper triangle
 _DIAG6 = np.array([0, 3, 5])  # diagonal entries of a 3x3 upper triangle
 _STREAM_ODOMETRY, _STREAM_LOOPS, _STREAM_OUTLIERS = 1, 2, 3
-
-
-def _opt(default: Any, help: str, unit: str = "") -> Any:
-    """A :class:`GraphOptions` field: its default, help text and unit, declared once (the CLI and the
-    docs read them from here)."""
-    return field(default=default, metadata={"help": help, "unit": unit})
-
-
-def option_help(name: str) -> str:
-    """The help text of option ``name`` with its unit, e.g. ``Loop-closure radius R. [m]``."""
-    meta = {f.name: f.metadata for f in fields(GraphOptions)}[name]
-    return meta["help"] + (f" [{meta['unit']}]" if meta["unit"] else "")
-
-
-@dataclass(frozen=True)
-class GraphOptions:
-    """How trajectories become a graph. Each field's help and unit are in its metadata
-    (:func:`option_help`); a value of 0 turns an optional rule off where noted."""
-
-    seed: int = _opt(
-        0,
-        "Seed of every random draw (noise, loop-closure selection, outliers): same inputs, "
-        "options and seed give byte-identical output.",
-    )
-    keyframe_distance: float = _opt(1.0, "A keyframe every this much path (0: off).", "m")
-    keyframe_angle: float = _opt(15.0, "A keyframe every this much accumulated rotation (0: off).", "deg")
-    keyframe_time: float = _opt(0.0, "A keyframe every this long (0: off).", "s")
-    max_gap: float = _opt(1.0, "Stamps further apart than this are a ground-truth gap: bridged and reported.", "s")
-    gap_sigma_m_per_s: float = _opt(0.05, "Extra translation std dev of a gap-bridging edge per second of gap.", "m/s")
-    gap_sigma_rad_per_s: float = _opt(
-        0.005, "Extra rotation std dev of a gap-bridging edge per second of gap.", "rad/s"
-    )
-    odo_sigma_m_per_m: float = _opt(0.02, "Odometry translation std dev per metre travelled, on each axis.", "m/m")
-    odo_sigma_rad_per_rad: float = _opt(0.02, "Odometry rotation std dev per radian turned, on each axis.", "rad/rad")
-    odo_sigma_rad_per_m: float = _opt(0.001, "Odometry rotation std dev per metre travelled.", "rad/m")
-    odo_sigma_min_m: float = _opt(0.002, "Odometry translation std dev floor.", "m")
-    odo_sigma_min_rad: float = _opt(0.0005, "Odometry rotation std dev floor.", "rad")
-    lc_radius: float = _opt(2.0, "Loop-closure radius R.", "m")
-    lc_prob_intra: float = _opt(
-        0.5,
-        "Intra-agent loop-closure probability p at distance 0 "
-        "(a pair at distance d is accepted with p exp(-5 (d/R)^2)).",
-    )
-    lc_prob_inter: float = _opt(0.5, "Inter-agent loop-closure probability p at distance 0.")
-    lc_min_time: float = _opt(30.0, "Intra-agent pairs must be at least this far apart in time.", "s")
-    lc_min_index: int = _opt(10, "Intra-agent pairs must be at least this many keyframes apart.")
-    lc_max_heading: float = _opt(
-        0.0, "Heading compatibility: the x axes of both poses within this angle (0: off).", "deg"
-    )
-    rendezvous: float = _opt(0.0, "Inter-agent pairs must be within this time of each other (0: any time).", "s")
-    lc_sigma_m: float = _opt(0.05, "Loop-closure translation noise std dev, on each axis.", "m")
-    lc_sigma_rad: float = _opt(0.01, "Loop-closure rotation noise std dev, on each axis.", "rad")
-    outlier_fraction: float = _opt(
-        0.0,
-        "Fraction of accepted loop closures turned into outliers (a wrong vertex), in [0, 1); listed in outliers.txt.",
-    )
-    planar: bool = _opt(False, "Project to SE(2) (x, y, yaw) and write 2D records.")
-
-    def __post_init__(self) -> None:
-        for f in fields(self):
-            v = getattr(self, f.name)
-            key = f.name
-            if f.name == "planar":
-                if not isinstance(v, bool):
-                    raise ConfigError(f"{key}: expected true or false, got {v!r}", option=key)
-                continue
-            if f.name in ("seed", "lc_min_index"):
-                if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-                    raise ConfigError(f"{key}: expected a non-negative integer, got {v!r}", option=key)
-                continue
-            check_option(key, v)
-            object.__setattr__(self, f.name, float(v))  # 3 and 3.0 give the same convert.json
-        if self.lc_radius <= 0:
-            raise ConfigError("lc_radius: must be > 0", option="lc_radius")
-        if self.max_gap <= 0:
-            raise ConfigError("max_gap: must be > 0", option="max_gap")
-        for name in ("lc_prob_intra", "lc_prob_inter"):
-            if getattr(self, name) > 1:
-                raise ConfigError(f"{name}: a probability must be <= 1", option=name)
-        if self.outlier_fraction >= 1:
-            raise ConfigError("outlier_fraction: must be < 1", option="outlier_fraction")
-        if self.lc_max_heading > 180:
-            raise ConfigError("lc_max_heading: must be <= 180 degrees", option="lc_max_heading")
 
 
 @dataclass(frozen=True)

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from studio.converters.options import GROUND_TRUTH_CHOICES, PARTITIONS
 from studio.converters.transforms import time_windows
 from studio.core.errors import ConfigError, FormatError
 from studio.core.model import PoseGraph, PoseKind, RangeBearing
@@ -47,8 +48,6 @@ __all__ = [
     "graph_trajectories",
     "outliers_beside",
 ]
-
-PARTITIONS = ("contiguous", "metis", "time")
 
 
 @dataclass(frozen=True, eq=False)
@@ -200,9 +199,6 @@ def split_graph(graph: SingleGraph, verts: Sequence[np.ndarray], names: Sequence
         )
     table = EdgeTable(graph.kind, fa, fi, ta, ti, graph.measurements[src], graph.information_upper[src])
     return assemble_graph(agents, table, where=graph.where, metadata={"source": graph.where})
-
-
-GROUND_TRUTH_CHOICES = ("auto", "vertices", "none")
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from studio.converters.options import HEADING_METHODS
 from studio.core.errors import ConfigError, FormatError
 from studio.core.geometry import quat_angle, quat_conj, quat_mul
 from studio.core.trajectory import Trajectory
@@ -58,8 +59,6 @@ def orientation_is_uninformative(traj: Trajectory, tolerance_rad: float = 1e-6) 
     return bool(np.all(quat_angle(quat_mul(quat_conj(q[:1]), q)) <= tolerance_rad))
 
 
-#: ``derive_orientation`` methods: ``smoothed`` (the default) and ``chord`` (the first one).
-HEADING_METHODS = ("smoothed", "chord")
 #: Half-width [s] of the box filter, applied twice, that smooths positions for ``smoothed`` headings.
 SMOOTH_HALF_WIDTH_S = 0.5
 #: Half-width [s] of the shorter box filter, applied twice (a 0.5 s triangle), whose speed must also

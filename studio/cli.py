@@ -16,16 +16,16 @@ from typing import Any, get_args
 
 import typer
 
-from studio.converters.graph_split import GROUND_TRUTH_CHOICES, PARTITIONS
+from studio.converters.options import GROUND_TRUTH_CHOICES, PARTITIONS
 from studio.converters.registry import SOURCES
 from studio.core.alignment import Alignment
+from studio.core.conventions import DEFAULT_CONVENTION, Convention
 from studio.core.errors import StudioError
-from studio.core.residuals import DEFAULT_CONVENTION, Convention
+from studio.core.preset_names import PRESET_NAMES
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
-from studio.generator.presets import PRESETS
 from studio.runtime.progress import terminal_progress
 from studio.solvers import DEFAULT_METHOD, METHODS
-from studio.solvers.problem import Init, Optimizer, SolveOptions
+from studio.solvers.options import Init, Optimizer, SolveOptions
 
 app = typer.Typer(
     name="studio",
@@ -138,7 +138,7 @@ def synth(
     config: str = typer.Argument(
         ...,
         metavar="CONFIG.json|PRESET",
-        help=f"A kollagen JSON config, or a built-in preset: {', '.join(PRESETS)}.",
+        help=f"A kollagen JSON config, or a built-in preset: {', '.join(PRESET_NAMES)}.",
     ),
     out: Path = typer.Option(..., "-o", "--out", help="Parent folder of the outputs (kollagen's DEST)."),
     force: bool = typer.Option(False, "--force", help="Replace existing outputs."),
@@ -605,7 +605,7 @@ def _with_graph_options(command: Any) -> Any:
     import dataclasses
     import inspect
 
-    from studio.converters.build import GraphOptions, option_help
+    from studio.converters.options import GraphOptions, option_help
 
     sig = inspect.signature(command)
     params = [p for p in sig.parameters.values() if p.kind is not inspect.Parameter.VAR_KEYWORD]
@@ -628,7 +628,7 @@ def _with_convert_options(command: Any) -> Any:
     import dataclasses
     import inspect
 
-    from studio.convert import ConvertConfig
+    from studio.convert_config import ConvertConfig
 
     sig = inspect.signature(command)
     params = [p for p in sig.parameters.values() if p.kind is not inspect.Parameter.VAR_KEYWORD]
@@ -660,17 +660,17 @@ _with_graph_options(convert)
 
 
 # --- studio export ------------------------------------------------------------------------------
-# The formats are the entries of studio.export.EXPORT_FORMATS (choices and help built from them).
+# The formats are the entries of studio.export_formats.EXPORT_FORMATS (choices and help built from them).
 
 
 def _export_format_metavar() -> str:
-    from studio.export import EXPORT_FORMATS
+    from studio.export_formats import EXPORT_FORMATS
 
     return _choice_metavar(EXPORT_FORMATS)
 
 
 def _export_format_help() -> str:
-    from studio.export import EXPORT_FORMATS
+    from studio.export_formats import EXPORT_FORMATS
 
     return "; ".join(f"{name}: {spec.help}" for name, spec in EXPORT_FORMATS.items())
 
@@ -811,8 +811,7 @@ def solve(
 
 
 def _replay_backend_help() -> str:
-    from studio.replay import DEFAULT_BACKENDS
-    from studio.replay.backends import backend_names
+    from studio.replay.registry import DEFAULT_BACKENDS, backend_names
 
     return f"Comma-separated back-ends ({', '.join(backend_names())}); default {','.join(DEFAULT_BACKENDS)}."
 

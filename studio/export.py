@@ -1,7 +1,7 @@
 """``studio export`` as a library function: a multi-g2o dataset out in a distributed back-end's format.
 
-The formats are the entries of :data:`EXPORT_FORMATS` (the one place an export format is declared;
-the CLI's choices and help come from it):
+The formats are the entries of :data:`studio.export_formats.EXPORT_FORMATS` (the one place an export
+format is declared; the CLI's choices and help come from it; re-exported here):
 
 * ``jrl``: one JRL file (``studio.io.jrl``) for JRL, MESA and COSMO-Bench tooling;
 * ``dpgo``: a folder with ``NAME.g2o`` (edges only, ids ``0..n-1`` in robot order) for DPGO's
@@ -29,6 +29,7 @@ from studio.core.errors import ConfigError, FormatError, GraphError
 from studio.core.model import PoseGraph, PoseKind, RangeBearing
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
+from studio.export_formats import EXPORT_FORMATS, ExportFormat
 from studio.io.atomic import staged_outputs
 from studio.io.dpgo import contiguous_split, write_dpgo_csv_folder, write_dpgo_g2o
 from studio.io.graph_table import graph_edge_table, information_matrix
@@ -43,18 +44,6 @@ from studio.io.tum import write_tum
 __all__ = ["ExportFormat", "EXPORT_FORMATS", "ExportResult", "export_dataset", "read_dataset_outliers"]
 
 _EXPORT_FORMAT = "cslam-studio export 1"
-
-
-@dataclass(frozen=True)
-class ExportFormat:
-    """One export format: its help line, whether it writes a file or a folder, its writer
-    ``write(graph, target, name, outliers, warn, sightings) -> [files written]``, and whether it
-    carries range-bearing sightings (``range_bearing.txt``; the others say they leave them out)."""
-
-    help: str
-    folder: bool
-    write: Callable[[PoseGraph, Path, str, np.ndarray, Callable[[str], None], RangeBearing | None], list[str]]
-    sightings: bool = False
 
 
 @dataclass(frozen=True)
@@ -160,16 +149,6 @@ def _write_outliers(target: Path, outliers: np.ndarray) -> list[str]:
         return []
     write_outliers_txt(target / "outliers.txt", outliers, ["labelled"] * len(outliers))
     return ["outliers.txt"]
-
-
-#: The export formats, by name.
-EXPORT_FORMATS: dict[str, ExportFormat] = {
-    "jrl": ExportFormat("one JRL file (JRL, MESA, COSMO-Bench)", False, _write_jrl, sightings=True),
-    "dpgo": ExportFormat("DPGO's single g2o and a measurements.csv per robot", True, _write_dpgo),
-    "symbols": ExportFormat(
-        "one GTSAM-Symbol g2o per robot and fullGraph.g2o (DGS, Kimera-Multi, gtsam.readG2o)", True, _write_symbols
-    ),
-}
 
 
 def read_dataset_outliers(dataset: PathLike, graph: PoseGraph) -> np.ndarray:

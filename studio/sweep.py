@@ -30,7 +30,9 @@ parameter in ``OUT/plots/`` and ``OUT/sweep.rrd`` (the summary series over the c
 
 from __future__ import annotations
 
+import contextlib
 import copy
+import dataclasses
 import functools
 import hashlib
 import importlib
@@ -95,6 +97,12 @@ class CellTask:
     out_root: str
     steps: tuple[str, ...]
     options: dict[str, dict[str, Any]]
+    group: str = ""
+    """A synth cell among others that differ from it only in ``seed``: the name of their group, whose
+    datasets are made together by :func:`studio.synth.synthesize_seeds` in ``OUT/seeds/<group>/``
+    (:func:`run_seed_cells`); empty for a cell made alone."""
+    group_config: dict[str, Any] | None = None
+    """The group's config at replicate 0 (kollagen JSON): each member's config is its replicate."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -281,7 +289,30 @@ def expand(spec: SweepSpec, out: PathLike) -> list[CellTask]:
         tasks.append(
             CellTask(name, kind, doc, params, str(Path(out)), spec.steps, {s: dict(o) for s, o in spec.options.items()})
         )
-    return tasks
+    return _seed_groups(spec, kind, base, tasks)
+
+
+def _seed_groups(spec: SweepSpec, kind: str, base: dict[str, Any], tasks: list[CellTask]) -> list[CellTask]:
+    """Mark the synth cells that differ only in ``seed`` (two or more) as one group each: their
+    datasets are one config's replicates, made together by ``synthesize_seeds``."""
+    if kind != "synth":
+        return tasks
+    members: dict[str, list[int]] = {}
+    for k, t in enumerate(tasks):
+        if "seed" in t.params:
+            rest = {p: v for p, v in t.params.items() if p != "seed"}
+            members.setdefault(json.dumps(rest, sort_keys=True, default=str), []).append(k)
+    out = list(tasks)
+    for key, indices in members.items():
+        if len(indices) < 2:
+            continue
+        rest = json.loads(key)
+        doc = _apply(kind, base, rest, f"{spec.source}: seeds of {key}")
+        identity = {"seeds": {"kind": kind, "config": doc, "steps": list(spec.steps), "options": spec.options}}
+        group = cell_name(spec.name, rest, identity)
+        for k in indices:
+            out[k] = dataclasses.replace(tasks[k], group=group, group_config=doc)
+    return out
 
 
 # ------------------------------------------------------------------------------------------- one cell
@@ -365,7 +396,7 @@ def run_cell(task: CellTask) -> dict[str, Any]:
         return dict(json.loads(done.read_text(encoding="utf-8")), reused=True)
     if cell_dir.exists():
         shutil.rmtree(cell_dir)
-    row: dict[str, Any] = {"cell": task.name, **{f"param:{k}": v for k, v in task.params.items()}}
+    row = _row(task)
     t0 = time.perf_counter()
     try:
         cell_dir.mkdir(parents=True)
@@ -396,13 +427,117 @@ def run_cell(task: CellTask) -> dict[str, Any]:
         row["error"] = one_line_error(err)
         return row
     row["cell_s"] = time.perf_counter() - t0
+    row["dataset"] = str(dataset.relative_to(out))
+    return _finish(row, done, lambda: shutil.rmtree(cell_dir, ignore_errors=True))
+
+
+def _row(task: CellTask) -> dict[str, Any]:
+    return {"cell": task.name, **{f"param:{k}": v for k, v in task.params.items()}}
+
+
+def _finish(row: dict[str, Any], done: Path, remove: Callable[[], None]) -> dict[str, Any]:
+    """Write the row as the cell's ``result.json`` ``done`` (its completion marker); a non-finite
+    result fails the cell instead (written as NaN it would pass) and ``remove`` takes its files."""
     try:
         text = dumps_strict(row, str(done), indent=2, sort_keys=True, default=float) + "\n"
-    except StudioError as err:  # a non-finite result fails the cell (written as NaN it would pass)
-        shutil.rmtree(cell_dir, ignore_errors=True)
+    except StudioError as err:
+        remove()
         return {k: v for k, v in row.items() if non_finite_path(v) is None} | {"error": one_line_error(err)}
     write_replacing(done, lambda tmp: tmp.write_text(text, encoding="utf-8"))
     return row
+
+
+def _seed_folder(task: CellTask) -> Path:
+    """``OUT/seeds/<group>/seed<k>``: the folder ``synthesize_seeds`` writes the cell's dataset into."""
+    from studio.synth import seed_folder_name
+
+    return Path(task.out_root) / "seeds" / task.group / seed_folder_name(int(task.params["seed"]))
+
+
+def _remove_cell(task: CellTask) -> None:
+    """Everything a cell made: its folder and, in a seed group, its seed's folder."""
+    shutil.rmtree(Path(task.out_root) / "cells" / task.name, ignore_errors=True)
+    if task.group:
+        shutil.rmtree(_seed_folder(task), ignore_errors=True)
+        with contextlib.suppress(OSError):  # the group's folder, once its last seed is gone
+            _seed_folder(task).parent.rmdir()
+
+
+def run_cells(tasks: Sequence[CellTask]) -> list[dict[str, Any]]:
+    """One Dask task: a cell made alone (:func:`run_cell`), or replicates of one seed group
+    (:func:`run_seed_cells`). Returns their rows."""
+    if tasks and tasks[0].group:
+        return run_seed_cells(tasks)
+    return [run_cell(t) for t in tasks]
+
+
+def run_seed_cells(tasks: Sequence[CellTask]) -> list[dict[str, Any]]:
+    """Cells of one seed group (on a worker): their datasets made in one
+    :func:`studio.synth.synthesize_seeds` call into ``OUT/seeds/<group>/seed<k>/`` (the bytes of
+    ``studio synth OUT/configs/<cell>.json``, one sync of the file system instead of a dozen fsyncs
+    per dataset), then each cell's steps and ``result.json`` as :func:`run_cell` does. What a
+    killed attempt left of an unfinished cell is removed first; a failure is the cells' error."""
+    from studio.io.synth_config import parse_synth_config
+    from studio.synth import synthesize_seeds
+
+    group, out = tasks[0].group, Path(tasks[0].out_root)
+    rows: dict[str, dict[str, Any]] = {}
+    todo = []
+    for t in tasks:
+        done = out / "cells" / t.name / RESULT
+        if done.is_file():
+            rows[t.name] = dict(json.loads(done.read_text(encoding="utf-8")), reused=True)
+        else:
+            _remove_cell(t)
+            todo.append(t)
+    seeds = [int(t.params["seed"]) for t in todo]
+    made_s: dict[int, float] = {}
+    clock = [time.perf_counter()]
+
+    def seed_made(step: str, done: int, total: int, unit: str = "") -> None:  # after each seed
+        if unit == "seeds":
+            now = time.perf_counter()
+            made_s[seeds[done - 1]], clock[0] = now - clock[0], now
+
+    try:
+        if todo:
+            source = str(out / "configs" / f"{group}.json")
+            config = parse_synth_config(tasks[0].group_config, source=source, name=group)
+            synthesize_seeds(
+                config, out / "seeds" / group, seeds, jobs=1, rrd="record" in todo[0].steps, progress=seed_made
+            )
+    except Exception as err:  # the group's config failed: every unfinished cell's error
+        for t in todo:
+            _remove_cell(t)
+            rows[t.name] = _row(t) | {"error": one_line_error(err)}
+        todo = []
+    for t in todo:
+        rows[t.name] = _seed_cell(t, made_s[int(t.params["seed"])])
+    return [rows[t.name] for t in tasks]
+
+
+def _seed_cell(task: CellTask, make_s: float) -> dict[str, Any]:
+    """The steps of a seed group's cell whose dataset ``synthesize_seeds`` made in ``make_s``."""
+    from studio.io.multig2o import read_multi_g2o
+
+    cell_dir = Path(task.out_root) / "cells" / task.name
+    dataset = _seed_folder(task) / task.group
+    row = _row(task)
+    t0 = time.perf_counter()
+    try:
+        cell_dir.mkdir(parents=True)
+        g = read_multi_g2o(dataset)
+        row["make_s"] = make_s
+        row.update(agents=len(g.agents), poses=g.num_poses, **g.edge_counts())
+        for step in task.steps:
+            _step(step, task, cell_dir, dataset, row)
+    except Exception as err:  # any failure is the cell's one-line error; the sweep goes on
+        _remove_cell(task)
+        row["error"] = one_line_error(err)
+        return row
+    row["cell_s"] = make_s + time.perf_counter() - t0
+    row["dataset"] = str(dataset.relative_to(task.out_root))
+    return _finish(row, cell_dir / RESULT, lambda: _remove_cell(task))
 
 
 # ------------------------------------------------------------------------------------------- the sweep
@@ -535,9 +670,10 @@ def _sweep(
     retries: int,
 ) -> SweepResult:
     (out / "configs").mkdir(parents=True, exist_ok=True)
-    for t in tasks:
-        path = out / "configs" / f"{t.name}.json"
-        text = dumps_strict(t.config, str(path), indent=4) + "\n"
+    groups = {t.group: t.group_config for t in tasks if t.group}  # a seed group's config at replicate 0
+    for name, config in [(t.name, t.config) for t in tasks] + list(groups.items()):
+        path = out / "configs" / f"{name}.json"
+        text = dumps_strict(config, str(path), indent=4) + "\n"
         if not path.is_file() or path.read_text(encoding="utf-8") != text:
             write_replacing(path, functools.partial(_write_text, text=text))
     rows: dict[str, dict[str, Any]] = {}
@@ -554,21 +690,21 @@ def _sweep(
         try:
             from distributed import as_completed
 
-            keys = [f"studio-cell-{t.name}" for t in todo]
-            by_key = dict(zip(keys, todo))
-            futures = client.map(run_cell, todo, key=keys, retries=retries, pure=False)
+            batches = _batches(todo, sum(client.nthreads().values()) or 1)
+            keys = [f"studio-cells-{batch[0].name}" for batch in batches]
+            by_key = dict(zip(keys, batches))
+            futures = client.map(run_cells, batches, key=keys, retries=retries, pure=False)
             for fut in as_completed(futures):
                 try:
-                    row = fut.result()
-                except Exception as err:  # the cell's worker died on every attempt (KilledWorker), ...
-                    task = by_key[fut.key]
-                    shutil.rmtree(out / "cells" / task.name, ignore_errors=True)
-                    row = {
-                        "cell": task.name,
-                        **{f"param:{k}": v for k, v in task.params.items()},
-                        "error": f"no attempt finished ({retries + 1} tried): {one_line_error(err)}",
-                    }
-                rows[row["cell"]] = row
+                    got = fut.result()
+                except Exception as err:  # the cells' worker died on every attempt (KilledWorker), ...
+                    got = []
+                    for task in by_key[fut.key]:
+                        _remove_cell(task)
+                        error = f"no attempt finished ({retries + 1} tried): {one_line_error(err)}"
+                        got.append(_row(task) | {"error": error})
+                for row in got:
+                    rows[row["cell"]] = row
                 report(progress, "sweep cells", len(rows), len(tasks), "cells")
         finally:
             client.close()
@@ -576,6 +712,23 @@ def _sweep(
                 cluster.close()
     ordered = [dict(rows[t.name], command=_command(t, out, spec)) for t in tasks]
     return _write_outputs(spec, out, ordered, computed=len(todo))
+
+
+def _batches(todo: list[CellTask], slots: int) -> list[list[CellTask]]:
+    """The Dask tasks: each cell made alone is one; a seed group's unfinished cells are cut into runs
+    of consecutive cells, about two per worker thread (``slots``), so that one ``synthesize_seeds``
+    call makes many datasets and every worker still has work."""
+    batches: list[list[CellTask]] = []
+    groups: dict[str, list[CellTask]] = {}
+    for t in todo:
+        if t.group:
+            groups.setdefault(t.group, []).append(t)
+        else:
+            batches.append([t])
+    for members in groups.values():
+        size = max(1, math.ceil(len(members) / (2 * slots)))
+        batches += [members[k : k + size] for k in range(0, len(members), size)]
+    return batches
 
 
 def _command(task: CellTask, out: Path, spec: SweepSpec) -> str:
@@ -615,7 +768,7 @@ def _write_outputs(spec: SweepSpec, out: Path, rows: list[dict[str, Any]], compu
         f"{len(rows)} cells ({computed} run now, {failed} failed).",
         "",
     ]
-    cols = [c for c in df.columns if c not in ("command",)]
+    cols = [c for c in df.columns if c not in ("command", "dataset")]
     md += ["| " + " | ".join(cols) + " |", "|" + "|".join(["---"] * len(cols)) + "|"]
     for _, r in df.iterrows():
         md.append("| " + " | ".join(_fmt(r[c]) for c in cols) + " |")

@@ -18,10 +18,11 @@ chi2 is the sum over its edges (g2o's ``activeChi2``).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from studio.core.conventions import DEFAULT_CONVENTION, Convention
 from studio.core.errors import GraphError
 from studio.core.geometry import normalize_angle, quat_canonical, quat_conj, quat_mul, quat_rotate, upper_to_matrix
 
@@ -29,10 +30,6 @@ __all__ = ["Convention", "DEFAULT_CONVENTION", "edge_errors", "chi2_terms", "chi
 
 if TYPE_CHECKING:
     from studio.core.model import PoseGraph
-
-Convention = Literal["g2o", "rotvec"]
-#: The rotation error of g2o's SE3 edges (quaternion vector part), what ``studio check`` uses by default.
-DEFAULT_CONVENTION: Convention = "g2o"
 
 
 def _errors_se2(xi: np.ndarray, xj: np.ndarray, z: np.ndarray) -> np.ndarray:

@@ -3,7 +3,8 @@
 Every back-end sees the same :class:`World` and is advanced checkpoint by checkpoint (every
 ``every`` ticks and at the end); at each it returns ``own`` (one row per vertex of the problem: the
 estimate the vertex's own robot holds of it; rows of poses not yet visited are unused) and counts
-what it sent on each link. The registry :data:`BACKENDS` is the one place a back-end is declared.
+what it sent on each link. The registry :data:`studio.replay.registry.BACKENDS` is the one place a
+back-end is declared.
 
 * ``centralized``: one ISAM2 (:class:`~studio.solvers.incremental.IncrementalSolver`) over
   everything anyone knows: every robot's odometry and intra-agent closures at their times and each
@@ -33,7 +34,7 @@ from studio.core.comms import robot_pairs
 from studio.solvers.incremental import FixedEnds, IncrementalSolver, IsamSettings
 from studio.solvers.problem import Problem
 
-__all__ = ["World", "Backend", "BACKENDS", "backend_names", "get_backend", "Step"]
+__all__ = ["World", "Backend", "BackendFactory", "Step", "make_dgs"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -337,29 +338,8 @@ class Swarm(_Base):
         return Step(self.own.copy(), seconds)
 
 
-def _dgs(world: World) -> Backend:
+def make_dgs(world: World) -> Backend:
     """Distributed Gauss-Seidel, a few rounds per checkpoint (:mod:`studio.replay.dgs_backend`)."""
     from studio.replay.dgs_backend import Dgs
 
     return Dgs(world)
-
-
-BACKENDS: dict[str, BackendFactory] = {
-    "centralized": Centralized,
-    "independent": Independent,
-    "swarm": Swarm,
-    "dgs": _dgs,
-}
-
-
-def backend_names() -> list[str]:
-    return list(BACKENDS)
-
-
-def get_backend(name: str) -> BackendFactory:
-    from studio.core.errors import ConfigError
-
-    try:
-        return BACKENDS[name]
-    except KeyError:
-        raise ConfigError(f"backend: unknown back-end {name!r} (known: {', '.join(BACKENDS)})") from None

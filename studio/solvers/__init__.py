@@ -16,11 +16,14 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from studio.core.errors import ConfigError
 from studio.core.lazy import Lazy
-from studio.solvers.problem import DEFAULT_MAX_ROUNDS, G2O_DEFAULT_ITERATIONS, Method, SolveOptions
+from studio.solvers.options import DEFAULT_MAX_ROUNDS, G2O_DEFAULT_ITERATIONS, SolveOptions
+
+if TYPE_CHECKING:  # the back-ends' protocol: numpy types, not loaded to declare the registry
+    from studio.solvers.problem import Method
 
 __all__ = [
     "METHODS",

@@ -5,17 +5,26 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Literal, Protocol
+from typing import Protocol
 
 import numpy as np
 
 from studio.core.model import PoseKind
 from studio.core.residuals import chi2_terms, edge_errors
+from studio.solvers.options import DEFAULT_MAX_ROUNDS, G2O_DEFAULT_ITERATIONS, Init, Optimizer, SolveOptions
 
-__all__ = ["Problem", "Solution", "SolveOptions", "Iteration", "Method", "Optimizer", "Init", "graph_chi2"]
-
-Optimizer = Literal["gn", "lm"]
-Init = Literal["chordal", "spanning-tree", "odometry"]
+__all__ = [
+    "Problem",
+    "Solution",
+    "SolveOptions",
+    "Iteration",
+    "Method",
+    "Optimizer",
+    "Init",
+    "graph_chi2",
+    "G2O_DEFAULT_ITERATIONS",
+    "DEFAULT_MAX_ROUNDS",
+]
 
 #: Called after every iteration with ``(iteration, poses)`` (iteration 0: the initial guess).
 Iteration = Callable[[int, np.ndarray], None]
@@ -46,48 +55,6 @@ class Problem:
     @property
     def num_edges(self) -> int:
         return len(self.edge_from)
-
-
-#: g2o's default iterations: the paper's setup, 10 Gauss-Newton iterations.
-G2O_DEFAULT_ITERATIONS = 10
-#: DGS's default rounds at most, both stages together.
-DEFAULT_MAX_ROUNDS = 100
-
-
-@dataclass(frozen=True)
-class SolveOptions:
-    """Options every method reads (each uses the ones that apply to it)."""
-
-    optimizer: Optimizer = "gn"
-    """Gauss-Newton or Levenberg-Marquardt."""
-    init: Init = "chordal"
-    """Initial guess: chordal relaxation, spanning tree of the measurements, or the dataset's values."""
-    max_iterations: int = 20
-    """Iterations at most (the ``g2o`` method runs exactly this many, 10 by default as the paper)."""
-    relative_tolerance: float = 1e-9
-    """Stop when the cost decreases by less than this fraction."""
-    command: str = ""
-    """``command`` method: the program to run, with ``{input}`` and ``{output}`` placeholders."""
-    robots: int = 0
-    """``dgs`` on a problem without robot identity (a single g2o): that many robots of contiguous
-    vertex ids (DPGO's split); 0: 8, or fewer if the graph has fewer vertices."""
-    rotation_tol: float = 0.2
-    """``dgs``: the rotation stage stops when no rotation-matrix entry changes more in a round."""
-    pose_tol: float = 1e-2
-    """``dgs``: a pose-stage system stops when no update entry [m, rad] changes more in a round."""
-    rotation_gamma: float = 1.0
-    """``dgs``: over-relaxation of each robot's block update in the rotation stage (1: plain Gauss-Seidel)."""
-    pose_gamma: float = 1.9
-    """``dgs``: over-relaxation of each robot's block update in the pose stage (measured best of
-    1, 1.3, 1.6, 1.9 on kollagen's datasets, see docs/solve.md)."""
-    rotation_momentum: float | None = None
-    """``dgs``: Nesterov momentum of the rotation stage's rounds (each robot extrapolates its own block;
-    0: none; None: 0.9 with Gauss-Seidel rounds, 0 with Jacobi's, measured on kollagen's datasets,
-    see docs/replay.md)."""
-    pose_momentum: float = 0.0
-    """``dgs``: Nesterov momentum of the pose stage's rounds (0: none; it diverges with over-relaxation)."""
-    schedule: str = "gauss-seidel"
-    """``dgs``: robots update in turn (``gauss-seidel``) or all from the last round (``jacobi``)."""
 
 
 @dataclass(frozen=True, eq=False)

@@ -3,7 +3,8 @@
 Every import of every module (top level, inside functions and under ``TYPE_CHECKING`` alike) is
 read with :mod:`ast`; a module may import its own package, any lower layer, and nothing else. The
 pipelines (modules directly in ``studio/``) may also use each other; ``studio.cli`` is the command
-line, and ``studio._entry`` (the console script's entry point, which only loads it) the top.
+line, and ``studio._entry`` (the console script's entry point, which only loads it) and ``studio.__main__``
+(``python -m studio``, which calls it) the top.
 """
 
 from __future__ import annotations
@@ -55,6 +56,8 @@ def _unit(module: str) -> tuple[str, float]:
         return module, CLI_RANK
     if module == "studio._entry":
         return module, ENTRY_RANK
+    if module == "studio.__main__":
+        return module, ENTRY_RANK + 1  # python -m studio: calls the entry point
     return module, PIPELINE_RANK
 
 

@@ -45,6 +45,12 @@ def _same_tree(a: Path, b: Path) -> bool:
     )
 
 
+def _same_renamed(a: Path, b: Path, old: str, new: str) -> bool:
+    """``a`` and ``b`` hold the same bytes, a file of ``b`` named with ``new`` where ``a``'s has ``old``."""
+    files = sorted(p.relative_to(a) for p in a.rglob("*") if p.is_file())
+    return bool(files) and all(filecmp.cmp(a / f, b / str(f).replace(old, new), shallow=False) for f in files)
+
+
 def test_twelve_cells_on_two_workers_give_the_bytes_of_sequential_synth_runs_and_resume(tmp_path):
     spec = load_sweep_spec(_spec(tmp_path))
     out = tmp_path / "out"
@@ -76,20 +82,74 @@ def test_twelve_cells_on_two_workers_give_the_bytes_of_sequential_synth_runs_and
         )
         assert done.returncode == 0, done.stderr
         assert row["command"].startswith(f"studio synth {out / 'configs' / cell}.json -o DIR")
-        assert _same_tree(alone / cell, out / "cells" / cell / cell)
-        assert _same_tree(alone / f"{cell}_singleg2o", out / "cells" / cell / f"{cell}_singleg2o")
+        # the seed replicates of a config are made together (OUT/seeds/<group>/seed<k>/<group>)
+        dataset = out / row["dataset"]
+        group = dataset.name
+        assert row["dataset"] == f"seeds/{group}/seed{row['param:seed']:04d}/{group}"
+        assert _same_tree(alone / cell, dataset)
+        assert _same_renamed(alone / f"{cell}_singleg2o", dataset.parent / f"{group}_singleg2o", cell, group)
     # an interrupted run: three cells unfinished (one with a half-made folder); the rest is kept
     names = [r["cell"] for r in res.rows]
     stamps = {n: (out / "cells" / n / "result.json").stat().st_mtime_ns for n in names}
     for n in names[:3]:
         (out / "cells" / n / "result.json").unlink()
-    (out / "cells" / names[0] / names[0] / "agent1" / "posegraph.g2o").write_text("half")
+    (out / res.rows[0]["dataset"] / "agent1" / "posegraph.g2o").write_text("half")
     again = sweep(spec, out, workers=2)
     assert again.computed == 3
     for n in names[3:]:
         assert (out / "cells" / n / "result.json").stat().st_mtime_ns == stamps[n]
-    assert _same_tree(tmp_path / "alone" / names[0] / names[0], out / "cells" / names[0] / names[0])
+    assert _same_tree(tmp_path / "alone" / names[0] / names[0], out / res.rows[0]["dataset"])
     assert sweep(spec, out, workers=2).computed == 0
+
+
+def test_seed_replicates_are_one_synthesize_seeds_call_with_the_rows_and_bytes_of_cells_made_alone(tmp_path):
+    """Cells that differ only in ``seed`` are made by ``synthesize_seeds`` in runs of consecutive
+    seeds (here 6 seeds on one worker: two runs of 3); each row and dataset is what the cell made
+    alone (``run_cell``) gives, and ``studio synth configs/<group>.json --seeds`` remakes the group."""
+    import dataclasses
+
+    from studio.io.synth_config import read_synth_config
+    from studio.sweep import _batches, run_cell
+    from studio.synth import synthesize_seeds
+
+    data = {"name": "reps", "base": str(DATA / "configs" / "tiny_three.json"), "grid": {"seed": [0, 1, 2, 3, 4, 5]}}
+    spec = sweep_spec_from_dict(data, "reps.toml")
+    out = tmp_path / "out"
+    tasks = expand(spec, out)
+    assert len({t.group for t in tasks}) == 1 and tasks[0].group
+    assert [[t.params["seed"] for t in b] for b in _batches(tasks, 1)] == [[0, 1, 2], [3, 4, 5]]
+    res = sweep(spec, out, workers=1)
+    assert res.failed == 0 and res.computed == 6
+    group = tasks[0].group
+    assert sorted(p.name for p in (out / "seeds" / group).iterdir()) == [f"seed{k:04d}" for k in range(6)]
+    alone_root = tmp_path / "alone"
+    for task, row in zip(tasks, res.rows):
+        alone = run_cell(dataclasses.replace(task, group="", group_config=None, out_root=str(alone_root)))
+        timing = ("make_s", "cell_s", "dataset", "command", "reused")
+        assert {k: v for k, v in row.items() if k not in timing} == {k: v for k, v in alone.items() if k not in timing}
+        assert _same_tree(alone_root / alone["dataset"], out / row["dataset"])
+    again = tmp_path / "again"
+    synthesize_seeds(read_synth_config(out / "configs" / f"{group}.json"), again, list(range(6)), rrd=False)
+    for k in range(6):
+        assert _same_tree(again / f"seed{k:04d}", out / "seeds" / group / f"seed{k:04d}")
+
+
+def test_a_failing_seed_group_records_its_errors_and_leaves_nothing(tmp_path):
+    spec = sweep_spec_from_dict(
+        {
+            "name": "fail",
+            "base": str(DATA / "configs" / "tiny_three.json"),
+            "steps": ["evaluate", "solve"],
+            "options": {"solve": {"method": "command"}},
+            "grid": {"seed": [0, 1, 2]},
+        },
+        "fail.toml",
+    )
+    res = sweep(spec, tmp_path / "out", workers=1)
+    assert res.failed == 3
+    assert all(r["error"].startswith("command: method command needs the program") for r in res.rows)
+    assert not any((tmp_path / "out" / "cells").iterdir())
+    assert not any((tmp_path / "out" / "seeds").iterdir())  # no seed folder, no empty group folder
 
 
 def test_a_killed_worker_leaves_no_partial_cell_and_the_cell_completes(tmp_path):
