@@ -191,27 +191,38 @@ def view_web_command(rrd: PathLike, *, port: int | None = None) -> WebViewer:
 def run_viewer(command: list[str]) -> int:
     """Run a viewer command in the foreground; its exit code. The viewer ends with this process
     however it ends: on Ctrl+C (SIGINT), SIGTERM or SIGHUP it is stopped before this returns
-    (``128 + signal`` for a signal), so no ``rerun`` is left serving under PID 1."""
+    (``128 + signal`` for a signal), so no ``rerun`` is left serving under PID 1.
+
+    A signal that arrives while the viewer is being started is held until ``Popen`` has returned
+    (raised inside it, it would leave the new viewer running with nobody to stop it), and one that
+    arrives while the viewer is being stopped does not interrupt the stopping."""
     import signal
 
     class _Stop(Exception):
         def __init__(self, signum: int) -> None:
             self.signum = signum
 
-    def stop(signum: int, _frame: object) -> None:
-        raise _Stop(signum)
+    started: list[subprocess.Popen[bytes]] = []
+    pending: list[int] = []
+    stopping = [False]
 
-    previous = {s: signal.signal(s, stop) for s in (signal.SIGTERM, signal.SIGHUP)}
-    proc = subprocess.Popen(command, env=_env(), start_new_session=True)
+    def stop(signum: int, _frame: object) -> None:
+        pending.append(signum)
+        if started and not stopping[0]:
+            raise _Stop(signum)
+
+    previous = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
     try:
-        return proc.wait()
-    except KeyboardInterrupt:
-        return 128 + signal.SIGINT
+        started.append(subprocess.Popen(command, env=_env(), start_new_session=True))
+        if pending:
+            raise _Stop(pending[0])
+        return started[0].wait()
     except _Stop as why:
         return 128 + why.signum
     finally:
-        if proc.poll() is None:
-            _stop_group(proc)
+        stopping[0] = True
+        if started and started[0].poll() is None:
+            _stop_group(started[0])
         for s, handler in previous.items():
             signal.signal(s, handler)
 

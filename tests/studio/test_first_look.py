@@ -163,8 +163,9 @@ def test_two_web_viewers_at_once_and_sigterm_leaves_no_child(tmp_path):
     rrd = REPO / "recordings" / "small3x100.rrd"
     first, line1 = _web_viewer(rrd)
     second, line2 = _web_viewer(rrd)
+    kids: list = []
     try:
-        kids = _wait_for_children(first.pid) + _wait_for_children(second.pid)
+        kids += _wait_for_children(first.pid) + _wait_for_children(second.pid)
         assert line1.startswith("web viewer: open http://127.0.0.1:") and line2.startswith("web viewer: open ")
         assert line1 != line2  # two page ports and two gRPC ports
         # a port asked for that is taken: one line naming it, exit 2
@@ -183,10 +184,14 @@ def test_two_web_viewers_at_once_and_sigterm_leaves_no_child(tmp_path):
             assert proc.wait(timeout=30) == 128 + signal.SIGTERM
         gone, alive = psutil.wait_procs(kids, timeout=15)
         assert not alive, [p.cmdline() for p in alive]
-    finally:
+    finally:  # a failing run leaves no viewer serving either (one did, for an hour, at 70 % CPU)
         for proc in (first, second):
             if proc.poll() is None:
+                kids += _children(proc.pid)  # every viewer it started, not only the first seen
                 proc.kill()
+        for kid in kids:
+            if kid.is_running():
+                kid.kill()
 
 
 def test_evaluate_fits_the_terminal_and_keeps_every_number(tmp_path):
