@@ -455,12 +455,20 @@ def _seed_folder(task: CellTask) -> Path:
 
 
 def _remove_cell(task: CellTask) -> None:
-    """Everything a cell made: its folder and, in a seed group, its seed's folder."""
+    """Everything a cell made: its folder and, in a seed group, its seed's folder. The group's
+    folder stays: another worker may be writing a seed of the group into it right now (removing it
+    when it looked empty raced with that worker's staging); the sweep removes the empty ones when
+    every cell has ended (:func:`_remove_empty_groups`)."""
     shutil.rmtree(Path(task.out_root) / "cells" / task.name, ignore_errors=True)
     if task.group:
         shutil.rmtree(_seed_folder(task), ignore_errors=True)
-        with contextlib.suppress(OSError):  # the group's folder, once its last seed is gone
-            _seed_folder(task).parent.rmdir()
+
+
+def _remove_empty_groups(out: Path, tasks: Sequence[CellTask]) -> None:
+    """The seed groups' folders left empty by failed cells (once no worker writes any more)."""
+    for group in sorted({t.group for t in tasks if t.group}):
+        with contextlib.suppress(OSError):
+            (out / "seeds" / group).rmdir()
 
 
 def run_cells(tasks: Sequence[CellTask]) -> list[dict[str, Any]]:
@@ -710,6 +718,7 @@ def _sweep(
             client.close()
             if cluster is not None:
                 cluster.close()
+        _remove_empty_groups(out, todo)
     ordered = [dict(rows[t.name], command=_command(t, out, spec)) for t in tasks]
     return _write_outputs(spec, out, ordered, computed=len(todo))
 

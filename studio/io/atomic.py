@@ -270,12 +270,17 @@ def _clean_stale(parent: Path) -> None:
             shutil.rmtree(p, ignore_errors=True)
 
 
+_LOCK_ATTEMPTS = 20  # locked files found removed in a row before giving up (each try takes microseconds)
+
+
 @contextlib.contextmanager
 def _target_lock(parent: Path, name: str) -> Iterator[None]:
     """Hold an exclusive lock for writing ``parent/name``; refuse at once when another run holds it.
 
-    The lock file is removed on release; a waiter that locked the removed file notices (its inode is
-    no longer the one at the path) and is refused too.
+    The lock file is removed on release. A run that locked a file already removed (by the holder
+    that just finished, or by another run's clean-up of unheld lock files, which can fall between
+    this run's creating the file and locking it) notices that its inode is no longer the one at the
+    path and tries again with a new file; only a lock another run holds refuses.
     """
     import fcntl
 
@@ -283,18 +288,27 @@ def _target_lock(parent: Path, name: str) -> Iterator[None]:
     fd: int | None = None
     held = False
     try:
-        # Ctrl-C is held from creating the file to owning it: an interrupt that landed in between
-        # (right when the file appears, as a user or a test may send it) would leave it behind
-        with interrupts_deferred():
-            try:
-                fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-            except OSError as err:
-                raise OutputError(os_error_message(err, lock)) from None
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                held = os.fstat(fd).st_ino == os.stat(lock).st_ino
-            except (BlockingIOError, FileNotFoundError):
-                held = False
+        for _attempt in range(_LOCK_ATTEMPTS):
+            if fd is not None:
+                os.close(fd)
+                fd = None
+            # Ctrl-C is held from creating the file to owning it: an interrupt that landed in between
+            # (right when the file appears, as a user or a test may send it) would leave it behind
+            with interrupts_deferred():
+                try:
+                    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+                except OSError as err:
+                    raise OutputError(os_error_message(err, lock)) from None
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    break  # another run holds it
+                try:
+                    held = os.fstat(fd).st_ino == os.stat(lock).st_ino
+                except FileNotFoundError:
+                    held = False
+            if held:
+                break
         if not held:
             raise OutputError(f"{parent / name}: another studio run is writing this output now; wait for it to finish")
         yield

@@ -393,3 +393,42 @@ def test_ctrl_c_while_the_interpreter_exits_prints_nothing():
     )
     res = _python(code, "--version")
     assert res.returncode == 0 and res.stdout.startswith("studio ") and res.stderr == ""
+
+
+def test_a_lock_file_removed_between_creating_and_locking_it_is_taken_again_not_refused(tmp_path, monkeypatch):
+    """Another run's clean-up of unheld lock files (``_clean_stale``, in every ``staged_outputs``
+    of the same folder) can unlink this run's lock file after it was created and before it is
+    locked: two sweep workers writing seeds of one group side by side hit it (a CI run failed one
+    cell with "another studio run is writing"). The run locks a new file instead of refusing."""
+    import fcntl
+
+    real_flock = fcntl.flock
+    removed: list[str] = []
+
+    def flock_after_removal(fd: int, op: int) -> None:
+        if not removed:  # the other run's clean-up, right before this run's lock
+            lock = next(tmp_path.glob(LOCK_PREFIX + "*"))
+            lock.unlink()
+            removed.append(lock.name)
+        real_flock(fd, op)
+
+    monkeypatch.setattr(fcntl, "flock", flock_after_removal)
+    with staged_outputs(tmp_path, ["a.txt"]) as staging:
+        (staging / "a.txt").write_text("made")
+        assert [p.name for p in tmp_path.glob(LOCK_PREFIX + "*")] == removed  # held: a new file
+    assert (tmp_path / "a.txt").read_text() == "made"
+    assert not list(tmp_path.glob(LOCK_PREFIX + "*"))
+
+
+def test_a_lock_another_run_holds_still_refuses(tmp_path):
+    import fcntl
+
+    lock = tmp_path / f"{LOCK_PREFIX}a.txt"
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(OutputError, match="another studio run is writing"), staged_outputs(tmp_path, ["a.txt"]):
+            pass
+    finally:
+        os.close(fd)
+    assert not (tmp_path / "a.txt").exists()
