@@ -753,6 +753,11 @@ def solve(
     ),
     iterations: int | None = typer.Option(None, "--iterations", help=_iterations_help()),
     robots: int = typer.Option(0, "--robots", help="dgs on a single .g2o: that many robots of contiguous ids (0: 8)."),
+    coarse: int = typer.Option(
+        SolveOptions().coarse_size,
+        "--coarse",
+        help="dgs: poses per run that the two-level correction moves rigidly each round (0: plain DGS).",
+    ),
     command: str = typer.Option(
         "",
         "--command",
@@ -786,6 +791,7 @@ def solve(
         force=force,
         rrd=rrd,
         robots=robots,
+        coarse_size=coarse,
     )
     if as_json:
         typer.echo(dumps_strict(res.to_dict(), "--json", indent=2))
@@ -881,7 +887,7 @@ def replay(
     for run in res.runs:
         lines.append(
             f"  {run.name}: APE first-pose {run.ape_team_first_pose_m[-1]:.6f} m, se3 {run.ape_team_se3_m[-1]:.6f} m, "
-            f"chi2 {run.chi2_final:.6g}, {run.seconds:.1f} s"
+            f"chi2 {run.chi2_final:.6g} (delivered edges {run.chi2_delivered:.6g}), {run.seconds:.1f} s"
         )
     lines.append(f"  {res.out_dir}" + ("" if res.rrd_path is None else f"\n  {res.rrd_path}"))
     typer.echo("\n".join(lines))

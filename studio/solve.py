@@ -269,6 +269,7 @@ def solve(
     force: bool = False,
     rrd: PathLike | None = None,
     robots: int = 0,
+    coarse_size: int | None = None,
 ) -> SolveResult:
     """Optimize ``dataset`` with ``method`` and write the estimate and ``solve.json`` into the folder
     ``out`` (staged, renamed into place; an existing ``out`` is replaced only with ``force``).
@@ -277,9 +278,17 @@ def solve(
     beside the ground truth, with the cost per iteration).
 
     ``robots``: ``dgs`` on a single g2o file, that many robots of contiguous vertex ids (a multi-g2o
-    folder's robots are its agents); with ground truth, ``dgs`` also scores every round (APE)."""
+    folder's robots are its agents); with ground truth, ``dgs`` also scores every round (APE).
+    ``coarse_size``: ``dgs``'s two-level correction, poses per run moved rigidly (0: plain DGS;
+    None: :class:`SolveOptions`'s default)."""
     entry = method_entry(method)
     options = _solve_options(entry, optimizer, init, max_iterations, relative_tolerance, command, robots)
+    if coarse_size is not None:
+        if isinstance(coarse_size, bool) or not isinstance(coarse_size, int) or not 0 <= coarse_size <= 1_000_000:
+            raise ConfigError(
+                f"coarse_size: expected 0 (plain DGS) or a count of poses, got {coarse_size!r}", option="coarse_size"
+            )
+        options = dataclasses.replace(options, coarse_size=coarse_size)
     out = Path(out)
     rrd_path = None if rrd is None else Path(rrd)
     if rrd_path is not None and rrd_path.suffix != ".rrd":

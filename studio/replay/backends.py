@@ -65,6 +65,14 @@ class World:
     def edge_bytes(self) -> int:
         return 8 * (2 + self.problem.kind.pose_width + self.problem.kind.information_width)
 
+    def edges_known(self) -> np.ndarray:
+        """Per edge: known to some robot by the end (its own edges, the closures delivered): the
+        edges the centralized back-end optimizes over."""
+        inter = self.edge_closure >= 0
+        out = ~inter
+        out[inter] = self.delivered_tick[self.edge_closure[inter]] >= 0
+        return out
+
     def edge_delivered_tick(self) -> np.ndarray:
         """Per edge: the tick from which it may be known (own edges: their measurement tick)."""
         own = np.searchsorted(self.ticks_ns, self.edge_ns, side="left")

@@ -104,6 +104,7 @@ METHODS: dict[str, SolveMethod] = {
                 "pose_gamma",
                 "rotation_momentum",
                 "pose_momentum",
+                "coarse_size",
                 "schedule",
             ),
             {"max_iterations": DEFAULT_MAX_ROUNDS},

@@ -70,8 +70,10 @@ __all__ = [
     "DEFAULT_POSE_TOL",
     "DEFAULT_ROTATION_GAMMA",
     "DEFAULT_POSE_GAMMA",
+    "PLAIN_POSE_GAMMA",
     "DEFAULT_ROTATION_MOMENTUM",
     "DEFAULT_POSE_MOMENTUM",
+    "DEFAULT_COARSE_SIZE",
     "BYTES_PER_NUMBER",
 ]
 
@@ -84,8 +86,13 @@ DEFAULT_ROTATION_TOL = 0.2
 DEFAULT_POSE_TOL = 1e-2
 #: Over-relaxation of the rotation stage's block updates.
 DEFAULT_ROTATION_GAMMA = 1.0
-#: Over-relaxation of the pose stage's block updates.
-DEFAULT_POSE_GAMMA = 1.9
+#: Over-relaxation of the pose stage's block updates with the two-level correction (fastest of 1,
+#: 1.5 and 1.9 on Multi3500x8: docs/solve.md).
+DEFAULT_POSE_GAMMA = 1.5
+#: ... and of plain DGS (``coarse_size=0``): fastest of 1, 1.3, 1.6 and 1.9 on kollagen's graphs.
+PLAIN_POSE_GAMMA = 1.9
+#: Vertices per aggregate of the two-level correction (0: plain DGS).
+DEFAULT_COARSE_SIZE = 5
 #: Nesterov momentum of the rotation stage's Gauss-Seidel rounds (0: none; Jacobi rounds default to 0).
 DEFAULT_ROTATION_MOMENTUM = 0.9
 #: Nesterov momentum of the pose stage's rounds (0: none).
@@ -188,6 +195,29 @@ def _gradient(
 
 
 @dataclass(eq=False)
+class _Coarse:
+    """The two-level correction of a linear system ``h x = g``: ``x[free] += P (P^T h P)^-1 P^T r``
+    with the residual ``r = g - h x`` on the free unknowns, ``P`` the coarse space's columns."""
+
+    free: np.ndarray
+    rows: Any
+    """``h[free]`` (csr)."""
+    basis: Any
+    """``P``: ``(len(free), m)`` (csr)."""
+    lu: Any
+    size: int
+    """Coarse unknowns ``m``."""
+    per_robot: np.ndarray
+    """``(robots, 2)``: coarse unknowns of each robot's vertices, non-zeros of their coarse rows."""
+
+    def correct(self, x: np.ndarray, g: np.ndarray) -> np.ndarray:
+        r = g[self.free] - self.rows @ x
+        step = self.basis @ self.lu.solve(np.asarray(self.basis.T @ r))
+        x[self.free] += step
+        return np.asarray(step)
+
+
+@dataclass(eq=False)
 class _Blocks:
     """Each robot's free unknowns, its factorised diagonal block and its coupling to the rest."""
 
@@ -195,6 +225,103 @@ class _Blocks:
     others: list[np.ndarray]
     lus: list[Any]
     couplings: list[Any]
+    coarse: _Coarse | None = None
+
+
+def _coarse(h: Any, robot_dofs: list[np.ndarray], columns: Any) -> _Coarse | None:
+    """The coarse correction over the robots' free unknowns with coarse space ``columns``
+    (``(sum of dofs, m)``, rows in the order of ``robot_dofs`` concatenated); None without any."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    free = np.concatenate(robot_dofs) if robot_dofs else np.zeros(0, dtype=np.int64)
+    basis = sp.csr_matrix(columns)
+    if basis.shape[1] == 0:
+        return None
+    rows = h[free].tocsr()
+    hc = (basis.T @ rows[:, free] @ basis).tocsc()
+    # the anchor-free pose system is singular in the gauge: a ridge far below every entry fixes it
+    ridge = 1e-9 * float(np.abs(hc.diagonal()).max())
+    try:
+        lu = spla.splu((hc + sp.identity(hc.shape[0], format="csc") * ridge).tocsc())
+    except RuntimeError as err:  # SuperLU: "Factor is exactly singular"
+        raise GraphError(f"dgs: the coarse system is singular ({err}); is every robot tied to the graph?") from None
+    return _Coarse(free, rows, basis, lu, hc.shape[0], _coarse_rows_per_robot(hc, robot_dofs, basis))
+
+
+def _coarse_rows_per_robot(hc: Any, robot_dofs: list[np.ndarray], basis: Any) -> np.ndarray:
+    """``(robots, 2)``: each robot's coarse unknowns and the non-zeros of its rows of the coarse
+    matrix (what it sends to build it: every coarse unknown belongs to one robot's vertices)."""
+    first = np.cumsum([0] + [len(d) for d in robot_dofs])
+    owner_of_fine = np.repeat(np.arange(len(robot_dofs)), np.diff(first))
+    coo = basis.tocoo()
+    owner = np.zeros(basis.shape[1], dtype=np.int64)
+    owner[coo.col] = owner_of_fine[coo.row]
+    per_row = np.diff(hc.tocsr().indptr)
+    out = np.zeros((len(robot_dofs), 2), dtype=np.int64)
+    np.add.at(out[:, 0], owner, 1)
+    np.add.at(out[:, 1], owner, per_row)
+    return out
+
+
+def _aggregates(robot_dofs: list[np.ndarray], b: int, size: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Each free vertex's aggregate (runs of ``size`` consecutive free vertices of one robot) and
+    its vertex id, in the order of ``robot_dofs`` concatenated; the number of aggregates."""
+    agg, verts, count = [], [], 0
+    for dofs in robot_dofs:
+        v = dofs[::b] // b
+        k = np.arange(len(v)) // size
+        agg.append(count + k)
+        verts.append(v)
+        count += int(k[-1]) + 1 if len(v) else 0
+    if not agg:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), 0
+    return np.concatenate(agg), np.concatenate(verts), count
+
+
+def _constant_columns(robot_dofs: list[np.ndarray], b: int, size: int) -> Any:
+    """Piecewise-constant aggregation: one coarse unknown per aggregate and component."""
+    import scipy.sparse as sp
+
+    agg, _, count = _aggregates(robot_dofs, b, size)
+    rows = np.arange(len(agg) * b)
+    cols = (agg[:, None] * b + np.arange(b)[None, :]).ravel()
+    return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(rows), count * b))
+
+
+def _rigid_columns(kind: PoseKind, lin: np.ndarray, robot_dofs: list[np.ndarray], size: int) -> Any:
+    """Each aggregate moved rigidly: a translation and a rotation about its centroid (3 coarse
+    unknowns in the plane, 6 in space), in the pose stage's update coordinates at ``lin``."""
+    import scipy.sparse as sp
+
+    b = 3 if kind is PoseKind.SE2 else 6
+    agg, verts, count = _aggregates(robot_dofs, b, size)
+    tw = 2 if kind is PoseKind.SE2 else 3
+    t = lin[verts, 0:tw]
+    centre = np.zeros((count, tw))
+    np.add.at(centre, agg, t)
+    centre /= np.maximum(np.bincount(agg, minlength=count), 1)[:, None]
+    rel = t - centre[agg]
+    n = len(agg)
+    base = np.arange(n) * b
+    entries: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    for c in range(tw):  # translations
+        entries.append((base + c, agg * b + c, np.ones(n)))
+    if kind is PoseKind.SE2:  # rotation w about the centroid: dx = -w ry, dy = w rx, dtheta = w
+        col = agg * b + 2
+        entries += [(base + 0, col, -rel[:, 1]), (base + 1, col, rel[:, 0]), (base + 2, col, np.ones(n))]
+    else:  # dphi = w, dt = w x rel
+        for c in range(3):
+            col = agg * b + 3 + c
+            e = np.zeros((n, 3))
+            e[:, c] = 1.0
+            dt = np.cross(e, rel)
+            entries += [(base + k, col, dt[:, k]) for k in range(3)]
+            entries.append((base + 3 + c, col, np.ones(n)))
+    r = np.concatenate([e[0] for e in entries])
+    cidx = np.concatenate([e[1] for e in entries])
+    v = np.concatenate([e[2] for e in entries])
+    return sp.csr_matrix((v, (r, cidx)), shape=(n * b, count * b))
 
 
 def _factorise(h: Any, robot_dofs: list[np.ndarray], total: int) -> _Blocks:
@@ -236,6 +363,7 @@ def _round(
         x += momentum * (x - previous)
         previous[:] = before
     source = x if schedule == "gauss-seidel" else x.copy()
+    start = x.copy() if blocks.coarse is not None and before is None else None
     change = 0.0
     for dofs, other, lu, coupling in zip(blocks.dofs, blocks.others, blocks.lus, blocks.couplings):
         if len(dofs) == 0:
@@ -246,8 +374,11 @@ def _round(
             new = (1.0 - gamma) * x[dofs] + gamma * new
         change = max(change, float(np.abs(new - x[dofs]).max()))
         x[dofs] = new
-    if before is not None:
-        change = float(np.abs(x - before).max()) if x.size else 0.0
+    if blocks.coarse is not None:
+        blocks.coarse.correct(x, g)
+    if before is not None or blocks.coarse is not None:
+        ref = before if before is not None else start
+        change = float(np.abs(x - ref).max()) if x.size else 0.0
     return change
 
 
@@ -457,6 +588,8 @@ class _Run:
     """Bytes still to be counted with the next pose round (the separator poses at the first point)."""
     step: float = 0.0
     """Largest entry of the last pose system's update."""
+    coarse_size: int = 0
+    """Vertices per aggregate of the two-level correction (0: none, plain DGS)."""
 
     @property
     def robots(self) -> int:
@@ -471,6 +604,24 @@ class _Run:
         sent = self.separators * (numbers_per_vertex * BYTES_PER_NUMBER)
         self.links[:] += sent
         return int(sent.sum())
+
+    def send_coarse(self, coarse: _Coarse | None, columns: int) -> int:
+        """A round's two-level correction: each robot sends the coordinator (robot 0) its coarse
+        unknowns' residuals and receives their corrections, ``columns`` numbers each; the bytes."""
+        if coarse is None:
+            return 0
+        each = coarse.per_robot[1:, 0] * (columns * BYTES_PER_NUMBER)
+        self.links[1:, 0] += each
+        self.links[0, 1:] += each
+        return 2 * int(each.sum())
+
+    def send_coarse_matrix(self, coarse: _Coarse | None) -> int:
+        """Once per linear system: each robot sends the coordinator its rows of the coarse matrix."""
+        if coarse is None:
+            return 0
+        each = coarse.per_robot[1:, 1] * BYTES_PER_NUMBER
+        self.links[1:, 0] += each
+        return int(each.sum())
 
     def dofs_of(self, b: int, fix_anchor: bool = True) -> list[np.ndarray]:
         """Each robot's unknowns, ``b`` per vertex (without the anchor's with ``fix_anchor``, never
@@ -522,6 +673,25 @@ def _check_options(max_rounds: int, tols: dict[str, float], gammas: dict[str, fl
         raise ConfigError(f"schedule: expected gauss-seidel or jacobi, got {schedule!r}")
 
 
+def _defaults(
+    pose_gamma: float | None, rotation_momentum: float | None, coarse_size: int, schedule: str
+) -> tuple[float, float]:
+    """The pose stage's over-relaxation and the rotation stage's momentum where not given."""
+    if pose_gamma is None:
+        pose_gamma = DEFAULT_POSE_GAMMA if coarse_size else PLAIN_POSE_GAMMA
+    if rotation_momentum is None:  # Jacobi rounds with momentum diverge on kollagen's graphs
+        rotation_momentum = DEFAULT_ROTATION_MOMENTUM if schedule == "gauss-seidel" else 0.0
+    return pose_gamma, rotation_momentum
+
+
+def _check_momenta_and_coarse(rotation_momentum: float, pose_momentum: float, coarse_size: int) -> None:
+    for name, beta in (("rotation_momentum", rotation_momentum), ("pose_momentum", pose_momentum)):
+        if isinstance(beta, bool) or not (isinstance(beta, (int, float)) and 0 <= beta < 1):
+            raise ConfigError(f"{name}: expected a number in [0, 1), got {beta!r}")
+    if isinstance(coarse_size, bool) or not isinstance(coarse_size, int) or coarse_size < 0:
+        raise ConfigError(f"coarse_size: expected 0 (plain DGS) or a count of vertices, got {coarse_size!r}")
+
+
 def _rotation_stage(run: _Run, start: np.ndarray, opt: _StageOptions) -> tuple[np.ndarray, bool]:
     """The chordal relaxation in rounds: ``Y = R^T``, rows ``Y_j - Z^T Y_i``, ``d`` right-hand sides.
     Returns the ``(n, d, d)`` rotations (the anchor's as given) and whether ``tol`` was met."""
@@ -534,6 +704,9 @@ def _rotation_stage(run: _Run, start: np.ndarray, opt: _StageOptions) -> tuple[n
     eye = np.broadcast_to(np.eye(d), rz.shape).copy()
     h_rot = _assemble(problem.edge_from, problem.edge_to, -np.transpose(rz, (0, 2, 1)), eye, omega_r, n, d)
     blocks = _factorise(h_rot, run.dofs_of(d), n * d)
+    if run.coarse_size:
+        blocks.coarse = _coarse(h_rot, blocks.dofs, _constant_columns(blocks.dofs, d, run.coarse_size))
+    setup = run.send_coarse_matrix(blocks.coarse)
     y = np.transpose(_rotations(kind, start), (0, 2, 1)).reshape(n * d, d).copy()
     zero_rhs = np.zeros((n * d, d))
     converged = False
@@ -546,7 +719,8 @@ def _rotation_stage(run: _Run, start: np.ndarray, opt: _StageOptions) -> tuple[n
         now = _project_so(np.transpose(y.reshape(n, d, d), (0, 2, 1)))
         change = float(np.abs(now - projected).max())
         projected = now
-        run.record("rotation", change, None, run.send(d * d), None)
+        run.record("rotation", change, None, run.send(d * d) + run.send_coarse(blocks.coarse, d) + setup, None)
+        setup = 0
         if change <= opt.tol:
             converged = True
             break
@@ -584,13 +758,17 @@ def _pose_system(run: _Run, lin: np.ndarray, anchor_pose: np.ndarray, opt: _Stag
     # with fixed vertices the anchor is held too: the rigid move onto it would move them
     hold = run.robots == 1 or run.schedule == "jacobi" or (run.fixed is not None and bool(run.fixed.any()))
     blocks = _factorise(h, run.dofs_of(b, fix_anchor=hold), n * b)
+    if run.coarse_size:
+        blocks.coarse = _coarse(h, blocks.dofs, _rigid_columns(kind, lin, blocks.dofs, run.coarse_size))
+        run.handshake += run.send_coarse_matrix(blocks.coarse)
     delta = np.zeros(n * b)
     previous = delta.copy()
     poses = lin
     while run.left > 0:
         change = _round(delta, g, blocks, run.schedule, opt.gamma, previous, opt.momentum)
         poses = _reanchor(kind, _retract(kind, lin, delta.reshape(n, b)), anchor, anchor_pose)
-        run.record("pose", change, graph_chi2(problem, poses), run.send(b) + run.handshake, poses)
+        sent = run.send(b) + run.send_coarse(blocks.coarse, 1) + run.handshake
+        run.record("pose", change, graph_chi2(problem, poses), sent, poses)
         run.handshake = 0
         if change <= opt.tol:
             break
@@ -624,7 +802,7 @@ def dgs_rounds(
     rotation_tol: float = DEFAULT_ROTATION_TOL,
     pose_tol: float = DEFAULT_POSE_TOL,
     rotation_gamma: float = DEFAULT_ROTATION_GAMMA,
-    pose_gamma: float = DEFAULT_POSE_GAMMA,
+    pose_gamma: float | None = None,
     rotation_momentum: float | None = None,
     pose_momentum: float = DEFAULT_POSE_MOMENTUM,
     schedule: Schedule = "gauss-seidel",
@@ -632,6 +810,7 @@ def dgs_rounds(
     rotation_stage: bool = True,
     fixed: np.ndarray | None = None,
     on_round: OnRound | None = None,
+    coarse_size: int = DEFAULT_COARSE_SIZE,
 ) -> DgsResult:
     """Run DGS on ``problem`` with vertex ``v`` owned by robot ``agent_of_vertex[v]`` (ints ``0..R-1``).
 
@@ -648,12 +827,9 @@ def dgs_rounds(
     robot = _robot_indices(problem, agent_of_vertex)
     robots = int(robot.max()) + 1 if problem.num_vertices else 0
     tols = {"rotation_tol": rotation_tol, "pose_tol": pose_tol}
+    pose_gamma, rotation_momentum = _defaults(pose_gamma, rotation_momentum, coarse_size, schedule)
     _check_options(max_rounds, tols, {"rotation_gamma": rotation_gamma, "pose_gamma": pose_gamma}, schedule)
-    if rotation_momentum is None:  # Jacobi rounds with momentum diverge on kollagen's graphs
-        rotation_momentum = DEFAULT_ROTATION_MOMENTUM if schedule == "gauss-seidel" else 0.0
-    for name, beta in (("rotation_momentum", rotation_momentum), ("pose_momentum", pose_momentum)):
-        if isinstance(beta, bool) or not (isinstance(beta, (int, float)) and 0 <= beta < 1):
-            raise ConfigError(f"{name}: expected a number in [0, 1), got {beta!r}")
+    _check_momenta_and_coarse(rotation_momentum, pose_momentum, coarse_size)
     start = problem.initial if initial is None else np.asarray(initial, dtype=np.float64)
     if start.shape != problem.initial.shape:
         raise ConfigError(f"initial: expected shape {problem.initial.shape}, got {start.shape}")
@@ -662,6 +838,7 @@ def dgs_rounds(
     if robots == 1:  # one block is the whole system, solved exactly: over-relaxing it only overshoots
         rotation_gamma = pose_gamma = 1.0
         rotation_momentum = pose_momentum = 0.0
+        coarse_size = 0
     run = _Run(
         problem,
         [np.flatnonzero(robot == r) for r in range(robots)],
@@ -672,6 +849,7 @@ def dgs_rounds(
         schedule,
         on_round,
         fixed,
+        coarse_size=coarse_size,
     )
     if rotation_stage:
         rot, converged_rot = _rotation_stage(run, start, _StageOptions(rotation_tol, rotation_gamma, rotation_momentum))
@@ -730,6 +908,7 @@ def solve_dgs(problem: Problem, options: SolveOptions, on_iteration: Iteration |
         pose_momentum=options.pose_momentum,
         schedule=options.schedule,  # type: ignore[arg-type]  # dgs_rounds checks it
         on_round=on_round,
+        coarse_size=options.coarse_size,
     )
     history = (graph_chi2(problem, problem.initial), *(r.chi2 for r in result.rounds if r.chi2 is not None))
     return Solution(
@@ -746,13 +925,16 @@ def solve_dgs(problem: Problem, options: SolveOptions, on_iteration: Iteration |
             "converged": result.converged,
             "schedule": options.schedule,
             "rotation_gamma": options.rotation_gamma,
-            "pose_gamma": options.pose_gamma,
+            "pose_gamma": options.pose_gamma
+            if options.pose_gamma is not None
+            else (DEFAULT_POSE_GAMMA if options.coarse_size else PLAIN_POSE_GAMMA),
             "rotation_momentum": (
                 options.rotation_momentum
                 if options.rotation_momentum is not None
                 else DEFAULT_ROTATION_MOMENTUM * (options.schedule == "gauss-seidel")
             ),
             "pose_momentum": options.pose_momentum,
+            "coarse_size": options.coarse_size if result.robots > 1 else 0,
             "rotation_tol": options.rotation_tol,
             "pose_tol": options.pose_tol,
             "round_stage": [r.stage for r in result.rounds],

@@ -43,9 +43,12 @@ class SolveOptions:
     """``dgs``: a pose-stage system stops when no update entry [m, rad] changes more in a round."""
     rotation_gamma: float = 1.0
     """``dgs``: over-relaxation of each robot's block update in the rotation stage (1: plain Gauss-Seidel)."""
-    pose_gamma: float = 1.9
-    """``dgs``: over-relaxation of each robot's block update in the pose stage (measured best of
-    1, 1.3, 1.6, 1.9 on kollagen's datasets, see docs/solve.md)."""
+    pose_gamma: float | None = None
+    """``dgs``: over-relaxation of each robot's block update in the pose stage (None: 1.5 with the
+    two-level correction, 1.9 for plain DGS, ``coarse_size=0``: the fastest measured, docs/solve.md)."""
+    coarse_size: int = 5
+    """``dgs``: vertices per aggregate of the two-level correction (each run of that many poses of
+    a robot moved rigidly, solved jointly by a coordinator every round); 0: plain DGS."""
     rotation_momentum: float | None = None
     """``dgs``: Nesterov momentum of the rotation stage's rounds (each robot extrapolates its own block;
     0: none; None: 0.9 with Gauss-Seidel rounds, 0 with Jacobi's, measured on kollagen's datasets,

@@ -248,8 +248,9 @@ def test_dgs_with_always_connected_comms_ends_close_to_centralized(always, small
     assert dgs.ape_team_se3_m[-1] == pytest.approx(central.ape_team_se3_m[-1], rel=0.05)
     assert dgs.poses_seen[-1].tolist() == [401, 401, 401]
     assert (dgs.messages > 0).all() and (dgs.bytes > 8 * dgs.messages).all()
-    # along the way the team's map gets better than dead reckoning
-    assert dgs.ape_team_se3_m[-1] < 0.2 * dgs.ape_team_se3_m.max()
+    # along the way the team's map follows centralized's (the two-level rounds converge between
+    # checkpoints; plain DGS rounds lagged far behind: docs/replay.md)
+    assert (dgs.ape_team_se3_m <= 1.3 * central.ape_team_se3_m + 0.01).all()
     never = replay(small.dataset_dir, tmp_path / "never", comms="never", every=50, backends=["dgs", "independent"])
     alone, independent = never.runs
     assert alone.messages.sum() == 0 and alone.bytes.sum() == 0
@@ -258,8 +259,9 @@ def test_dgs_with_always_connected_comms_ends_close_to_centralized(always, small
 
 def test_a_robot_keeps_what_it_learned_after_the_last_rendezvous(small, tmp_path):
     """Windows that end half-way (200 s of 400): swarm and dgs keep the closures delivered and the
-    neighbour poses received, so each ends strictly better than independent and not better than
-    centralized, which holds everything anyone knows."""
+    neighbour poses received, so each ends strictly better than independent (both APEs and chi2 over
+    the delivered edges) and not better than centralized on the objective centralized minimizes,
+    chi2 over every edge anyone knows (its APE may be beaten: the optimum minimizes chi2, not APE)."""
     sched = tmp_path / "rdv.txt"
     sched.write_text("0,0,200\n1,0,200\n2,0,200\n")
     backends = ["centralized", "independent", "swarm", "dgs"]
@@ -269,7 +271,8 @@ def test_a_robot_keeps_what_it_learned_after_the_last_rendezvous(small, tmp_path
     for name in ("swarm", "dgs"):
         r = runs[name]
         for ape in ("ape_team_first_pose_m", "ape_team_se3_m"):
-            assert getattr(c, ape)[-1] <= getattr(r, ape)[-1] < 0.9 * getattr(i, ape)[-1], (name, ape)
+            assert getattr(r, ape)[-1] < 0.9 * getattr(i, ape)[-1], (name, ape)
+        assert c.chi2_delivered <= r.chi2_delivered < i.chi2_delivered, name
     # after the windows close each robot is alone yet stays near the team's map: it no longer
     # falls back to its own graph (the first-pose APE was independent's before robots kept memory)
     assert runs["swarm"].ape_team_first_pose_m[-1] < 0.6 * i.ape_team_first_pose_m[-1]
