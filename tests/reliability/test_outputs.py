@@ -395,6 +395,33 @@ def test_ctrl_c_while_the_interpreter_exits_prints_nothing():
     assert res.returncode == 0 and res.stdout.startswith("studio ") and res.stderr == ""
 
 
+def test_synth_ends_at_once_after_its_outputs_are_in_place_and_other_exits_stay_normal(tmp_path):
+    # studio.runtime.fast_exit: after a successful synth the process leaves with os._exit(0), so an
+    # exit handler no longer runs; the outputs are complete, the summary printed; a refused run and
+    # another command exit as before (their exit handlers run)
+    code = (
+        "import atexit, sys\n"
+        "atexit.register(lambda: print('exit handler ran', file=sys.stderr))\n"
+        "from studio._entry import main\n"
+        "main()\n"
+    )
+    config = str(Path(__file__).resolve().parents[1] / "data" / "configs" / "tiny_three.json")
+    out = tmp_path / "out"
+    res = _python(code, "synth", config, "-o", str(out), "--no-rrd")
+    assert res.returncode == 0 and "exit handler ran" not in res.stderr, res.stderr
+    assert res.stdout.startswith("tiny_three: 3 agents, 723 poses") and str(out / "tiny_three") in res.stdout
+    assert sorted(p.name for p in out.iterdir()) == ["tiny_three", "tiny_three.config.json", "tiny_three_singleg2o"]
+    assert (out / "tiny_three" / "inter_agent_lc.dat").stat().st_size > 0
+    seeds = _python(code, "synth", config, "-o", str(tmp_path / "seeds"), "--no-rrd", "-q", "--seeds", "0..1")
+    assert seeds.returncode == 0 and seeds.stderr == "" and seeds.stdout == ""
+    assert sorted(p.name for p in (tmp_path / "seeds").iterdir()) == ["seed0000", "seed0001"]
+    again = _python(code, "synth", config, "-o", str(out), "--no-rrd")
+    assert again.returncode == 2 and again.stderr.endswith("exit handler ran\n"), again.stderr
+    assert "already exists" in again.stderr
+    other = _python(code, "--help")
+    assert other.returncode == 0 and other.stderr == "exit handler ran\n"
+
+
 def test_a_lock_file_removed_between_creating_and_locking_it_is_taken_again_not_refused(tmp_path, monkeypatch):
     """Another run's clean-up of unheld lock files (``_clean_stale``, in every ``staged_outputs``
     of the same folder) can unlink this run's lock file after it was created and before it is
