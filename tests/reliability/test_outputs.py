@@ -459,3 +459,40 @@ def test_a_lock_another_run_holds_still_refuses(tmp_path):
     finally:
         os.close(fd)
     assert not (tmp_path / "a.txt").exists()
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="names fds through Linux's /proc")
+def test_every_staged_file_and_folder_is_fsynced_together_and_a_failed_fsync_refuses(tmp_path, monkeypatch):
+    # the fsyncs run several at a time (they share the disk's cache flushes); each file and folder
+    # is still synced before the renames, and one file's failure is the run's one error
+    synced: list[str] = []
+    real = os.fsync
+
+    def record(fd):
+        synced.append(os.readlink(f"/proc/self/fd/{fd}"))
+        return real(fd)
+
+    monkeypatch.setattr(os, "fsync", record)
+    with staged_outputs(tmp_path / "out", ["data", "note.txt"]) as staging:
+        (staging / "data" / "sub").mkdir(parents=True)
+        for k in range(20):
+            (staging / "data" / ("sub" if k % 2 else ".") / f"f{k}.txt").write_text(str(k))
+        (staging / "note.txt").write_text("n")
+        inside = str(staging)
+    names = {os.path.relpath(p, inside) for p in synced if p.startswith(inside + os.sep)}
+    files = {f"data/{'sub/' if k % 2 else ''}f{k}.txt" for k in range(20)}
+    assert files | {"data", "data/sub", "note.txt"} <= names
+    assert (tmp_path / "out" / "data" / "sub" / "f19.txt").read_text() == "19"
+
+    def fail_one(fd):
+        if os.readlink(f"/proc/self/fd/{fd}").endswith("f7.txt"):
+            raise OSError(errno.EIO, "Input/output error")
+        return real(fd)
+
+    monkeypatch.setattr(os, "fsync", fail_one)
+    with pytest.raises(OutputError, match=r"Input/output error"):
+        with staged_outputs(tmp_path / "again", ["data"]) as staging:
+            (staging / "data").mkdir()
+            for k in range(12):
+                (staging / "data" / f"f{k}.txt").write_text(str(k))
+    assert sorted(p.name for p in (tmp_path / "again").iterdir() if not p.name.startswith(LOCK_PREFIX)) == []
