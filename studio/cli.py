@@ -1003,7 +1003,7 @@ def _for_the_command(argv: list[str]) -> typer.Typer:
     """The app with only the command named first on the command line (when one is): typer builds
     the options of every registered command before it parses, 11-16 ms for all twelve, 2 ms for
     one. The app itself stays whole (``--help``, an unknown name, a test's ``CliRunner``)."""
-    chosen = [c for c in app.registered_commands if argv and (c.name or c.callback.__name__) == argv[0]]
+    chosen = [c for c in app.registered_commands if argv and (c.name or getattr(c.callback, "__name__", "")) == argv[0]]
     if len(chosen) != 1:
         return app
     one = copy.copy(app)
