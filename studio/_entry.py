@@ -16,7 +16,7 @@ about 0.1 s less wall time with one thread.
 
 A command whose outputs are all durable and closed (``studio synth``) may have the process end with
 ``os._exit(0)`` once it has returned successfully, skipping the interpreter's teardown
-(:mod:`studio.runtime.fast_exit`: 55-65 ms of a Multi10000x5 run).
+(:mod:`studio.runtime.fast_exit`: 50-65 ms of a Multi10000x5 run).
 
 And it turns off the log lines of Rerun's SDK writer (:func:`studio.runtime.library_logs.quiet_rerun_writers`):
 on a failed write (a full disk) its file sink printed three ERROR/WARN lines with ANSI colours before

@@ -2,7 +2,8 @@
 
 After ``studio synth multi10000x5`` has renamed its fsynced outputs into place, the interpreter's own
 exit (module teardown, the garbage collector freeing every object and array, exit handlers) took
-another 55-65 ms of wall time on this project's VM, a tenth of the whole command, for nothing anyone
+another 60-75 ms of wall time on this project's VM until the process was gone (10-11 ms with
+``os._exit``: the kernel freeing the memory), a tenth of the whole command, for nothing anyone
 needs. A command whose outputs are complete says so with :func:`outputs_final`; the console script
 (:mod:`studio._entry`) then ends the process with ``os._exit(0)`` once the command has returned
 successfully and its standard streams are flushed (:func:`leave_if_final`).
