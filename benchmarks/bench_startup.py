@@ -71,7 +71,14 @@ class Hook(importlib.abc.MetaPathFinder):
                 return spec
         return None
 sys.meta_path.insert(0, Hook())
-atexit.register(lambda: open(os.environ["STARTUP_NOTES"], "w").write(json.dumps(NOTES)))
+ME = os.getpid()
+def dump():
+    if os.getpid() == ME:  # not a forked worker
+        with open(os.environ["STARTUP_NOTES"], "w") as f:
+            f.write(json.dumps(NOTES))
+atexit.register(dump)
+_exit = os._exit  # a successful synth leaves through os._exit (studio.runtime.fast_exit)
+os._exit = lambda code: (dump(), _exit(code))
 sys.argv = ["studio", *sys.argv[1:]]
 from studio._entry import main
 main()

@@ -30,6 +30,7 @@ import errno
 import json
 import os
 import shutil
+import threading
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import IO
@@ -155,25 +156,63 @@ def start_writeback(f: IO[bytes]) -> None:
         pass
 
 
-def _fsync_tree(root: Path, *, sync: bool = True) -> None:
-    """fsync every file under ``root`` and the folders holding them (unless not ``sync``); verify
-    recordings."""
-    paths = [root] if root.is_file() else [root, *sorted(root.rglob("*"))]
-    for p in paths:
-        if p.is_symlink():
-            continue
-        if p.is_file():
-            if p.suffix == ".rrd":
-                verify_rrd(p)
-            if not sync:
+_SYNC_THREADS = 8
+"""fsyncs :func:`_fsync_trees` keeps in flight at once. Each fsync ends with a flush of the disk's
+cache; fsyncs issued together share flushes (the block layer merges them): the 14 files and
+folders of a 2-agent dataset took 48 ms one after the other and 14 ms eight at a time, median of 6
+on this project's VM disk; a single ``syncfs`` would also wait for every other process's writes."""
+
+
+def _fsync_trees(roots: list[Path], *, sync: bool = True) -> None:
+    """fsync every file under each of ``roots`` and the folders holding them (unless not ``sync``),
+    several at a time (:data:`_SYNC_THREADS`); verify recordings first. A file's fsync error is
+    raised (the first in path order); a folder's is ignored, as :func:`_fsync_dir` does."""
+    files: list[Path] = []
+    dirs: list[Path] = []
+    for root in roots:
+        paths = [root] if root.is_file() else [root, *sorted(root.rglob("*"))]
+        for p in paths:
+            if p.is_symlink():
                 continue
-            fd = os.open(p, os.O_RDONLY)
+            if p.is_file():
+                if p.suffix == ".rrd":
+                    verify_rrd(p)
+                files.append(p)
+            elif p.is_dir():
+                dirs.append(p)
+    if not sync:
+        return
+    todo = [(p, False) for p in files] + [(d, True) for d in dirs]
+    errors: dict[int, OSError] = {}
+
+    def work() -> None:
+        while True:
             try:
-                os.fsync(fd)
-            finally:
-                os.close(fd)
-    for d in [p for p in paths if p.is_dir() and not p.is_symlink()] if sync else []:
-        _fsync_dir(d)
+                k = claimed.pop()
+            except IndexError:
+                return
+            path, folder = todo[k]
+            if folder:
+                _fsync_dir(path)
+                continue
+            try:
+                fd = os.open(path, os.O_RDONLY)
+                try:
+                    os.fsync(fd)
+                finally:
+                    os.close(fd)
+            except OSError as err:
+                errors[k] = err
+
+    claimed = list(range(len(todo)))[::-1]  # popped from the end: in path order
+    threads = [threading.Thread(target=work, daemon=True) for _ in range(min(_SYNC_THREADS, len(todo)) - 1)]
+    for t in threads:
+        t.start()
+    work()  # this thread takes part
+    for t in threads:
+        t.join()
+    if errors:
+        raise errors[min(errors)]
 
 
 def sync_file_system(path: PathLike) -> None:
@@ -523,7 +562,7 @@ def staged_outputs(
                 for name in made_names:
                     if (staging / name).is_dir():
                         _mark(staging / name)
-                    _fsync_tree(staging / name, sync=durable)
+                _fsync_trees([staging / name for name in made_names], sync=durable)
                 for name in made_names:
                     if (parent / name).exists() or (parent / name).is_symlink():
                         _check_replaceable(parent / name, staging / name)

@@ -29,6 +29,7 @@ from studio.io.g2o import SE3_POSE_ZERO_LITERAL, _open_text, _row_norms
 from studio.io.textfmt import (
     Field,
     Floats,
+    Ints,
     TextColumn,
     concat,
     digit_matrix,
@@ -60,7 +61,9 @@ def format_stamps(stamps_ns: np.ndarray) -> TextColumn:
 def _stamp_field(stamps_ns: np.ndarray) -> Field:
     """:func:`format_stamps` as a field of :func:`~studio.io.textfmt.format_lines`."""
     if np.all(stamps_ns % NS_PER_S == 0):
-        return Floats((stamps_ns // NS_PER_S).astype(np.float64).reshape(-1, 1), ["%.17g"])
+        # whole seconds: %.17g writes an integral double below 1e17 as str(int) does (the seconds of
+        # an int64 of nanoseconds are below 1e10), and integers are formatted faster
+        return Ints(stamps_ns // NS_PER_S)
     return format_stamps(stamps_ns)
 
 

@@ -56,3 +56,20 @@ def test_the_probe_sees_a_heavy_import():
 def test_the_preset_names_are_the_presets():
     """synth's help lists the presets from a light constant: it names exactly the generator's presets."""
     assert PRESET_NAMES == tuple(PRESETS)
+
+
+def test_only_the_command_being_run_is_built_and_the_app_stays_whole():
+    # typer builds every registered command's options before it parses: `studio synth ...` builds
+    # only synth's, on a copy; --help, an unknown or missing name keep the whole app
+    import studio.cli as cli
+
+    names = [c.callback.__name__ for c in cli.app.registered_commands]
+    one = cli._for_the_command(["synth", "multi3500x8", "-o", "out"])
+    assert one is not cli.app and [c.callback.__name__ for c in one.registered_commands] == ["synth"]
+    assert [c.callback.__name__ for c in cli.app.registered_commands] == names and len(names) > 10
+    for argv in ([], ["--help"], ["synt"], ["--version", "synth"]):
+        assert cli._for_the_command(argv) is cli.app
+    import typer.testing
+
+    res = typer.testing.CliRunner().invoke(one, ["synth", "--help"])
+    assert res.exit_code == 0 and "CONFIG.json|PRESET" in res.output

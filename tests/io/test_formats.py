@@ -145,6 +145,17 @@ def test_tum_round_trip_exact_and_fractional_stamps(tmp_path):
     assert np.array_equal(back.poses_xyz_quat_xyzw, poses)
 
 
+@pytest.mark.parametrize("n", [5, 5000])  # one % per line / numpy columns
+def test_tum_whole_second_stamps_are_written_as_printf_g17_writes_them(tmp_path, n):
+    seconds = np.concatenate([np.arange(n - 2), [1634567891, 9_000_000_000]])
+    poses = np.tile([0.5, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0], (n, 1))
+    write_tum(tmp_path / "t.tum", Trajectory.from_poses("t", seconds * 1_000_000_000, poses))
+    lines = (tmp_path / "t.tum").read_text().splitlines()
+    printf = "%.17g"  # as kollagen writes a node index
+    assert [ln.split()[0] for ln in lines] == [printf % float(s) for s in seconds.tolist()]
+    assert lines[-1] == "9000000000 0.5 -1 0.0 0.0 0.0 0 1"
+
+
 def test_tum_reader_accepts_commas_comments_header_and_normalises():
     text = "timestamp,tx,ty,tz,qx,qy,qz,qw\n# comment\n1.5,0,0,0,0,0,0,2\n2.5,1,0,0,0,0,0,1\n"
     t = read_tum(io.StringIO(text))

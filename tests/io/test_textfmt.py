@@ -102,6 +102,22 @@ def test_integers_match_str(values):
     assert int_column(np.array(values, dtype=np.int64)).tolist() == [str(v) for v in values]
 
 
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(0, 10**8 - 1), min_size=1, max_size=50))
+def test_small_non_negative_integers_match_str_and_are_nul_padded(values):
+    # ids and whole-second stamps: the one-word layout (below 10**8, no sign)
+    col = int_column(np.array(values, dtype=np.int64))
+    assert col.tolist() == [str(v) for v in values]
+    assert not col.chars[np.arange(col.chars.shape[1])[None, :] >= col.lengths[:, None]].any()
+
+
+def test_integers_at_the_one_word_bounds():
+    values = [0, 9, 10, 99, 100, 10**7 - 1, 10**7, 10**8 - 1, 10**8, 10**8 + 1, -1, 12345678]
+    for chunk in (values, values[:8], values[7:]):
+        assert int_column(np.array(chunk, dtype=np.int64)).tolist() == [str(v) for v in chunk]
+    assert join_columns([literal("V"), int_column(np.arange(12))]) == b"".join(b"V %d\n" % k for k in range(12))
+
+
 def test_zero_literal_only_for_positive_zero():
     values = np.array([[0.0, -0.0, 1.5], [0.0, 2.0, -0.0]])
     cols = float_columns(values, ["%.17g"] * 3, ["0.0", "0.0", None])

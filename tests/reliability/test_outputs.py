@@ -395,6 +395,33 @@ def test_ctrl_c_while_the_interpreter_exits_prints_nothing():
     assert res.returncode == 0 and res.stdout.startswith("studio ") and res.stderr == ""
 
 
+def test_synth_ends_at_once_after_its_outputs_are_in_place_and_other_exits_stay_normal(tmp_path):
+    # studio.runtime.fast_exit: after a successful synth the process leaves with os._exit(0), so an
+    # exit handler no longer runs; the outputs are complete, the summary printed; a refused run and
+    # another command exit as before (their exit handlers run)
+    code = (
+        "import atexit, sys\n"
+        "atexit.register(lambda: print('exit handler ran', file=sys.stderr))\n"
+        "from studio._entry import main\n"
+        "main()\n"
+    )
+    config = str(Path(__file__).resolve().parents[1] / "data" / "configs" / "tiny_three.json")
+    out = tmp_path / "out"
+    res = _python(code, "synth", config, "-o", str(out), "--no-rrd")
+    assert res.returncode == 0 and "exit handler ran" not in res.stderr, res.stderr
+    assert res.stdout.startswith("tiny_three: 3 agents, 723 poses") and str(out / "tiny_three") in res.stdout
+    assert sorted(p.name for p in out.iterdir()) == ["tiny_three", "tiny_three.config.json", "tiny_three_singleg2o"]
+    assert (out / "tiny_three" / "inter_agent_lc.dat").stat().st_size > 0
+    seeds = _python(code, "synth", config, "-o", str(tmp_path / "seeds"), "--no-rrd", "-q", "--seeds", "0..1")
+    assert seeds.returncode == 0 and seeds.stderr == "" and seeds.stdout == ""
+    assert sorted(p.name for p in (tmp_path / "seeds").iterdir()) == ["seed0000", "seed0001"]
+    again = _python(code, "synth", config, "-o", str(out), "--no-rrd")
+    assert again.returncode == 2 and again.stderr.endswith("exit handler ran\n"), again.stderr
+    assert "already exists" in again.stderr
+    other = _python(code, "--help")
+    assert other.returncode == 0 and other.stderr == "exit handler ran\n"
+
+
 def test_a_lock_file_removed_between_creating_and_locking_it_is_taken_again_not_refused(tmp_path, monkeypatch):
     """Another run's clean-up of unheld lock files (``_clean_stale``, in every ``staged_outputs``
     of the same folder) can unlink this run's lock file after it was created and before it is
@@ -432,3 +459,40 @@ def test_a_lock_another_run_holds_still_refuses(tmp_path):
     finally:
         os.close(fd)
     assert not (tmp_path / "a.txt").exists()
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="names fds through Linux's /proc")
+def test_every_staged_file_and_folder_is_fsynced_together_and_a_failed_fsync_refuses(tmp_path, monkeypatch):
+    # the fsyncs run several at a time (they share the disk's cache flushes); each file and folder
+    # is still synced before the renames, and one file's failure is the run's one error
+    synced: list[str] = []
+    real = os.fsync
+
+    def record(fd):
+        synced.append(os.readlink(f"/proc/self/fd/{fd}"))
+        return real(fd)
+
+    monkeypatch.setattr(os, "fsync", record)
+    with staged_outputs(tmp_path / "out", ["data", "note.txt"]) as staging:
+        (staging / "data" / "sub").mkdir(parents=True)
+        for k in range(20):
+            (staging / "data" / ("sub" if k % 2 else ".") / f"f{k}.txt").write_text(str(k))
+        (staging / "note.txt").write_text("n")
+        inside = str(staging)
+    names = {os.path.relpath(p, inside) for p in synced if p.startswith(inside + os.sep)}
+    files = {f"data/{'sub/' if k % 2 else ''}f{k}.txt" for k in range(20)}
+    assert files | {"data", "data/sub", "note.txt"} <= names
+    assert (tmp_path / "out" / "data" / "sub" / "f19.txt").read_text() == "19"
+
+    def fail_one(fd):
+        if os.readlink(f"/proc/self/fd/{fd}").endswith("f7.txt"):
+            raise OSError(errno.EIO, "Input/output error")
+        return real(fd)
+
+    monkeypatch.setattr(os, "fsync", fail_one)
+    with pytest.raises(OutputError, match=r"Input/output error"):
+        with staged_outputs(tmp_path / "again", ["data"]) as staging:
+            (staging / "data").mkdir()
+            for k in range(12):
+                (staging / "data" / f"f{k}.txt").write_text(str(k))
+    assert sorted(p.name for p in (tmp_path / "again").iterdir() if not p.name.startswith(LOCK_PREFIX)) == []

@@ -46,6 +46,35 @@ def test_parallel_map_runs_items_here_and_in_workers():
     assert len(set(pids)) == 2  # and exactly one forked worker did the rest
 
 
+@pytest.mark.skipif(not hasattr(parallel.os, "fork"), reason="no fork here")
+def test_every_item_is_claimed_once_and_the_counters_are_freed(tmp_path):
+    # the claim counter (a shared mapping locked by a pipe's token byte) hands each item to exactly
+    # one process, under contention; maps and teams leave no descriptor behind
+    import operator
+    import os
+
+    def fds() -> int:
+        return len(os.listdir("/proc/self/fd")) if os.path.isdir("/proc/self/fd") else 0
+
+    log = tmp_path / "claims.txt"
+
+    def run(k: int) -> int:
+        fd = os.open(log, os.O_WRONLY | os.O_APPEND | os.O_CREAT)
+        os.write(fd, b"%d %d\n" % (k, os.getpid()))
+        os.close(fd)
+        return k
+
+    before = fds()
+    for _ in range(20):
+        log.unlink(missing_ok=True)
+        assert parallel.parallel_map(run, 400, jobs=3) == list(range(400))
+        claims = [line.split() for line in log.read_text().splitlines()]
+        assert sorted(int(item) for item, _ in claims) == list(range(400))  # each item run once
+        negated = parallel.run_team(lambda leader: parallel.parallel_map(operator.neg, 50), jobs=2)
+        assert negated == list(range(0, -50, -1))
+    assert fds() == before
+
+
 def test_parallel_map_reports_progress_up_to_the_end():
     seen: list[tuple[int, int]] = []
     parallel.parallel_map(lambda k: k, 9, jobs=2, on_done=lambda d, n: seen.append((d, n)))
