@@ -25,9 +25,11 @@ the studio's own one line, which already says what went wrong.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sys
+from typing import NoReturn
 
 from studio.runtime import fast_exit
 from studio.runtime.library_logs import quiet_rerun_writers
@@ -40,6 +42,33 @@ _INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 def limit_blas_threads() -> None:
     """One OpenBLAS thread unless the caller chose (before numpy loads; see the module doc)."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
+def _stdout_broken(err: OSError) -> bool:
+    """``err`` came from printing to standard output (``typer.echo`` without ``err=True``: a full
+    disk behind ``> file``, a closed pipe), not from the command's own work."""
+    tb = err.__traceback__
+    while tb is not None:
+        frame = tb.tb_frame
+        module = str(frame.f_globals.get("__name__", ""))
+        if frame.f_code.co_name == "echo" and module.endswith("click.utils") and not frame.f_locals.get("err"):
+            return True
+        tb = tb.tb_next
+    return False
+
+
+def _report_stdout(err: OSError) -> NoReturn:
+    """One line for a summary that could not be printed (the command's outputs are in place: the
+    output guard renamed them before the summary was printed), exit 2; a closed pipe (``| head``)
+    ends quietly. Standard output is pointed at /dev/null so that the interpreter's own flush at
+    exit does not print a traceback for the same error."""
+    with contextlib.suppress(OSError):
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, sys.stdout.fileno())
+    if isinstance(err, BrokenPipeError):
+        sys.exit(0)
+    sys.stderr.write(f"studio: standard output: cannot write the summary ({err.strerror or err})\n")
+    sys.exit(2)
 
 
 def main() -> None:
@@ -63,6 +92,10 @@ def main() -> None:
             if end.code in (0, None):
                 fast_exit.leave_if_final()
             raise
+        except OSError as err:
+            if not _stdout_broken(err):
+                raise
+            _report_stdout(err)
         fast_exit.leave_if_final()
     finally:
         # The command has finished (its outputs in place, or its error reported): a Ctrl-C now would

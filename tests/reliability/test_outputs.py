@@ -496,3 +496,19 @@ def test_every_staged_file_and_folder_is_fsynced_together_and_a_failed_fsync_ref
             for k in range(12):
                 (staging / "data" / f"f{k}.txt").write_text(str(k))
     assert sorted(p.name for p in (tmp_path / "again").iterdir() if not p.name.startswith(LOCK_PREFIX)) == []
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+def test_a_summary_that_cannot_be_printed_is_one_line_not_a_traceback(tmp_path):
+    """``studio synth ... > file`` on a full disk: the outputs were renamed into place before the
+    summary was printed; the failed print is one line on stderr and exit 2 (it was a traceback)."""
+    from tests.conftest import DATA
+
+    env = dict(os.environ, CI="true", RERUN_ANALYTICS="0")
+    cmd = [sys.executable, "-c", "from studio._entry import main; main()", "synth"]
+    cmd += [str(DATA / "configs" / "tiny_three.json"), "-o", str(tmp_path), "--no-rrd"]
+    with open("/dev/full", "w") as full:
+        done = subprocess.run(cmd, stdout=full, stderr=subprocess.PIPE, text=True, env=env, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.splitlines() == ["studio: standard output: cannot write the summary (No space left on device)"]
+    assert (tmp_path / "tiny_three" / "agent1").is_dir() and (tmp_path / "tiny_three_singleg2o").is_dir()
