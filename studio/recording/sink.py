@@ -6,6 +6,12 @@ written in-process is closed by :func:`close_recording`: the flush is waited for
 while the file still grows, given up once it has stood still for :data:`STALL_TIMEOUT_S`, and a
 stream that did not flush is never disconnected (its threads are left to the process's end). The
 solve recording goes further and writes in a forked process (``studio.recording.solve``).
+
+A stream given up is also kept referenced (:data:`_GIVEN_UP`) until the process ends. Rerun's
+``RecordingStream.__del__`` disconnects every *orphaned* stream (one no Python object refers to any
+more), flushing each: once a given-up stream's object was collected, the next recording closed
+anywhere in the process (a test run's later test) waited forever on the stuck sink's flush inside
+the garbage collector (a CI run hung in tests/replay after the full-disk tests).
 """
 
 from __future__ import annotations
@@ -25,6 +31,8 @@ FLUSH_SLICE_S = 1.0
 #: Seconds the recording's file may stay the same size while a flush is pending before the write
 #: is given up as stuck (Rerun's writer appends every few milliseconds while it can).
 STALL_TIMEOUT_S = 5.0
+#: Streams whose flush was given up: never orphaned, so Rerun never tries to disconnect them.
+_GIVEN_UP: list[Any] = []
 
 
 def close_recording(rec: Any, target: Path, *, shown: Path, failing: bool = False) -> None:
@@ -44,6 +52,7 @@ def close_recording(rec: Any, target: Path, *, shown: Path, failing: bool = Fals
                 now = -1
             size, still_s = (size, still_s + FLUSH_SLICE_S) if now == size else (now, 0.0)
             if still_s >= STALL_TIMEOUT_S:
+                _GIVEN_UP.append(rec)
                 if failing:
                     return
                 raise OutputError(

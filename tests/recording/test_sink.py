@@ -47,6 +47,15 @@ def test_a_stuck_flush_is_one_output_error_and_no_disconnect(quick, tmp_path):
     with pytest.raises(OutputError, match=r"x.rrd: Rerun could not write the recording \(flush timed out\)"):
         sink.close_recording(rec, target, shown=target)
     assert not rec.disconnected
+    # and never orphaned: Rerun's RecordingStream.__del__ disconnects (flushes) every orphaned
+    # stream, which on a stuck sink waited forever inside a later garbage collection
+    import gc
+    import weakref
+
+    kept = weakref.ref(rec)
+    del rec
+    gc.collect()
+    assert kept() is not None and kept() in sink._GIVEN_UP
     # the stall is counted from the last growth: a writer that still grows is waited for
     grower = _Stuck(grow_first=4, target=target)
     with pytest.raises(OutputError):
@@ -60,7 +69,7 @@ def test_an_error_on_its_way_out_is_not_replaced(quick, tmp_path):
     with pytest.raises(ValueError, match="the original"):
         with sink.closing(rec, target, shown=target):
             raise ValueError("the original")
-    assert not rec.disconnected
+    assert not rec.disconnected and rec in sink._GIVEN_UP
 
 
 def test_a_recording_that_flushes_is_disconnected(tmp_path):
