@@ -56,7 +56,7 @@ from studio.replay.metrics import as_se3, first_pose_errors, se3_errors
 from studio.replay.registry import DEFAULT_BACKENDS, get_backend
 from studio.runtime.progress import Progress, report
 from studio.solvers.incremental import IsamSettings
-from studio.solvers.problem import Problem, graph_chi2
+from studio.solvers.problem import graph_chi2
 
 __all__ = ["replay", "ReplayResult", "BackendRun", "build_schedule", "DEFAULT_BACKENDS", "REPLAY_JSON"]
 
@@ -282,7 +282,7 @@ def _run(
         team_se3,
         seen_count,
         graph_chi2(world.problem, final),
-        _chi2_over(world.problem, final, world.edges_known()),
+        graph_chi2(world.problem, final, world.edges_known()),
         backend.messages.copy(),
         backend.bytes.copy(),
         solver_s,
@@ -290,14 +290,6 @@ def _run(
         final,
         tuple(beliefs),
     )
-
-
-def _chi2_over(problem: Problem, poses: np.ndarray, edges: np.ndarray) -> float:
-    """chi2 of ``poses`` over the edges of the mask ``edges``."""
-    from studio.core.residuals import chi2_terms, edge_errors
-
-    e = edge_errors(poses[problem.edge_from[edges]], poses[problem.edge_to[edges]], problem.measurements[edges])
-    return float(chi2_terms(e, problem.information_upper[edges]).sum())
 
 
 def _g(x: float) -> str:

@@ -205,16 +205,13 @@ class _Coarse:
     basis: Any
     """``P``: ``(len(free), m)`` (csr)."""
     lu: Any
-    size: int
-    """Coarse unknowns ``m``."""
     per_robot: np.ndarray
     """``(robots, 2)``: coarse unknowns of each robot's vertices, non-zeros of their coarse rows."""
 
-    def correct(self, x: np.ndarray, g: np.ndarray) -> np.ndarray:
+    def correct(self, x: np.ndarray, g: np.ndarray) -> None:
+        """``x`` (in place) moved by the coarse system's solution for its residual."""
         r = g[self.free] - self.rows @ x
-        step = self.basis @ self.lu.solve(np.asarray(self.basis.T @ r))
-        x[self.free] += step
-        return np.asarray(step)
+        x[self.free] += self.basis @ self.lu.solve(np.asarray(self.basis.T @ r))
 
 
 @dataclass(eq=False)
@@ -246,7 +243,7 @@ def _coarse(h: Any, robot_dofs: list[np.ndarray], columns: Any) -> _Coarse | Non
         lu = spla.splu((hc + sp.identity(hc.shape[0], format="csc") * ridge).tocsc())
     except RuntimeError as err:  # SuperLU: "Factor is exactly singular"
         raise GraphError(f"dgs: the coarse system is singular ({err}); is every robot tied to the graph?") from None
-    return _Coarse(free, rows, basis, lu, hc.shape[0], _coarse_rows_per_robot(hc, robot_dofs, basis))
+    return _Coarse(free, rows, basis, lu, _coarse_rows_per_robot(hc, robot_dofs, basis))
 
 
 def _coarse_rows_per_robot(hc: Any, robot_dofs: list[np.ndarray], basis: Any) -> np.ndarray:
@@ -357,13 +354,14 @@ def _round(
     first extrapolates its own block, ``x + momentum (x - previous)`` (Nesterov), and its
     neighbours use the extrapolated values: each robot still needs only its own and its neighbours'
     latest values."""
-    before = None
-    if momentum and previous is not None:
-        before = x.copy()
+    extrapolate = bool(momentum) and previous is not None
+    # the change is measured against the iterate before the round when the blocks' own changes
+    # do not tell it (extrapolated, or moved by the coarse correction afterwards)
+    before = x.copy() if extrapolate or blocks.coarse is not None else None
+    if extrapolate and previous is not None and before is not None:
         x += momentum * (x - previous)
         previous[:] = before
     source = x if schedule == "gauss-seidel" else x.copy()
-    start = x.copy() if blocks.coarse is not None and before is None else None
     change = 0.0
     for dofs, other, lu, coupling in zip(blocks.dofs, blocks.others, blocks.lus, blocks.couplings):
         if len(dofs) == 0:
@@ -376,9 +374,8 @@ def _round(
         x[dofs] = new
     if blocks.coarse is not None:
         blocks.coarse.correct(x, g)
-    if before is not None or blocks.coarse is not None:
-        ref = before if before is not None else start
-        change = float(np.abs(x - ref).max()) if x.size else 0.0
+    if before is not None:
+        change = float(np.abs(x - before).max()) if x.size else 0.0
     return change
 
 
@@ -911,6 +908,9 @@ def solve_dgs(problem: Problem, options: SolveOptions, on_iteration: Iteration |
         coarse_size=options.coarse_size,
     )
     history = (graph_chi2(problem, problem.initial), *(r.chi2 for r in result.rounds if r.chi2 is not None))
+    pose_gamma, rotation_momentum = _defaults(
+        options.pose_gamma, options.rotation_momentum, options.coarse_size, options.schedule
+    )  # the values the rounds used where the options left them open
     return Solution(
         result.poses,
         result.num_rounds,
@@ -925,14 +925,8 @@ def solve_dgs(problem: Problem, options: SolveOptions, on_iteration: Iteration |
             "converged": result.converged,
             "schedule": options.schedule,
             "rotation_gamma": options.rotation_gamma,
-            "pose_gamma": options.pose_gamma
-            if options.pose_gamma is not None
-            else (DEFAULT_POSE_GAMMA if options.coarse_size else PLAIN_POSE_GAMMA),
-            "rotation_momentum": (
-                options.rotation_momentum
-                if options.rotation_momentum is not None
-                else DEFAULT_ROTATION_MOMENTUM * (options.schedule == "gauss-seidel")
-            ),
+            "pose_gamma": pose_gamma,
+            "rotation_momentum": rotation_momentum,
             "pose_momentum": options.pose_momentum,
             "coarse_size": options.coarse_size if result.robots > 1 else 0,
             "rotation_tol": options.rotation_tol,

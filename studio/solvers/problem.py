@@ -76,7 +76,10 @@ class Method(Protocol):
     def __call__(self, problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution: ...
 
 
-def graph_chi2(problem: Problem, poses: np.ndarray) -> float:
-    """Sum of ``e^T Omega e`` over the edges at ``poses`` (g2o's convention, see studio.core.residuals)."""
-    e = edge_errors(poses[problem.edge_from], poses[problem.edge_to], problem.measurements)
-    return float(chi2_terms(e, problem.information_upper).sum())
+def graph_chi2(problem: Problem, poses: np.ndarray, edges: np.ndarray | None = None) -> float:
+    """Sum of ``e^T Omega e`` over the edges at ``poses`` (g2o's convention, see studio.core.residuals);
+    ``edges``: only the edges of this mask (or index array)."""
+    fr, to, z, info = problem.edge_from, problem.edge_to, problem.measurements, problem.information_upper
+    if edges is not None:
+        fr, to, z, info = fr[edges], to[edges], z[edges], info[edges]
+    return float(chi2_terms(edge_errors(poses[fr], poses[to], z), info).sum())
