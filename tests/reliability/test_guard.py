@@ -496,8 +496,12 @@ def test_solve_rrd_onto_a_full_disk_never_hangs_and_is_one_line(world, tmp_path)
     """Rerun's file sink on a full disk once hung ``disconnect()`` (3 runs of 6 by hand) after three
     ANSI log lines naming the staging path, and later ran 15-23 s a run (a 3 s flush timeout, then a
     5 s stall waited out, at load ~23). The writer is now stopped at the first write error Rerun
-    logs: 20 runs, each one line naming the target, nothing left on the disk, each within 10 s
-    (``--runslow``; each run's time and the load are printed, ``-s`` shows them)."""
+    logs, or once its file has stood still for ``STALL_TIMEOUT_S`` (5 s): 20 runs, each one line
+    naming the target, nothing left on the disk, each within three stall windows (``--runslow``; each
+    run's time and the load are printed, ``-s`` shows them). On one machine the error was logged at
+    once in every run (about 1.4 s each); on a new machine of the same kind (2026-12-02) 13 of 20 runs
+    waited out one stall window (6.3-6.7 s) and one a second (11.5 s, its file grew once more before
+    it stood still), which the earlier bound of 10 s failed."""
     import subprocess
     import sys
     import time
@@ -530,4 +534,6 @@ def test_solve_rrd_onto_a_full_disk_never_hangs_and_is_one_line(world, tmp_path)
         f"\nsolve --rrd onto a full tmpfs, 20 runs [s] at load {os.getloadavg()[0]:.1f}: "
         + " ".join(f"{t:.2f}" for t in times)
     )
-    assert max(times) < 10.0, times
+    from studio.recording.sink import STALL_TIMEOUT_S
+
+    assert max(times) < 3 * STALL_TIMEOUT_S, times
