@@ -499,8 +499,8 @@ def test_solve_rrd_onto_a_full_disk_never_hangs_and_is_one_line(world, tmp_path)
     logs, or once its file has stood still for ``STALL_TIMEOUT_S`` (5 s): 20 runs, each one line
     naming the target, nothing left on the disk, each within three stall windows (``--runslow``; each
     run's time and the load are printed, ``-s`` shows them). On one machine the error was logged at
-    once in every run (about 1.4 s each); on a new machine of the same kind (2026-12-02) 13 of 20 runs
-    waited out one stall window (6.3-6.7 s) and one a second (11.5 s, its file grew once more before
+    once in every run (about 1.4 s each); on a new machine of the same kind (2026-12-02) 12 of 20 runs
+    waited out one stall window (6.3-6.7 s) and one two (11.5 s, its file grew once more before
     it stood still), which the earlier bound of 10 s failed."""
     import subprocess
     import sys
