@@ -66,7 +66,7 @@ from studio.recording.entities import (
     TIMELINE_TIME,
     WORLD,
 )
-from studio.recording.sink import closing
+from studio.recording.sink import closing, write_bounded
 from studio.runtime.interrupts import interrupts_deferred
 from studio.runtime.progress import Progress, report
 
@@ -720,22 +720,21 @@ def record_graph(
     real_time = has_real_stamps(g)
     scene = _scene(g, real_time)
     rid = recording_id_for(g)  # the id is computed on the SE3 form anyway: lift once
-    with interrupts_deferred():  # Ctrl-C waits for Rerun's writer (a few tenths of a second)
+    steps = len(g.agents) + 1
+
+    def write(target: Path) -> None:
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)
-        with closing(rec, path, shown=path):  # a stuck writer (a full disk) is one OutputError, never a hang
-            rec.save(path, default_blueprint=default_blueprint(scene))
+        with closing(rec, target, shown=path):
+            rec.save(target, default_blueprint=default_blueprint(scene))
             log_properties(rec, graph, name, config_json)
             log_world(rec)
             axis_length = 0.04 * scene.extent_m
             intra_out, inter_out = _outlier_masks(g, outliers)
-            steps = len(g.agents) + 1
-            report(progress, "recording", 0, steps, "parts")
             for k, agent in enumerate(g.agents):
                 log_paths(rec, agent, k)
                 log_current_pose(rec, agent, k, real_time, axis_length)
                 log_intra_loop_closures(rec, agent, k, real_time, intra_out[k])
                 log_position_error(rec, agent, k, real_time)
-                report(progress, "recording", k + 1, steps, "parts")
             log_inter_loop_closures(rec, g, real_time, inter_out)
             if scene.many_inter:
                 log_inter_loop_closure_density(rec, g, scene.extent_m, scene.num_nodes - 1, inter_out)
@@ -743,7 +742,13 @@ def record_graph(
             log_loop_closure_counts(rec, g, real_time)
             if range_bearing is not None and len(range_bearing):
                 log_range_bearing(rec, g, range_bearing, real_time)
-            report(progress, "recording", steps, steps, "parts")
+
+    # written by a separate process (write_bounded): a stuck writer (a full disk) is one OutputError,
+    # never a hang, and the parts' progress is reported around it (the writer's own is not seen here)
+    report(progress, "recording", 0, steps, "parts")
+    with interrupts_deferred():  # Ctrl-C waits for the writer (a few tenths of a second)
+        write_bounded(write, path, shown=path)
+    report(progress, "recording", steps, steps, "parts")
     return RecordResult(path, rid, graph.num_poses, graph.edge_counts(), real_time)
 
 

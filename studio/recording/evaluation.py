@@ -47,7 +47,7 @@ from studio.recording.entities import (
     TIMELINE_NODE,
     TIMELINE_TIME,
 )
-from studio.recording.sink import closing
+from studio.recording.sink import closing, write_bounded
 
 __all__ = [
     "ErrorSeries",
@@ -220,11 +220,13 @@ def save_evaluation_recording(
     path = Path(path)
     if recording_id is None:
         recording_id = evaluation_recording_id(summary_markdown, series)
-    rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
-    with closing(rec, path, shown=path):  # a stuck writer (a full disk) is one OutputError, never a hang
-        rec.save(path, default_blueprint=evaluation_blueprint(series))
-        try:
+    rid = recording_id
+
+    def write(target: Path) -> None:
+        rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)
+        with closing(rec, target, shown=path):
+            rec.save(target, default_blueprint=evaluation_blueprint(series))
             log_evaluation(rec, summary_markdown, series)
-        except RuntimeError:  # Rerun's writer stopped (a full disk): verify_rrd names it in one line
-            pass
+
+    write_bounded(write, path, shown=path)  # a stuck writer (a full disk) is one OutputError, never a hang
     return path

@@ -43,7 +43,7 @@ from studio.recording.entities import (
     TIMELINE_REPLAY,
     TIMELINE_REPLAY_TICK,
 )
-from studio.recording.sink import closing
+from studio.recording.sink import closing, write_bounded
 
 __all__ = ["log_replay", "write_replay_recording", "replay_blueprint", "MAX_POINTS_PER_SNAPSHOT"]
 
@@ -268,11 +268,16 @@ def write_replay_recording(
     backends = [r[0] for r in columns["runs"]]
     truth = np.concatenate([np.asarray(a.ground_truth)[:, 0:3] for a in graph.to_se3().agents])
     planar = is_planar_graph(graph)  # the dataset recording's rule: seen from above when planar
-    with staged_outputs(path.parent, [path.name], force=force, inputs=inputs) as staging:
-        rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id_for(graph), send_properties=False)
+    rid = recording_id_for(graph)
+
+    def write(target: Path) -> None:
+        rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)
         rec.set_log_time_enabled(False)
-        with closing(rec, staging / path.name, shown=path):
-            rec.save(staging / path.name, default_blueprint=replay_blueprint(backends, truth, planar=planar))
+        with closing(rec, target, shown=path):
+            rec.save(target, default_blueprint=replay_blueprint(backends, truth, planar=planar))
             rec.send_recording_name(name)
             log_replay(rec, graph, **columns)
+
+    with staged_outputs(path.parent, [path.name], force=force, inputs=inputs) as staging:
+        write_bounded(write, staging / path.name, shown=path)
     return path

@@ -9,18 +9,14 @@ is logged (``log_time`` is off), so the same run gives the same fingerprint.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
-import os
-import re
 import uuid
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from studio.core.errors import OutputError
 from studio.core.geometry import is_planar_se3, planar_poses_to_se3
 from studio.core.model import PoseGraph, PoseKind
 from studio.core.types import PathLike
@@ -35,7 +31,7 @@ from studio.recording.entities import (
     SOLVE_SCALE,
     TIMELINE_ITERATION,
 )
-from studio.recording.sink import STALL_TIMEOUT_S, disk_full_note, first_line
+from studio.recording.sink import FLUSH_TIMEOUT_S, write_bounded
 
 __all__ = ["log_solve", "write_solve_recording", "solve_blueprint", "solve_recording_id"]
 
@@ -196,121 +192,3 @@ def write_solve_recording(
     with staged_outputs(path.parent, [path.name], force=force, inputs=inputs) as staging:
         write_bounded(write, staging / path.name, shown=path)
     return path
-
-
-#: Seconds Rerun's writer may take to flush a recording before the write is given up: on a full
-#: disk its file sink can stop without ending the stream, and ``disconnect`` then waits forever.
-FLUSH_TIMEOUT_S = 3.0
-#: Seconds a recording's writing process may take at most, flush included.
-WRITE_TIMEOUT_S = 600.0
-
-
-def write_bounded(write: Callable[[Path], None], target: Path, *, shown: Path) -> None:
-    """Run ``write(target)`` (which writes a recording with Rerun) so that it cannot hang nor print:
-    in a forked process whose stdout goes nowhere and whose stderr (Rerun's own ANSI log lines of a
-    failed write) only this process reads, that leaves by ``os._exit`` (a stuck sink's exit handlers
-    never run) and is killed at the first write error Rerun logs (a full disk: no flush timeout nor
-    stall waited out), or after :data:`WRITE_TIMEOUT_S`. A failure is one :class:`OutputError`
-    naming ``shown`` and the cause.
-
-    Where Rerun is already loaded in this process (its threads would not exist in a fork) the write
-    runs here, its flush still bounded by :data:`FLUSH_TIMEOUT_S`.
-    """
-    import signal
-    import sys
-
-    if "rerun_bindings" in sys.modules or not hasattr(os, "fork"):
-        try:
-            write(target)
-        except RuntimeError as err:
-            raise OutputError(f"{shown}: Rerun could not write the recording ({first_line(err)})") from None
-        return
-    read_end, write_end = os.pipe()  # the writer's stderr: Rerun's log lines of a failed write
-    pid = os.fork()
-    if pid == 0:  # the writer
-        code = 1
-        try:
-            signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and kills us
-            os.close(read_end)
-            null = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(null, 1)
-            os.dup2(write_end, 2)
-            write(target)
-            code = 0
-        except BaseException:  # noqa: BLE001 - any failure is the exit code; the parent reports it
-            code = 3
-        finally:
-            os._exit(code)
-    os.close(write_end)
-    os.set_blocking(read_end, False)
-    try:
-        status, stalled, failed = _watch_writer(pid, target, read_end)
-    finally:
-        os.close(read_end)
-    if failed is not None:
-        raise OutputError(f"{shown}: Rerun could not write the recording ({failed})")
-    if stalled:
-        raise OutputError(
-            f"{shown}: Rerun could not write the recording (stuck for {STALL_TIMEOUT_S:g} s){disk_full_note(target)}"
-        )
-    if status is None:
-        raise OutputError(f"{shown}: the recording was not written within {WRITE_TIMEOUT_S:g} s")
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise OutputError(f"{shown}: Rerun could not write the recording{disk_full_note(target)}")
-
-
-#: What Rerun's file sink logs when a write fails: ``Failed to write: <strerror> (os error N)``.
-_WRITE_FAILED = re.compile(rb"Failed to write[^\n]*?\(os error (\d+)\)")
-#: Bytes of the writer's log kept while watching it (the rest is read and dropped).
-_LOG_CAP_BYTES = 64 * 1024
-
-
-def _watch_writer(pid: int, target: Path, log_fd: int) -> tuple[int | None, bool, str | None]:
-    """Wait for the writing process ``pid``: ``(wait status or None, stalled, failed write's cause)``.
-
-    It is killed (and reaped) at the first write error Rerun logs on ``log_fd`` (a full disk: at
-    once, rather than after a flush timeout and a stalled file), when its file stops growing for
-    :data:`STALL_TIMEOUT_S`, or after :data:`WRITE_TIMEOUT_S`."""
-    import signal
-    import time
-
-    status: int | None = None
-    stalled = False
-    failed: str | None = None
-    log = bytearray()
-    try:
-        deadline = time.monotonic() + WRITE_TIMEOUT_S
-        size, changed = -1, time.monotonic()
-        while status is None and time.monotonic() < deadline:
-            with contextlib.suppress(BlockingIOError):
-                while chunk := os.read(log_fd, 65536):
-                    log = (log + chunk)[-_LOG_CAP_BYTES:]
-            found = _WRITE_FAILED.search(log)
-            if found is not None:
-                failed = os.strerror(int(found.group(1)))
-                break
-            done, st = os.waitpid(pid, os.WNOHANG)
-            status = st if done else None
-            if status is None:
-                time.sleep(0.01)
-                try:
-                    now_size = target.stat().st_size
-                except OSError:
-                    now_size = -1
-                if now_size != size:
-                    size, changed = now_size, time.monotonic()
-                elif time.monotonic() - changed > STALL_TIMEOUT_S:
-                    stalled = True  # the file stopped growing: Rerun's sink is stuck (a full disk)
-                    break
-    finally:
-        if status is None:
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(pid, signal.SIGKILL)
-            os.waitpid(pid, 0)
-    with contextlib.suppress(BlockingIOError, OSError):  # what it logged before it ended
-        while chunk := os.read(log_fd, 65536):
-            log = (log + chunk)[-_LOG_CAP_BYTES:]
-    found = _WRITE_FAILED.search(log) if failed is None else None
-    if found is not None:
-        failed = os.strerror(int(found.group(1)))
-    return (None if failed or stalled else status), stalled, failed

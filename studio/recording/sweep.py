@@ -13,7 +13,7 @@ import numpy as np
 
 from studio.core.types import PathLike
 from studio.recording.entities import APPLICATION_ID, SWEEP_SERIES, SWEEP_TABLE, TIMELINE_CELL
-from studio.recording.sink import closing
+from studio.recording.sink import closing, write_bounded
 
 __all__ = ["log_sweep", "write_sweep_recording"]
 
@@ -45,4 +45,4 @@ def write_sweep_recording(path: PathLike, name: str, table: Any) -> Path:
             rec.send_recording_name(f"sweep {name}")
             log_sweep(rec, table)
 
-    return write_replacing(path, write)
+    return write_replacing(path, lambda tmp: write_bounded(write, tmp, shown=Path(path)))

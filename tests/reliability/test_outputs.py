@@ -242,6 +242,42 @@ def test_rerun_writes_no_log_lines_of_its_own_on_a_full_disk(small_disk, tmp_pat
     assert loud.returncode == 2 and "re_log_encoding" in loud.stderr  # the user asked for Rerun's logs
 
 
+@pytest.mark.parametrize("free_kb", [0, 4, 16, 128])
+def test_a_recording_onto_a_disk_that_fills_at_any_point_never_hangs(small_disk, tmp_path, free_kb):
+    """With 4 or 16 kB left, Rerun's ``save`` blocked forever on its dead file sink (the header's
+    write failed) and ``evaluate --rrd`` never ended; with 0 kB ``save`` raised and the command
+    printed a traceback; with 128 kB the command reported its line and then hung in Rerun's exit
+    handler on the given-up stream (seen by hand, 2026-12-02; the CI test above hung so, now and
+    then). Every recording is now written by a forked writer the command watches
+    (:func:`studio.recording.sink.write_bounded`): one line, exit 2, nothing left, within
+    seconds, for each amount of space left."""
+    import os
+    import sys
+    import time
+
+    from studio.recording.sink import STALL_TIMEOUT_S
+    from studio.synth import load_synth_config, synthesize
+    from tests.conftest import DATA
+
+    ds = synthesize(
+        load_synth_config(DATA / "configs" / "small3x100.json"), tmp_path / "src", rrd=False, jobs=1
+    ).dataset_dir
+    st = os.statvfs(small_disk)
+    (small_disk / "filler").write_bytes(b"\0" * max(0, st.f_bavail * st.f_frsize - free_kb * 1024))
+    for args in (
+        ["evaluate", str(ds), "--rrd", str(small_disk / "e.rrd")],
+        ["record", str(ds), "-o", str(small_disk / "x.rrd")],
+    ):
+        t0 = time.monotonic()
+        res = subprocess.run([sys.executable, "-m", "studio.cli", *args], capture_output=True, text=True, timeout=120)
+        took_s = time.monotonic() - t0
+        assert res.returncode == 2, res.stderr
+        lines = res.stderr.splitlines()
+        assert len(lines) == 1 and lines[0].startswith("error: ") and "No space left on device" in lines[0], lines
+        assert sorted(p.name for p in small_disk.iterdir()) == ["filler"]
+        assert took_s < 2 * STALL_TIMEOUT_S, (args[0], took_s)
+
+
 def test_a_read_only_file_system_is_one_line(tmp_path):
     from tests.conftest import DATA
 
