@@ -163,9 +163,17 @@ def write_bounded(write: Callable[[Path], None], target: Path, *, shown: Path) -
             code = 0
         except BaseException as err:  # noqa: BLE001 - any failure is the exit code; the parent reports it
             code = 3
-            if isinstance(err, StudioError):  # the studio's own one line, for the parent to raise
+            # the line for the parent to raise: the studio's own error as it stands, any other but
+            # Rerun's (a RuntimeError: reported from its log and the file) with its type, so that
+            # a bug in the logging code is never taken for a full disk
+            line = None
+            if isinstance(err, StudioError):
+                line = " ".join(str(err).split())
+            elif not isinstance(err, (RuntimeError, KeyboardInterrupt)):
+                line = f"{shown}: the recording could not be written ({type(err).__name__}: {first_line(err)})"
+            if line is not None:
                 with contextlib.suppress(OSError):
-                    os.write(2, f"\n{_WRITER_ERROR}{' '.join(str(err).split())}\n".encode())
+                    os.write(2, f"\n{_WRITER_ERROR}{line}\n".encode())
         finally:
             os._exit(code)
     os.close(write_end)

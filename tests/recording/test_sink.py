@@ -77,3 +77,30 @@ def test_a_recording_that_flushes_is_disconnected(tmp_path):
     with sink.closing(rec, tmp_path / "x.rrd", shown=tmp_path / "x.rrd"):
         pass
     assert rec.flushes == 1 and rec.disconnected
+
+
+def test_a_forked_write_reports_the_studios_own_error_and_a_bugs_type(tmp_path):
+    """write_bounded's writer is a forked process: its exception cannot travel, so its line does.
+    A studio error stays the command's line; any other failure (a bug in the logging code) names
+    its type instead of passing for a full disk; a write that works leaves its file."""
+    target = tmp_path / "x.rrd"
+
+    def studio_error(t):
+        raise OutputError(f"{t}: a check of the writer's own failed")
+
+    def bug(t):
+        raise ZeroDivisionError("division by zero")
+
+    def fine(t):
+        t.write_bytes(b"written")
+
+    with pytest.raises(OutputError) as caught:
+        sink.write_bounded(studio_error, target, shown=target)
+    assert str(caught.value) == f"{target}: a check of the writer's own failed"
+    with pytest.raises(OutputError) as caught:
+        sink.write_bounded(bug, target, shown=tmp_path / "shown.rrd")
+    assert str(caught.value) == (
+        f"{tmp_path / 'shown.rrd'}: the recording could not be written (ZeroDivisionError: division by zero)"
+    )
+    sink.write_bounded(fine, target, shown=target)
+    assert target.read_bytes() == b"written"
