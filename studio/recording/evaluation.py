@@ -218,9 +218,7 @@ def save_evaluation_recording(
     import rerun as rr
 
     path = Path(path)
-    if recording_id is None:
-        recording_id = evaluation_recording_id(summary_markdown, series)
-    rid = recording_id
+    rid = evaluation_recording_id(summary_markdown, series) if recording_id is None else recording_id
 
     def write(target: Path) -> None:
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)

@@ -32,7 +32,6 @@ __all__ = [
     "close_recording",
     "write_bounded",
     "FLUSH_SLICE_S",
-    "FLUSH_TIMEOUT_S",
     "STALL_TIMEOUT_S",
     "FULL_DISK_STALL_S",
     "WRITE_TIMEOUT_S",
@@ -106,9 +105,6 @@ def disk_full_note(target: Path) -> str:
     return " (No space left on device)" if st.f_bavail * st.f_frsize < (1 << 20) else ""
 
 
-#: Seconds Rerun's writer may take to flush a recording before the write is given up: on a full
-#: disk its file sink can stop without ending the stream, and ``disconnect`` then waits forever.
-FLUSH_TIMEOUT_S = 3.0
 #: Seconds a recording's writing process may take at most, flush included.
 WRITE_TIMEOUT_S = 600.0
 #: Seconds the file may stand still, on a file system with under 1 MiB free (:func:`disk_full_note`),
@@ -146,7 +142,7 @@ def write_bounded(write: Callable[[Path], None], target: Path, *, shown: Path) -
     # the caller's own RUST_LOG (not the command line's quiet default): Rerun's lines are theirs
     from studio.runtime.library_logs import RERUN_LOG_FILTER
 
-    relay = os.environ.get("RUST_LOG") if os.environ.get("RUST_LOG") not in (None, RERUN_LOG_FILTER) else None
+    relay = os.environ.get("RUST_LOG") not in (None, RERUN_LOG_FILTER)
     read_end, write_end = os.pipe()  # the writer's stderr: Rerun's log lines of a failed write
     pid = os.fork()
     if pid == 0:  # the writer
@@ -157,7 +153,7 @@ def write_bounded(write: Callable[[Path], None], target: Path, *, shown: Path) -
             null = os.open(os.devnull, os.O_WRONLY)
             os.dup2(null, 1)
             os.dup2(write_end, 2)
-            if relay is None:
+            if not relay:
                 os.environ["RUST_LOG"] = _WRITER_RUST_LOG  # read when Rerun loads, below
             write(target)
             code = 0
@@ -182,7 +178,7 @@ def write_bounded(write: Callable[[Path], None], target: Path, *, shown: Path) -
         status, stalled, failed, log = _watch_writer(pid, target, read_end)
     finally:
         os.close(read_end)
-    if relay is not None and log:
+    if relay and log:
         sys.stderr.write(log.decode("utf-8", "replace"))
         sys.stderr.flush()
     if failed is not None:
@@ -203,7 +199,7 @@ def write_bounded(write: Callable[[Path], None], target: Path, *, shown: Path) -
 #: How the writing process passes the studio's own error line (an ``OutputError`` of its own
 #: checks) to the watcher.
 _WRITER_ERROR = "studio-writer-error: "
-_WRITER_ERROR_LINE = re.compile(rb"\nstudio-writer-error: ([^\n]*)\n")
+_WRITER_ERROR_LINE = re.compile(rb"\n" + re.escape(_WRITER_ERROR.encode()) + rb"([^\n]*)\n")
 #: What Rerun's file sink logs when a write fails: ``Failed to write: <strerror> (os error N)``.
 _WRITE_FAILED = re.compile(rb"Failed to write[^\n]*?\(os error (\d+)\)")
 #: Bytes of the writer's log kept while watching it (the rest is read and dropped).

@@ -31,7 +31,7 @@ from studio.recording.entities import (
     SOLVE_SCALE,
     TIMELINE_ITERATION,
 )
-from studio.recording.sink import FLUSH_TIMEOUT_S, write_bounded
+from studio.recording.sink import closing, write_bounded
 
 __all__ = ["log_solve", "write_solve_recording", "solve_blueprint", "solve_recording_id"]
 
@@ -181,13 +181,10 @@ def write_solve_recording(
             shown = iterates[-1][1]
         planar = kind is PoseKind.SE2 or (shown is not None and is_planar_se3(shown))
         xyz = None if shown is None else shown[:, 0:3]
-        rec.save(target, default_blueprint=solve_blueprint(names, xyz, planar))
-        rec.send_recording_name(name)
-        log_solve(rec, graph, offsets, kind, iterates, chi2_history)
-        # a sink that cannot flush (a full disk) makes disconnect() wait forever: leave it undone
-        # (the writing process then ends by os._exit) and let the exception report the failure
-        rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
-        rec.disconnect()
+        with closing(rec, target, shown=Path(path)):
+            rec.save(target, default_blueprint=solve_blueprint(names, xyz, planar))
+            rec.send_recording_name(name)
+            log_solve(rec, graph, offsets, kind, iterates, chi2_history)
 
     with staged_outputs(path.parent, [path.name], force=force, inputs=inputs) as staging:
         write_bounded(write, staging / path.name, shown=path)

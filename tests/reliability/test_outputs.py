@@ -159,6 +159,22 @@ def _tmpfs(mnt: Path, options: str) -> Iterator[Path]:
         subprocess.run(["umount", str(mnt)], check=False)
 
 
+def _small_dataset(tmp_path: Path) -> Path:
+    """small3x100 synthesized under ``tmp_path / "src"`` (no recording): the dataset folder."""
+    from studio.synth import load_synth_config, synthesize
+    from tests.conftest import DATA
+
+    return synthesize(
+        load_synth_config(DATA / "configs" / "small3x100.json"), tmp_path / "src", rrd=False, jobs=1
+    ).dataset_dir
+
+
+def _fill_leaving(disk: Path, free_kb: int) -> None:
+    """Fill ``disk`` with a file ``filler`` until ``free_kb`` kB are left."""
+    st = os.statvfs(disk)
+    (disk / "filler").write_bytes(b"\0" * max(0, st.f_bavail * st.f_frsize - free_kb * 1024))
+
+
 @pytest.fixture()
 def small_disk(tmp_path):
     with _tmpfs(tmp_path / "disk", "size=5m") as mnt:
@@ -181,17 +197,10 @@ def test_full_disk_is_one_line_and_leaves_nothing(small_disk, tmp_path):
 def test_record_and_convert_on_a_full_disk_are_one_line_and_leave_nothing(small_disk, tmp_path):
     """The issue's case: `record` onto a nearly full disk must not rename a damaged .rrd into place
     and report success; `convert` must not print a traceback."""
-    import os
-
-    from studio.synth import load_synth_config, synthesize
     from tests.conftest import DATA
 
-    ds = synthesize(
-        load_synth_config(DATA / "configs" / "small3x100.json"), tmp_path / "src", rrd=False, jobs=1
-    ).dataset_dir
-    st = os.statvfs(small_disk)
-    free = st.f_bavail * st.f_frsize
-    (small_disk / "filler").write_bytes(b"\0" * max(0, free - 64 * 1024))  # 64 kB left
+    ds = _small_dataset(tmp_path)
+    _fill_leaving(small_disk, 64)
     trajs = [str(DATA / "trajectories" / f"{n}.tum") for n in ("alpha", "bob", "carol")]
     for args, target in (
         (["record", str(ds), "-o", str(small_disk / "x.rrd")], "x.rrd"),
@@ -211,14 +220,8 @@ def test_rerun_writes_no_log_lines_of_its_own_on_a_full_disk(small_disk, tmp_pat
     import os
     import sys
 
-    from studio.synth import load_synth_config, synthesize
-    from tests.conftest import DATA
-
-    ds = synthesize(
-        load_synth_config(DATA / "configs" / "small3x100.json"), tmp_path / "src", rrd=False, jobs=1
-    ).dataset_dir
-    st = os.statvfs(small_disk)
-    (small_disk / "filler").write_bytes(b"\0" * max(0, st.f_bavail * st.f_frsize - 64 * 1024))  # 64 kB left
+    ds = _small_dataset(tmp_path)
+    _fill_leaving(small_disk, 64)
     env = {k: v for k, v in os.environ.items() if k != "RUST_LOG"}
     cases = (
         ["record", str(ds), "-o", str(small_disk / "x.rrd")],
@@ -251,19 +254,13 @@ def test_a_recording_onto_a_disk_that_fills_at_any_point_never_hangs(small_disk,
     then). Every recording is now written by a forked writer the command watches
     (:func:`studio.recording.sink.write_bounded`): one line, exit 2, nothing left, within
     seconds, for each amount of space left."""
-    import os
     import sys
     import time
 
     from studio.recording.sink import STALL_TIMEOUT_S
-    from studio.synth import load_synth_config, synthesize
-    from tests.conftest import DATA
 
-    ds = synthesize(
-        load_synth_config(DATA / "configs" / "small3x100.json"), tmp_path / "src", rrd=False, jobs=1
-    ).dataset_dir
-    st = os.statvfs(small_disk)
-    (small_disk / "filler").write_bytes(b"\0" * max(0, st.f_bavail * st.f_frsize - free_kb * 1024))
+    ds = _small_dataset(tmp_path)
+    _fill_leaving(small_disk, free_kb)
     for args in (
         ["evaluate", str(ds), "--rrd", str(small_disk / "e.rrd")],
         ["record", str(ds), "-o", str(small_disk / "x.rrd")],
