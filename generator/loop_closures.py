@@ -22,6 +22,13 @@ from studio.generator.config import AgentConfig, SynthConfig
 from studio.generator.rng import MT19937Stream, UniformTape, polar_normal
 from studio.generator.walk import _round_half_away, _round_to_int, _Walk
 
+try:  # the compiled kernels (setup.py builds them where a C compiler is found)
+    from studio.generator._sampler import closures as _compiled_closures
+    from studio.generator._sampler import sample as _compiled_sample
+except ImportError:  # no compiler at install: numpy and Python (the same bytes; tests run both)
+    _compiled_sample = None  # type: ignore[assignment]
+    _compiled_closures = None  # type: ignore[assignment]
+
 __all__ = ["discrete_circle", "agent_pairs", "intra_loop_closures"]
 
 
@@ -79,6 +86,8 @@ class _CircleTable:
         self.ylim = np.array(
             [math.isqrt(radius * radius - dx * dx) for dx in range(-radius, radius + 1)], dtype=np.int64
         )
+        #: the circle rank of each column's (dx, 0) offset, the first the circle visits in it
+        self.colbase = np.cumsum(2 * self.ylim + 1) - (2 * self.ylim + 1)
 
     def probabilities(self, same_cell: float, scale: float, radius_m: float) -> np.ndarray:
         """Probability per rank + 1: ``same_cell`` for the same-cell check, else kollagen's
@@ -96,7 +105,7 @@ class _CircleTable:
 @functools.lru_cache(maxsize=64)
 def _circle_table(radius: int) -> _CircleTable:
     table = _CircleTable(radius)
-    for v in (table.rank, table.rank32, table.d2_by_rank, table.diagonal_by_rank, table.ylim):
+    for v in (table.rank, table.rank32, table.d2_by_rank, table.diagonal_by_rank, table.ylim, table.colbase):
         v.setflags(write=False)
     return table
 
@@ -118,6 +127,61 @@ def _visits(cx: np.ndarray, cy: np.ndarray, which: str) -> np.ndarray:
     if which == "first":
         return np.unique(key, return_index=True)[1]
     return len(key) - 1 - np.unique(key[::-1], return_index=True)[1]
+
+
+_MAX_COLUMNS = 1 << 24
+"""The widest table (in grid columns) the compiled search lays out; a wider one takes numpy's."""
+
+
+def _columns(cx: np.ndarray, cy: np.ndarray, visits: np.ndarray) -> tuple[int, np.ndarray, np.ndarray] | None:
+    """The table cells ``visits`` (in cell order, as :func:`_visits` gives them) by grid column for the
+    compiled search: ``(x0, col_start, col_y)``, column ``x - x0`` holding ``col_start[x - x0]`` ..
+    ``col_start[x - x0 + 1] - 1``; or None when the table spans more than :data:`_MAX_COLUMNS`."""
+    tx = cx[visits]
+    x0 = int(tx[0])
+    width = int(tx[-1]) - x0 + 1
+    if width > _MAX_COLUMNS:
+        return None
+    col_start = np.zeros(width + 1, dtype=np.int64)
+    np.cumsum(np.bincount(tx - x0, minlength=width), out=col_start[1:])
+    return x0, col_start, np.ascontiguousarray(cy[visits], dtype=np.int64)
+
+
+def _compiled_search(
+    qx: np.ndarray,
+    qy: np.ndarray,
+    table: tuple[int, np.ndarray, np.ndarray],
+    table_pose: np.ndarray,
+    circle: _CircleTable,
+    prob_by_rank: np.ndarray,
+    before_query: bool,
+    tape: UniformTape,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """The hit search and :func:`_sample` in one compiled pass (``closures`` in
+    ``generator/_sampler.c``): the accepted hits' queries and table poses, their ``(n, 3)`` normals
+    and the uniforms used. NaN probabilities and, with ``before_query``, table poses not before the
+    query are no candidates."""
+    x0, col_start, col_y = table
+    k, m, normals, used, _ = _compiled_closures(
+        np.ascontiguousarray(qx, dtype=np.int64),
+        np.ascontiguousarray(qy, dtype=np.int64),
+        col_start,
+        col_y,
+        np.ascontiguousarray(table_pose, dtype=np.int64),
+        x0,
+        circle.ylim,
+        circle.colbase,
+        np.ascontiguousarray(prob_by_rank, dtype=np.float64),
+        before_query,
+        tape.head,
+        None,
+    )
+    return (
+        np.frombuffer(k, dtype=np.int64),
+        np.frombuffer(m, dtype=np.int64),
+        np.frombuffer(normals, dtype=np.float64).reshape(-1, 3),
+        used,
+    )
 
 
 _DENSE_COUNT_FACTOR = 32
@@ -400,6 +464,36 @@ def _sample(
 ) -> tuple[np.ndarray, np.ndarray, float | None, int]:
     """Decide every hit with one uniform each, in order; an accepted hit draws three normals.
 
+    Returns (accepted hit indices, (n, 3) normals, cache state after the last draw, uniforms used).
+    The compiled kernel (``generator/_sampler.c``) where the build made it, else
+    :func:`_sample_python`: the same decisions and the same normals bit for bit.
+    """
+    if _compiled_sample is None:
+        return _sample_python(tape, probs, cached)
+    n_hits = len(probs)
+    probs = np.ascontiguousarray(probs, dtype=np.float64)
+    # one uniform per hit plus about 3.8 per accepted hit for its normals
+    want = n_hits + 4 * int(probs.sum()) + _SPARE_UNIFORMS
+    h, d = 0, 0
+    accepted: list[np.ndarray] = []
+    normals: list[np.ndarray] = []
+    while True:
+        acc, nor, h, d, cached, complete = _compiled_sample(probs, tape.head(want)[:want], h, d, cached)
+        accepted.append(np.frombuffer(acc, dtype=np.int64))
+        normals.append(np.frombuffer(nor, dtype=np.float64))
+        if complete:
+            break
+        want *= 2  # the uniforms ran out: go on from the last accepted hit with more
+    if len(accepted) == 1:
+        return accepted[0], normals[0].reshape(-1, 3), cached, n_hits + d
+    return np.concatenate(accepted), np.concatenate(normals).reshape(-1, 3), cached, n_hits + d
+
+
+def _sample_python(
+    tape: UniformTape, probs: np.ndarray, cached: float | None
+) -> tuple[np.ndarray, np.ndarray, float | None, int]:
+    """:func:`_sample` in Python and numpy, where the compiled kernel was not built.
+
     kollagen accepts hit h when its probability exceeds the next uniform; each accepted hit then draws
     three normals (libstdc++'s polar method, one value cached between calls), which use a variable
     number of uniforms. Between two accepted hits, hit h therefore reads uniform ``h + d`` for one
@@ -478,6 +572,13 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     # kollagen's quirk: intra-agent loop closures only look at the diagonal circle offsets (and the
     # same cell); NaN marks the others, so one look-up gives a hit's probability or its exclusion
     allowed = np.where(circle.diagonal_by_rank, table, np.nan)
+    columns = _columns(cx, cy, visits) if _compiled_closures is not None else None
+    if columns is not None:
+        i_to, j_from, noise, used = _compiled_search(
+            cx, cy, columns, visits, circle, allowed, True, UniformTape(stream)
+        )
+        stream.advance(2 * used)
+        return _intra_edges(walk, agent, i_to, j_from, noise)
     # kollagen's map only holds cells first visited before the current pose. Poses are taken in
     # blocks; a block looks only at cells first visited before its end, so few hits are discarded.
     # Only the kept hits' probabilities and poses outlive their block (a block's hits take about ten
@@ -500,15 +601,18 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
         del k, m, rank, p, kept
     acc, noise, _, used = _sample(UniformTape(stream), np.concatenate(probs), None)
     stream.advance(2 * used)
-    i_to = np.concatenate(to_pose)[acc]
-    j_from = np.concatenate(from_pose)[acc]
+    return _intra_edges(walk, agent, np.concatenate(to_pose)[acc], np.concatenate(from_pose)[acc], noise)
+
+
+def _intra_edges(walk: _Walk, agent: AgentConfig, i_to: np.ndarray, j_from: np.ndarray, noise: np.ndarray) -> Edges:
+    """The accepted intra-agent loop closures (pose ``j_from`` to ``i_to``) with their normals."""
     dX, dY, dT = relative_planar_pose(
         walk.x[j_from], walk.y[j_from], walk.theta[j_from], walk.x[i_to], walk.y[i_to], walk.theta[i_to]
     )
     sp, sa = agent.std_dev_intra_loop_closure_position, agent.std_dev_intra_loop_closure_angle
     meas = np.column_stack([dX + noise[:, 0] * sp, dY + noise[:, 1] * sp, dT + noise[:, 2] * sa])
     info = _diag_information(
-        len(acc), agent.estimated_information_intra_position, agent.estimated_information_intra_angle
+        len(i_to), agent.estimated_information_intra_position, agent.estimated_information_intra_angle
     )
     return Edges(PoseKind.SE2, j_from, i_to, meas.reshape(-1, 3), info)
 
@@ -551,10 +655,16 @@ class _InterPairs:
         (ax, ay), (bx, by) = self._cells[a], self._cells[b]
         # kollagen's map keeps the last visit of each cell of agent a
         last = _visits(ax, ay, "last")
-        hits = _Hits(bx, by, ax[last], ay[last], self._circle, self._prob_by_rank)
-        acc, noise, _, _ = _sample(self._tape, hits.probs, None)
-        i_from, m = hits.pairs(acc)
-        j_to = last[m]
+        columns = _columns(ax, ay, last) if _compiled_closures is not None else None
+        if columns is not None:
+            i_from, j_to, noise, _ = _compiled_search(
+                bx, by, columns, last, self._circle, self._prob_by_rank, False, self._tape
+            )
+        else:
+            hits = _Hits(bx, by, ax[last], ay[last], self._circle, self._prob_by_rank)
+            acc, noise, _, _ = _sample(self._tape, hits.probs, None)
+            i_from, m = hits.pairs(acc)
+            j_to = last[m]
         dX, dY, dT = relative_planar_pose(
             wb.x[i_from], wb.y[i_from], wb.theta[i_from], wa.x[j_to], wa.y[j_to], wa.theta[j_to]
         )
@@ -565,7 +675,7 @@ class _InterPairs:
                 dT + noise[:, 2] * p.std_dev_loop_closure_angle,
             ]
         )
-        return np.full(len(acc), b), i_from, np.full(len(acc), a), j_to, meas.reshape(-1, 3)
+        return np.full(len(i_from), b), i_from, np.full(len(i_from), a), j_to, meas.reshape(-1, 3)
 
     def edges(self, done: Sequence[tuple[np.ndarray, ...]]) -> InterAgentEdges:
         """The pairs' results (in pair order) as kollagen's inter-agent loop closures."""

@@ -1,12 +1,31 @@
 """The loop-closure sampler against a plain hit-by-hit loop, on random hits and real uniforms."""
 
 import math
+import os
 
 import numpy as np
 import pytest
 
+from studio.generator import loop_closures
 from studio.generator.loop_closures import _sample
 from studio.generator.rng import MT19937Stream, UniformTape
+
+
+@pytest.fixture(autouse=True, params=["compiled", "python"])
+def sampler(request, monkeypatch):
+    """Every test runs on the compiled kernel and on the Python sampler it replaces."""
+    if request.param == "python":
+        monkeypatch.setattr(loop_closures, "_compiled_sample", None)
+    elif loop_closures._compiled_sample is None:
+        pytest.skip("the compiled sampler was not built (no C compiler at install)")
+    return request.param
+
+
+@pytest.mark.skipif(not os.environ.get("CI"), reason="only CI's install must have built the kernel")
+def test_ci_built_the_compiled_sampler():
+    import importlib
+
+    assert callable(importlib.import_module("studio.generator._sampler").sample)
 
 
 def _polar(u: list[float], q: int) -> tuple[float, float, int]:

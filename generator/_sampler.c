@@ -1,0 +1,395 @@
+/* The loop-closure sampler of studio.generator.loop_closures, compiled.
+ *
+ * kollagen decides every loop-closure candidate ("hit") with one uniform of its generator and draws
+ * three normals (libstdc++'s polar method, one value cached between calls) for each accepted one.
+ * The decisions are sequential: an accepted hit moves every later hit's uniform by the number of
+ * uniforms its normals used. In Python each acceptance costs a numpy scan and a few Python steps
+ * (about 5 us); here it is a plain loop over the hits.
+ *
+ * Bit for bit the same as the Python sampler (`_sample_python`): the comparisons and the arithmetic
+ * are the same IEEE double operations in the same order, log and sqrt are the C library's (those
+ * Python's math.log and math.sqrt call), and the build turns floating-point contraction off
+ * (-ffp-contract=off: no fused multiply-add where the Python code rounds twice).
+ *
+ * sample(probs, uniforms, h, d, cached) -> (accepted, normals, h, d, cached, complete)
+ *   probs     C-contiguous float64 buffer: each hit's probability, in visiting order
+ *   uniforms  C-contiguous float64 buffer: the canonical doubles of the stream, from hit 0's on
+ *   h, d      the next hit to decide and the offset of its uniform (hit h reads uniforms[h + d])
+ *   cached    the normal distribution's cached value (None when it holds none)
+ * Returns the accepted hits (a bytearray of int64) and their normals (a bytearray of float64, three
+ * per hit), and the state after the last accepted hit: complete is False when the uniforms ran out
+ * before every hit was decided (call again with more uniforms from the returned state).
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+
+typedef struct {
+    char *data;
+    Py_ssize_t used, size;
+} growable;
+
+static int grow_append(growable *g, const void *item, Py_ssize_t n) {
+    if (g->used + n > g->size) {
+        Py_ssize_t size = g->size ? g->size : 1024;
+        while (g->used + n > size) size *= 2;
+        char *data = PyMem_Realloc(g->data, (size_t)size);
+        if (data == NULL) {
+            PyErr_NoMemory();
+            return -1;
+        }
+        g->data = data;
+        g->size = size;
+    }
+    memcpy(g->data + g->used, item, (size_t)n);
+    g->used += n;
+    return 0;
+}
+
+static int get_doubles(PyObject *obj, Py_buffer *view, const char *what) {
+    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return -1;
+    if (view->itemsize != (Py_ssize_t)sizeof(double) || view->format == NULL || strcmp(view->format, "d") != 0) {
+        PyBuffer_Release(view);
+        PyErr_Format(PyExc_TypeError, "sample: %s must be a contiguous float64 buffer", what);
+        return -1;
+    }
+    return 0;
+}
+
+/* One round of the polar method from uniform q: 0 with (returned, cached) and the next q, or -1
+ * when it would read past n uniforms. */
+static inline int polar(const double *u, Py_ssize_t n, Py_ssize_t *q, double *returned, double *kept) {
+    double x, y, r2;
+    Py_ssize_t i = *q;
+    for (;;) {
+        if (i + 1 >= n) return -1;
+        x = 2.0 * u[i] - 1.0;
+        y = 2.0 * u[i + 1] - 1.0;
+        i += 2;
+        r2 = x * x + y * y;
+        if (!(r2 > 1.0 || r2 == 0.0)) break;
+    }
+    double mult = sqrt(-2.0 * log(r2) / r2);
+    *returned = y * mult;
+    *kept = x * mult;
+    *q = i;
+    return 0;
+}
+
+static PyObject *sample(PyObject *self, PyObject *args) {
+    PyObject *probs_obj, *uniforms_obj, *cached_obj;
+    Py_ssize_t h, d;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOnnO:sample", &probs_obj, &uniforms_obj, &h, &d, &cached_obj)) return NULL;
+    int has_cached = cached_obj != Py_None;
+    double cached = 0.0;
+    if (has_cached) {
+        cached = PyFloat_AsDouble(cached_obj);
+        if (cached == -1.0 && PyErr_Occurred()) return NULL;
+    }
+    if (h < 0 || d < 0) {
+        PyErr_SetString(PyExc_ValueError, "sample: h and d must be non-negative");
+        return NULL;
+    }
+    Py_buffer pv, uv;
+    if (get_doubles(probs_obj, &pv, "probs") < 0) return NULL;
+    if (get_doubles(uniforms_obj, &uv, "uniforms") < 0) {
+        PyBuffer_Release(&pv);
+        return NULL;
+    }
+    const double *p = (const double *)pv.buf, *u = (const double *)uv.buf;
+    const Py_ssize_t n_hits = pv.len / (Py_ssize_t)sizeof(double);
+    const Py_ssize_t n_u = uv.len / (Py_ssize_t)sizeof(double);
+    growable acc = {NULL, 0, 0}, nor = {NULL, 0, 0};
+    int complete = 1, failed = 0;
+
+    while (h < n_hits) {
+        /* the first hit from h on accepted with offset d */
+        Py_ssize_t e = h, stop = n_hits;
+        if (stop + d > n_u) stop = n_u - d; /* hits whose uniforms are in the buffer */
+        while (e < stop && !(p[e] > u[e + d])) e++;
+        if (e >= stop) {
+            if (stop < n_hits) complete = 0; /* the uniforms ran out: state stays at h, d */
+            else h = n_hits;
+            break;
+        }
+        Py_ssize_t q = e + d + 1; /* the normals start after the accepted hit's uniform */
+        double v[3], keep = 0.0;
+        int keeps;
+        if (!has_cached) {
+            if (polar(u, n_u, &q, &v[0], &v[1]) < 0 || polar(u, n_u, &q, &v[2], &keep) < 0) {
+                complete = 0;
+                break;
+            }
+            keeps = 1;
+        } else {
+            v[0] = cached;
+            if (polar(u, n_u, &q, &v[1], &v[2]) < 0) {
+                complete = 0;
+                break;
+            }
+            keeps = 0;
+        }
+        int64_t index = (int64_t)e;
+        failed = grow_append(&acc, &index, sizeof index) < 0 || grow_append(&nor, v, sizeof v) < 0;
+        if (failed) break;
+        has_cached = keeps;
+        cached = keep;
+        h = e + 1;
+        d = q - e - 1;
+    }
+
+    PyBuffer_Release(&pv);
+    PyBuffer_Release(&uv);
+    PyObject *result = NULL;
+    if (!failed) {
+        PyObject *a = PyByteArray_FromStringAndSize(acc.data ? acc.data : "", acc.used);
+        PyObject *b = PyByteArray_FromStringAndSize(nor.data ? nor.data : "", nor.used);
+        PyObject *c = has_cached ? PyFloat_FromDouble(cached) : (Py_INCREF(Py_None), Py_None);
+        if (a && b && c) result = Py_BuildValue("OOnnOO", a, b, h, d, c, complete ? Py_True : Py_False);
+        Py_XDECREF(a);
+        Py_XDECREF(b);
+        Py_XDECREF(c);
+    }
+    PyMem_Free(acc.data);
+    PyMem_Free(nor.data);
+    return result;
+}
+
+
+/* ------------------------------------------------------------------------------------------------
+ * closures(qx, qy, col_start, col_y, col_m, x0, ylim, colbase, probs, before_query, head, cached)
+ *     -> (k, m, normals, used, cached)
+ *
+ * The loop-closure search and the sampler in one pass, in kollagen's visiting order, without a list
+ * of hits: for each query cell (qx[k], qy[k]) the same-cell check, then the discrete circle's columns
+ * dx = -R..R, each visited dy = 0, 1, -1, 2, -2, ... The table's cells are in columns: column
+ * c = x - x0 holds entries col_start[c] .. col_start[c + 1] - 1, sorted by y, each with its pose
+ * col_m. A hit's probability is probs[rank + 1] (rank -1: the same cell; the circle rank of (dx, dy)
+ * is colbase[dx + R] plus its place in the column); a NaN probability, or with before_query a table
+ * pose not before the query (k <= m), is no candidate and reads no uniform. Every candidate reads the
+ * next uniform and is accepted when its probability exceeds it; an accepted one draws three normals
+ * (the sampler above). head(n) returns a float64 array of at least n uniforms of the stream from
+ * its start (UniformTape.head); it is called again when they run out.
+ * Returns the accepted candidates' queries k and table poses m (bytearrays of int64), their normals
+ * (float64, three each), the uniforms used and the normal distribution's cache.
+ */
+typedef struct {
+    PyObject *head, *array;
+    Py_buffer view;
+    const double *u;
+    Py_ssize_t n;
+} uniform_source;
+
+static int source_grow(uniform_source *s, Py_ssize_t at_least) {
+    Py_ssize_t want = s->n * 2 > at_least ? s->n * 2 : at_least;
+    if (want < 16384) want = 16384; /* the first call: a small dataset's whole search in one */
+    PyObject *array = PyObject_CallFunction(s->head, "n", want);
+    if (array == NULL) return -1;
+    Py_buffer view;
+    if (get_doubles(array, &view, "head(n)") < 0) {
+        Py_DECREF(array);
+        return -1;
+    }
+    if (view.len / (Py_ssize_t)sizeof(double) < at_least) {
+        PyBuffer_Release(&view);
+        Py_DECREF(array);
+        PyErr_SetString(PyExc_ValueError, "closures: head(n) returned fewer than n uniforms");
+        return -1;
+    }
+    if (s->array != NULL) {
+        PyBuffer_Release(&s->view);
+        Py_DECREF(s->array);
+    }
+    s->array = array;
+    s->view = view;
+    s->u = (const double *)view.buf;
+    s->n = view.len / (Py_ssize_t)sizeof(double);
+    return 0;
+}
+
+static int get_int64s(PyObject *obj, Py_buffer *view, const char *what) {
+    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return -1;
+    const char *f = view->format;
+    if (view->itemsize != 8 || f == NULL || !(strcmp(f, "q") == 0 || strcmp(f, "l") == 0)) {
+        PyBuffer_Release(view);
+        PyErr_Format(PyExc_TypeError, "closures: %s must be a contiguous int64 buffer", what);
+        return -1;
+    }
+    return 0;
+}
+
+/* the first index in [lo, hi) whose value is >= v (values sorted) */
+static inline Py_ssize_t lower_bound(const int64_t *a, Py_ssize_t lo, Py_ssize_t hi, int64_t v) {
+    while (lo < hi) {
+        Py_ssize_t mid = lo + (hi - lo) / 2;
+        if (a[mid] < v) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo;
+}
+
+typedef struct {
+    uniform_source src;
+    const double *probs;
+    Py_ssize_t n_probs;
+    int before_query, has_cached;
+    double cached;
+    Py_ssize_t ui; /* the next uniform */
+    growable k, m, nor;
+} closure_state;
+
+/* one candidate (query k, table pose m, probability index r); 0, or -1 with an exception set */
+static inline int candidate(closure_state *st, int64_t k, int64_t m, Py_ssize_t r) {
+    double p = st->probs[r];
+    if (p != p) return 0; /* not a candidate (kollagen's intra-agent offsets off the diagonals) */
+    if (st->before_query && m >= k) return 0; /* not in the map yet */
+    if (st->ui >= st->src.n && source_grow(&st->src, st->ui + 1) < 0) return -1;
+    if (!(p > st->src.u[st->ui])) {
+        st->ui++;
+        return 0;
+    }
+    for (;;) {
+        Py_ssize_t q = st->ui + 1;
+        double v[3], keep = 0.0;
+        int ok;
+        if (!st->has_cached) {
+            ok = polar(st->src.u, st->src.n, &q, &v[0], &v[1]) == 0 && polar(st->src.u, st->src.n, &q, &v[2], &keep) == 0;
+        } else {
+            v[0] = st->cached;
+            ok = polar(st->src.u, st->src.n, &q, &v[1], &v[2]) == 0;
+        }
+        if (!ok) { /* the uniforms ran out inside the normals: more, and draw them again */
+            if (source_grow(&st->src, st->src.n + 64) < 0) return -1;
+            continue;
+        }
+        if (grow_append(&st->k, &k, sizeof k) < 0 || grow_append(&st->m, &m, sizeof m) < 0 ||
+            grow_append(&st->nor, v, sizeof v) < 0)
+            return -1;
+        st->has_cached = !st->has_cached;
+        st->cached = keep;
+        st->ui = q;
+        return 0;
+    }
+}
+
+static PyObject *closures(PyObject *self, PyObject *args) {
+    PyObject *o[9], *head, *cached_obj;
+    Py_ssize_t x0;
+    int before_query;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOOOOnOOOpOO:closures", &o[0], &o[1], &o[2], &o[3], &o[4], &x0, &o[5], &o[6],
+                          &o[7], &before_query, &head, &cached_obj))
+        return NULL;
+    static const char *names[] = {"qx", "qy", "col_start", "col_y", "col_m", "ylim", "colbase"};
+    Py_buffer v[8];
+    int got = 0;
+    PyObject *result = NULL;
+    closure_state st;
+    memset(&st, 0, sizeof st);
+    st.src.head = head;
+    st.before_query = before_query;
+    st.has_cached = cached_obj != Py_None;
+    if (st.has_cached) {
+        st.cached = PyFloat_AsDouble(cached_obj);
+        if (st.cached == -1.0 && PyErr_Occurred()) return NULL;
+    }
+    for (; got < 7; got++)
+        if (get_int64s(o[got], &v[got], names[got]) < 0) goto done;
+    if (get_doubles(o[7], &v[7], "probs") < 0) goto done;
+    got = 8;
+    {
+        const int64_t *qx = v[0].buf, *qy = v[1].buf, *col_start = v[2].buf, *col_y = v[3].buf, *col_m = v[4].buf;
+        const int64_t *ylim = v[5].buf, *colbase = v[6].buf;
+        const Py_ssize_t nq = v[0].len / 8, n_cols = v[2].len / 8 - 1, n_table = v[3].len / 8;
+        const Py_ssize_t side = v[5].len / 8, R = (side - 1) / 2;
+        st.probs = v[7].buf;
+        st.n_probs = v[7].len / 8;
+        if (v[1].len != v[0].len || n_cols < 0 || v[4].len != v[3].len || side % 2 != 1 || v[6].len != v[5].len ||
+            st.n_probs < 1) {
+            PyErr_SetString(PyExc_ValueError, "closures: inconsistent lengths");
+            goto done;
+        }
+        if (n_cols > 0 && col_start[n_cols] != n_table) {
+            PyErr_SetString(PyExc_ValueError, "closures: col_start does not end at the table's length");
+            goto done;
+        }
+        for (Py_ssize_t j = 0; j < side; j++)
+            if (colbase[j] < 0 || colbase[j] + 2 * ylim[j] + 1 >= st.n_probs) {
+                PyErr_SetString(PyExc_ValueError, "closures: probs shorter than the circle");
+                goto done;
+            }
+        if (source_grow(&st.src, 1) < 0) goto done;
+        for (Py_ssize_t k = 0; k < nq; k++) {
+            const int64_t x = qx[k], y = qy[k];
+            const int64_t c0 = x - x0;
+            /* the same-cell check comes first */
+            if (c0 >= 0 && c0 < n_cols) {
+                Py_ssize_t lo = col_start[c0], hi = col_start[c0 + 1];
+                Py_ssize_t at = lower_bound(col_y, lo, hi, y);
+                if (at < hi && col_y[at] == y && candidate(&st, k, col_m[at], 0) < 0) goto done;
+            }
+            for (Py_ssize_t j = 0; j < side; j++) {
+                const int64_t dx = (int64_t)j - R, c = c0 + dx;
+                if (c < 0 || c >= n_cols) continue;
+                Py_ssize_t lo = col_start[c], hi = col_start[c + 1];
+                if (lo == hi) continue;
+                const int64_t yl = ylim[j];
+                Py_ssize_t a = lower_bound(col_y, lo, hi, y - yl);
+                Py_ssize_t b = lower_bound(col_y, a, hi, y + yl + 1);
+                if (a == b) continue;
+                Py_ssize_t up = lower_bound(col_y, a, b, y), dn = up - 1;
+                const Py_ssize_t base = colbase[j] + 1; /* probs index of the column's dy = 0 */
+                while (up < b || dn >= a) {
+                    Py_ssize_t at, r;
+                    if (up < b && (dn < a || col_y[up] - y <= y - col_y[dn])) {
+                        const int64_t dy = col_y[up] - y;
+                        at = up++;
+                        if (dy == 0) {
+                            if (dx == 0) continue; /* the same cell, checked first */
+                            r = base;
+                        } else {
+                            r = base + 2 * dy - 1;
+                        }
+                    } else {
+                        at = dn--;
+                        r = base + 2 * (y - col_y[at]);
+                    }
+                    if (candidate(&st, k, col_m[at], r) < 0) goto done;
+                }
+            }
+        }
+        PyObject *ka = PyByteArray_FromStringAndSize(st.k.data ? st.k.data : "", st.k.used);
+        PyObject *ma = PyByteArray_FromStringAndSize(st.m.data ? st.m.data : "", st.m.used);
+        PyObject *na = PyByteArray_FromStringAndSize(st.nor.data ? st.nor.data : "", st.nor.used);
+        PyObject *ca = st.has_cached ? PyFloat_FromDouble(st.cached) : (Py_INCREF(Py_None), Py_None);
+        if (ka && ma && na && ca) result = Py_BuildValue("OOOnO", ka, ma, na, st.ui, ca);
+        Py_XDECREF(ka);
+        Py_XDECREF(ma);
+        Py_XDECREF(na);
+        Py_XDECREF(ca);
+    }
+done:
+    for (int i = 0; i < got; i++) PyBuffer_Release(&v[i]);
+    if (st.src.array != NULL) {
+        PyBuffer_Release(&st.src.view);
+        Py_DECREF(st.src.array);
+    }
+    PyMem_Free(st.k.data);
+    PyMem_Free(st.m.data);
+    PyMem_Free(st.nor.data);
+    return result;
+}
+
+static PyMethodDef methods[] = {
+    {"sample", sample, METH_VARARGS, "Decide loop-closure hits in order (see the module's source)."},
+    {"closures", closures, METH_VARARGS, "Search and sample loop closures in one pass (see the module's source)."},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_sampler", "kollagen's loop-closure sampler, compiled.",
+                                    -1, methods};
+
+PyMODINIT_FUNC PyInit__sampler(void) { return PyModule_Create(&module); }

@@ -1,0 +1,158 @@
+"""The compiled loop-closure search and sampler (``closures`` in generator/_sampler.c) against kollagen's
+plain loop (per query the same cell, then every circle offset; one uniform per candidate, three
+normals per accepted one), and whole datasets with the compiled kernels against numpy and Python."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from studio.generator import loop_closures
+from studio.generator.loop_closures import _CircleTable, _columns, _compiled_search, _visits, discrete_circle
+from studio.generator.rng import MT19937Stream, UniformTape
+from studio.synth import generate, load_synth_config
+from tests.generator.test_sampling import _polar
+
+pytestmark = pytest.mark.skipif(
+    loop_closures._compiled_closures is None, reason="the compiled kernels were not built (no C compiler)"
+)
+
+
+def _plain_closures(qx, qy, tx, ty, table_pose, radius, probs, before_query, u):
+    """kollagen's loop, hit by hit, with probabilities by rank + 1 (NaN: not a candidate)."""
+    where = {(x, y): m for x, y, m in zip(tx.tolist(), ty.tolist(), table_pose.tolist())}
+    circle = discrete_circle(radius).tolist()
+    order = [(0, 0, 0)] + [(dx, dy, r + 1) for r, (dx, dy) in enumerate(circle) if (dx, dy) != (0, 0)]
+    q, cached, ks, ms, normals = 0, None, [], [], []
+    for k, (x, y) in enumerate(zip(qx.tolist(), qy.tolist())):
+        for dx, dy, r in order:
+            m = where.get((x + dx, y + dy))
+            if m is None or math.isnan(probs[r]) or (before_query and m >= k):
+                continue
+            q += 1
+            if not probs[r] > u[q - 1]:
+                continue
+            ks.append(k)
+            ms.append(m)
+            for _ in range(3):
+                if cached is None:
+                    value, cached, q = _polar(u, q)
+                else:
+                    value, cached = cached, None
+                normals.append(value)
+    return ks, ms, normals, q
+
+
+@pytest.mark.parametrize("before_query", [False, True])
+@pytest.mark.parametrize("trial", range(10))
+def test_closures_match_kollagens_plain_loop(trial, before_query):
+    rng = np.random.default_rng(trial)
+    radius = int(rng.integers(1, 8))
+    side = int(rng.integers(2, 25))
+    # a walk's cells (repeats, negative coordinates, gaps between columns); the table is its first
+    # (or last) visit of each cell, as the generator's maps keep them
+    walk = np.cumsum(rng.integers(-1, 2, size=(int(rng.integers(1, 600)), 2)), axis=0)
+    walk = np.clip(walk, -side, side) + rng.integers(-3, 4, size=2) * side
+    cx, cy = walk[:, 0].astype(np.int64), walk[:, 1].astype(np.int64)
+    visits = _visits(cx, cy, "first" if before_query else "last")
+    qx, qy = (cx, cy) if before_query else tuple(rng.integers(-side, side, size=(2, 300)) + walk[0][:, None])
+    circle = _CircleTable(radius)
+    probs = np.exp(-rng.random(circle.size + 1) * rng.choice([1.0, 5.0, 20.0]))
+    probs[rng.random(len(probs)) < 0.3] = np.nan  # excluded offsets (kollagen's intra-agent diagonals)
+    probs[0] = rng.choice([0.0, 0.5, 1.0])
+    seed = int(rng.integers(0, 2**31))
+    u = UniformTape(MT19937Stream(seed)).head(4 * len(qx) * (circle.size + 1) + 1000).tolist()
+
+    want = _plain_closures(qx, qy, cx[visits], cy[visits], visits, radius, probs.tolist(), before_query, u)
+    k, m, normals, used = _compiled_search(
+        qx, qy, _columns(cx, cy, visits), visits, circle, probs, before_query, UniformTape(MT19937Stream(seed))
+    )
+
+    assert len(want[0]) > 0
+    assert (k.tolist(), m.tolist(), normals.ravel().tolist(), used) == want  # bit for bit
+
+
+def test_closures_grow_the_uniforms_they_read():
+    # many candidates: the kernel asks its tape for more uniforms (doubling) until every one is decided
+    cx = np.repeat(np.arange(40, dtype=np.int64), 40)
+    cy = np.tile(np.arange(40, dtype=np.int64), 40)
+    visits = _visits(cx, cy, "last")
+    circle = _CircleTable(6)
+    probs = np.full(circle.size + 1, 0.3)
+    asked = []
+
+    class Tape(UniformTape):
+        def head(self, n):
+            asked.append(n)
+            return super().head(n)
+
+    k, m, normals, used = _compiled_search(
+        cx, cy, _columns(cx, cy, visits), visits, circle, probs, False, Tape(MT19937Stream(3))
+    )
+    u = UniformTape(MT19937Stream(3)).head(used + 10).tolist()
+    assert len(asked) > 3 and used > 100_000
+    assert (k.tolist(), m.tolist(), normals.ravel().tolist(), used) == _plain_closures(
+        cx, cy, cx[visits], cy[visits], visits, 6, probs.tolist(), False, u
+    )
+
+
+@pytest.mark.parametrize("bad", ["probs", "col_start", "dtype"])
+def test_closures_refuse_inconsistent_tables(bad):
+    cx = np.arange(10, dtype=np.int64)
+    visits = _visits(cx, cx, "last")
+    x0, col_start, col_y = _columns(cx, cx, visits)
+    circle = _CircleTable(3)
+    probs = np.full(circle.size + 1, 0.5)
+    args = [
+        cx,
+        cx,
+        col_start,
+        col_y,
+        visits,
+        x0,
+        circle.ylim,
+        circle.colbase,
+        probs,
+        False,
+        UniformTape(MT19937Stream(1)).head,
+        None,
+    ]
+    if bad == "probs":
+        args[8] = probs[:-1]
+    elif bad == "col_start":
+        args[2] = col_start[:-1]
+    else:
+        args[3] = col_y.astype(np.int32)
+    with pytest.raises((ValueError, TypeError)):
+        loop_closures._compiled_closures(*args)
+
+
+def _arrays(graph):
+    out = []
+    for a in graph.agents:
+        out += [a.initial, a.ground_truth, a.odometry.from_index, a.odometry.to_index, a.odometry.measurements]
+        out += [a.loop_closures.from_index, a.loop_closures.to_index, a.loop_closures.measurements]
+        out += [a.loop_closures.information_upper]
+    i = graph.inter
+    return out + [i.from_agent, i.from_index, i.to_agent, i.to_index, i.measurements, i.information_upper]
+
+
+@pytest.mark.parametrize("radius_m", [1.0, 2.5, 5.0, 9.0])
+def test_datasets_are_the_same_with_and_without_the_compiled_kernels(radius_m, monkeypatch):
+    base = load_synth_config("tests/data/configs/small3x100.json")
+    agents = tuple(
+        dataclasses.replace(a, intra_loop_closure_radius=radius_m, same_position_intra_loop_closure_probability=0.7)
+        for a in base.agents
+    )
+    cfg = dataclasses.replace(base, agents=agents, inter=dataclasses.replace(base.inter, loop_closure_radius=radius_m))
+    for seed in range(3):
+        compiled = _arrays(generate(cfg, seed=seed))
+        with monkeypatch.context() as patch:
+            patch.setattr(loop_closures, "_compiled_closures", None)
+            patch.setattr(loop_closures, "_compiled_sample", None)
+            plain = _arrays(generate(cfg, seed=seed))
+        assert sum(len(v) for v in compiled[-6:]) > 0  # inter-agent closures were drawn
+        assert len(compiled) == len(plain)
+        for a, b in zip(compiled, plain):
+            assert a.dtype == b.dtype and np.array_equal(a, b)  # every bit (no NaN in a dataset)
