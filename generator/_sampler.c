@@ -160,7 +160,7 @@ static PyObject *sample(PyObject *self, PyObject *args) {
 
 
 /* ------------------------------------------------------------------------------------------------
- * closures(qx, qy, col_start, col_y, col_m, x0, ylim, colbase, probs, before_query, head, cached)
+ * closures(qx, qy, col_start, col_y, col_m, x0, ylim, colbase, probs, before_query, seed, skip, cached)
  *     -> (k, m, normals, used, cached)
  *
  * The loop-closure search and the sampler in one pass, in kollagen's visiting order, without a list
@@ -171,42 +171,85 @@ static PyObject *sample(PyObject *self, PyObject *args) {
  * is colbase[dx + R] plus its place in the column); a NaN probability, or with before_query a table
  * pose not before the query (k <= m), is no candidate and reads no uniform. Every candidate reads the
  * next uniform and is accepted when its probability exceeds it; an accepted one draws three normals
- * (the sampler above). head(n) returns a float64 array of at least n uniforms of the stream from
- * its start (UniformTape.head); it is called again when they run out.
+ * (the sampler above). The uniforms are those of std::mt19937(seed) from word skip on (the words
+ * the stream's earlier draws read; uniforms are word pairs from there), decoded as they are needed.
  * Returns the accepted candidates' queries k and table poses m (bytearrays of int64), their normals
- * (float64, three each), the uniforms used and the normal distribution's cache.
+ * (float64, three each), the uniforms used (two words each) and the normal distribution's cache.
  */
+/* std::mt19937 (MT19937, init_genrand seeding: what numpy's RandomState(seed) does too) and
+ * libstdc++'s generate_canonical<double, 53> on its words (studio.generator.rng.canonical_doubles). */
+enum { MT_N = 624, MT_M = 397 };
+
 typedef struct {
-    PyObject *head, *array;
-    Py_buffer view;
-    const double *u;
-    Py_ssize_t n;
+    uint32_t mt[MT_N];
+    int i;
+} mt19937;
+
+static void mt_seed(mt19937 *g, uint32_t seed) {
+    g->mt[0] = seed;
+    for (int i = 1; i < MT_N; i++) g->mt[i] = 1812433253U * (g->mt[i - 1] ^ (g->mt[i - 1] >> 30)) + (uint32_t)i;
+    g->i = MT_N;
+}
+
+static inline uint32_t mt_next(mt19937 *g) {
+    if (g->i >= MT_N) {
+        int k;
+        uint32_t y;
+        for (k = 0; k < MT_N - MT_M; k++) {
+            y = (g->mt[k] & 0x80000000U) | (g->mt[k + 1] & 0x7fffffffU);
+            g->mt[k] = g->mt[k + MT_M] ^ (y >> 1) ^ ((y & 1U) ? 0x9908b0dfU : 0U);
+        }
+        for (; k < MT_N - 1; k++) {
+            y = (g->mt[k] & 0x80000000U) | (g->mt[k + 1] & 0x7fffffffU);
+            g->mt[k] = g->mt[k + (MT_M - MT_N)] ^ (y >> 1) ^ ((y & 1U) ? 0x9908b0dfU : 0U);
+        }
+        y = (g->mt[MT_N - 1] & 0x80000000U) | (g->mt[0] & 0x7fffffffU);
+        g->mt[MT_N - 1] = g->mt[MT_M - 1] ^ (y >> 1) ^ ((y & 1U) ? 0x9908b0dfU : 0U);
+        g->i = 0;
+    }
+    uint32_t y = g->mt[g->i++];
+    y ^= y >> 11;
+    y ^= (y << 7) & 0x9d2c5680U;
+    y ^= (y << 15) & 0xefc60000U;
+    y ^= y >> 18;
+    return y;
+}
+
+/* A window of the stream's canonical doubles: uniform base + j is buf[j], j < len. */
+typedef struct {
+    mt19937 gen;
+    double *buf;
+    Py_ssize_t cap, len, base;
 } uniform_source;
 
-static int source_grow(uniform_source *s, Py_ssize_t at_least) {
-    Py_ssize_t want = s->n * 2 > at_least ? s->n * 2 : at_least;
-    if (want < 16384) want = 16384; /* the first call: a small dataset's whole search in one */
-    PyObject *array = PyObject_CallFunction(s->head, "n", want);
-    if (array == NULL) return -1;
-    Py_buffer view;
-    if (get_doubles(array, &view, "head(n)") < 0) {
-        Py_DECREF(array);
-        return -1;
+/* Drop the uniforms before keep_from and decode new ones until the window holds those up to end
+ * (exclusive) and is full; 0, or -1 with an exception set. */
+static int source_fill(uniform_source *s, Py_ssize_t keep_from, Py_ssize_t end) {
+    Py_ssize_t drop = keep_from - s->base;
+    if (drop > 0) {
+        memmove(s->buf, s->buf + drop, (size_t)(s->len - drop) * sizeof(double));
+        s->len -= drop;
+        s->base = keep_from;
     }
-    if (view.len / (Py_ssize_t)sizeof(double) < at_least) {
-        PyBuffer_Release(&view);
-        Py_DECREF(array);
-        PyErr_SetString(PyExc_ValueError, "closures: head(n) returned fewer than n uniforms");
-        return -1;
+    if (end - s->base > s->cap) {
+        Py_ssize_t cap = s->cap ? s->cap : 4096;
+        while (cap < end - s->base) cap *= 2;
+        double *buf = PyMem_Realloc(s->buf, (size_t)cap * sizeof(double));
+        if (buf == NULL) {
+            PyErr_NoMemory();
+            return -1;
+        }
+        s->buf = buf;
+        s->cap = cap;
     }
-    if (s->array != NULL) {
-        PyBuffer_Release(&s->view);
-        Py_DECREF(s->array);
+    const double two32 = 4294967296.0, below_one = nextafter(1.0, 0.0);
+    while (s->len < s->cap) {
+        uint32_t lo = mt_next(&s->gen), hi = mt_next(&s->gen);
+        double v = (double)hi * two32; /* exact */
+        v += (double)lo;               /* one rounding, as libstdc++'s sum */
+        v *= 1.0 / 18446744073709551616.0; /* exact: a power of two */
+        s->buf[s->len++] = v < below_one ? v : below_one;
     }
-    s->array = array;
-    s->view = view;
-    s->u = (const double *)view.buf;
-    s->n = view.len / (Py_ssize_t)sizeof(double);
     return 0;
 }
 
@@ -246,23 +289,25 @@ static inline int candidate(closure_state *st, int64_t k, int64_t m, Py_ssize_t 
     double p = st->probs[r];
     if (p != p) return 0; /* not a candidate (kollagen's intra-agent offsets off the diagonals) */
     if (st->before_query && m >= k) return 0; /* not in the map yet */
-    if (st->ui >= st->src.n && source_grow(&st->src, st->ui + 1) < 0) return -1;
-    if (!(p > st->src.u[st->ui])) {
+    uniform_source *src = &st->src;
+    if (st->ui >= src->base + src->len && source_fill(src, st->ui, st->ui + 1) < 0) return -1;
+    if (!(p > src->buf[st->ui - src->base])) {
         st->ui++;
         return 0;
     }
+    if (st->ui + 64 > src->base + src->len && source_fill(src, st->ui, st->ui + 64) < 0) return -1;
     for (;;) {
-        Py_ssize_t q = st->ui + 1;
+        Py_ssize_t q = st->ui + 1 - src->base; /* in the window */
         double v[3], keep = 0.0;
         int ok;
         if (!st->has_cached) {
-            ok = polar(st->src.u, st->src.n, &q, &v[0], &v[1]) == 0 && polar(st->src.u, st->src.n, &q, &v[2], &keep) == 0;
+            ok = polar(src->buf, src->len, &q, &v[0], &v[1]) == 0 && polar(src->buf, src->len, &q, &v[2], &keep) == 0;
         } else {
             v[0] = st->cached;
-            ok = polar(st->src.u, st->src.n, &q, &v[1], &v[2]) == 0;
+            ok = polar(src->buf, src->len, &q, &v[1], &v[2]) == 0;
         }
-        if (!ok) { /* the uniforms ran out inside the normals: more, and draw them again */
-            if (source_grow(&st->src, st->src.n + 64) < 0) return -1;
+        if (!ok) { /* the window ended inside the normals: a longer one, and draw them again */
+            if (source_fill(src, st->ui, src->base + src->len + 64) < 0) return -1;
             continue;
         }
         if (grow_append(&st->k, &k, sizeof k) < 0 || grow_append(&st->m, &m, sizeof m) < 0 ||
@@ -270,26 +315,33 @@ static inline int candidate(closure_state *st, int64_t k, int64_t m, Py_ssize_t 
             return -1;
         st->has_cached = !st->has_cached;
         st->cached = keep;
-        st->ui = q;
+        st->ui = q + src->base;
         return 0;
     }
 }
 
 static PyObject *closures(PyObject *self, PyObject *args) {
-    PyObject *o[9], *head, *cached_obj;
-    Py_ssize_t x0;
+    PyObject *o[9], *cached_obj;
+    Py_ssize_t x0, skip;
+    long long seed;
     int before_query;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OOOOOnOOOpOO:closures", &o[0], &o[1], &o[2], &o[3], &o[4], &x0, &o[5], &o[6],
-                          &o[7], &before_query, &head, &cached_obj))
+    if (!PyArg_ParseTuple(args, "OOOOOnOOOpLnO:closures", &o[0], &o[1], &o[2], &o[3], &o[4], &x0, &o[5], &o[6],
+                          &o[7], &before_query, &seed, &skip, &cached_obj))
         return NULL;
+    if (skip < 0) {
+        PyErr_SetString(PyExc_ValueError, "closures: skip must be a number of words >= 0");
+        return NULL;
+    }
     static const char *names[] = {"qx", "qy", "col_start", "col_y", "col_m", "ylim", "colbase"};
     Py_buffer v[8];
     int got = 0;
     PyObject *result = NULL;
     closure_state st;
     memset(&st, 0, sizeof st);
-    st.src.head = head;
+    /* the stream of std::mt19937(seed) (seed modulo 2**32, as C++ converts it), words before skip read */
+    mt_seed(&st.src.gen, (uint32_t)((unsigned long long)seed & 0xffffffffULL));
+    for (Py_ssize_t w = 0; w < skip; w++) (void)mt_next(&st.src.gen);
     st.before_query = before_query;
     st.has_cached = cached_obj != Py_None;
     if (st.has_cached) {
@@ -321,7 +373,7 @@ static PyObject *closures(PyObject *self, PyObject *args) {
                 PyErr_SetString(PyExc_ValueError, "closures: probs shorter than the circle");
                 goto done;
             }
-        if (source_grow(&st.src, 1) < 0) goto done;
+        if (source_fill(&st.src, 0, 1) < 0) goto done;
         for (Py_ssize_t k = 0; k < nq; k++) {
             const int64_t x = qx[k], y = qy[k];
             const int64_t c0 = x - x0;
@@ -373,10 +425,7 @@ static PyObject *closures(PyObject *self, PyObject *args) {
     }
 done:
     for (int i = 0; i < got; i++) PyBuffer_Release(&v[i]);
-    if (st.src.array != NULL) {
-        PyBuffer_Release(&st.src.view);
-        Py_DECREF(st.src.array);
-    }
+    PyMem_Free(st.src.buf);
     PyMem_Free(st.k.data);
     PyMem_Free(st.m.data);
     PyMem_Free(st.nor.data);

@@ -1,6 +1,5 @@
 """Types of the compiled loop-closure sampler (generator/_sampler.c)."""
 
-from collections.abc import Callable
 from typing import Any
 
 def sample(
@@ -17,7 +16,8 @@ def closures(
     colbase: Any,
     probs: Any,
     before_query: bool,
-    head: Callable[[int], Any],
+    seed: int,
+    skip: int,
     cached: float | None,
     /,
 ) -> tuple[bytearray, bytearray, bytearray, int, float | None]: ...

@@ -155,12 +155,14 @@ def _compiled_search(
     circle: _CircleTable,
     prob_by_rank: np.ndarray,
     before_query: bool,
-    tape: UniformTape,
+    seed: int,
+    skip: int,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """The hit search and :func:`_sample` in one compiled pass (``closures`` in
-    ``generator/_sampler.c``): the accepted hits' queries and table poses, their ``(n, 3)`` normals
-    and the uniforms used. NaN probabilities and, with ``before_query``, table poses not before the
-    query are no candidates."""
+    ``generator/_sampler.c``), reading the uniforms of ``std::mt19937(seed)`` from word ``skip`` on
+    (the kernel runs the same Mersenne Twister as :class:`MT19937Stream`): the accepted hits' queries
+    and table poses, their ``(n, 3)`` normals and the uniforms used. NaN probabilities and, with
+    ``before_query``, table poses not before the query are no candidates."""
     x0, col_start, col_y = table
     k, m, normals, used, _ = _compiled_closures(
         np.ascontiguousarray(qx, dtype=np.int64),
@@ -173,7 +175,8 @@ def _compiled_search(
         circle.colbase,
         np.ascontiguousarray(prob_by_rank, dtype=np.float64),
         before_query,
-        tape.head,
+        seed,
+        skip,
         None,
     )
     return (
@@ -575,7 +578,7 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     columns = _columns(cx, cy, visits) if _compiled_closures is not None else None
     if columns is not None:
         i_to, j_from, noise, used = _compiled_search(
-            cx, cy, columns, visits, circle, allowed, True, UniformTape(stream)
+            cx, cy, columns, visits, circle, allowed, True, stream.seed, stream.position
         )
         stream.advance(2 * used)
         return _intra_edges(walk, agent, i_to, j_from, noise)
@@ -658,7 +661,7 @@ class _InterPairs:
         columns = _columns(ax, ay, last) if _compiled_closures is not None else None
         if columns is not None:
             i_from, j_to, noise, _ = _compiled_search(
-                bx, by, columns, last, self._circle, self._prob_by_rank, False, self._tape
+                bx, by, columns, last, self._circle, self._prob_by_rank, False, self._stream.seed, 0
             )
         else:
             hits = _Hits(bx, by, ax[last], ay[last], self._circle, self._prob_by_rank)

@@ -91,9 +91,12 @@ class MT19937Stream:
         have = self._start + len(self._words)
         if end <= have:
             return
-        need = max(end - have, _BLOCK_WORDS)
         if self._state is None:
             raise RuntimeError("MT19937Stream: words asked for after release()")
+        if self.position > have:  # advanced past the words drawn (another reader of the stream read them)
+            self._state.randint(0, 1 << 32, size=self.position - have, dtype=np.uint32)
+            self._words, self._start, have = self._words[:0], self.position, self.position
+        need = max(end - have, _BLOCK_WORDS)
         fresh = self._state.randint(0, 1 << 32, size=need, dtype=np.uint32)
         keep = self._words[self.position - self._start :]
         self._start = self.position

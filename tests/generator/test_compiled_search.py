@@ -66,32 +66,23 @@ def test_closures_match_kollagens_plain_loop(trial, before_query):
 
     want = _plain_closures(qx, qy, cx[visits], cy[visits], visits, radius, probs.tolist(), before_query, u)
     k, m, normals, used = _compiled_search(
-        qx, qy, _columns(cx, cy, visits), visits, circle, probs, before_query, UniformTape(MT19937Stream(seed))
+        qx, qy, _columns(cx, cy, visits), visits, circle, probs, before_query, seed, 0
     )
 
     assert len(want[0]) > 0
     assert (k.tolist(), m.tolist(), normals.ravel().tolist(), used) == want  # bit for bit
 
 
-def test_closures_grow_the_uniforms_they_read():
-    # many candidates: the kernel asks its tape for more uniforms (doubling) until every one is decided
+def test_closures_read_the_stream_past_many_windows():
+    # many candidates: the kernel decodes its stream's uniforms a window at a time
     cx = np.repeat(np.arange(40, dtype=np.int64), 40)
     cy = np.tile(np.arange(40, dtype=np.int64), 40)
     visits = _visits(cx, cy, "last")
     circle = _CircleTable(6)
     probs = np.full(circle.size + 1, 0.3)
-    asked = []
-
-    class Tape(UniformTape):
-        def head(self, n):
-            asked.append(n)
-            return super().head(n)
-
-    k, m, normals, used = _compiled_search(
-        cx, cy, _columns(cx, cy, visits), visits, circle, probs, False, Tape(MT19937Stream(3))
-    )
+    k, m, normals, used = _compiled_search(cx, cy, _columns(cx, cy, visits), visits, circle, probs, False, 3, 0)
     u = UniformTape(MT19937Stream(3)).head(used + 10).tolist()
-    assert len(asked) > 3 and used > 100_000
+    assert used > 100_000  # many windows of the kernel's uniforms
     assert (k.tolist(), m.tolist(), normals.ravel().tolist(), used) == _plain_closures(
         cx, cy, cx[visits], cy[visits], visits, 6, probs.tolist(), False, u
     )
@@ -115,7 +106,8 @@ def test_closures_refuse_inconsistent_tables(bad):
         circle.colbase,
         probs,
         False,
-        UniformTape(MT19937Stream(1)).head,
+        1,
+        0,
         None,
     ]
     if bad == "probs":
@@ -156,3 +148,29 @@ def test_datasets_are_the_same_with_and_without_the_compiled_kernels(radius_m, m
         assert len(compiled) == len(plain)
         for a, b in zip(compiled, plain):
             assert a.dtype == b.dtype and np.array_equal(a, b)  # every bit (no NaN in a dataset)
+
+
+@pytest.mark.parametrize("skip", [1, 2, 3, 625, 1249])
+def test_closures_read_the_stream_from_any_word(skip):
+    # an agent's walk reads an odd number of words now and then (its integer draws take one each):
+    # the intra-agent search's uniforms are the word pairs from there
+    rng = np.random.default_rng(skip)
+    walk = np.cumsum(rng.integers(-1, 2, size=(400, 2)), axis=0)
+    cx, cy = walk[:, 0].astype(np.int64), walk[:, 1].astype(np.int64)
+    visits = _visits(cx, cy, "first")
+    circle = _CircleTable(4)
+    probs = np.full(circle.size + 1, 0.2)
+    stream = MT19937Stream(-7)
+    stream.advance(skip)
+    u = UniformTape(stream).head(200_000).tolist()
+    got = _compiled_search(cx, cy, _columns(cx, cy, visits), visits, circle, probs, True, -7, skip)
+    want = _plain_closures(cx, cy, cx[visits], cy[visits], visits, 4, probs.tolist(), True, u)
+    assert len(want[0]) > 10
+    assert (got[0].tolist(), got[1].tolist(), got[2].ravel().tolist(), got[3]) == want
+
+
+def test_a_stream_advanced_past_its_drawn_words_reads_on_from_there():
+    stream = MT19937Stream(11)
+    stream.words(3)  # a block drawn
+    stream.advance(10_000)  # another reader (the compiled search) read far past it
+    assert np.array_equal(stream.words(5), MT19937Stream(11).words(10_005)[10_000:])
