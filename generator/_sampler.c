@@ -432,9 +432,120 @@ done:
     return result;
 }
 
+/* ------------------------------------------------------------------------------------------------
+ * walk(seed, n_steps, frag, retro) -> (turns, n_pos, n_ang, words)
+ *
+ * kollagen's random walk draws from std::mt19937(seed), from its first word, in its order
+ * (studio.generator.walk._walk_draws): per step one integer, uniform_int_distribution(-1, 1 + retro)
+ * by Lemire's multiply-shift with rejection of the biased low products; then per sub-step one
+ * normal_distribution round, whose returned value (y * mult) is the position normal and whose cached
+ * one (x * mult) the angle normal. Returns the turns (int64), the normals (float64, frag per step)
+ * and the words read.
+ */
+static inline double canonical(uint32_t lo, uint32_t hi) {
+    double v = (double)hi * 4294967296.0; /* exact */
+    v += (double)lo;                      /* one rounding */
+    v *= 1.0 / 18446744073709551616.0;    /* exact */
+    const double below_one = nextafter(1.0, 0.0);
+    return v < below_one ? v : below_one;
+}
+
+static PyObject *walk(PyObject *self, PyObject *args) {
+    long long seed;
+    Py_ssize_t n_steps, frag;
+    int retro;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "Lnnp:walk", &seed, &n_steps, &frag, &retro)) return NULL;
+    if (n_steps < 0 || frag < 1 || n_steps > PY_SSIZE_T_MAX / 8 / frag) {
+        PyErr_SetString(PyExc_ValueError, "walk: n_steps >= 0 and frag >= 1 expected");
+        return NULL;
+    }
+    PyObject *turns = PyByteArray_FromStringAndSize(NULL, n_steps * 8);
+    PyObject *npos = PyByteArray_FromStringAndSize(NULL, n_steps * frag * 8);
+    PyObject *nang = PyByteArray_FromStringAndSize(NULL, n_steps * frag * 8);
+    if (turns == NULL || npos == NULL || nang == NULL) {
+        Py_XDECREF(turns);
+        Py_XDECREF(npos);
+        Py_XDECREF(nang);
+        return NULL;
+    }
+    int64_t *t = (int64_t *)PyByteArray_AS_STRING(turns);
+    double *pos = (double *)PyByteArray_AS_STRING(npos), *ang = (double *)PyByteArray_AS_STRING(nang);
+    mt19937 g;
+    mt_seed(&g, (uint32_t)((unsigned long long)seed & 0xffffffffULL));
+    const uint64_t span = 3 + (uint64_t)retro;
+    const uint32_t threshold = (uint32_t)((((uint64_t)1 << 32) - span) % span);
+    long long words = 0;
+    for (Py_ssize_t s = 0, j = 0; s < n_steps; s++) {
+        uint64_t prod;
+        do {
+            prod = (uint64_t)mt_next(&g) * span;
+            words++;
+        } while ((uint32_t)prod < threshold);
+        t[s] = (int64_t)(prod >> 32) - 1;
+        for (Py_ssize_t f = 0; f < frag; f++, j++) {
+            double x, y, r2;
+            do {
+                uint32_t w0 = mt_next(&g), w1 = mt_next(&g), w2 = mt_next(&g), w3 = mt_next(&g);
+                words += 4;
+                x = 2.0 * canonical(w0, w1) - 1.0;
+                y = 2.0 * canonical(w2, w3) - 1.0;
+                r2 = x * x + y * y;
+            } while (r2 > 1.0 || r2 == 0.0);
+            double mult = sqrt(-2.0 * log(r2) / r2);
+            pos[j] = y * mult;
+            ang[j] = x * mult;
+        }
+    }
+    return Py_BuildValue("NNNL", turns, npos, nang, words);
+}
+
+/* ------------------------------------------------------------------------------------------------
+ * headings(odom_ang) -> (theta, cos, sin)
+ *
+ * kollagen's dead-reckoned heading from 0 (studio.generator.walk._dead_reckon): after every edge
+ * t = t + a, then t = t - floor((t + pi) / (2 pi)) * 2.0 * pi, in that order; theta holds the n + 1
+ * headings, cos and sin (the C library's) those of theta[1:].
+ */
+static PyObject *headings(PyObject *self, PyObject *args) {
+    PyObject *obj;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "O:headings", &obj)) return NULL;
+    Py_buffer v;
+    if (get_doubles(obj, &v, "odom_ang") < 0) return NULL;
+    const double *a = v.buf;
+    const Py_ssize_t n = v.len / 8;
+    PyObject *th = PyByteArray_FromStringAndSize(NULL, (n + 1) * 8);
+    PyObject *co = PyByteArray_FromStringAndSize(NULL, n * 8);
+    PyObject *si = PyByteArray_FromStringAndSize(NULL, n * 8);
+    if (th == NULL || co == NULL || si == NULL) {
+        PyBuffer_Release(&v);
+        Py_XDECREF(th);
+        Py_XDECREF(co);
+        Py_XDECREF(si);
+        return NULL;
+    }
+    double *theta = (double *)PyByteArray_AS_STRING(th), *c = (double *)PyByteArray_AS_STRING(co);
+    double *s = (double *)PyByteArray_AS_STRING(si);
+    const double pi = 3.141592653589793, two_pi = 2 * 3.141592653589793;
+    double t = 0.0;
+    theta[0] = 0.0;
+    for (Py_ssize_t k = 0; k < n; k++) {
+        t = t + a[k];
+        t = t - floor((t + pi) / two_pi) * 2.0 * pi;
+        theta[k + 1] = t;
+        c[k] = cos(t);
+        s[k] = sin(t);
+    }
+    PyBuffer_Release(&v);
+    return Py_BuildValue("NNN", th, co, si);
+}
+
 static PyMethodDef methods[] = {
     {"sample", sample, METH_VARARGS, "Decide loop-closure hits in order (see the module's source)."},
     {"closures", closures, METH_VARARGS, "Search and sample loop closures in one pass (see the module's source)."},
+    {"walk", walk, METH_VARARGS, "kollagen's random walk's draws (see the module's source)."},
+    {"headings", headings, METH_VARARGS, "kollagen's dead-reckoned headings (see the module's source)."},
     {NULL, NULL, 0, NULL},
 };
 

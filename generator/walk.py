@@ -16,6 +16,13 @@ from studio.core.geometry import libm_cos_sin, normalize_angle
 from studio.generator.config import AgentConfig, SynthConfig
 from studio.generator.rng import MT19937Stream, canonical_doubles
 
+try:  # the compiled draws and headings (generator/_sampler.c; setup.py builds it where it can)
+    from studio.generator._sampler import headings as _compiled_headings
+    from studio.generator._sampler import walk as _compiled_walk
+except ImportError:  # no compiler at install: numpy and Python (the same bytes; tests run both)
+    _compiled_walk = None  # type: ignore[assignment]
+    _compiled_headings = None  # type: ignore[assignment]
+
 __all__ = ["Walk", "random_walk"]
 
 
@@ -76,6 +83,14 @@ def _walk_draws(
     round are 4 words apart); the walk through the words then only follows integers in Python, and
     the normals of the accepted tries are computed in bulk (libm's log through :mod:`math`).
     """
+    if _compiled_walk is not None and stream.position == 0:  # the kernel reads the stream from its start
+        turns_b, pos_b, ang_b, used = _compiled_walk(stream.seed, n_steps, frag, retro)
+        stream.advance(used)
+        return (
+            np.frombuffer(turns_b, dtype=np.int64),
+            np.frombuffer(pos_b, dtype=np.float64),
+            np.frombuffer(ang_b, dtype=np.float64),
+        )
     span = 3 + int(retro)
     threshold = ((1 << 32) - span) % span
     turns: list[int] = []
@@ -165,15 +180,20 @@ def _dead_reckon(odom_pos: np.ndarray, odom_ang: np.ndarray) -> tuple[np.ndarray
 
     Only the initial estimate needs it (loop closures use the ground truth and the odometry), so
     the generator runs it in each agent's task, on any core, instead of before them."""
-    floor, pi, two_pi = math.floor, math.pi, 2 * math.pi
-    ts = [0.0] * (len(odom_ang) + 1)
-    t = 0.0
-    for k, oa in enumerate(odom_ang.tolist(), start=1):
-        t = t + oa
-        t = t - floor((t + pi) / two_pi) * 2.0 * pi
-        ts[k] = t
-    theta = np.array(ts)
-    c, s = libm_cos_sin(theta[1:])
+    if _compiled_headings is not None:
+        theta_b, cos_b, sin_b = _compiled_headings(np.ascontiguousarray(odom_ang, dtype=np.float64))
+        theta = np.frombuffer(theta_b, dtype=np.float64)
+        c, s = np.frombuffer(cos_b, dtype=np.float64), np.frombuffer(sin_b, dtype=np.float64)
+    else:
+        floor, pi, two_pi = math.floor, math.pi, 2 * math.pi
+        ts = [0.0] * (len(odom_ang) + 1)
+        t = 0.0
+        for k, oa in enumerate(odom_ang.tolist(), start=1):
+            t = t + oa
+            t = t - floor((t + pi) / two_pi) * 2.0 * pi
+            ts[k] = t
+        theta = np.array(ts)
+        c, s = libm_cos_sin(theta[1:])
     # 0.0 first, so the first position is 0.0 + step as in kollagen (a -0.0 step gives 0.0)
     x = np.cumsum(np.concatenate([[0.0], odom_pos * c]))
     y = np.cumsum(np.concatenate([[0.0], odom_pos * s]))

@@ -1,6 +1,7 @@
-"""The compiled loop-closure search and sampler (``closures`` in generator/_sampler.c) against kollagen's
-plain loop (per query the same cell, then every circle offset; one uniform per candidate, three
-normals per accepted one), and whole datasets with the compiled kernels against numpy and Python."""
+"""The compiled module generator/_sampler.c: the loop-closure search and sampler (``closures``) against
+kollagen's plain loop (per query the same cell, then every circle offset; one uniform per candidate,
+three normals per accepted one), the walk's draws and the dead-reckoned headings against the numpy
+and Python code they replace, and whole datasets with the compiled kernels and without."""
 
 import dataclasses
 import math
@@ -8,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from studio.generator import loop_closures
+from studio.generator import loop_closures, walk
 from studio.generator.loop_closures import _CircleTable, _columns, _compiled_search, _visits, discrete_circle
 from studio.generator.rng import MT19937Stream, UniformTape
 from studio.synth import generate, load_synth_config
@@ -143,6 +144,8 @@ def test_datasets_are_the_same_with_and_without_the_compiled_kernels(radius_m, m
         with monkeypatch.context() as patch:
             patch.setattr(loop_closures, "_compiled_closures", None)
             patch.setattr(loop_closures, "_compiled_sample", None)
+            patch.setattr(walk, "_compiled_walk", None)
+            patch.setattr(walk, "_compiled_headings", None)
             plain = _arrays(generate(cfg, seed=seed))
         assert sum(len(v) for v in compiled[-6:]) > 0  # inter-agent closures were drawn
         assert len(compiled) == len(plain)
@@ -174,3 +177,34 @@ def test_a_stream_advanced_past_its_drawn_words_reads_on_from_there():
     stream.words(3)  # a block drawn
     stream.advance(10_000)  # another reader (the compiled search) read far past it
     assert np.array_equal(stream.words(5), MT19937Stream(11).words(10_005)[10_000:])
+
+
+@pytest.mark.parametrize("frag", [1, 3, 4])
+@pytest.mark.parametrize("retro", [False, True])
+@pytest.mark.parametrize("seed", [0, 1, -5, 2**31 - 1])
+def test_walk_draws_are_the_python_draws(seed, retro, frag, monkeypatch):
+    n_steps = 700
+    got_stream = MT19937Stream(seed)
+    got = walk._walk_draws(got_stream, n_steps, frag, retro)
+    monkeypatch.setattr(walk, "_compiled_walk", None)
+    want_stream = MT19937Stream(seed)
+    want = walk._walk_draws(want_stream, n_steps, frag, retro)
+    assert got_stream.position == want_stream.position > 5 * n_steps * frag
+    assert set(got[0].tolist()) == ({-1, 0, 1, 2} if retro else {-1, 0, 1})
+    for a, b in zip(got, want):
+        assert a.dtype == b.dtype and a.tolist() == b.tolist()  # bit for bit
+    # the stream goes on from where the walk left it
+    assert np.array_equal(got_stream.words(8), want_stream.words(8))
+
+
+def test_headings_are_the_python_recurrence(monkeypatch):
+    rng = np.random.default_rng(4)
+    odom_ang = np.concatenate([rng.normal(0, 0.3, 3000), rng.choice([-np.pi / 2, 0.0, np.pi / 2, np.pi], 3000)])
+    odom_ang[::7] += rng.normal(0, 20.0, len(odom_ang[::7]))  # far outside (-pi, pi]
+    odom_pos = rng.random(len(odom_ang))
+    got = walk._dead_reckon(odom_pos, odom_ang)
+    monkeypatch.setattr(walk, "_compiled_headings", None)
+    want = walk._dead_reckon(odom_pos, odom_ang)
+    assert np.abs(got[2]).max() <= np.pi
+    for a, b in zip(got, want):
+        assert a.tolist() == b.tolist()  # bit for bit
