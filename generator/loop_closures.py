@@ -22,7 +22,7 @@ from studio.generator.config import AgentConfig, SynthConfig
 from studio.generator.rng import MT19937Stream, UniformTape, polar_normal
 from studio.generator.walk import _round_half_away, _round_to_int, _Walk
 
-try:  # the compiled kernels (setup.py builds them where a C compiler is found)
+try:  # the compiled kernels (pyproject.toml declares them; built where a C compiler is found)
     from studio.generator._sampler import closures as _compiled_closures
     from studio.generator._sampler import sample as _compiled_sample
 except ImportError:  # no compiler at install: numpy and Python (the same bytes; tests run both)

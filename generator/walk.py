@@ -16,7 +16,7 @@ from studio.core.geometry import libm_cos_sin, normalize_angle
 from studio.generator.config import AgentConfig, SynthConfig
 from studio.generator.rng import MT19937Stream, canonical_doubles
 
-try:  # the compiled draws and headings (generator/_sampler.c; setup.py builds it where it can)
+try:  # the compiled draws and headings (generator/_sampler.c, built at install where a C compiler is found)
     from studio.generator._sampler import headings as _compiled_headings
     from studio.generator._sampler import walk as _compiled_walk
 except ImportError:  # no compiler at install: numpy and Python (the same bytes; tests run both)
