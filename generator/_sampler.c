@@ -182,7 +182,8 @@ enum { MT_N = 624, MT_M = 397 };
 
 typedef struct {
     uint32_t mt[MT_N];
-    int i;
+    uint32_t out[MT_N]; /* the tempered words of the current state */
+    int i;              /* the next word of out */
 } mt19937;
 
 static void mt_seed(mt19937 *g, uint32_t seed) {
@@ -191,28 +192,34 @@ static void mt_seed(mt19937 *g, uint32_t seed) {
     g->i = MT_N;
 }
 
-static inline uint32_t mt_next(mt19937 *g) {
-    if (g->i >= MT_N) {
-        int k;
-        uint32_t y;
-        for (k = 0; k < MT_N - MT_M; k++) {
-            y = (g->mt[k] & 0x80000000U) | (g->mt[k + 1] & 0x7fffffffU);
-            g->mt[k] = g->mt[k + MT_M] ^ (y >> 1) ^ ((y & 1U) ? 0x9908b0dfU : 0U);
-        }
-        for (; k < MT_N - 1; k++) {
-            y = (g->mt[k] & 0x80000000U) | (g->mt[k + 1] & 0x7fffffffU);
-            g->mt[k] = g->mt[k + (MT_M - MT_N)] ^ (y >> 1) ^ ((y & 1U) ? 0x9908b0dfU : 0U);
-        }
-        y = (g->mt[MT_N - 1] & 0x80000000U) | (g->mt[0] & 0x7fffffffU);
-        g->mt[MT_N - 1] = g->mt[MT_M - 1] ^ (y >> 1) ^ ((y & 1U) ? 0x9908b0dfU : 0U);
-        g->i = 0;
+/* The next 624 words at once: the twist, then the tempering in a loop the compiler vectorises. */
+static void mt_refill(mt19937 *g) {
+    uint32_t *mt = g->mt, y;
+    int k;
+    for (k = 0; k < MT_N - MT_M; k++) {
+        y = (mt[k] & 0x80000000U) | (mt[k + 1] & 0x7fffffffU);
+        mt[k] = mt[k + MT_M] ^ (y >> 1) ^ ((0U - (y & 1U)) & 0x9908b0dfU);
     }
-    uint32_t y = g->mt[g->i++];
-    y ^= y >> 11;
-    y ^= (y << 7) & 0x9d2c5680U;
-    y ^= (y << 15) & 0xefc60000U;
-    y ^= y >> 18;
-    return y;
+    for (; k < MT_N - 1; k++) {
+        y = (mt[k] & 0x80000000U) | (mt[k + 1] & 0x7fffffffU);
+        mt[k] = mt[k + (MT_M - MT_N)] ^ (y >> 1) ^ ((0U - (y & 1U)) & 0x9908b0dfU);
+    }
+    y = (mt[MT_N - 1] & 0x80000000U) | (mt[0] & 0x7fffffffU);
+    mt[MT_N - 1] = mt[MT_M - 1] ^ (y >> 1) ^ ((0U - (y & 1U)) & 0x9908b0dfU);
+    for (k = 0; k < MT_N; k++) {
+        y = mt[k];
+        y ^= y >> 11;
+        y ^= (y << 7) & 0x9d2c5680U;
+        y ^= (y << 15) & 0xefc60000U;
+        y ^= y >> 18;
+        g->out[k] = y;
+    }
+    g->i = 0;
+}
+
+static inline uint32_t mt_next(mt19937 *g) {
+    if (g->i >= MT_N) mt_refill(g);
+    return g->out[g->i++];
 }
 
 /* A window of the stream's canonical doubles: uniform base + j is buf[j], j < len. */
@@ -243,12 +250,28 @@ static int source_fill(uniform_source *s, Py_ssize_t keep_from, Py_ssize_t end) 
         s->cap = cap;
     }
     const double two32 = 4294967296.0, below_one = nextafter(1.0, 0.0);
+    mt19937 *g = &s->gen;
     while (s->len < s->cap) {
-        uint32_t lo = mt_next(&s->gen), hi = mt_next(&s->gen);
-        double v = (double)hi * two32; /* exact */
-        v += (double)lo;               /* one rounding, as libstdc++'s sum */
-        v *= 1.0 / 18446744073709551616.0; /* exact: a power of two */
-        s->buf[s->len++] = v < below_one ? v : below_one;
+        /* the pairs that lie whole in the tempered block, decoded in one loop */
+        Py_ssize_t pairs = (MT_N - g->i) / 2, room = s->cap - s->len;
+        if (pairs > room) pairs = room;
+        const uint32_t *w = g->out + g->i;
+        double *d = s->buf + s->len;
+        for (Py_ssize_t j = 0; j < pairs; j++) {
+            double v = (double)w[2 * j + 1] * two32; /* exact */
+            v += (double)w[2 * j];                    /* one rounding, as libstdc++'s sum */
+            v *= 1.0 / 18446744073709551616.0;        /* exact: a power of two */
+            d[j] = v < below_one ? v : below_one;
+        }
+        g->i += (int)(2 * pairs);
+        s->len += pairs;
+        if (s->len < s->cap && g->i >= MT_N - 1) { /* a pair across two blocks (or none left) */
+            uint32_t lo = mt_next(g), hi = mt_next(g);
+            double v = (double)hi * two32;
+            v += (double)lo;
+            v *= 1.0 / 18446744073709551616.0;
+            s->buf[s->len++] = v < below_one ? v : below_one;
+        }
     }
     return 0;
 }
@@ -258,7 +281,7 @@ static int get_int64s(PyObject *obj, Py_buffer *view, const char *what) {
     const char *f = view->format;
     if (view->itemsize != 8 || f == NULL || !(strcmp(f, "q") == 0 || strcmp(f, "l") == 0)) {
         PyBuffer_Release(view);
-        PyErr_Format(PyExc_TypeError, "closures: %s must be a contiguous int64 buffer", what);
+        PyErr_Format(PyExc_TypeError, "%s must be a contiguous int64 buffer", what);
         return -1;
     }
     return 0;
@@ -320,6 +343,56 @@ static inline int candidate(closure_state *st, int64_t k, int64_t m, Py_ssize_t 
     }
 }
 
+/* "How many of column c's entries lie below v": a binary search, or where the table's bounding box
+ * is small next to the look-ups, a table of every column's counts at every y (made once). */
+typedef struct {
+    const int64_t *col_start, *col_y;
+    int32_t *dense; /* (H + 1) per column: the first entry with y >= ymin + yy, or NULL */
+    int64_t ymin, height;
+} column_index;
+
+static inline Py_ssize_t below(const column_index *ix, int64_t c, int64_t v) {
+    if (ix->dense != NULL) {
+        int64_t yy = v - ix->ymin;
+        if (yy <= 0) return ix->col_start[c];
+        if (yy >= ix->height) return ix->col_start[c + 1];
+        return ix->dense[c * (ix->height + 1) + yy];
+    }
+    return lower_bound(ix->col_y, ix->col_start[c], ix->col_start[c + 1], v);
+}
+
+/* 0, or -1 with an exception set; leaves ix->dense NULL where the table would not pay */
+static int index_columns(column_index *ix, Py_ssize_t n_cols, Py_ssize_t n_table, Py_ssize_t lookups) {
+    ix->dense = NULL;
+    if (n_table == 0 || n_table >= INT32_MAX) return 0;
+    int64_t ymin = ix->col_y[0], ymax = ix->col_y[0];
+    for (Py_ssize_t j = 1; j < n_table; j++) {
+        if (ix->col_y[j] < ymin) ymin = ix->col_y[j];
+        if (ix->col_y[j] > ymax) ymax = ix->col_y[j];
+    }
+    int64_t height = ymax - ymin + 1;
+    if (height > (1 << 24) || (double)n_cols * (double)(height + 1) > 8.0 * (double)lookups ||
+        (double)n_cols * (double)(height + 1) > (double)(1 << 24))
+        return 0;
+    int32_t *dense = PyMem_Malloc((size_t)n_cols * (size_t)(height + 1) * sizeof(int32_t));
+    if (dense == NULL) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    for (Py_ssize_t c = 0; c < n_cols; c++) {
+        Py_ssize_t j = ix->col_start[c], end = ix->col_start[c + 1];
+        int32_t *row = dense + c * (height + 1);
+        for (int64_t yy = 0; yy <= height; yy++) {
+            while (j < end && ix->col_y[j] < ymin + yy) j++;
+            row[yy] = (int32_t)j;
+        }
+    }
+    ix->dense = dense;
+    ix->ymin = ymin;
+    ix->height = height;
+    return 0;
+}
+
 static PyObject *closures(PyObject *self, PyObject *args) {
     PyObject *o[9], *cached_obj;
     Py_ssize_t x0, skip;
@@ -339,6 +412,8 @@ static PyObject *closures(PyObject *self, PyObject *args) {
     PyObject *result = NULL;
     closure_state st;
     memset(&st, 0, sizeof st);
+    column_index ix;
+    memset(&ix, 0, sizeof ix);
     /* the stream of std::mt19937(seed) (seed modulo 2**32, as C++ converts it), words before skip read */
     mt_seed(&st.src.gen, (uint32_t)((unsigned long long)seed & 0xffffffffULL));
     for (Py_ssize_t w = 0; w < skip; w++) (void)mt_next(&st.src.gen);
@@ -373,42 +448,38 @@ static PyObject *closures(PyObject *self, PyObject *args) {
                 PyErr_SetString(PyExc_ValueError, "closures: probs shorter than the circle");
                 goto done;
             }
+        ix.col_start = col_start;
+        ix.col_y = col_y;
+        if (index_columns(&ix, n_cols, n_table, 3 * nq * side) < 0) goto done;
         if (source_fill(&st.src, 0, 1) < 0) goto done;
         for (Py_ssize_t k = 0; k < nq; k++) {
             const int64_t x = qx[k], y = qy[k];
             const int64_t c0 = x - x0;
             /* the same-cell check comes first */
             if (c0 >= 0 && c0 < n_cols) {
-                Py_ssize_t lo = col_start[c0], hi = col_start[c0 + 1];
-                Py_ssize_t at = lower_bound(col_y, lo, hi, y);
-                if (at < hi && col_y[at] == y && candidate(&st, k, col_m[at], 0) < 0) goto done;
+                Py_ssize_t at = below(&ix, c0, y);
+                if (at < col_start[c0 + 1] && col_y[at] == y && candidate(&st, k, col_m[at], 0) < 0) goto done;
             }
             for (Py_ssize_t j = 0; j < side; j++) {
                 const int64_t dx = (int64_t)j - R, c = c0 + dx;
                 if (c < 0 || c >= n_cols) continue;
-                Py_ssize_t lo = col_start[c], hi = col_start[c + 1];
-                if (lo == hi) continue;
+                if (col_start[c] == col_start[c + 1]) continue;
                 const int64_t yl = ylim[j];
-                Py_ssize_t a = lower_bound(col_y, lo, hi, y - yl);
-                Py_ssize_t b = lower_bound(col_y, a, hi, y + yl + 1);
+                Py_ssize_t a = below(&ix, c, y - yl), b = below(&ix, c, y + yl + 1);
                 if (a == b) continue;
-                Py_ssize_t up = lower_bound(col_y, a, b, y), dn = up - 1;
+                Py_ssize_t up = ix.dense != NULL ? below(&ix, c, y) : lower_bound(col_y, a, b, y), dn = up - 1;
                 const Py_ssize_t base = colbase[j] + 1; /* probs index of the column's dy = 0 */
+                /* merge the rows above (dy >= 0, rising) and below (dy < 0, falling) by |dy|, the
+                 * row above first on a tie: selects, not branches (the side taken is data) */
                 while (up < b || dn >= a) {
-                    Py_ssize_t at, r;
-                    if (up < b && (dn < a || col_y[up] - y <= y - col_y[dn])) {
-                        const int64_t dy = col_y[up] - y;
-                        at = up++;
-                        if (dy == 0) {
-                            if (dx == 0) continue; /* the same cell, checked first */
-                            r = base;
-                        } else {
-                            r = base + 2 * dy - 1;
-                        }
-                    } else {
-                        at = dn--;
-                        r = base + 2 * (y - col_y[at]);
-                    }
+                    const int64_t du = up < b ? col_y[up] - y : INT64_MAX;
+                    const int64_t dd = dn >= a ? y - col_y[dn] : INT64_MAX;
+                    const int take_up = du <= dd;
+                    const Py_ssize_t at = take_up ? up : dn;
+                    const Py_ssize_t r = take_up ? base + 2 * du - (du != 0) : base + 2 * dd;
+                    up += take_up;
+                    dn -= !take_up;
+                    if (take_up && du == 0 && dx == 0) continue; /* the same cell, checked first */
                     if (candidate(&st, k, col_m[at], r) < 0) goto done;
                 }
             }
@@ -426,6 +497,7 @@ static PyObject *closures(PyObject *self, PyObject *args) {
 done:
     for (int i = 0; i < got; i++) PyBuffer_Release(&v[i]);
     PyMem_Free(st.src.buf);
+    PyMem_Free(ix.dense);
     PyMem_Free(st.k.data);
     PyMem_Free(st.m.data);
     PyMem_Free(st.nor.data);
@@ -541,11 +613,124 @@ static PyObject *headings(PyObject *self, PyObject *args) {
     return Py_BuildValue("NNN", th, co, si);
 }
 
+/* ------------------------------------------------------------------------------------------------
+ * cells(cx, cy, last, max_cells) -> (visits, x0, col_start, col_y) or None
+ *
+ * The distinct grid cells of a walk, each with the pose of its first (or with last, its last) visit,
+ * in cell order (x, then y), laid out by column as closures() reads them: column x - x0 holds
+ * entries col_start[x - x0] .. col_start[x - x0 + 1] - 1 (studio.generator.loop_closures._visits
+ * and _columns). Through a grid over the walk's bounding box; None when that box has more than
+ * max_cells cells.
+ */
+static PyObject *cells(PyObject *self, PyObject *args) {
+    PyObject *ox, *oy;
+    int last;
+    Py_ssize_t max_cells;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOpn:cells", &ox, &oy, &last, &max_cells)) return NULL;
+    Py_buffer vx, vy;
+    if (get_int64s(ox, &vx, "cx") < 0) return NULL;
+    if (get_int64s(oy, &vy, "cy") < 0) {
+        PyBuffer_Release(&vx);
+        return NULL;
+    }
+    PyObject *result = NULL;
+    int32_t *grid = NULL;
+    const int64_t *cx = vx.buf, *cy = vy.buf;
+    const Py_ssize_t n = vx.len / 8;
+    if (vy.len != vx.len || n == 0 || n >= INT32_MAX) {
+        PyErr_SetString(PyExc_ValueError, "cells: cx and cy of one non-empty length expected");
+        goto done;
+    }
+    int64_t xmin = cx[0], xmax = cx[0], ymin = cy[0], ymax = cy[0];
+    for (Py_ssize_t k = 1; k < n; k++) {
+        if (cx[k] < xmin) xmin = cx[k];
+        if (cx[k] > xmax) xmax = cx[k];
+        if (cy[k] < ymin) ymin = cy[k];
+        if (cy[k] > ymax) ymax = cy[k];
+    }
+    const double w = (double)xmax - (double)xmin + 1.0, h = (double)ymax - (double)ymin + 1.0;
+    if (w * h > (double)max_cells) {
+        Py_INCREF(Py_None);
+        result = Py_None;
+        goto done;
+    }
+    const int64_t W = xmax - xmin + 1, H = ymax - ymin + 1;
+    grid = PyMem_Malloc((size_t)(W * H) * sizeof(int32_t));
+    if (grid == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    memset(grid, 0xff, (size_t)(W * H) * sizeof(int32_t)); /* -1: not visited */
+    Py_ssize_t distinct = 0;
+    for (Py_ssize_t k = 0; k < n; k++) {
+        int32_t *g = grid + (cx[k] - xmin) * H + (cy[k] - ymin);
+        if (*g < 0) distinct++;
+        if (last || *g < 0) *g = (int32_t)k;
+    }
+    PyObject *visits = PyByteArray_FromStringAndSize(NULL, distinct * 8);
+    PyObject *col_start = PyByteArray_FromStringAndSize(NULL, (W + 1) * 8);
+    PyObject *col_y = PyByteArray_FromStringAndSize(NULL, distinct * 8);
+    if (visits == NULL || col_start == NULL || col_y == NULL) {
+        Py_XDECREF(visits);
+        Py_XDECREF(col_start);
+        Py_XDECREF(col_y);
+        goto done;
+    }
+    int64_t *v = (int64_t *)PyByteArray_AS_STRING(visits), *cs = (int64_t *)PyByteArray_AS_STRING(col_start);
+    int64_t *cyo = (int64_t *)PyByteArray_AS_STRING(col_y);
+    Py_ssize_t j = 0;
+    for (int64_t x = 0; x < W; x++) {
+        cs[x] = j;
+        const int32_t *row = grid + x * H;
+        for (int64_t y = 0; y < H; y++)
+            if (row[y] >= 0) {
+                v[j] = row[y];
+                cyo[j++] = y + ymin;
+            }
+    }
+    cs[W] = j;
+    result = Py_BuildValue("NLNN", visits, (long long)xmin, col_start, col_y);
+done:
+    PyMem_Free(grid);
+    PyBuffer_Release(&vx);
+    PyBuffer_Release(&vy);
+    return result;
+}
+
+/* cos_sin(a) -> (cos, sin): the C library's cos and sin of every entry (Python's math.cos, math.sin) */
+static PyObject *cos_sin(PyObject *self, PyObject *args) {
+    PyObject *obj;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "O:cos_sin", &obj)) return NULL;
+    Py_buffer v;
+    if (get_doubles(obj, &v, "a") < 0) return NULL;
+    const double *a = v.buf;
+    const Py_ssize_t n = v.len / 8;
+    PyObject *co = PyByteArray_FromStringAndSize(NULL, n * 8);
+    PyObject *si = PyByteArray_FromStringAndSize(NULL, n * 8);
+    if (co == NULL || si == NULL) {
+        PyBuffer_Release(&v);
+        Py_XDECREF(co);
+        Py_XDECREF(si);
+        return NULL;
+    }
+    double *c = (double *)PyByteArray_AS_STRING(co), *s = (double *)PyByteArray_AS_STRING(si);
+    for (Py_ssize_t k = 0; k < n; k++) {
+        c[k] = cos(a[k]);
+        s[k] = sin(a[k]);
+    }
+    PyBuffer_Release(&v);
+    return Py_BuildValue("NN", co, si);
+}
+
 static PyMethodDef methods[] = {
     {"sample", sample, METH_VARARGS, "Decide loop-closure hits in order (see the module's source)."},
     {"closures", closures, METH_VARARGS, "Search and sample loop closures in one pass (see the module's source)."},
     {"walk", walk, METH_VARARGS, "kollagen's random walk's draws (see the module's source)."},
     {"headings", headings, METH_VARARGS, "kollagen's dead-reckoned headings (see the module's source)."},
+    {"cells", cells, METH_VARARGS, "A walk's distinct cells by column (see the module's source)."},
+    {"cos_sin", cos_sin, METH_VARARGS, "The C library's cos and sin of every entry."},
     {NULL, NULL, 0, NULL},
 };
 

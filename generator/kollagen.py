@@ -34,6 +34,11 @@ from studio.generator.walk import _dead_reckon, _random_walk, _round_to_int, _Wa
 from studio.runtime.parallel import parallel_map
 from studio.runtime.progress import Progress, report
 
+try:  # libm's cos and sin in one compiled loop (generator/_sampler.c, built where a compiler is found)
+    from studio.generator._sampler import cos_sin as _compiled_cos_sin
+except ImportError:  # no compiler at install: one math.cos and math.sin call per angle
+    _compiled_cos_sin = None  # type: ignore[assignment]
+
 __all__ = [
     "SingleG2oView",
     "SynthOutput",
@@ -207,7 +212,11 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
 
 def _odometry_measurements(walk: _Walk) -> np.ndarray:
     """``(n - 1, 3)`` odometry edges (dx, dy, dtheta) of a walk: its noisy step along its noisy turn."""
-    c, s = libm_cos_sin(walk.odom_ang)
+    if _compiled_cos_sin is not None:  # every angle distinct (noisy): libm's, in one compiled loop
+        cb, sb = _compiled_cos_sin(np.ascontiguousarray(walk.odom_ang, dtype=np.float64))
+        c, s = np.frombuffer(cb, dtype=np.float64), np.frombuffer(sb, dtype=np.float64)
+    else:
+        c, s = libm_cos_sin(walk.odom_ang)
     return np.column_stack([walk.odom_pos * c, walk.odom_pos * s, walk.odom_ang])
 
 

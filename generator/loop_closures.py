@@ -23,11 +23,13 @@ from studio.generator.rng import MT19937Stream, UniformTape, polar_normal
 from studio.generator.walk import _round_half_away, _round_to_int, _Walk
 
 try:  # the compiled kernels (pyproject.toml declares them; built where a C compiler is found)
+    from studio.generator._sampler import cells as _compiled_cells
     from studio.generator._sampler import closures as _compiled_closures
     from studio.generator._sampler import sample as _compiled_sample
 except ImportError:  # no compiler at install: numpy and Python (the same bytes; tests run both)
     _compiled_sample = None  # type: ignore[assignment]
     _compiled_closures = None  # type: ignore[assignment]
+    _compiled_cells = None  # type: ignore[assignment]
 
 __all__ = ["discrete_circle", "agent_pairs", "intra_loop_closures"]
 
@@ -145,6 +147,32 @@ def _columns(cx: np.ndarray, cy: np.ndarray, visits: np.ndarray) -> tuple[int, n
     col_start = np.zeros(width + 1, dtype=np.int64)
     np.cumsum(np.bincount(tx - x0, minlength=width), out=col_start[1:])
     return x0, col_start, np.ascontiguousarray(cy[visits], dtype=np.int64)
+
+
+_MAX_GRID_CELLS = 1 << 24
+"""The largest bounding box (in grid cells) the compiled cell table lays a walk's visits out in."""
+
+
+def _visited_columns(
+    cx: np.ndarray, cy: np.ndarray, which: str
+) -> tuple[np.ndarray, tuple[int, np.ndarray, np.ndarray] | None]:
+    """:func:`_visits` of a walk's cells and, where the compiled search runs, the same cells by column
+    (:func:`_columns`); both in one compiled pass over a grid of the walk's bounding box where that box
+    is small next to the walk (``cells`` in generator/_sampler.c)."""
+    if _compiled_cells is not None and _compiled_closures is not None:
+        cap = min(_MAX_GRID_CELLS, max(1 << 16, 64 * len(cx)))
+        got = _compiled_cells(
+            np.ascontiguousarray(cx, dtype=np.int64), np.ascontiguousarray(cy, dtype=np.int64), which == "last", cap
+        )
+        if got is not None:
+            visits, x0, col_start, col_y = got
+            return np.frombuffer(visits, dtype=np.int64), (
+                x0,
+                np.frombuffer(col_start, dtype=np.int64),
+                np.frombuffer(col_y, dtype=np.int64),
+            )
+    visits = _visits(cx, cy, which)
+    return visits, _columns(cx, cy, visits) if _compiled_closures is not None else None
 
 
 def _compiled_search(
@@ -565,8 +593,7 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     n = len(cx)
     radius = _round_to_int(agent.intra_loop_closure_radius * cfg.step_fragment / cfg.stepsize)
     circle = _CircleTable.of_radius(radius)
-    visits = _visits(cx, cy, "first")  # each cell's first visit, in cell order
-    first = np.sort(visits)  # cells in order of their first visit
+    visits, columns = _visited_columns(cx, cy, "first")  # each cell's first visit, in cell order
     table = circle.probabilities(
         agent.same_position_intra_loop_closure_probability,
         agent.intra_loop_closure_probability_scaling,
@@ -575,13 +602,13 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     # kollagen's quirk: intra-agent loop closures only look at the diagonal circle offsets (and the
     # same cell); NaN marks the others, so one look-up gives a hit's probability or its exclusion
     allowed = np.where(circle.diagonal_by_rank, table, np.nan)
-    columns = _columns(cx, cy, visits) if _compiled_closures is not None else None
     if columns is not None:
         i_to, j_from, noise, used = _compiled_search(
             cx, cy, columns, visits, circle, allowed, True, stream.seed, stream.position
         )
         stream.advance(2 * used)
         return _intra_edges(walk, agent, i_to, j_from, noise)
+    first = np.sort(visits)  # cells in order of their first visit
     # kollagen's map only holds cells first visited before the current pose. Poses are taken in
     # blocks; a block looks only at cells first visited before its end, so few hits are discarded.
     # Only the kept hits' probabilities and poses outlive their block (a block's hits take about ten
@@ -657,8 +684,7 @@ class _InterPairs:
         wa, wb = self._walks[a], self._walks[b]
         (ax, ay), (bx, by) = self._cells[a], self._cells[b]
         # kollagen's map keeps the last visit of each cell of agent a
-        last = _visits(ax, ay, "last")
-        columns = _columns(ax, ay, last) if _compiled_closures is not None else None
+        last, columns = _visited_columns(ax, ay, "last")
         if columns is not None:
             i_from, j_to, noise, _ = _compiled_search(
                 bx, by, columns, last, self._circle, self._prob_by_rank, False, self._stream.seed, 0

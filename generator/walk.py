@@ -52,6 +52,15 @@ def _quarter_angle_table() -> dict[int, tuple[float, float, float]]:
 
 _QUARTER = _quarter_angle_table()
 
+#: per quarter-turn heading -3..3 (index + 3): kollagen's stored angle and its unit step in cells
+_TH_TAB = np.array([_QUARTER[k][0] for k in range(-3, 4)])
+_DX_TAB = np.array([_round_to_int(_QUARTER[k][1]) for k in range(-3, 4)], dtype=np.int64)
+_DY_TAB = np.array([_round_to_int(_QUARTER[k][2]) for k in range(-3, 4)], dtype=np.int64)
+#: per turn -1..2 (index + 1): the turn's angle as kollagen writes it in the odometry
+_TURN_ANGLE = np.array([normalize_angle(k * 0.5 * math.pi) for k in range(-1, 3)])
+for _table in (_TH_TAB, _DX_TAB, _DY_TAB, _TURN_ANGLE):
+    _table.setflags(write=False)
+
 # --------------------------------------------------------------------------------------------------
 # The random walk
 
@@ -150,10 +159,7 @@ def _random_walk(stream: MT19937Stream, cfg: SynthConfig, agent: AgentConfig) ->
         t = int(math.fmod(t + d, 4))
         theta_int_steps[s] = t
     theta_int = np.repeat(theta_int_steps, frag)
-    lut = range(-3, 4)
-    th_tab = np.array([_QUARTER[k][0] for k in lut])
-    dx_tab = np.array([_round_to_int(_QUARTER[k][1]) for k in lut], dtype=np.int64)
-    dy_tab = np.array([_round_to_int(_QUARTER[k][2]) for k in lut], dtype=np.int64)
+    th_tab, dx_tab, dy_tab = _TH_TAB, _DX_TAB, _DY_TAB
     dxi = dx_tab[theta_int + 3]
     dyi = dy_tab[theta_int + 3]
     xi = np.concatenate([[0], np.cumsum(dxi)])
@@ -168,7 +174,7 @@ def _random_walk(stream: MT19937Stream, cfg: SynthConfig, agent: AgentConfig) ->
     delta_theta[::frag] = turns
     first = np.zeros(len(theta_int), dtype=bool)
     first[::frag] = True
-    turn_angle = np.array([normalize_angle(k * 0.5 * math.pi) for k in range(-1, 3)])[delta_theta + 1]
+    turn_angle = _TURN_ANGLE[delta_theta + 1]
     noise_ang = agent.std_dev_angle * nang
     odom_ang = np.where(first, turn_angle + noise_ang, noise_ang)
     return _Walk(x, y, theta, delta_theta, odom_pos, odom_ang)

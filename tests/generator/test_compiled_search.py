@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from studio.generator import loop_closures, walk
+from studio.generator import kollagen, loop_closures, walk
 from studio.generator.loop_closures import _CircleTable, _columns, _compiled_search, _visits, discrete_circle
 from studio.generator.rng import MT19937Stream, UniformTape
 from studio.synth import generate, load_synth_config
@@ -144,8 +144,10 @@ def test_datasets_are_the_same_with_and_without_the_compiled_kernels(radius_m, m
         with monkeypatch.context() as patch:
             patch.setattr(loop_closures, "_compiled_closures", None)
             patch.setattr(loop_closures, "_compiled_sample", None)
+            patch.setattr(loop_closures, "_compiled_cells", None)
             patch.setattr(walk, "_compiled_walk", None)
             patch.setattr(walk, "_compiled_headings", None)
+            patch.setattr(kollagen, "_compiled_cos_sin", None)
             plain = _arrays(generate(cfg, seed=seed))
         assert sum(len(v) for v in compiled[-6:]) > 0  # inter-agent closures were drawn
         assert len(compiled) == len(plain)
@@ -208,3 +210,27 @@ def test_headings_are_the_python_recurrence(monkeypatch):
     assert np.abs(got[2]).max() <= np.pi
     for a, b in zip(got, want):
         assert a.tolist() == b.tolist()  # bit for bit
+
+
+@pytest.mark.parametrize("which", ["first", "last"])
+@pytest.mark.parametrize("trial", range(6))
+def test_cells_are_the_visits_by_column(trial, which):
+    rng = np.random.default_rng(50 + trial)
+    steps = rng.integers(-1, 2, size=(int(rng.integers(1, 3000)), 2))
+    walk_cells = np.cumsum(steps, axis=0) + rng.integers(-(10**6), 10**6, size=2)
+    cx, cy = np.ascontiguousarray(walk_cells.T, dtype=np.int64)
+    visits, x0, col_start, col_y = loop_closures._compiled_cells(cx, cy, which == "last", 1 << 24)
+    want = _visits(cx, cy, which)
+    assert np.frombuffer(visits, dtype=np.int64).tolist() == want.tolist()
+    wx0, wstart, wy = _columns(cx, cy, want)
+    assert x0 == wx0
+    assert np.frombuffer(col_start, dtype=np.int64).tolist() == wstart.tolist()
+    assert np.frombuffer(col_y, dtype=np.int64).tolist() == wy.tolist()
+    assert loop_closures._compiled_cells(cx, cy, which == "last", 0) is None  # a box too big for the grid
+
+
+def test_cos_sin_are_libms():
+    a = np.random.default_rng(1).normal(0, 10, 5000)
+    c, s = kollagen._compiled_cos_sin(a)
+    assert np.frombuffer(c, dtype=np.float64).tolist() == [math.cos(v) for v in a.tolist()]
+    assert np.frombuffer(s, dtype=np.float64).tolist() == [math.sin(v) for v in a.tolist()]
