@@ -165,8 +165,8 @@ def _visited_columns(
             np.ascontiguousarray(cx, dtype=np.int64), np.ascontiguousarray(cy, dtype=np.int64), which == "last", cap
         )
         if got is not None:
-            visits, x0, col_start, col_y = got
-            return np.frombuffer(visits, dtype=np.int64), (
+            visits_b, x0, col_start, col_y = got
+            return np.frombuffer(visits_b, dtype=np.int64), (
                 x0,
                 np.frombuffer(col_start, dtype=np.int64),
                 np.frombuffer(col_y, dtype=np.int64),
