@@ -582,6 +582,92 @@ static PyObject *walk(PyObject *self, PyObject *args) {
 }
 
 /* ------------------------------------------------------------------------------------------------
+ * trajectory(turns, npos, nang, frag, stepsize, std_pos, std_ang, th_tab, dx_tab, dy_tab, turn_tab)
+ *     -> (x, y, theta, delta_theta, odom_pos, odom_ang)
+ *
+ * kollagen's walk from its draws (studio.generator.walk._random_walk): the heading in quarter turns
+ * (C's truncating %), each sub-step a unit move along it (dx_tab, dy_tab by heading + 3), positions
+ * (integer sums) * stepsize / frag, the stored heading th_tab[heading + 3]; the odometry's step
+ * hypot(move) + std_pos * npos and turn turn_tab[turn + 1] + std_ang * nang on a step's first
+ * sub-step, std_ang * nang on the others.
+ */
+static PyObject *trajectory(PyObject *self, PyObject *args) {
+    PyObject *o[7];
+    Py_ssize_t frag;
+    double stepsize, std_pos, std_ang;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOOndddOOOO:trajectory", &o[0], &o[1], &o[2], &frag, &stepsize, &std_pos, &std_ang,
+                          &o[3], &o[4], &o[5], &o[6]))
+        return NULL;
+    Py_buffer v[7];
+    int got = 0;
+    PyObject *out[6] = {NULL, NULL, NULL, NULL, NULL, NULL}, *result = NULL;
+    if (get_int64s(o[0], &v[got], "turns") < 0) goto done;
+    got++;
+    if (get_doubles(o[1], &v[got], "npos") < 0) goto done;
+    got++;
+    if (get_doubles(o[2], &v[got], "nang") < 0) goto done;
+    got++;
+    if (get_doubles(o[3], &v[got], "th_tab") < 0) goto done;
+    got++;
+    if (get_int64s(o[4], &v[got], "dx_tab") < 0) goto done;
+    got++;
+    if (get_int64s(o[5], &v[got], "dy_tab") < 0) goto done;
+    got++;
+    if (get_doubles(o[6], &v[got], "turn_tab") < 0) goto done;
+    got++;
+    const Py_ssize_t n_steps = v[0].len / 8;
+    if (frag < 1 || v[1].len != n_steps * frag * 8 || v[2].len != v[1].len || v[3].len != 7 * 8 || v[4].len != 7 * 8 ||
+        v[5].len != 7 * 8 || v[6].len != 4 * 8) {
+        PyErr_SetString(PyExc_ValueError, "trajectory: inconsistent lengths");
+        goto done;
+    }
+    const int64_t *turns = v[0].buf, *dx_tab = v[4].buf, *dy_tab = v[5].buf;
+    const double *npos = v[1].buf, *nang = v[2].buf, *th_tab = v[3].buf, *turn_tab = v[6].buf;
+    const Py_ssize_t n_sub = n_steps * frag;
+    for (Py_ssize_t s = 0; s < n_steps; s++)
+        if (turns[s] < -1 || turns[s] > 2) {
+            PyErr_SetString(PyExc_ValueError, "trajectory: a turn outside -1..2");
+            goto done;
+        }
+    for (int i = 0; i < 6; i++) {
+        out[i] = PyByteArray_FromStringAndSize(NULL, (i < 3 ? n_sub + 1 : n_sub) * 8);
+        if (out[i] == NULL) goto done;
+    }
+    double *x = (double *)PyByteArray_AS_STRING(out[0]), *y = (double *)PyByteArray_AS_STRING(out[1]);
+    double *theta = (double *)PyByteArray_AS_STRING(out[2]);
+    int64_t *delta = (int64_t *)PyByteArray_AS_STRING(out[3]);
+    double *opos = (double *)PyByteArray_AS_STRING(out[4]), *oang = (double *)PyByteArray_AS_STRING(out[5]);
+    const double fr = (double)frag;
+    int64_t t = 0, xi = 0, yi = 0;
+    x[0] = (double)xi * stepsize / fr;
+    y[0] = (double)yi * stepsize / fr;
+    theta[0] = 0.0;
+    for (Py_ssize_t s = 0; s < n_steps; s++) {
+        t = (t + turns[s]) % 4;
+        const int64_t dxi = dx_tab[t + 3], dyi = dy_tab[t + 3];
+        const double ddx = (double)dxi * stepsize / fr, ddy = (double)dyi * stepsize / fr, step = hypot(ddx, ddy);
+        for (Py_ssize_t f = 0; f < frag; f++) {
+            const Py_ssize_t j = s * frag + f;
+            xi += dxi;
+            yi += dyi;
+            x[j + 1] = (double)xi * stepsize / fr;
+            y[j + 1] = (double)yi * stepsize / fr;
+            theta[j + 1] = th_tab[t + 3];
+            opos[j] = step + std_pos * npos[j];
+            const double noise = std_ang * nang[j];
+            delta[j] = f == 0 ? turns[s] : 0;
+            oang[j] = f == 0 ? turn_tab[turns[s] + 1] + noise : noise;
+        }
+    }
+    result = Py_BuildValue("OOOOOO", out[0], out[1], out[2], out[3], out[4], out[5]);
+done:
+    for (int i = 0; i < 6; i++) Py_XDECREF(out[i]);
+    for (int i = 0; i < got; i++) PyBuffer_Release(&v[i]);
+    return result;
+}
+
+/* ------------------------------------------------------------------------------------------------
  * headings(odom_ang) -> (theta, cos, sin)
  *
  * kollagen's dead-reckoned heading from 0 (studio.generator.walk._dead_reckon): after every edge
@@ -737,6 +823,7 @@ static PyMethodDef methods[] = {
     {"sample", sample, METH_VARARGS, "Decide loop-closure hits in order (see the module's source)."},
     {"closures", closures, METH_VARARGS, "Search and sample loop closures in one pass (see the module's source)."},
     {"walk", walk, METH_VARARGS, "kollagen's random walk's draws (see the module's source)."},
+    {"trajectory", trajectory, METH_VARARGS, "kollagen's walk from its draws (see the module's source)."},
     {"headings", headings, METH_VARARGS, "kollagen's dead-reckoned headings (see the module's source)."},
     {"cells", cells, METH_VARARGS, "A walk's distinct cells by column (see the module's source)."},
     {"cos_sin", cos_sin, METH_VARARGS, "The C library's cos and sin of every entry."},

@@ -25,3 +25,17 @@ def walk(seed: int, n_steps: int, frag: int, retro: bool, /) -> tuple[bytearray,
 def headings(odom_ang: Any, /) -> tuple[bytearray, bytearray, bytearray]: ...
 def cells(cx: Any, cy: Any, last: bool, max_cells: int, /) -> tuple[bytearray, int, bytearray, bytearray] | None: ...
 def cos_sin(a: Any, /) -> tuple[bytearray, bytearray]: ...
+def trajectory(
+    turns: Any,
+    npos: Any,
+    nang: Any,
+    frag: int,
+    stepsize: float,
+    std_pos: float,
+    std_ang: float,
+    th_tab: Any,
+    dx_tab: Any,
+    dy_tab: Any,
+    turn_tab: Any,
+    /,
+) -> tuple[bytearray, bytearray, bytearray, bytearray, bytearray, bytearray]: ...

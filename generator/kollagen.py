@@ -22,6 +22,7 @@ from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, Pos
 from studio.core.units import NS_PER_S
 from studio.generator.config import AgentConfig, SynthConfig
 from studio.generator.loop_closures import (
+    _cos_sin,
     _diag_information,
     _grid_cells,
     _InterPairs,
@@ -33,11 +34,6 @@ from studio.generator.rng import MT19937Stream
 from studio.generator.walk import _dead_reckon, _random_walk, _round_to_int, _Walk
 from studio.runtime.parallel import parallel_map
 from studio.runtime.progress import Progress, report
-
-try:  # libm's cos and sin in one compiled loop (generator/_sampler.c, built where a compiler is found)
-    from studio.generator._sampler import cos_sin as _compiled_cos_sin
-except ImportError:  # no compiler at install: one math.cos and math.sin call per angle
-    _compiled_cos_sin = None  # type: ignore[assignment]
 
 __all__ = [
     "SingleG2oView",
@@ -212,11 +208,7 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
 
 def _odometry_measurements(walk: _Walk) -> np.ndarray:
     """``(n - 1, 3)`` odometry edges (dx, dy, dtheta) of a walk: its noisy step along its noisy turn."""
-    if _compiled_cos_sin is not None:  # every angle distinct (noisy): libm's, in one compiled loop
-        cb, sb = _compiled_cos_sin(np.ascontiguousarray(walk.odom_ang, dtype=np.float64))
-        c, s = np.frombuffer(cb, dtype=np.float64), np.frombuffer(sb, dtype=np.float64)
-    else:
-        c, s = libm_cos_sin(walk.odom_ang)
+    c, s = _cos_sin(walk.odom_ang) or libm_cos_sin(walk.odom_ang)  # compiled, or numpy and math
     return np.column_stack([walk.odom_pos * c, walk.odom_pos * s, walk.odom_ang])
 
 

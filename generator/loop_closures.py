@@ -25,11 +25,22 @@ from studio.generator.walk import _round_half_away, _round_to_int, _Walk
 try:  # the compiled kernels (pyproject.toml declares them; built where a C compiler is found)
     from studio.generator._sampler import cells as _compiled_cells
     from studio.generator._sampler import closures as _compiled_closures
+    from studio.generator._sampler import cos_sin as _compiled_cos_sin
     from studio.generator._sampler import sample as _compiled_sample
 except ImportError:  # no compiler at install: numpy and Python (the same bytes; tests run both)
     _compiled_sample = None  # type: ignore[assignment]
     _compiled_closures = None  # type: ignore[assignment]
     _compiled_cells = None  # type: ignore[assignment]
+    _compiled_cos_sin = None  # type: ignore[assignment]
+
+
+def _cos_sin(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """libm's cos and sin of ``theta`` in one compiled loop, or None (the caller's numpy path)."""
+    if _compiled_cos_sin is None:
+        return None
+    c, s = _compiled_cos_sin(np.ascontiguousarray(theta, dtype=np.float64))
+    return np.frombuffer(c, dtype=np.float64), np.frombuffer(s, dtype=np.float64)
+
 
 __all__ = ["discrete_circle", "agent_pairs", "intra_loop_closures"]
 
@@ -636,8 +647,15 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
 
 def _intra_edges(walk: _Walk, agent: AgentConfig, i_to: np.ndarray, j_from: np.ndarray, noise: np.ndarray) -> Edges:
     """The accepted intra-agent loop closures (pose ``j_from`` to ``i_to``) with their normals."""
+    th_from = walk.theta[j_from]
     dX, dY, dT = relative_planar_pose(
-        walk.x[j_from], walk.y[j_from], walk.theta[j_from], walk.x[i_to], walk.y[i_to], walk.theta[i_to]
+        walk.x[j_from],
+        walk.y[j_from],
+        th_from,
+        walk.x[i_to],
+        walk.y[i_to],
+        walk.theta[i_to],
+        cos_sin_from=_cos_sin(th_from),
     )
     sp, sa = agent.std_dev_intra_loop_closure_position, agent.std_dev_intra_loop_closure_angle
     meas = np.column_stack([dX + noise[:, 0] * sp, dY + noise[:, 1] * sp, dT + noise[:, 2] * sa])
@@ -694,8 +712,15 @@ class _InterPairs:
             acc, noise, _, _ = _sample(self._tape, hits.probs, None)
             i_from, m = hits.pairs(acc)
             j_to = last[m]
+        th_from = wb.theta[i_from]
         dX, dY, dT = relative_planar_pose(
-            wb.x[i_from], wb.y[i_from], wb.theta[i_from], wa.x[j_to], wa.y[j_to], wa.theta[j_to]
+            wb.x[i_from],
+            wb.y[i_from],
+            th_from,
+            wa.x[j_to],
+            wa.y[j_to],
+            wa.theta[j_to],
+            cos_sin_from=_cos_sin(th_from),
         )
         meas = np.column_stack(
             [

@@ -18,10 +18,12 @@ from studio.generator.rng import MT19937Stream, canonical_doubles
 
 try:  # the compiled draws and headings (generator/_sampler.c, built at install where a C compiler is found)
     from studio.generator._sampler import headings as _compiled_headings
+    from studio.generator._sampler import trajectory as _compiled_trajectory
     from studio.generator._sampler import walk as _compiled_walk
 except ImportError:  # no compiler at install: numpy and Python (the same bytes; tests run both)
     _compiled_walk = None  # type: ignore[assignment]
     _compiled_headings = None  # type: ignore[assignment]
+    _compiled_trajectory = None  # type: ignore[assignment]
 
 __all__ = ["Walk", "random_walk"]
 
@@ -152,6 +154,22 @@ def _walk_draws(
 def _random_walk(stream: MT19937Stream, cfg: SynthConfig, agent: AgentConfig) -> _Walk:
     frag, stepsize = cfg.step_fragment, cfg.stepsize
     turns, npos, nang = _walk_draws(stream, cfg.number_of_steps, frag, cfg.allow_retrocession)
+    if _compiled_trajectory is not None:
+        cols = _compiled_trajectory(
+            np.ascontiguousarray(turns, dtype=np.int64),
+            np.ascontiguousarray(npos, dtype=np.float64),
+            np.ascontiguousarray(nang, dtype=np.float64),
+            frag,
+            float(stepsize),
+            float(agent.std_dev_position),
+            float(agent.std_dev_angle),
+            _TH_TAB,
+            _DX_TAB,
+            _DY_TAB,
+            _TURN_ANGLE,
+        )
+        x, y, theta, odom_pos, odom_ang = (np.frombuffer(cols[i], dtype=np.float64) for i in (0, 1, 2, 4, 5))
+        return _Walk(x, y, theta, np.frombuffer(cols[3], dtype=np.int64), odom_pos, odom_ang)
     # heading in quarter turns, with C's truncating %
     theta_int_steps = np.empty(len(turns), dtype=np.int64)
     t = 0

@@ -156,12 +156,15 @@ def relative_planar_pose(
     x_to: np.ndarray | float,
     y_to: np.ndarray | float,
     th_to: np.ndarray | float,
+    *,
+    cos_sin_from: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Planar pose ``to`` in the frame of ``from``, columns ``(dx, dy, dtheta)``, evaluated in
-    kollagen's order (``calculate_relative_transform``) so the bits match its files."""
+    kollagen's order (``calculate_relative_transform``) so the bits match its files.
+    ``cos_sin_from``: libm's cos and sin of ``th_from`` where the caller has them already."""
     xdiff = np.asarray(x_to, dtype=np.float64) - x_from
     ydiff = np.asarray(y_to, dtype=np.float64) - y_from
-    c, s = libm_cos_sin(th_from)
+    c, s = libm_cos_sin(th_from) if cos_sin_from is None else cos_sin_from
     dx = xdiff * c + ydiff * s
     dy = -xdiff * s + ydiff * c
     return dx, dy, normalize_angle(np.asarray(th_to, dtype=np.float64) - th_from)

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from studio.generator import kollagen, loop_closures, walk
+from studio.generator import loop_closures, walk
 from studio.generator.loop_closures import _CircleTable, _columns, _compiled_search, _visits, discrete_circle
 from studio.generator.rng import MT19937Stream, UniformTape
 from studio.synth import generate, load_synth_config
@@ -147,7 +147,8 @@ def test_datasets_are_the_same_with_and_without_the_compiled_kernels(radius_m, m
             patch.setattr(loop_closures, "_compiled_cells", None)
             patch.setattr(walk, "_compiled_walk", None)
             patch.setattr(walk, "_compiled_headings", None)
-            patch.setattr(kollagen, "_compiled_cos_sin", None)
+            patch.setattr(walk, "_compiled_trajectory", None)
+            patch.setattr(loop_closures, "_compiled_cos_sin", None)
             plain = _arrays(generate(cfg, seed=seed))
         assert sum(len(v) for v in compiled[-6:]) > 0  # inter-agent closures were drawn
         assert len(compiled) == len(plain)
@@ -231,6 +232,24 @@ def test_cells_are_the_visits_by_column(trial, which):
 
 def test_cos_sin_are_libms():
     a = np.random.default_rng(1).normal(0, 10, 5000)
-    c, s = kollagen._compiled_cos_sin(a)
+    c, s = loop_closures._compiled_cos_sin(a)
     assert np.frombuffer(c, dtype=np.float64).tolist() == [math.cos(v) for v in a.tolist()]
     assert np.frombuffer(s, dtype=np.float64).tolist() == [math.sin(v) for v in a.tolist()]
+
+
+@pytest.mark.parametrize("stepsize", [1.0, 0.3, 2.5])
+@pytest.mark.parametrize("frag", [1, 4, 7])
+@pytest.mark.parametrize("retro", [False, True])
+def test_walks_are_the_python_walks(retro, frag, stepsize, monkeypatch):
+    base = load_synth_config("tests/data/configs/small3x100.json")
+    cfg = dataclasses.replace(
+        base, step_fragment=frag, stepsize=stepsize, allow_retrocession=retro, number_of_steps=300
+    )
+    agent = dataclasses.replace(cfg.agents[0], std_dev_position=0.07, std_dev_angle=0.003)
+    got = walk._random_walk(MT19937Stream(41), cfg, agent)
+    monkeypatch.setattr(walk, "_compiled_trajectory", None)
+    want = walk._random_walk(MT19937Stream(41), cfg, agent)
+    assert len(set(got.delta_theta.tolist())) == (4 if retro else 3)
+    for name in ("x", "y", "theta", "delta_theta", "odom_pos", "odom_ang"):
+        a, b = getattr(got, name), getattr(want, name)
+        assert a.dtype == b.dtype and a.tolist() == b.tolist(), name  # bit for bit
