@@ -793,6 +793,40 @@ done:
     return result;
 }
 
+/* grid_cells(x, y, frag, stepsize) -> (cx, cy): C's round (half away from zero) of
+ * x * frag / stepsize and of y's, as int64 (studio.generator.loop_closures._grid_cells) */
+static PyObject *grid_cells(PyObject *self, PyObject *args) {
+    PyObject *ox, *oy;
+    double frag, stepsize;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOdd:grid_cells", &ox, &oy, &frag, &stepsize)) return NULL;
+    Py_buffer v[2];
+    if (get_doubles(ox, &v[0], "x") < 0) return NULL;
+    if (get_doubles(oy, &v[1], "y") < 0) {
+        PyBuffer_Release(&v[0]);
+        return NULL;
+    }
+    PyObject *out[2] = {NULL, NULL}, *result = NULL;
+    for (int i = 0; i < 2; i++) {
+        const Py_ssize_t n = v[i].len / 8;
+        const double *a = v[i].buf;
+        out[i] = PyByteArray_FromStringAndSize(NULL, n * 8);
+        if (out[i] == NULL) goto done;
+        int64_t *c = (int64_t *)PyByteArray_AS_STRING(out[i]);
+        for (Py_ssize_t k = 0; k < n; k++) {
+            const double u = a[k] * frag / stepsize, t = trunc(u), f = u - t;
+            c[k] = (int64_t)(t + (fabs(f) >= 0.5 ? (u > 0 ? 1.0 : -1.0) : 0.0));
+        }
+    }
+    result = Py_BuildValue("OO", out[0], out[1]);
+done:
+    Py_XDECREF(out[0]);
+    Py_XDECREF(out[1]);
+    PyBuffer_Release(&v[0]);
+    PyBuffer_Release(&v[1]);
+    return result;
+}
+
 /* cos_sin(a) -> (cos, sin): the C library's cos and sin of every entry (Python's math.cos, math.sin) */
 static PyObject *cos_sin(PyObject *self, PyObject *args) {
     PyObject *obj;
@@ -827,6 +861,7 @@ static PyMethodDef methods[] = {
     {"headings", headings, METH_VARARGS, "kollagen's dead-reckoned headings (see the module's source)."},
     {"cells", cells, METH_VARARGS, "A walk's distinct cells by column (see the module's source)."},
     {"cos_sin", cos_sin, METH_VARARGS, "The C library's cos and sin of every entry."},
+    {"grid_cells", grid_cells, METH_VARARGS, "A walk's grid cells, rounded as C rounds (see the module's source)."},
     {NULL, NULL, 0, NULL},
 };
 

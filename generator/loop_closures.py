@@ -26,12 +26,14 @@ try:  # the compiled kernels (pyproject.toml declares them; built where a C comp
     from studio.generator._sampler import cells as _compiled_cells
     from studio.generator._sampler import closures as _compiled_closures
     from studio.generator._sampler import cos_sin as _compiled_cos_sin
+    from studio.generator._sampler import grid_cells as _compiled_grid_cells
     from studio.generator._sampler import sample as _compiled_sample
 except ImportError:  # no compiler at install: numpy and Python (the same bytes; tests run both)
     _compiled_sample = None  # type: ignore[assignment]
     _compiled_closures = None  # type: ignore[assignment]
     _compiled_cells = None  # type: ignore[assignment]
     _compiled_cos_sin = None  # type: ignore[assignment]
+    _compiled_grid_cells = None  # type: ignore[assignment]
 
 
 def _cos_sin(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -70,6 +72,11 @@ def agent_pairs(n: int) -> list[tuple[int, int]]:
 
 def _grid_cells(x: np.ndarray, y: np.ndarray, cfg: SynthConfig) -> tuple[np.ndarray, np.ndarray]:
     frag, stepsize = float(cfg.step_fragment), cfg.stepsize
+    if _compiled_grid_cells is not None:
+        cx, cy = _compiled_grid_cells(
+            np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(y, dtype=np.float64), frag, stepsize
+        )
+        return np.frombuffer(cx, dtype=np.int64), np.frombuffer(cy, dtype=np.int64)
     return _round_half_away(x * frag / stepsize), _round_half_away(y * frag / stepsize)
 
 

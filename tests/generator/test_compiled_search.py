@@ -149,6 +149,7 @@ def test_datasets_are_the_same_with_and_without_the_compiled_kernels(radius_m, m
             patch.setattr(walk, "_compiled_headings", None)
             patch.setattr(walk, "_compiled_trajectory", None)
             patch.setattr(loop_closures, "_compiled_cos_sin", None)
+            patch.setattr(loop_closures, "_compiled_grid_cells", None)
             plain = _arrays(generate(cfg, seed=seed))
         assert sum(len(v) for v in compiled[-6:]) > 0  # inter-agent closures were drawn
         assert len(compiled) == len(plain)
@@ -253,3 +254,21 @@ def test_walks_are_the_python_walks(retro, frag, stepsize, monkeypatch):
     for name in ("x", "y", "theta", "delta_theta", "odom_pos", "odom_ang"):
         a, b = getattr(got, name), getattr(want, name)
         assert a.dtype == b.dtype and a.tolist() == b.tolist(), name  # bit for bit
+
+
+@pytest.mark.parametrize("stepsize", [1.0, 0.3, 2.5])
+def test_grid_cells_round_as_c_rounds(stepsize, monkeypatch):
+    rng = np.random.default_rng(9)
+    frag = 4
+    # positions on the walk's lattice (exact halves among the cells), random ones, negatives, zeros
+    x = np.concatenate([np.arange(-400, 400) * stepsize / frag, rng.normal(0, 50, 2000), [0.0, -0.0]])
+    y = np.concatenate([np.arange(-400, 400) * stepsize / 8, rng.normal(0, 50, 2000), [-0.0, 0.0]])
+    cfg = dataclasses.replace(
+        load_synth_config("tests/data/configs/small3x100.json"), step_fragment=frag, stepsize=stepsize
+    )
+    got = loop_closures._grid_cells(x, y, cfg)
+    monkeypatch.setattr(loop_closures, "_compiled_grid_cells", None)
+    want = loop_closures._grid_cells(x, y, cfg)
+    assert any(abs(v * frag / stepsize % 1) == 0.5 for v in y.tolist())  # ties were tried
+    for a, b in zip(got, want):
+        assert a.dtype == b.dtype and a.tolist() == b.tolist()
