@@ -13,7 +13,7 @@ from studio.generator import loop_closures, walk
 from studio.generator.loop_closures import _CircleTable, _columns, _compiled_search, _visits, discrete_circle
 from studio.generator.rng import MT19937Stream, UniformTape
 from studio.synth import generate, load_synth_config
-from tests.generator.test_sampling import _polar
+from tests.generator.test_sampling import _plain_sample
 
 pytestmark = pytest.mark.skipif(
     loop_closures._compiled_closures is None, reason="the compiled kernels were not built (no C compiler)"
@@ -21,28 +21,19 @@ pytestmark = pytest.mark.skipif(
 
 
 def _plain_closures(qx, qy, tx, ty, table_pose, radius, probs, before_query, u):
-    """kollagen's loop, hit by hit, with probabilities by rank + 1 (NaN: not a candidate)."""
+    """kollagen's loop, hit by hit, with probabilities by rank + 1 (NaN: not a candidate); its
+    candidates decided by the plain sampler of tests/generator/test_sampling.py."""
     where = {(x, y): m for x, y, m in zip(tx.tolist(), ty.tolist(), table_pose.tolist())}
     circle = discrete_circle(radius).tolist()
     order = [(0, 0, 0)] + [(dx, dy, r + 1) for r, (dx, dy) in enumerate(circle) if (dx, dy) != (0, 0)]
-    q, cached, ks, ms, normals = 0, None, [], [], []
+    candidates = []  # (query, table pose, probability) in visiting order
     for k, (x, y) in enumerate(zip(qx.tolist(), qy.tolist())):
         for dx, dy, r in order:
             m = where.get((x + dx, y + dy))
-            if m is None or math.isnan(probs[r]) or (before_query and m >= k):
-                continue
-            q += 1
-            if not probs[r] > u[q - 1]:
-                continue
-            ks.append(k)
-            ms.append(m)
-            for _ in range(3):
-                if cached is None:
-                    value, cached, q = _polar(u, q)
-                else:
-                    value, cached = cached, None
-                normals.append(value)
-    return ks, ms, normals, q
+            if m is not None and not math.isnan(probs[r]) and not (before_query and m >= k):
+                candidates.append((k, m, probs[r]))
+    accepted, normals, _, used = _plain_sample(u, [p for _, _, p in candidates], None)
+    return [candidates[h][0] for h in accepted], [candidates[h][1] for h in accepted], normals, used
 
 
 @pytest.mark.parametrize("before_query", [False, True])
