@@ -5,6 +5,11 @@ with a sorted-cell search (O(N + hits) instead of kollagen's O(N * R^2) map look
 exact order kollagen visits them. Each hit consumes one uniform; between two accepted loop closures
 the uniforms sit at fixed stream positions, so the unlikely hits are decided in bulk with numpy and
 only the likely ones and the accepted ones (with their three normals) go through Python.
+
+Where the studio was installed with a C compiler, the search and the sampling run as one compiled
+pass instead (``closures`` in generator/_sampler.c, through :func:`_compiled_search`): the same hits
+in the same order, each decided as it is found, no list of hits; the numpy and Python code stays as
+the path without a compiler and as the reference the tests hold the kernel to.
 """
 
 from __future__ import annotations

@@ -2,7 +2,9 @@
 
 Each agent's ``mt19937`` gives, per step, one integer (the turn) and then, per sub-step, a position
 and an angle normal; positions and headings are built with integer cumulative sums and the dead
-reckoning follows kollagen's floating-point order (libm through :mod:`math`).
+reckoning follows kollagen's floating-point order (libm through :mod:`math`). Where the studio was
+installed with a C compiler the draws, the walk and the dead-reckoned headings are compiled
+(generator/_sampler.c: ``walk``, ``trajectory``, ``headings``), with the same bytes.
 """
 
 from __future__ import annotations
