@@ -1,24 +1,25 @@
-/* The loop-closure sampler of studio.generator.loop_closures, compiled.
+/* kollagen's generator, its hot paths compiled: the walk's draws and poses, the dead-reckoned
+ * headings, a walk's grid cells, and the loop-closure search and sampler (studio.generator.walk and
+ * studio.generator.loop_closures call them where this module was built; their numpy and Python code
+ * is the path without a compiler and the reference the tests hold these functions to).
  *
- * kollagen decides every loop-closure candidate ("hit") with one uniform of its generator and draws
- * three normals (libstdc++'s polar method, one value cached between calls) for each accepted one.
- * The decisions are sequential: an accepted hit moves every later hit's uniform by the number of
- * uniforms its normals used. In Python each acceptance costs a numpy scan and a few Python steps
- * (about 5 us); here it is a plain loop over the hits.
- *
- * Bit for bit the same as the Python sampler (`_sample_python`): the comparisons and the arithmetic
- * are the same IEEE double operations in the same order, log and sqrt are the C library's (those
- * Python's math.log and math.sqrt call), and the build turns floating-point contraction off
- * (-ffp-contract=off: no fused multiply-add where the Python code rounds twice).
+ * Bit for bit the same as that code: the comparisons and the arithmetic are the same IEEE double
+ * operations in the same order, log, sqrt, cos and sin are the C library's (those Python's math
+ * calls), and the build turns floating-point contraction off (-ffp-contract=off: no fused
+ * multiply-add where the Python code rounds twice) and GCC's built-in maths (-fno-builtin: no sincos
+ * where Python calls cos and sin).
  *
  * sample(probs, uniforms, h, d, cached) -> (accepted, normals, h, d, cached, complete)
+ *   The sampler alone (studio.generator.loop_closures._sample_python), for hits numpy found: each hit
+ *   is decided by one uniform, in order; an accepted hit draws three normals (libstdc++'s polar
+ *   method, one value cached between calls), which moves every later hit's uniform.
  *   probs     C-contiguous float64 buffer: each hit's probability, in visiting order
  *   uniforms  C-contiguous float64 buffer: the canonical doubles of the stream, from hit 0's on
  *   h, d      the next hit to decide and the offset of its uniform (hit h reads uniforms[h + d])
  *   cached    the normal distribution's cached value (None when it holds none)
- * Returns the accepted hits (a bytearray of int64) and their normals (a bytearray of float64, three
- * per hit), and the state after the last accepted hit: complete is False when the uniforms ran out
- * before every hit was decided (call again with more uniforms from the returned state).
+ *   Returns the accepted hits (a bytearray of int64) and their normals (a bytearray of float64, three
+ *   per hit), and the state after the last accepted hit: complete is False when the uniforms ran out
+ *   before every hit was decided (call again with more uniforms from the returned state).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -52,7 +53,7 @@ static int get_doubles(PyObject *obj, Py_buffer *view, const char *what) {
     if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return -1;
     if (view->itemsize != (Py_ssize_t)sizeof(double) || view->format == NULL || strcmp(view->format, "d") != 0) {
         PyBuffer_Release(view);
-        PyErr_Format(PyExc_TypeError, "sample: %s must be a contiguous float64 buffer", what);
+        PyErr_Format(PyExc_TypeError, "%s must be a contiguous float64 buffer", what);
         return -1;
     }
     return 0;
@@ -158,24 +159,6 @@ static PyObject *sample(PyObject *self, PyObject *args) {
     return result;
 }
 
-
-/* ------------------------------------------------------------------------------------------------
- * closures(qx, qy, col_start, col_y, col_m, x0, ylim, colbase, probs, before_query, seed, skip, cached)
- *     -> (k, m, normals, used, cached)
- *
- * The loop-closure search and the sampler in one pass, in kollagen's visiting order, without a list
- * of hits: for each query cell (qx[k], qy[k]) the same-cell check, then the discrete circle's columns
- * dx = -R..R, each visited dy = 0, 1, -1, 2, -2, ... The table's cells are in columns: column
- * c = x - x0 holds entries col_start[c] .. col_start[c + 1] - 1, sorted by y, each with its pose
- * col_m. A hit's probability is probs[rank + 1] (rank -1: the same cell; the circle rank of (dx, dy)
- * is colbase[dx + R] plus its place in the column); a NaN probability, or with before_query a table
- * pose not before the query (k <= m), is no candidate and reads no uniform. Every candidate reads the
- * next uniform and is accepted when its probability exceeds it; an accepted one draws three normals
- * (the sampler above). The uniforms are those of std::mt19937(seed) from word skip on (the words
- * the stream's earlier draws read; uniforms are word pairs from there), decoded as they are needed.
- * Returns the accepted candidates' queries k and table poses m (bytearrays of int64), their normals
- * (float64, three each), the uniforms used (two words each) and the normal distribution's cache.
- */
 /* std::mt19937 (MT19937, init_genrand seeding: what numpy's RandomState(seed) does too) and
  * libstdc++'s generate_canonical<double, 53> on its words (studio.generator.rng.canonical_doubles). */
 enum { MT_N = 624, MT_M = 397 };
@@ -222,6 +205,15 @@ static inline uint32_t mt_next(mt19937 *g) {
     return g->out[g->i++];
 }
 
+/* generate_canonical<double, 53> of two words: (lo + hi 2^32) / 2^64, a result of 1 made the largest
+ * double below 1 (studio.generator.rng.canonical_doubles) */
+static inline double canonical(uint32_t lo, uint32_t hi) {
+    double v = (double)hi * 4294967296.0; /* exact */
+    v += (double)lo;                      /* one rounding, as libstdc++'s sum */
+    v *= 1.0 / 18446744073709551616.0;    /* exact: a power of two */
+    return v < 0x1.fffffffffffffp-1 ? v : 0x1.fffffffffffffp-1;
+}
+
 /* A window of the stream's canonical doubles: uniform base + j is buf[j], j < len. */
 typedef struct {
     mt19937 gen;
@@ -249,7 +241,6 @@ static int source_fill(uniform_source *s, Py_ssize_t keep_from, Py_ssize_t end) 
         s->buf = buf;
         s->cap = cap;
     }
-    const double two32 = 4294967296.0, below_one = nextafter(1.0, 0.0);
     mt19937 *g = &s->gen;
     while (s->len < s->cap) {
         /* the pairs that lie whole in the tempered block, decoded in one loop */
@@ -257,20 +248,12 @@ static int source_fill(uniform_source *s, Py_ssize_t keep_from, Py_ssize_t end) 
         if (pairs > room) pairs = room;
         const uint32_t *w = g->out + g->i;
         double *d = s->buf + s->len;
-        for (Py_ssize_t j = 0; j < pairs; j++) {
-            double v = (double)w[2 * j + 1] * two32; /* exact */
-            v += (double)w[2 * j];                    /* one rounding, as libstdc++'s sum */
-            v *= 1.0 / 18446744073709551616.0;        /* exact: a power of two */
-            d[j] = v < below_one ? v : below_one;
-        }
+        for (Py_ssize_t j = 0; j < pairs; j++) d[j] = canonical(w[2 * j], w[2 * j + 1]);
         g->i += (int)(2 * pairs);
         s->len += pairs;
         if (s->len < s->cap && g->i >= MT_N - 1) { /* a pair across two blocks (or none left) */
             uint32_t lo = mt_next(g), hi = mt_next(g);
-            double v = (double)hi * two32;
-            v += (double)lo;
-            v *= 1.0 / 18446744073709551616.0;
-            s->buf[s->len++] = v < below_one ? v : below_one;
+            s->buf[s->len++] = canonical(lo, hi);
         }
     }
     return 0;
@@ -297,10 +280,27 @@ static inline Py_ssize_t lower_bound(const int64_t *a, Py_ssize_t lo, Py_ssize_t
     return lo;
 }
 
+/* ------------------------------------------------------------------------------------------------
+ * closures(qx, qy, col_start, col_y, col_m, x0, ylim, colbase, probs, before_query, seed, skip)
+ *     -> (k, m, normals, used)
+ *
+ * The loop-closure search and the sampler in one pass, in kollagen's visiting order, without a list
+ * of hits: for each query cell (qx[k], qy[k]) the same-cell check, then the discrete circle's columns
+ * dx = -R..R, each visited dy = 0, 1, -1, 2, -2, ... The table's cells are in columns: column
+ * c = x - x0 holds entries col_start[c] .. col_start[c + 1] - 1, sorted by y, each with its pose
+ * col_m. A hit's probability is probs[rank + 1] (rank -1: the same cell; the circle rank of (dx, dy)
+ * is colbase[dx + R] plus its place in the column); a NaN probability, or with before_query a table
+ * pose not before the query (k <= m), is no candidate and reads no uniform. Every candidate reads the
+ * next uniform and is accepted when its probability exceeds it; an accepted one draws three normals
+ * (the sampler above). The uniforms are those of std::mt19937(seed) from word skip on (the words
+ * the stream's earlier draws read; uniforms are word pairs from there), decoded as they are needed.
+ * Returns the accepted candidates' queries k and table poses m (bytearrays of int64), their normals
+ * (float64, three each) and the uniforms used (two words each). The normal distribution starts
+ * with no cached value, as each of kollagen's loop-closure searches does.
+ */
 typedef struct {
     uniform_source src;
     const double *probs;
-    Py_ssize_t n_probs;
     int before_query, has_cached;
     double cached;
     Py_ssize_t ui; /* the next uniform */
@@ -403,13 +403,13 @@ static int index_columns(column_index *ix, Py_ssize_t n_cols, Py_ssize_t n_table
 }
 
 static PyObject *closures(PyObject *self, PyObject *args) {
-    PyObject *o[9], *cached_obj;
+    PyObject *o[8];
     Py_ssize_t x0, skip;
     long long seed;
     int before_query;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OOOOOnOOOpLnO:closures", &o[0], &o[1], &o[2], &o[3], &o[4], &x0, &o[5], &o[6],
-                          &o[7], &before_query, &seed, &skip, &cached_obj))
+    if (!PyArg_ParseTuple(args, "OOOOOnOOOpLn:closures", &o[0], &o[1], &o[2], &o[3], &o[4], &x0, &o[5], &o[6],
+                          &o[7], &before_query, &seed, &skip))
         return NULL;
     if (skip < 0) {
         PyErr_SetString(PyExc_ValueError, "closures: skip must be a number of words >= 0");
@@ -427,11 +427,6 @@ static PyObject *closures(PyObject *self, PyObject *args) {
     mt_seed(&st.src.gen, (uint32_t)((unsigned long long)seed & 0xffffffffULL));
     for (Py_ssize_t w = 0; w < skip; w++) (void)mt_next(&st.src.gen);
     st.before_query = before_query;
-    st.has_cached = cached_obj != Py_None;
-    if (st.has_cached) {
-        st.cached = PyFloat_AsDouble(cached_obj);
-        if (st.cached == -1.0 && PyErr_Occurred()) return NULL;
-    }
     for (; got < 7; got++)
         if (get_int64s(o[got], &v[got], names[got]) < 0) goto done;
     if (get_doubles(o[7], &v[7], "probs") < 0) goto done;
@@ -441,10 +436,10 @@ static PyObject *closures(PyObject *self, PyObject *args) {
         const int64_t *ylim = v[5].buf, *colbase = v[6].buf;
         const Py_ssize_t nq = v[0].len / 8, n_cols = v[2].len / 8 - 1, n_table = v[3].len / 8;
         const Py_ssize_t side = v[5].len / 8, R = (side - 1) / 2;
+        const Py_ssize_t n_probs = v[7].len / 8;
         st.probs = v[7].buf;
-        st.n_probs = v[7].len / 8;
         if (v[1].len != v[0].len || n_cols < 0 || v[4].len != v[3].len || side % 2 != 1 || v[6].len != v[5].len ||
-            st.n_probs < 1) {
+            n_probs < 1) {
             PyErr_SetString(PyExc_ValueError, "closures: inconsistent lengths");
             goto done;
         }
@@ -453,7 +448,7 @@ static PyObject *closures(PyObject *self, PyObject *args) {
             goto done;
         }
         for (Py_ssize_t j = 0; j < side; j++)
-            if (colbase[j] < 0 || colbase[j] + 2 * ylim[j] + 1 >= st.n_probs) {
+            if (colbase[j] < 0 || colbase[j] + 2 * ylim[j] + 1 >= n_probs) {
                 PyErr_SetString(PyExc_ValueError, "closures: probs shorter than the circle");
                 goto done;
             }
@@ -496,12 +491,10 @@ static PyObject *closures(PyObject *self, PyObject *args) {
         PyObject *ka = PyByteArray_FromStringAndSize(st.k.data ? st.k.data : "", st.k.used);
         PyObject *ma = PyByteArray_FromStringAndSize(st.m.data ? st.m.data : "", st.m.used);
         PyObject *na = PyByteArray_FromStringAndSize(st.nor.data ? st.nor.data : "", st.nor.used);
-        PyObject *ca = st.has_cached ? PyFloat_FromDouble(st.cached) : (Py_INCREF(Py_None), Py_None);
-        if (ka && ma && na && ca) result = Py_BuildValue("OOOnO", ka, ma, na, st.ui, ca);
+        if (ka && ma && na) result = Py_BuildValue("OOOn", ka, ma, na, st.ui);
         Py_XDECREF(ka);
         Py_XDECREF(ma);
         Py_XDECREF(na);
-        Py_XDECREF(ca);
     }
 done:
     for (int i = 0; i < got; i++) PyBuffer_Release(&v[i]);
@@ -523,14 +516,6 @@ done:
  * one (x * mult) the angle normal. Returns the turns (int64), the normals (float64, frag per step)
  * and the words read.
  */
-static inline double canonical(uint32_t lo, uint32_t hi) {
-    double v = (double)hi * 4294967296.0; /* exact */
-    v += (double)lo;                      /* one rounding */
-    v *= 1.0 / 18446744073709551616.0;    /* exact */
-    const double below_one = nextafter(1.0, 0.0);
-    return v < below_one ? v : below_one;
-}
-
 static PyObject *walk(PyObject *self, PyObject *args) {
     long long seed;
     Py_ssize_t n_steps, frag;
@@ -667,6 +652,36 @@ done:
     return result;
 }
 
+/* (cos, sin): bytearrays of the C library's cos and sin of a[0..n) (Python's math.cos, math.sin),
+ * or NULL with an exception set */
+static PyObject *cos_sin_of(const double *a, Py_ssize_t n) {
+    PyObject *co = PyByteArray_FromStringAndSize(NULL, n * 8);
+    PyObject *si = PyByteArray_FromStringAndSize(NULL, n * 8);
+    if (co == NULL || si == NULL) {
+        Py_XDECREF(co);
+        Py_XDECREF(si);
+        return NULL;
+    }
+    double *c = (double *)PyByteArray_AS_STRING(co), *s = (double *)PyByteArray_AS_STRING(si);
+    for (Py_ssize_t k = 0; k < n; k++) {
+        c[k] = cos(a[k]);
+        s[k] = sin(a[k]);
+    }
+    return Py_BuildValue("NN", co, si);
+}
+
+/* cos_sin(a) -> (cos, sin) of every entry of a */
+static PyObject *cos_sin(PyObject *self, PyObject *args) {
+    PyObject *obj;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "O:cos_sin", &obj)) return NULL;
+    Py_buffer v;
+    if (get_doubles(obj, &v, "a") < 0) return NULL;
+    PyObject *result = cos_sin_of(v.buf, v.len / 8);
+    PyBuffer_Release(&v);
+    return result;
+}
+
 /* ------------------------------------------------------------------------------------------------
  * headings(odom_ang) -> (theta, cos, sin)
  *
@@ -682,30 +697,24 @@ static PyObject *headings(PyObject *self, PyObject *args) {
     if (get_doubles(obj, &v, "odom_ang") < 0) return NULL;
     const double *a = v.buf;
     const Py_ssize_t n = v.len / 8;
-    PyObject *th = PyByteArray_FromStringAndSize(NULL, (n + 1) * 8);
-    PyObject *co = PyByteArray_FromStringAndSize(NULL, n * 8);
-    PyObject *si = PyByteArray_FromStringAndSize(NULL, n * 8);
-    if (th == NULL || co == NULL || si == NULL) {
-        PyBuffer_Release(&v);
-        Py_XDECREF(th);
-        Py_XDECREF(co);
-        Py_XDECREF(si);
-        return NULL;
+    PyObject *th = PyByteArray_FromStringAndSize(NULL, (n + 1) * 8), *trig = NULL, *result = NULL;
+    if (th != NULL) {
+        double *theta = (double *)PyByteArray_AS_STRING(th);
+        const double pi = 3.141592653589793, two_pi = 2 * 3.141592653589793;
+        double t = 0.0;
+        theta[0] = 0.0;
+        for (Py_ssize_t k = 0; k < n; k++) {
+            t = t + a[k];
+            t = t - floor((t + pi) / two_pi) * 2.0 * pi;
+            theta[k + 1] = t;
+        }
+        trig = cos_sin_of(theta + 1, n);
+        if (trig != NULL) result = Py_BuildValue("OOO", th, PyTuple_GET_ITEM(trig, 0), PyTuple_GET_ITEM(trig, 1));
     }
-    double *theta = (double *)PyByteArray_AS_STRING(th), *c = (double *)PyByteArray_AS_STRING(co);
-    double *s = (double *)PyByteArray_AS_STRING(si);
-    const double pi = 3.141592653589793, two_pi = 2 * 3.141592653589793;
-    double t = 0.0;
-    theta[0] = 0.0;
-    for (Py_ssize_t k = 0; k < n; k++) {
-        t = t + a[k];
-        t = t - floor((t + pi) / two_pi) * 2.0 * pi;
-        theta[k + 1] = t;
-        c[k] = cos(t);
-        s[k] = sin(t);
-    }
+    Py_XDECREF(th);
+    Py_XDECREF(trig);
     PyBuffer_Release(&v);
-    return Py_BuildValue("NNN", th, co, si);
+    return result;
 }
 
 /* ------------------------------------------------------------------------------------------------
@@ -827,32 +836,6 @@ done:
     return result;
 }
 
-/* cos_sin(a) -> (cos, sin): the C library's cos and sin of every entry (Python's math.cos, math.sin) */
-static PyObject *cos_sin(PyObject *self, PyObject *args) {
-    PyObject *obj;
-    (void)self;
-    if (!PyArg_ParseTuple(args, "O:cos_sin", &obj)) return NULL;
-    Py_buffer v;
-    if (get_doubles(obj, &v, "a") < 0) return NULL;
-    const double *a = v.buf;
-    const Py_ssize_t n = v.len / 8;
-    PyObject *co = PyByteArray_FromStringAndSize(NULL, n * 8);
-    PyObject *si = PyByteArray_FromStringAndSize(NULL, n * 8);
-    if (co == NULL || si == NULL) {
-        PyBuffer_Release(&v);
-        Py_XDECREF(co);
-        Py_XDECREF(si);
-        return NULL;
-    }
-    double *c = (double *)PyByteArray_AS_STRING(co), *s = (double *)PyByteArray_AS_STRING(si);
-    for (Py_ssize_t k = 0; k < n; k++) {
-        c[k] = cos(a[k]);
-        s[k] = sin(a[k]);
-    }
-    PyBuffer_Release(&v);
-    return Py_BuildValue("NN", co, si);
-}
-
 static PyMethodDef methods[] = {
     {"sample", sample, METH_VARARGS, "Decide loop-closure hits in order (see the module's source)."},
     {"closures", closures, METH_VARARGS, "Search and sample loop closures in one pass (see the module's source)."},
@@ -865,7 +848,8 @@ static PyMethodDef methods[] = {
     {NULL, NULL, 0, NULL},
 };
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_sampler", "kollagen's loop-closure sampler, compiled.",
-                                    -1, methods};
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_sampler",
+                                    "kollagen's generator, its hot paths compiled (see the module's source).", -1,
+                                    methods};
 
 PyMODINIT_FUNC PyInit__sampler(void) { return PyModule_Create(&module); }

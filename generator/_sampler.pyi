@@ -1,4 +1,4 @@
-"""Types of the compiled loop-closure sampler (generator/_sampler.c)."""
+"""Types of the compiled generator kernels (generator/_sampler.c)."""
 
 from typing import Any
 
@@ -18,9 +18,8 @@ def closures(
     before_query: bool,
     seed: int,
     skip: int,
-    cached: float | None,
     /,
-) -> tuple[bytearray, bytearray, bytearray, int, float | None]: ...
+) -> tuple[bytearray, bytearray, bytearray, int]: ...
 def walk(seed: int, n_steps: int, frag: int, retro: bool, /) -> tuple[bytearray, bytearray, bytearray, int]: ...
 def headings(odom_ang: Any, /) -> tuple[bytearray, bytearray, bytearray]: ...
 def cells(cx: Any, cy: Any, last: bool, max_cells: int, /) -> tuple[bytearray, int, bytearray, bytearray] | None: ...

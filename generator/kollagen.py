@@ -17,7 +17,6 @@ from typing import Any
 
 import numpy as np
 
-from studio.core.geometry import libm_cos_sin
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.units import NS_PER_S
 from studio.generator.config import AgentConfig, SynthConfig
@@ -208,7 +207,7 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
 
 def _odometry_measurements(walk: _Walk) -> np.ndarray:
     """``(n - 1, 3)`` odometry edges (dx, dy, dtheta) of a walk: its noisy step along its noisy turn."""
-    c, s = _cos_sin(walk.odom_ang) or libm_cos_sin(walk.odom_ang)  # compiled, or numpy and math
+    c, s = _cos_sin(walk.odom_ang)
     return np.column_stack([walk.odom_pos * c, walk.odom_pos * s, walk.odom_ang])
 
 

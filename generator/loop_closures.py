@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterator, Sequence
 
 import numpy as np
 
-from studio.core.geometry import relative_planar_pose
+from studio.core.geometry import libm_cos_sin, relative_planar_pose
 from studio.core.model import Edges, InterAgentEdges, PoseKind
 from studio.generator.config import AgentConfig, SynthConfig
 from studio.generator.rng import MT19937Stream, UniformTape, polar_normal
@@ -41,10 +41,10 @@ except ImportError:  # no compiler at install: numpy and Python (the same bytes;
     _compiled_grid_cells = None  # type: ignore[assignment]
 
 
-def _cos_sin(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """libm's cos and sin of ``theta`` in one compiled loop, or None (the caller's numpy path)."""
+def _cos_sin(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """libm's cos and sin of ``theta``: one compiled loop, or :func:`libm_cos_sin` without the kernel."""
     if _compiled_cos_sin is None:
-        return None
+        return libm_cos_sin(theta)
     c, s = _compiled_cos_sin(np.ascontiguousarray(theta, dtype=np.float64))
     return np.frombuffer(c, dtype=np.float64), np.frombuffer(s, dtype=np.float64)
 
@@ -215,7 +215,7 @@ def _compiled_search(
     and table poses, their ``(n, 3)`` normals and the uniforms used. NaN probabilities and, with
     ``before_query``, table poses not before the query are no candidates."""
     x0, col_start, col_y = table
-    k, m, normals, used, _ = _compiled_closures(
+    k, m, normals, used = _compiled_closures(
         np.ascontiguousarray(qx, dtype=np.int64),
         np.ascontiguousarray(qy, dtype=np.int64),
         col_start,
@@ -228,7 +228,6 @@ def _compiled_search(
         before_query,
         seed,
         skip,
-        None,
     )
     return (
         np.frombuffer(k, dtype=np.int64),

@@ -100,7 +100,6 @@ def test_closures_refuse_inconsistent_tables(bad):
         False,
         1,
         0,
-        None,
     ]
     if bad == "probs":
         args[8] = probs[:-1]
