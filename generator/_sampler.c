@@ -214,46 +214,46 @@ static inline double canonical(uint32_t lo, uint32_t hi) {
     return v < 0x1.fffffffffffffp-1 ? v : 0x1.fffffffffffffp-1;
 }
 
-/* A window of the stream's canonical doubles: uniform base + j is buf[j], j < len. */
+/* A window of the stream's uniforms as their word pairs: uniform base + j is canonical(w[2 j],
+ * w[2 j + 1]), j < len (the search compares most of them by their high word alone). */
 typedef struct {
     mt19937 gen;
-    double *buf;
+    uint32_t *w;
     Py_ssize_t cap, len, base;
 } uniform_source;
 
-/* Drop the uniforms before keep_from and decode new ones until the window holds those up to end
+/* Drop the uniforms before keep_from and copy new ones until the window holds those up to end
  * (exclusive) and is full; 0, or -1 with an exception set. */
 static int source_fill(uniform_source *s, Py_ssize_t keep_from, Py_ssize_t end) {
     Py_ssize_t drop = keep_from - s->base;
     if (drop > 0) {
-        memmove(s->buf, s->buf + drop, (size_t)(s->len - drop) * sizeof(double));
+        memmove(s->w, s->w + 2 * drop, (size_t)(s->len - drop) * 2 * sizeof(uint32_t));
         s->len -= drop;
         s->base = keep_from;
     }
     if (end - s->base > s->cap) {
         Py_ssize_t cap = s->cap ? s->cap : 4096;
         while (cap < end - s->base) cap *= 2;
-        double *buf = PyMem_Realloc(s->buf, (size_t)cap * sizeof(double));
-        if (buf == NULL) {
+        uint32_t *w = PyMem_Realloc(s->w, (size_t)cap * 2 * sizeof(uint32_t));
+        if (w == NULL) {
             PyErr_NoMemory();
             return -1;
         }
-        s->buf = buf;
+        s->w = w;
         s->cap = cap;
     }
     mt19937 *g = &s->gen;
     while (s->len < s->cap) {
-        /* the pairs that lie whole in the tempered block, decoded in one loop */
+        /* the pairs that lie whole in the tempered block, copied at once */
         Py_ssize_t pairs = (MT_N - g->i) / 2, room = s->cap - s->len;
         if (pairs > room) pairs = room;
-        const uint32_t *w = g->out + g->i;
-        double *d = s->buf + s->len;
-        for (Py_ssize_t j = 0; j < pairs; j++) d[j] = canonical(w[2 * j], w[2 * j + 1]);
+        memcpy(s->w + 2 * s->len, g->out + g->i, (size_t)pairs * 2 * sizeof(uint32_t));
         g->i += (int)(2 * pairs);
         s->len += pairs;
         if (s->len < s->cap && g->i >= MT_N - 1) { /* a pair across two blocks (or none left) */
-            uint32_t lo = mt_next(g), hi = mt_next(g);
-            s->buf[s->len++] = canonical(lo, hi);
+            s->w[2 * s->len] = mt_next(g);
+            s->w[2 * s->len + 1] = mt_next(g);
+            s->len++;
         }
     }
     return 0;
@@ -290,7 +290,8 @@ static inline Py_ssize_t lower_bound(const int64_t *a, Py_ssize_t lo, Py_ssize_t
  * c = x - x0 holds entries col_start[c] .. col_start[c + 1] - 1, sorted by y, each with its pose
  * col_m. A hit's probability is probs[rank + 1] (rank -1: the same cell; the circle rank of (dx, dy)
  * is colbase[dx + R] plus its place in the column); a NaN probability, or with before_query a table
- * pose not before the query (k <= m), is no candidate and reads no uniform. Every candidate reads the
+ * pose not before the query (k <= m; the map grows with k, see column_index), is no candidate and
+ * reads no uniform. Every candidate reads the
  * next uniform and is accepted when its probability exceeds it; an accepted one draws three normals
  * (the sampler above). The uniforms are those of std::mt19937(seed) from word skip on (the words
  * the stream's earlier draws read; uniforms are word pairs from there), decoded as they are needed.
@@ -301,61 +302,125 @@ static inline Py_ssize_t lower_bound(const int64_t *a, Py_ssize_t lo, Py_ssize_t
 typedef struct {
     uniform_source src;
     const double *probs;
-    int before_query, has_cached;
+    int has_cached;
     double cached;
     Py_ssize_t ui; /* the next uniform */
     growable k, m, nor;
 } closure_state;
 
 /* An accepted candidate (its uniform at st->ui): its three normals drawn, recorded; 0, or -1 with an
- * exception set. Out of line: about one candidate in 200 is accepted. */
+ * exception set. Out of line: about one candidate in 200 is accepted. The normals' uniforms are
+ * decoded here, 64 at a time (a round of the polar method rejects about one pair in five). */
 static __attribute__((noinline)) int accept(closure_state *st, int64_t k, int64_t m) {
     uniform_source *src = &st->src;
-    if (st->ui + 64 > src->base + src->len && source_fill(src, st->ui, st->ui + 64) < 0) return -1;
+    double local[64], *u = local;
+    Py_ssize_t n = 64;
     for (;;) {
-        Py_ssize_t q = st->ui + 1 - src->base; /* in the window */
+        const Py_ssize_t first = st->ui + 1; /* the normals' first uniform */
+        if (first + n > src->base + src->len && source_fill(src, st->ui, first + n) < 0) goto fail;
+        const uint32_t *w = src->w + 2 * (first - src->base);
+        for (Py_ssize_t j = 0; j < n; j++) u[j] = canonical(w[2 * j], w[2 * j + 1]);
+        Py_ssize_t q = 0;
         double v[3], keep = 0.0;
         int ok;
         if (!st->has_cached) {
-            ok = polar(src->buf, src->len, &q, &v[0], &v[1]) == 0 && polar(src->buf, src->len, &q, &v[2], &keep) == 0;
+            ok = polar(u, n, &q, &v[0], &v[1]) == 0 && polar(u, n, &q, &v[2], &keep) == 0;
         } else {
             v[0] = st->cached;
-            ok = polar(src->buf, src->len, &q, &v[1], &v[2]) == 0;
+            ok = polar(u, n, &q, &v[1], &v[2]) == 0;
         }
-        if (!ok) { /* the window ended inside the normals: a longer one, and draw them again */
-            if (source_fill(src, st->ui, src->base + src->len + 64) < 0) return -1;
+        if (!ok) { /* the normals read past the decoded uniforms: twice as many, and draw them again */
+            double *more = PyMem_Malloc((size_t)(2 * n) * sizeof(double));
+            if (more == NULL) {
+                PyErr_NoMemory();
+                goto fail;
+            }
+            if (u != local) PyMem_Free(u);
+            u = more;
+            n *= 2;
             continue;
         }
+        if (u != local) PyMem_Free(u);
         if (grow_append(&st->k, &k, sizeof k) < 0 || grow_append(&st->m, &m, sizeof m) < 0 ||
             grow_append(&st->nor, v, sizeof v) < 0)
             return -1;
         st->has_cached = !st->has_cached;
         st->cached = keep;
-        st->ui = q + src->base;
+        st->ui = first + q;
         return 0;
     }
+fail:
+    if (u != local) PyMem_Free(u);
+    return -1;
+}
+
+/* The next uniform's words and the end of the window, kept in registers by the search's loop (the
+ * state's ui is brought up to date only around the rare calls that move the window or accept). */
+typedef struct {
+    const uint32_t *w, *end;
+} cursor;
+
+static inline void cursor_load(cursor *c, const closure_state *st) {
+    c->w = st->src.w + 2 * (st->ui - st->src.base);
+    c->end = st->src.w + 2 * st->src.len;
+}
+
+static inline void cursor_store(const cursor *c, closure_state *st) {
+    st->ui = st->src.base + (c->w - st->src.w) / 2;
+}
+
+/* No candidate (a NaN probability) in the thresholds of accept_below. */
+#define NO_CANDIDATE INT64_MIN
+
+/* The high word below which a uniform is sure to lie under probability p: with Q = p 2^32 (exact),
+ * a uniform of high word hi lies in [hi, hi + 1] / 2^32, so it is below p when hi < ceil(Q) - 1 and
+ * not when hi > ceil(Q) - 1; hi = ceil(Q) - 1 is decided on the decoded double. */
+static int64_t accept_below(double p) {
+    if (!(p == p)) return NO_CANDIDATE;
+    const double q = p * 4294967296.0;
+    if (!(q > 0.0)) return -1;                  /* never accepted */
+    if (q > 4294967296.0) return 4294967296LL; /* always */
+    return (int64_t)ceil(q) - 1;
 }
 
 /* One hit (query k, table pose m, probability index r): 0, or -1 with an exception set. A NaN
- * probability (kollagen's intra-agent offsets off the diagonals) or, for intra-agent closures, a cell
- * not in the map yet (first visited at or after the query) is no candidate and reads no uniform;
- * decided with selects, not branches (about half of an agent's own cells are not candidates). */
-static inline __attribute__((always_inline)) int candidate(closure_state *st, int64_t k, int64_t m, Py_ssize_t r) {
-    const double p = st->probs[r];
-    const int is_candidate = (p == p) & (!st->before_query | (m < k));
-    uniform_source *src = &st->src;
-    if (st->ui >= src->base + src->len && source_fill(src, st->ui, st->ui + 1) < 0) return -1;
-    if (!(is_candidate & (p > src->buf[st->ui - src->base]))) {
-        st->ui += is_candidate;
+ * probability (kollagen's intra-agent offsets off the diagonals) is no candidate and reads no
+ * uniform; decided with a select, not a branch. A candidate is accepted when its probability
+ * exceeds its uniform: decided on the uniform's high word against the probability's threshold
+ * (accept_below), on the uniform itself in the one case in 2^32 where the word cannot tell. */
+static inline __attribute__((always_inline)) int candidate(closure_state *st, cursor *cur, const int64_t *thresholds,
+                                                           int64_t k, int64_t m, Py_ssize_t r) {
+    const int64_t t = thresholds[r];
+    const int is_candidate = t != NO_CANDIDATE;
+    if (cur->w >= cur->end) {
+        cursor_store(cur, st);
+        if (source_fill(&st->src, st->ui, st->ui + 1) < 0) return -1;
+        cursor_load(cur, st);
+    }
+    const int64_t hi = cur->w[1];
+    int accepted = hi < t;
+    if (__builtin_expect(hi == t, 0)) accepted = st->probs[r] > canonical(cur->w[0], cur->w[1]);
+    if (!accepted) {
+        cur->w += 2 * is_candidate;
         return 0;
     }
-    return accept(st, k, m);
+    cursor_store(cur, st);
+    const int rc = accept(st, k, m);
+    cursor_load(cur, st);
+    return rc;
 }
 
-/* "How many of column c's entries lie below v": a binary search, or where the table's bounding box
- * is small next to the look-ups, a table of every column's counts at every y (made once). */
+/* The table's cells by column, and "how many of column c's entries lie below v": a binary search, or
+ * where the table's bounding box is small next to the look-ups, a table of every column's counts at
+ * every y. Column c's entries are y[col_start[c]] .. y[col_end[c] - 1], sorted, each with its pose
+ * m[..]. The search of an agent's own cells (before_query) grows the map as kollagen does: the cells
+ * first visited before query k are in it when k is searched, inserted one by one in their columns
+ * (whose room col_start[c] .. col_start[c + 1] - 1 is their final size), so the cells it does not
+ * know yet cost no look-up. */
 typedef struct {
-    const int64_t *col_start, *col_y;
+    const int64_t *col_start;
+    Py_ssize_t *col_end;
+    int64_t *y, *m;
     int32_t *dense; /* (H + 1) per column: the first entry with y >= ymin + yy, or NULL */
     int64_t ymin, height;
 } column_index;
@@ -364,20 +429,28 @@ static inline Py_ssize_t below(const column_index *ix, int64_t c, int64_t v) {
     if (ix->dense != NULL) {
         int64_t yy = v - ix->ymin;
         if (yy <= 0) return ix->col_start[c];
-        if (yy >= ix->height) return ix->col_start[c + 1];
+        if (yy >= ix->height) return ix->col_end[c];
         return ix->dense[c * (ix->height + 1) + yy];
     }
-    return lower_bound(ix->col_y, ix->col_start[c], ix->col_start[c + 1], v);
+    return lower_bound(ix->y, ix->col_start[c], ix->col_end[c], v);
 }
 
-/* 0, or -1 with an exception set; leaves ix->dense NULL where the table would not pay */
-static int index_columns(column_index *ix, Py_ssize_t n_cols, Py_ssize_t n_table, Py_ssize_t lookups) {
+/* The columns' ends, and the counts table where it pays (else ix->dense stays NULL), of the full
+ * table col_y or, with grow, of an empty one with room for it; 0, or -1 with an exception set. */
+static int index_columns(column_index *ix, const int64_t *col_y, Py_ssize_t n_cols, Py_ssize_t n_table,
+                         Py_ssize_t lookups, int grow) {
     ix->dense = NULL;
+    ix->col_end = PyMem_Malloc((size_t)(n_cols > 0 ? n_cols : 1) * sizeof(Py_ssize_t));
+    if (ix->col_end == NULL) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    for (Py_ssize_t c = 0; c < n_cols; c++) ix->col_end[c] = grow ? ix->col_start[c] : ix->col_start[c + 1];
     if (n_table == 0 || n_table >= INT32_MAX) return 0;
-    int64_t ymin = ix->col_y[0], ymax = ix->col_y[0];
+    int64_t ymin = col_y[0], ymax = col_y[0];
     for (Py_ssize_t j = 1; j < n_table; j++) {
-        if (ix->col_y[j] < ymin) ymin = ix->col_y[j];
-        if (ix->col_y[j] > ymax) ymax = ix->col_y[j];
+        if (col_y[j] < ymin) ymin = col_y[j];
+        if (col_y[j] > ymax) ymax = col_y[j];
     }
     int64_t height = ymax - ymin + 1;
     if (height > (1 << 24) || (double)n_cols * (double)(height + 1) > 8.0 * (double)lookups ||
@@ -389,10 +462,10 @@ static int index_columns(column_index *ix, Py_ssize_t n_cols, Py_ssize_t n_table
         return -1;
     }
     for (Py_ssize_t c = 0; c < n_cols; c++) {
-        Py_ssize_t j = ix->col_start[c], end = ix->col_start[c + 1];
+        Py_ssize_t j = ix->col_start[c], end = ix->col_end[c];
         int32_t *row = dense + c * (height + 1);
         for (int64_t yy = 0; yy <= height; yy++) {
-            while (j < end && ix->col_y[j] < ymin + yy) j++;
+            while (j < end && col_y[j] < ymin + yy) j++;
             row[yy] = (int32_t)j;
         }
     }
@@ -400,6 +473,32 @@ static int index_columns(column_index *ix, Py_ssize_t n_cols, Py_ssize_t n_table
     ix->ymin = ymin;
     ix->height = height;
     return 0;
+}
+
+/* Cell (y, m) into column c of a growing map (room left for it: see column_index). */
+static void insert_cell(column_index *ix, int64_t c, int64_t y, int64_t m) {
+    Py_ssize_t lo = ix->col_start[c], end = ix->col_end[c];
+    Py_ssize_t at = lower_bound(ix->y, lo, end, y);
+    memmove(ix->y + at + 1, ix->y + at, (size_t)(end - at) * sizeof(int64_t));
+    memmove(ix->m + at + 1, ix->m + at, (size_t)(end - at) * sizeof(int64_t));
+    ix->y[at] = y;
+    ix->m[at] = m;
+    ix->col_end[c] = end + 1;
+    if (ix->dense != NULL) {
+        int32_t *row = ix->dense + c * (ix->height + 1);
+        for (int64_t yy = y - ix->ymin + 1; yy <= ix->height; yy++) row[yy]++;
+    }
+}
+
+typedef struct {
+    int64_t m;
+    Py_ssize_t j;
+} cell_by_pose; /* a growing map's cell j, first visited at pose m */
+
+static int by_pose(const void *a, const void *b) {
+    const cell_by_pose *p = a, *q = b;
+    if (p->m != q->m) return p->m < q->m ? -1 : 1;
+    return p->j < q->j ? -1 : p->j > q->j;
 }
 
 static PyObject *closures(PyObject *self, PyObject *args) {
@@ -423,10 +522,14 @@ static PyObject *closures(PyObject *self, PyObject *args) {
     memset(&st, 0, sizeof st);
     column_index ix;
     memset(&ix, 0, sizeof ix);
+    unsigned char *live = NULL;
+    int64_t *thresholds = NULL;
+    cell_by_pose *order = NULL; /* a growing map's cells by pose */
+    Py_ssize_t *col_of = NULL;  /* and each cell's column */
+    int64_t *grown = NULL;
     /* the stream of std::mt19937(seed) (seed modulo 2**32, as C++ converts it), words before skip read */
     mt_seed(&st.src.gen, (uint32_t)((unsigned long long)seed & 0xffffffffULL));
     for (Py_ssize_t w = 0; w < skip; w++) (void)mt_next(&st.src.gen);
-    st.before_query = before_query;
     for (; got < 7; got++)
         if (get_int64s(o[got], &v[got], names[got]) < 0) goto done;
     if (get_doubles(o[7], &v[7], "probs") < 0) goto done;
@@ -452,42 +555,88 @@ static PyObject *closures(PyObject *self, PyObject *args) {
                 PyErr_SetString(PyExc_ValueError, "closures: probs shorter than the circle");
                 goto done;
             }
+        /* the columns of the circle with any candidate offset (kollagen's intra-agent search has none
+         * in its dx = 0 column, where a walk along the grid has most of its cells) */
+        live = PyMem_Malloc((size_t)side);
+        if (live == NULL) {
+            PyErr_NoMemory();
+            goto done;
+        }
+        thresholds = PyMem_Malloc((size_t)n_probs * sizeof(int64_t));
+        if (thresholds == NULL) {
+            PyErr_NoMemory();
+            goto done;
+        }
+        for (Py_ssize_t r = 0; r < n_probs; r++) thresholds[r] = accept_below(st.probs[r]);
+        for (Py_ssize_t j = 0; j < side; j++) {
+            live[j] = 0;
+            for (int64_t r = colbase[j] + 1; r <= colbase[j] + 2 * ylim[j] + 1; r++)
+                live[j] |= thresholds[r] != NO_CANDIDATE;
+        }
         ix.col_start = col_start;
-        ix.col_y = col_y;
-        if (index_columns(&ix, n_cols, n_table, 3 * nq * side) < 0) goto done;
+        const int grow = before_query;
+        if (grow) { /* the map starts empty; its cells come in by their poses (sorted once) */
+            grown = PyMem_Malloc((size_t)(2 * n_table + 1) * sizeof(int64_t));
+            order = PyMem_Malloc((size_t)(n_table + 1) * sizeof(cell_by_pose));
+            col_of = PyMem_Malloc((size_t)(n_table + 1) * sizeof(Py_ssize_t));
+            if (grown == NULL || order == NULL || col_of == NULL) {
+                PyErr_NoMemory();
+                goto done;
+            }
+            ix.y = grown;
+            ix.m = grown + n_table;
+            for (Py_ssize_t c = 0; c < n_cols; c++)
+                for (Py_ssize_t j = col_start[c]; j < col_start[c + 1]; j++) col_of[j] = c;
+            for (Py_ssize_t j = 0; j < n_table; j++) order[j] = (cell_by_pose){col_m[j], j};
+            qsort(order, (size_t)n_table, sizeof(cell_by_pose), by_pose);
+        } else {
+            ix.y = (int64_t *)col_y; /* read only: a full map never grows */
+            ix.m = (int64_t *)col_m;
+        }
+        if (index_columns(&ix, col_y, n_cols, n_table, 3 * nq * side, grow) < 0) goto done;
         if (source_fill(&st.src, 0, 1) < 0) goto done;
+        const int64_t *ty = ix.y, *tm = ix.m;
+        const Py_ssize_t *col_end = ix.col_end;
+        Py_ssize_t next_in = 0; /* the next cell of a growing map, in order */
+        cursor cur;
+        cursor_load(&cur, &st);
         for (Py_ssize_t k = 0; k < nq; k++) {
             const int64_t x = qx[k], y = qy[k];
             const int64_t c0 = x - x0;
+            for (; grow && next_in < n_table && order[next_in].m < k; next_in++) { /* first seen before k */
+                const Py_ssize_t j = order[next_in].j;
+                insert_cell(&ix, col_of[j], col_y[j], col_m[j]);
+            }
             /* the same-cell check comes first */
             if (c0 >= 0 && c0 < n_cols) {
                 Py_ssize_t at = below(&ix, c0, y);
-                if (at < col_start[c0 + 1] && col_y[at] == y && candidate(&st, k, col_m[at], 0) < 0) goto done;
+                if (at < col_end[c0] && ty[at] == y && candidate(&st, &cur, thresholds, k, tm[at], 0) < 0) goto done;
             }
             for (Py_ssize_t j = 0; j < side; j++) {
                 const int64_t dx = (int64_t)j - R, c = c0 + dx;
-                if (c < 0 || c >= n_cols) continue;
-                if (col_start[c] == col_start[c + 1]) continue;
+                if (c < 0 || c >= n_cols || !live[j]) continue;
+                if (col_start[c] == col_end[c]) continue;
                 const int64_t yl = ylim[j];
                 Py_ssize_t a = below(&ix, c, y - yl), b = below(&ix, c, y + yl + 1);
                 if (a == b) continue;
-                Py_ssize_t up = ix.dense != NULL ? below(&ix, c, y) : lower_bound(col_y, a, b, y), dn = up - 1;
+                Py_ssize_t up = ix.dense != NULL ? below(&ix, c, y) : lower_bound(ty, a, b, y), dn = up - 1;
                 const Py_ssize_t base = colbase[j] + 1; /* probs index of the column's dy = 0 */
                 /* merge the rows above (dy >= 0, rising) and below (dy < 0, falling) by |dy|, the
                  * row above first on a tie: selects, not branches (the side taken is data) */
                 while (up < b || dn >= a) {
-                    const int64_t du = up < b ? col_y[up] - y : INT64_MAX;
-                    const int64_t dd = dn >= a ? y - col_y[dn] : INT64_MAX;
+                    const int64_t du = up < b ? ty[up] - y : INT64_MAX;
+                    const int64_t dd = dn >= a ? y - ty[dn] : INT64_MAX;
                     const int take_up = du <= dd;
                     const Py_ssize_t at = take_up ? up : dn;
                     const Py_ssize_t r = take_up ? base + 2 * du - (du != 0) : base + 2 * dd;
                     up += take_up;
                     dn -= !take_up;
                     if (take_up && du == 0 && dx == 0) continue; /* the same cell, checked first */
-                    if (candidate(&st, k, col_m[at], r) < 0) goto done;
+                    if (candidate(&st, &cur, thresholds, k, tm[at], r) < 0) goto done;
                 }
             }
         }
+        cursor_store(&cur, &st);
         PyObject *ka = PyByteArray_FromStringAndSize(st.k.data ? st.k.data : "", st.k.used);
         PyObject *ma = PyByteArray_FromStringAndSize(st.m.data ? st.m.data : "", st.m.used);
         PyObject *na = PyByteArray_FromStringAndSize(st.nor.data ? st.nor.data : "", st.nor.used);
@@ -498,8 +647,14 @@ static PyObject *closures(PyObject *self, PyObject *args) {
     }
 done:
     for (int i = 0; i < got; i++) PyBuffer_Release(&v[i]);
-    PyMem_Free(st.src.buf);
+    PyMem_Free(st.src.w);
     PyMem_Free(ix.dense);
+    PyMem_Free(ix.col_end);
+    PyMem_Free(live);
+    PyMem_Free(thresholds);
+    PyMem_Free(grown);
+    PyMem_Free(order);
+    PyMem_Free(col_of);
     PyMem_Free(st.k.data);
     PyMem_Free(st.m.data);
     PyMem_Free(st.nor.data);

@@ -65,6 +65,45 @@ def test_closures_match_kollagens_plain_loop(trial, before_query):
     assert (k.tolist(), m.tolist(), normals.ravel().tolist(), used) == want  # bit for bit
 
 
+def _one_cell_search(p_same_cell: float, n_queries: int = 50):
+    """Queries that each see one candidate, the table's one cell in their own cell (probability
+    ``p_same_cell``): the kernel and the plain loop on the stream of seed 5."""
+    cx = cy = np.zeros(1, dtype=np.int64)
+    visits = _visits(cx, cy, "last")
+    qx = qy = np.zeros(n_queries, dtype=np.int64)
+    circle = _CircleTable(2)
+    probs = np.full(circle.size + 1, np.nan)
+    probs[0] = p_same_cell
+    u = UniformTape(MT19937Stream(5)).head(20 * n_queries).tolist()
+    got = _compiled_search(qx, qy, _columns(cx, cy, visits), visits, circle, probs, False, 5, 0)
+    want = _plain_closures(qx, qy, cx, cy, visits, 2, probs.tolist(), False, u)
+    return (got[0].tolist(), got[1].tolist(), got[2].ravel().tolist(), got[3]), want, u[0]
+
+
+@pytest.mark.parametrize("offset", [-(2.0**-60), "below", 0.0, "above", 2.0**-60])
+def test_a_probability_within_a_word_of_its_uniform_is_decided_on_the_uniform(offset):
+    # the kernel decides a candidate on its uniform's high word against the probability's
+    # threshold, and on the decoded uniform only where that word cannot tell: probabilities equal
+    # to the first candidate's uniform or one double / 2^-60 either side of it take that path
+    u0 = _one_cell_search(0.5)[2]
+    p = {"below": math.nextafter(u0, 0.0), "above": math.nextafter(u0, 1.0)}.get(offset, None)
+    p = u0 + offset if p is None else p
+    assert math.floor(p * 2**32) == math.floor(u0 * 2**32)  # the same high word: the slow path
+    got, want, _ = _one_cell_search(p)
+    assert got == want
+    assert (0 in got[0]) == (p > u0)  # the first query accepted exactly when its probability is above
+
+
+@pytest.mark.parametrize("p", [0.0, -0.0, -0.5, 1.0, 1.5, math.inf, 5e-324, 1.0 - 2.0**-53])
+def test_probabilities_at_and_outside_the_unit_interval(p):
+    got, want, _ = _one_cell_search(p, 200)
+    assert got == want
+    if p <= 0:
+        assert got[0] == []
+    if p >= 1:  # every uniform is below 1: every query accepted
+        assert got[0] == list(range(200))
+
+
 def test_closures_read_the_stream_past_many_windows():
     # many candidates: the kernel decodes its stream's uniforms a window at a time
     cx = np.repeat(np.arange(40, dtype=np.int64), 40)
