@@ -65,6 +65,25 @@ def test_closures_match_kollagens_plain_loop(trial, before_query):
     assert (k.tolist(), m.tolist(), normals.ravel().tolist(), used) == want  # bit for bit
 
 
+@pytest.mark.parametrize("before_query", [False, True])
+def test_closures_match_the_plain_loop_on_a_table_too_tall_for_counts(before_query):
+    # two blobs of cells 10^8 cells apart: no table of counts per y (its bounding box is too tall);
+    # each column is searched by bisection, in a map that grows with its queries for an agent's own
+    rng = np.random.default_rng(42)
+    walk = np.cumsum(rng.integers(-1, 2, size=(500, 2)), axis=0)
+    walk[250:, 1] += 10**8
+    cx, cy = walk[:, 0].astype(np.int64), walk[:, 1].astype(np.int64)
+    visits = _visits(cx, cy, "first" if before_query else "last")
+    circle = _CircleTable(3)
+    probs = np.exp(-rng.random(circle.size + 1) * 3.0)
+    probs[rng.random(len(probs)) < 0.3] = np.nan
+    u = UniformTape(MT19937Stream(9)).head(100_000).tolist()
+    want = _plain_closures(cx, cy, cx[visits], cy[visits], visits, 3, probs.tolist(), before_query, u)
+    got = _compiled_search(cx, cy, _columns(cx, cy, visits), visits, circle, probs, before_query, 9, 0)
+    assert len(want[0]) > 10
+    assert (got[0].tolist(), got[1].tolist(), got[2].ravel().tolist(), got[3]) == want
+
+
 def _one_cell_search(p_same_cell: float, n_queries: int = 50):
     """Queries that each see one candidate, the table's one cell in their own cell (probability
     ``p_same_cell``): the kernel and the plain loop on the stream of seed 5."""
