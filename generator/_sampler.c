@@ -991,6 +991,63 @@ done:
     return result;
 }
 
+/* measurements(x_from, y_from, th_from, i_from, x_to, y_to, th_to, i_to, noise, std_pos, std_ang)
+ *     -> (n, 3) float64 as a bytearray
+ * Loop closures' measurements (studio.generator.loop_closures._measurements): pose i_to[e] of the
+ * walk (x_to, y_to, th_to) in the frame of pose i_from[e] of (x_from, ...), in kollagen's order
+ * (studio.core.geometry.relative_planar_pose: dx = xd c + yd s, dy = -xd s + yd c, the angle wrapped
+ * as normalize_angle does), plus the normals noise[e] times the standard deviations. */
+static PyObject *measurements(PyObject *self, PyObject *args) {
+    PyObject *o[9];
+    double sp, sa;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOdd:measurements", &o[0], &o[1], &o[2], &o[3], &o[4], &o[5], &o[6], &o[7],
+                          &o[8], &sp, &sa))
+        return NULL;
+    static const char *names[] = {"x_from", "y_from", "th_from", "i_from", "x_to", "y_to", "th_to", "i_to", "noise"};
+    Py_buffer v[9];
+    int got = 0;
+    PyObject *result = NULL;
+    for (; got < 9; got++) {
+        const int index = got == 3 || got == 7;
+        if ((index ? get_int64s(o[got], &v[got], names[got]) : get_doubles(o[got], &v[got], names[got])) < 0) goto done;
+    }
+    {
+        const double *xf = v[0].buf, *yf = v[1].buf, *tf = v[2].buf, *xt = v[4].buf, *yt = v[5].buf, *tt = v[6].buf;
+        const int64_t *jf = v[3].buf, *jt = v[7].buf;
+        const double *noise = v[8].buf;
+        const Py_ssize_t n = v[3].len / 8, nf = v[0].len / 8, nt = v[4].len / 8;
+        if (v[1].len != v[0].len || v[2].len != v[0].len || v[5].len != v[4].len || v[6].len != v[4].len ||
+            v[7].len != v[3].len || v[8].len != 3 * v[3].len) {
+            PyErr_SetString(PyExc_ValueError, "measurements: inconsistent lengths");
+            goto done;
+        }
+        for (Py_ssize_t e = 0; e < n; e++)
+            if (jf[e] < 0 || jf[e] >= nf || jt[e] < 0 || jt[e] >= nt) {
+                PyErr_SetString(PyExc_IndexError, "measurements: a pose index out of range");
+                goto done;
+            }
+        result = PyByteArray_FromStringAndSize(NULL, 3 * n * 8);
+        if (result == NULL) goto done;
+        double *out = (double *)PyByteArray_AS_STRING(result);
+        for (Py_ssize_t e = 0; e < n; e++) {
+            const int64_t a = jf[e], b = jt[e];
+            const double xdiff = xt[b] - xf[a], ydiff = yt[b] - yf[a];
+            const double c = cos(tf[a]), sn = sin(tf[a]);
+            const double dx = xdiff * c + ydiff * sn;
+            const double dy = -xdiff * sn + ydiff * c;
+            const double d = tt[b] - tf[a];
+            const double dth = d - floor((d + Py_MATH_PI) / (2.0 * Py_MATH_PI)) * 2.0 * Py_MATH_PI;
+            out[3 * e] = dx + noise[3 * e] * sp;
+            out[3 * e + 1] = dy + noise[3 * e + 1] * sp;
+            out[3 * e + 2] = dth + noise[3 * e + 2] * sa;
+        }
+    }
+done:
+    for (int i = 0; i < got; i++) PyBuffer_Release(&v[i]);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"sample", sample, METH_VARARGS, "Decide loop-closure hits in order (see the module's source)."},
     {"closures", closures, METH_VARARGS, "Search and sample loop closures in one pass (see the module's source)."},
@@ -999,6 +1056,7 @@ static PyMethodDef methods[] = {
     {"headings", headings, METH_VARARGS, "kollagen's dead-reckoned headings (see the module's source)."},
     {"cells", cells, METH_VARARGS, "A walk's distinct cells by column (see the module's source)."},
     {"cos_sin", cos_sin, METH_VARARGS, "The C library's cos and sin of every entry."},
+    {"measurements", measurements, METH_VARARGS, "Loop closures' measurements (see the module's source)."},
     {"grid_cells", grid_cells, METH_VARARGS, "A walk's grid cells, rounded as C rounds (see the module's source)."},
     {NULL, NULL, 0, NULL},
 };

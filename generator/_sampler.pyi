@@ -39,3 +39,17 @@ def trajectory(
     /,
 ) -> tuple[bytearray, bytearray, bytearray, bytearray, bytearray, bytearray]: ...
 def grid_cells(x: Any, y: Any, frag: float, stepsize: float, /) -> tuple[bytearray, bytearray]: ...
+def measurements(
+    x_from: Any,
+    y_from: Any,
+    th_from: Any,
+    i_from: Any,
+    x_to: Any,
+    y_to: Any,
+    th_to: Any,
+    i_to: Any,
+    noise: Any,
+    std_pos: float,
+    std_ang: float,
+    /,
+) -> bytearray: ...

@@ -32,8 +32,10 @@ try:  # the compiled kernels (pyproject.toml declares them; built where a C comp
     from studio.generator._sampler import closures as _compiled_closures
     from studio.generator._sampler import cos_sin as _compiled_cos_sin
     from studio.generator._sampler import grid_cells as _compiled_grid_cells
+    from studio.generator._sampler import measurements as _compiled_measurements
     from studio.generator._sampler import sample as _compiled_sample
 except ImportError:  # no compiler at install: numpy and Python (the same bytes; tests run both)
+    _compiled_measurements = None  # type: ignore[assignment]
     _compiled_sample = None  # type: ignore[assignment]
     _compiled_closures = None  # type: ignore[assignment]
     _compiled_cells = None  # type: ignore[assignment]
@@ -656,24 +658,51 @@ def _intra_loop_closures(stream: MT19937Stream, walk: _Walk, cfg: SynthConfig, a
     return _intra_edges(walk, agent, np.concatenate(to_pose)[acc], np.concatenate(from_pose)[acc], noise)
 
 
-def _intra_edges(walk: _Walk, agent: AgentConfig, i_to: np.ndarray, j_from: np.ndarray, noise: np.ndarray) -> Edges:
-    """The accepted intra-agent loop closures (pose ``j_from`` to ``i_to``) with their normals."""
-    th_from = walk.theta[j_from]
+def _contiguous_f8(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _contiguous_i8(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.int64)
+
+
+def _measurements(
+    w_from: _Walk, i_from: np.ndarray, w_to: _Walk, i_to: np.ndarray, noise: np.ndarray, std_pos: float, std_ang: float
+) -> np.ndarray:
+    """``(n, 3)`` loop-closure measurements: pose ``i_to`` of ``w_to`` in the frame of pose ``i_from``
+    of ``w_from`` (kollagen's order, :func:`~studio.core.geometry.relative_planar_pose`), plus the
+    normals ``noise`` times the standard deviations; one compiled loop (``measurements`` in
+    generator/_sampler.c) where the module was built."""
+    if _compiled_measurements is not None:
+        f8, i8 = _contiguous_f8, _contiguous_i8
+        out = _compiled_measurements(
+            f8(w_from.x), f8(w_from.y), f8(w_from.theta), i8(i_from),
+            f8(w_to.x), f8(w_to.y), f8(w_to.theta), i8(i_to),
+            f8(noise), std_pos, std_ang,
+        )  # fmt: skip
+        return np.frombuffer(out, dtype=np.float64).reshape(-1, 3)
+    th_from = w_from.theta[i_from]
     dX, dY, dT = relative_planar_pose(
-        walk.x[j_from],
-        walk.y[j_from],
+        w_from.x[i_from],
+        w_from.y[i_from],
         th_from,
-        walk.x[i_to],
-        walk.y[i_to],
-        walk.theta[i_to],
+        w_to.x[i_to],
+        w_to.y[i_to],
+        w_to.theta[i_to],
         cos_sin_from=_cos_sin(th_from),
     )
+    meas = np.column_stack([dX + noise[:, 0] * std_pos, dY + noise[:, 1] * std_pos, dT + noise[:, 2] * std_ang])
+    return meas.reshape(-1, 3)
+
+
+def _intra_edges(walk: _Walk, agent: AgentConfig, i_to: np.ndarray, j_from: np.ndarray, noise: np.ndarray) -> Edges:
+    """The accepted intra-agent loop closures (pose ``j_from`` to ``i_to``) with their normals."""
     sp, sa = agent.std_dev_intra_loop_closure_position, agent.std_dev_intra_loop_closure_angle
-    meas = np.column_stack([dX + noise[:, 0] * sp, dY + noise[:, 1] * sp, dT + noise[:, 2] * sa])
+    meas = _measurements(walk, j_from, walk, i_to, noise, sp, sa)
     info = _diag_information(
         len(i_to), agent.estimated_information_intra_position, agent.estimated_information_intra_angle
     )
-    return Edges(PoseKind.SE2, j_from, i_to, meas.reshape(-1, 3), info)
+    return Edges(PoseKind.SE2, j_from, i_to, meas, info)
 
 
 class _InterPairs:
@@ -723,24 +752,8 @@ class _InterPairs:
             acc, noise, _, _ = _sample(self._tape, hits.probs, None)
             i_from, m = hits.pairs(acc)
             j_to = last[m]
-        th_from = wb.theta[i_from]
-        dX, dY, dT = relative_planar_pose(
-            wb.x[i_from],
-            wb.y[i_from],
-            th_from,
-            wa.x[j_to],
-            wa.y[j_to],
-            wa.theta[j_to],
-            cos_sin_from=_cos_sin(th_from),
-        )
-        meas = np.column_stack(
-            [
-                dX + noise[:, 0] * p.std_dev_loop_closure_position,
-                dY + noise[:, 1] * p.std_dev_loop_closure_position,
-                dT + noise[:, 2] * p.std_dev_loop_closure_angle,
-            ]
-        )
-        return np.full(len(i_from), b), i_from, np.full(len(i_from), a), j_to, meas.reshape(-1, 3)
+        meas = _measurements(wb, i_from, wa, j_to, noise, p.std_dev_loop_closure_position, p.std_dev_loop_closure_angle)
+        return np.full(len(i_from), b), i_from, np.full(len(i_from), a), j_to, meas
 
     def edges(self, done: Sequence[tuple[np.ndarray, ...]]) -> InterAgentEdges:
         """The pairs' results (in pair order) as kollagen's inter-agent loop closures."""

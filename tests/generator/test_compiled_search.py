@@ -198,11 +198,39 @@ def test_datasets_are_the_same_with_and_without_the_compiled_kernels(radius_m, m
             patch.setattr(walk, "_compiled_trajectory", None)
             patch.setattr(loop_closures, "_compiled_cos_sin", None)
             patch.setattr(loop_closures, "_compiled_grid_cells", None)
+            patch.setattr(loop_closures, "_compiled_measurements", None)
             plain = _arrays(generate(cfg, seed=seed))
         assert sum(len(v) for v in compiled[-6:]) > 0  # inter-agent closures were drawn
         assert len(compiled) == len(plain)
         for a, b in zip(compiled, plain):
             assert a.dtype == b.dtype and np.array_equal(a, b)  # every bit (no NaN in a dataset)
+
+
+@pytest.mark.parametrize("trial", range(4))
+def test_measurements_match_the_numpy_path(trial, monkeypatch):
+    # headings far outside (-pi, pi], differences at the wrap (odd multiples of pi), walks of other
+    # lengths, noise of any size: the compiled loop gives the numpy code's bits
+    rng = np.random.default_rng(trial)
+
+    def a_walk(n):
+        theta = rng.choice([-3, -1, 1, 3, 101], size=n) * math.pi + rng.choice([0.0, 1e-12, 0.3], size=n)
+        return walk._Walk(rng.normal(0, 50, n), rng.normal(0, 50, n), theta, np.zeros(n - 1, dtype=np.int64),
+                          np.zeros(n - 1), np.zeros(n - 1))  # fmt: skip
+
+    wf, wt = a_walk(300), a_walk(200)
+    i_from, i_to = rng.integers(0, 300, 1000), rng.integers(0, 200, 1000)
+    noise = rng.normal(0, 3, (1000, 3))
+    got = loop_closures._measurements(wf, i_from, wt, i_to, noise, 0.1, 0.02)
+    monkeypatch.setattr(loop_closures, "_compiled_measurements", None)
+    want = loop_closures._measurements(wf, i_from, wt, i_to, noise, 0.1, 0.02)
+    assert got.shape == (1000, 3) and np.array_equal(got, want)
+    assert np.abs(got[:, 2] - noise[:, 2] * 0.02).max() <= math.pi + 1e-9  # the angle wrapped
+
+
+def test_measurements_refuse_a_pose_out_of_range():
+    w = walk._Walk(np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(2, dtype=np.int64), np.zeros(2), np.zeros(2))
+    with pytest.raises(IndexError, match="out of range"):
+        loop_closures._measurements(w, np.array([0, 3]), w, np.array([1, 2]), np.zeros((2, 3)), 1.0, 1.0)
 
 
 @pytest.mark.parametrize("skip", [1, 2, 3, 625, 1249])
