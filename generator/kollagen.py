@@ -182,7 +182,7 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
                 kind=PoseKind.SE2,
                 stamps_ns=np.arange(n, dtype=np.int64) * NS_PER_S,
                 initial=initial,
-                ground_truth=np.column_stack([walk.x, walk.y, walk.theta]),
+                ground_truth=_rows(walk.x, walk.y, walk.theta),
                 odometry=odometry,
                 loop_closures=lcs,
             )
@@ -205,10 +205,17 @@ def generate(cfg: SynthConfig, *, jobs: int | None = None, progress: Progress | 
     return SynthOutput(graph, tuple(exact) if cfg.exact_information_matrix else None, connector, seeds)
 
 
+def _rows(x: np.ndarray, y: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """``(n, 3)`` rows ``(x, y, theta)`` (``np.column_stack`` without its per-call conversions)."""
+    out = np.empty((len(x), 3))
+    out[:, 0], out[:, 1], out[:, 2] = x, y, theta
+    return out
+
+
 def _odometry_measurements(walk: _Walk) -> np.ndarray:
     """``(n - 1, 3)`` odometry edges (dx, dy, dtheta) of a walk: its noisy step along its noisy turn."""
     c, s = _cos_sin(walk.odom_ang)
-    return np.column_stack([walk.odom_pos * c, walk.odom_pos * s, walk.odom_ang])
+    return _rows(walk.odom_pos * c, walk.odom_pos * s, walk.odom_ang)
 
 
 def _initial_estimate(walk: _Walk, shift: tuple[int, int]) -> np.ndarray:
@@ -217,7 +224,7 @@ def _initial_estimate(walk: _Walk, shift: tuple[int, int]) -> np.ndarray:
     sx, sy = shift
     if sx != 0 or sy != 0:
         x, y = x + sx, y + sy
-    return np.column_stack([x, y, theta])
+    return _rows(x, y, theta)
 
 
 def _align(walks: list[_Walk]) -> tuple[list[_Walk], list[tuple[int, int]]]:
@@ -228,10 +235,10 @@ def _align(walks: list[_Walk]) -> tuple[list[_Walk], list[tuple[int, int]]]:
         n = len(w.x)
         return _round_to_int(_libstdcxx_reduce(w.x) / n), _round_to_int(_libstdcxx_reduce(w.y) / n)
 
-    x0, y0 = centre(walks[0])
+    centres = [centre(w) for w in walks]
+    x0, y0 = centres[0]
     out, shifts = [], []
-    for w in walks:
-        xc, yc = centre(w)
+    for w, (xc, yc) in zip(walks, centres):
         sx, sy = x0 - xc, y0 - yc
         shifts.append((sx, sy))
         if sx == 0 and sy == 0:

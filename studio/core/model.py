@@ -52,10 +52,21 @@ def _as_rows(a: npt.ArrayLike, width: int, name: str) -> np.ndarray:
         arr = arr.reshape(0, width)
     if arr.ndim != 2 or arr.shape[1] != width:
         raise GraphError(f"{name} must have shape (n, {width}), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         bad = int(np.flatnonzero(~np.all(np.isfinite(arr), axis=1))[0])
         raise GraphError(f"{name} row {bad} is not finite")
     return arr
+
+
+def _first_outside(col: np.ndarray, upper: int | np.ndarray) -> int | None:
+    """The first place where ``col`` is negative or not below ``upper`` (a bound, or one per entry),
+    or None; two reductions where every entry is inside (the usual case)."""
+    if not col.size:
+        return None
+    if isinstance(upper, int) and col.min() >= 0 and col.max() < upper:
+        return None
+    wrong = np.flatnonzero((col < 0) | (col >= upper))
+    return int(wrong[0]) if wrong.size else None
 
 
 def _check_poses(poses: np.ndarray, kind: PoseKind, name: str) -> None:
@@ -189,7 +200,7 @@ class AgentGraph:
             raise GraphError(f"{self.name}: an agent needs at least one pose")
         if len(self.stamps_ns) != n:
             raise GraphError(f"{self.name}: {len(self.stamps_ns)} stamps for {n} poses")
-        if n > 1 and np.any(np.diff(self.stamps_ns) <= 0):
+        if n > 1 and (np.diff(self.stamps_ns) <= 0).any():
             bad = int(np.flatnonzero(np.diff(self.stamps_ns) <= 0)[0]) + 1
             raise GraphError(f"{self.name}: stamps must increase (pose {bad})")
         _check_poses(self.initial, self.kind, f"{self.name}: initial")
@@ -210,10 +221,10 @@ class AgentGraph:
             if edges.kind is not self.kind:
                 raise GraphError(f"{self.name}: {label} edges are {edges.kind.value}, poses {self.kind.value}")
             for col in (edges.from_index, edges.to_index):
-                wrong = np.flatnonzero((col < 0) | (col >= n))
-                if wrong.size:
+                wrong = _first_outside(col, n)
+                if wrong is not None:
                     raise GraphError(
-                        f"{self.name}: {label} edge {int(wrong[0])} refers to vertex {int(col[wrong[0]])}, "
+                        f"{self.name}: {label} edge {wrong} refers to vertex {int(col[wrong])}, "
                         f"but the agent has {n} poses"
                     )
 
@@ -278,12 +289,13 @@ class PoseGraph:
         for side in ("from", "to"):
             agent = getattr(self.inter, f"{side}_agent")
             index = getattr(self.inter, f"{side}_index")
-            bad = np.flatnonzero((agent < 0) | (agent >= len(self.agents)))
-            if bad.size:
-                raise GraphError(f"inter-agent edge {int(bad[0])} refers to unknown agent {int(agent[bad[0]])}")
-            bad = np.flatnonzero((index < 0) | (index >= sizes[agent]))
-            if bad.size:
-                k = int(bad[0])
+            first = _first_outside(agent, len(self.agents))
+            if first is not None:
+                raise GraphError(f"inter-agent edge {first} refers to unknown agent {int(agent[first])}")
+            if not len(index) or (index.min() >= 0 and index.max() < sizes.min()):
+                continue  # every vertex inside the smallest agent
+            k = _first_outside(index, sizes[agent])
+            if k is not None:
                 raise GraphError(
                     f"inter-agent edge {k} refers to vertex {int(index[k])} of agent "
                     f"{self.agents[agent[k]].name}, which has {int(sizes[agent[k]])} poses"

@@ -42,6 +42,37 @@ def test_inter_edge_to_unknown_vertex_is_refused():
         PoseGraph(PoseKind.SE2, (_agent("a"), _agent("b", 3)), inter)
 
 
+@pytest.mark.parametrize(
+    "to_index, message",
+    [
+        ([1, 2, 3, 3], None),  # agent a (4 poses) may take vertex 3, beyond the smaller agent b
+        ([1, 2, 3, -1], "inter-agent edge 3 refers to vertex -1 of agent a, which has 4 poses"),
+        ([1, 2, 4, 3], "inter-agent edge 2 refers to vertex 4 of agent a, which has 4 poses"),
+        ([1, 2, 2, 3], None),
+    ],
+)
+def test_inter_edge_vertices_are_checked_against_their_own_agent(to_index, message):
+    # edges into agents of different sizes: the first edge outside its own agent is named
+    n = len(to_index)
+    inter = InterAgentEdges(PoseKind.SE2, [1] * n, [0] * n, [0] * n, to_index, np.zeros((n, 3)), np.ones((n, 6)))
+    agents = (_agent("a", 4), _agent("b", 3))
+    if message is None:
+        assert len(PoseGraph(PoseKind.SE2, agents, inter).inter) == n
+    else:
+        with pytest.raises(GraphError, match=message):
+            PoseGraph(PoseKind.SE2, agents, inter)
+
+
+def test_inter_edge_to_unknown_agent_and_negative_vertex_are_refused():
+    inter = InterAgentEdges(PoseKind.SE2, [0, 2], [0, 0], [1, 1], [0, 0], np.zeros((2, 3)), np.ones((2, 6)))
+    with pytest.raises(GraphError, match="inter-agent edge 1 refers to unknown agent 2"):
+        PoseGraph(PoseKind.SE2, (_agent("a"), _agent("b", 3)), inter)
+    a = _agent()
+    bad = Edges(PoseKind.SE2, [0, -2], [1, 1], np.zeros((2, 3)), np.ones((2, 6)))
+    with pytest.raises(GraphError, match="loop closure edge 1 refers to vertex -2, but the agent has 4 poses"):
+        AgentGraph("a", PoseKind.SE2, a.stamps_ns, a.initial, None, a.odometry, bad)
+
+
 def test_stamps_must_increase():
     a = _agent()
     with pytest.raises(GraphError, match="stamps must increase"):
