@@ -110,7 +110,9 @@ def derive_orientation(traj: Trajectory, window_m: float, method: str = "smoothe
     (:func:`_smoothed_headings`); while the robot stands still between two motions the heading turns
     evenly from the one before the stop to the one after it (a turn on the spot spread over the stop;
     a full turn, or a turn and back, stays invisible), and before the first and after the last motion
-    it is held. ``chord``: the yaw of the chord from ``window_m / 2`` of path behind
+    it is held. ``turns``: ``smoothed``, with the turns on the spot of stops of 1.5 s or more decoded
+    from the tracked point's motion where it shows them (:mod:`studio.converters.spot_turns`).
+    ``chord``: the yaw of the chord from ``window_m / 2`` of path behind
     each pose to ``window_m / 2`` ahead (clipped at the ends), held while the robot moves less than a
     quarter of the window."""
     if not window_m > 0:
@@ -118,14 +120,21 @@ def derive_orientation(traj: Trajectory, window_m: float, method: str = "smoothe
     if method not in HEADING_METHODS:
         raise ConfigError(f"heading_method: expected {' or '.join(HEADING_METHODS)}, got {method!r}")
     p = traj.positions_xyz
-    if method == "smoothed":
+    if method in ("smoothed", "turns"):
         yaw, moving = _smoothed_headings(traj)
         if not moving.any():
             raise FormatError(
                 f"{traj.source or traj.name}: the trajectory never moves faster than {STILL_SPEED_MPS:g} m/s: "
                 "no heading can be derived from its motion"
             )
-        return _held(traj, yaw, moving, spread_stops=True)
+        yaw = _held_yaw(traj, yaw, moving, spread_stops=True)
+        if method == "turns":
+            from studio.converters.spot_turns import decode_spot_turns
+
+            turned, decoded, _ = decode_spot_turns(traj.stamps_ns, p[:, 0:2], np.unwrap(yaw), moving)
+            if decoded:  # (where no stop was decoded, the smoothed headings as they are, bit for bit)
+                yaw = np.arctan2(np.sin(turned), np.cos(turned))
+        return _with_yaw(traj, yaw)
     step = np.linalg.norm(np.diff(p[:, 0:2], axis=0), axis=1)
     s = np.concatenate([[0.0], np.cumsum(step)])
     ahead = np.minimum(np.searchsorted(s, s + window_m / 2, side="left"), len(s) - 1)
@@ -137,15 +146,14 @@ def derive_orientation(traj: Trajectory, window_m: float, method: str = "smoothe
             f"{traj.source or traj.name}: the trajectory moves less than {window_m / 4:g} m: "
             "no heading can be derived from its motion"
         )
-    return _held(traj, np.arctan2(chord[:, 1], chord[:, 0]), moving)
+    return _with_yaw(traj, _held_yaw(traj, np.arctan2(chord[:, 1], chord[:, 0]), moving))
 
 
-def _held(traj: Trajectory, yaw: np.ndarray, moving: np.ndarray, *, spread_stops: bool = False) -> Trajectory:
+def _held_yaw(traj: Trajectory, yaw: np.ndarray, moving: np.ndarray, *, spread_stops: bool = False) -> np.ndarray:
     """``yaw`` where ``moving``; elsewhere the last moving heading (the first one before the first
     motion, the last one after the last). With ``spread_stops``, a stop between two motions instead
     turns evenly, by the shorter way, from the heading before it to the heading after it (in time):
     a turn on the spot is spread over the stop instead of jumping when the robot drives off."""
-    p = traj.positions_xyz
     moving_at = np.flatnonzero(moving)
     if spread_stops:
         unwrapped = np.unwrap(yaw[moving_at])
@@ -156,9 +164,14 @@ def _held(traj: Trajectory, yaw: np.ndarray, moving: np.ndarray, *, spread_stops
         np.maximum.accumulate(idx, out=idx)  # hold the last heading
         idx[: int(moving_at[0])] = int(moving_at[0])  # and before the first motion, the first heading
         yaw = yaw[idx]
+    return yaw
+
+
+def _with_yaw(traj: Trajectory, yaw: np.ndarray) -> Trajectory:
+    """``traj``'s positions with headings ``yaw`` (roll and pitch zero)."""
     q = np.zeros((len(yaw), 4))
     q[:, 2], q[:, 3] = np.sin(yaw / 2), np.cos(yaw / 2)
-    return Trajectory(traj.name, traj.stamps_ns, p, q, traj.source)
+    return Trajectory(traj.name, traj.stamps_ns, traj.positions_xyz, q, traj.source)
 
 
 def time_windows(

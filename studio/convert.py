@@ -247,6 +247,8 @@ DERIVED = "derived from motion"
 HEADING_METHOD_TEXT = {
     "smoothed": "smoothed: yaw of central differences of positions box-filtered twice over +-0.5 s; "
     "below 0.02 m/s turning evenly from the heading before the stop to the one after it",
+    "turns": "turns: smoothed, and in stops of 1.5 s or more turns on the spot decoded from the tracked "
+    "point's motion (its signatures learned from the path; stops without one turn evenly)",
     "chord": "chord: yaw of the chord over {w:g} m of path, held while moving less than a quarter of it",
 }
 

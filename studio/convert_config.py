@@ -57,13 +57,15 @@ class ConvertConfig:
     """Path length [m] over which a derived heading is measured."""
     heading_method: str = _pipeline(
         "smoothed",
-        "Derived headings: smoothed (central differences of positions smoothed over about 1 s) "
+        "Derived headings: smoothed (central differences of positions smoothed over about 1 s), "
+        "turns (smoothed, with turns on the spot decoded from the tracked point's motion in stops) "
         "or chord (the chord over --heading-window-m of path).",
         choices=tuple(HEADING_METHODS),
     )
     """How headings are derived from motion: ``smoothed`` (central differences of positions smoothed
-    over about 1 s) or ``chord`` (the chord over ``heading_window_m`` of path); see
-    :func:`studio.converters.transforms.derive_orientation`."""
+    over about 1 s), ``turns`` (``smoothed``, with turns on the spot decoded from the tracked point's
+    motion in stops: :mod:`studio.converters.spot_turns`) or ``chord`` (the chord over
+    ``heading_window_m`` of path); see :func:`studio.converters.transforms.derive_orientation`."""
     body_frames: tuple[str, ...] = _pipeline(
         (),
         "An agent's body axes, e.g. robotA=ufl (the source's own, AirMuseum's, are the default).",
