@@ -26,7 +26,8 @@ jitters, shows no signature, and its stops keep the ``smoothed`` method's even t
 decoded, the heading is taken halfway (:data:`BLEND`) from that even turn to the decoded one. If the
 decoding ends on another multiple of a full turn, it goes from a turn even in time to that end.
 
-Measured on real paths (docs/converters.md): MR.CLAM datasets 6 and 7, ten robots, 0.806-0.926, and
+Measured on real paths (docs/converters.md; the correlation of the yaw increments, every 0.5 s, with
+the true ones): MR.CLAM datasets 6 and 7, ten robots, 0.806-0.926 (``smoothed``: 0.734-0.927), and
 KITTI 00 unchanged.
 """
 
@@ -59,6 +60,9 @@ EM_ITERATIONS = 6
 """Rounds of expectation-maximisation that learn a path's signatures."""
 SPREAD_FLOOR_MPS = 0.6e-3
 """Smallest spread [m/s] of a signature."""
+OUTLIER_SIGMAS = 6.0
+"""A bin's motion farther than this many spreads from a state's signature counts as that far (a jump
+of the tracking tells nothing of the heading)."""
 EMISSION_WEIGHT = 0.5
 """Weight of the motion's log-likelihood (the normal model of a bin's motion is overconfident)."""
 BLEND = 0.5
@@ -105,13 +109,11 @@ def _log_emission(body: np.ndarray, disp: np.ndarray, dt_s: float, sig: _Signatu
         ll = -0.5 * r2[:, None] / s2[None, :] - np.log(s2)[None, :]
         return np.repeat(ll[:, None, :], HEADING_CELLS, axis=1)
     v = body / dt_s
-    f = v.real[:, :, None] - sig.mean_mps.real[None, None, :]
-    le = v.imag[:, :, None] - sig.mean_mps.imag[None, None, :]
-    out: np.ndarray = (
-        -0.5 * (f / sig.spread_forward_mps) ** 2
-        - 0.5 * (le / sig.spread_left_mps) ** 2
-        - np.log(sig.spread_forward_mps * sig.spread_left_mps)
-    )
+    f = (v.real[:, :, None] - sig.mean_mps.real[None, None, :]) / sig.spread_forward_mps
+    le = (v.imag[:, :, None] - sig.mean_mps.imag[None, None, :]) / sig.spread_left_mps
+    # beyond OUTLIER_SIGMAS the bin says nothing of the heading (a jump of the tracking, not a turn)
+    d2 = np.minimum(f**2 + le**2, OUTLIER_SIGMAS**2)
+    out: np.ndarray = -0.5 * d2 - np.log(sig.spread_forward_mps * sig.spread_left_mps)
     return out
 
 
@@ -119,7 +121,8 @@ def _forward_backward(
     disp: np.ndarray, dt_s: float, start_rad: float, end_rad: float, sig: _Signatures
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """One stop: the posterior ``(n, cells, states)`` of each bin's heading and state, the bins'
-    displacements in the body frame of every grid heading, and the log-likelihood of the stop."""
+    displacements in the body frame of every grid heading, and the log-likelihood of the stop. (No
+    probability underflows: a bin's log-likelihood is bounded below, see :data:`OUTLIER_SIGMAS`.)"""
     n, states = len(disp), len(TURN_RATES_RAD_S)
     grid = _grid()
     body = disp[:, None] * np.exp(-1j * grid[None, :])
@@ -230,17 +233,14 @@ def decode_spot_turns(
     mean[-1] = _INITIAL_FORWARD_MPS
     sig = _Signatures(mean, _INITIAL_SPREAD_MPS.copy(), _INITIAL_SPREAD_MPS.copy())
     for round_ in range(EM_ITERATIONS + 1):
-        stats = []
-        for a, b, _, disp, dt_s in stops:
-            stats.append(_forward_backward(disp, dt_s, yaw[a - 1], yaw[b], sig))
+        stats = [_forward_backward(disp, dt_s, yaw[a - 1], yaw[b], sig) for a, b, _, disp, dt_s in stops]
         if round_ < EM_ITERATIONS:
-            sig = _learn([(g, body, dt) for (g, body, _), (*_, dt) in zip(stats, stops)], sig)
+            sig = _learn([(gamma, body, stop[4]) for (gamma, body, _), stop in zip(stats, stops)], sig)
     directionless = _Signatures(sig.mean_mps, sig.spread_forward_mps, sig.spread_left_mps, directionless=True)
     grid_unit = np.exp(1j * _grid())
     decoded = 0
     for (a, b, edges, disp, dt_s), (gamma, _, log_z) in zip(stops, stats):
-        log_z0 = _forward_backward(disp, dt_s, yaw[a - 1], yaw[b], directionless)[2]
-        if not log_z - log_z0 > GATE_NATS:
+        if not log_z - _forward_backward(disp, dt_s, yaw[a - 1], yaw[b], directionless)[2] > GATE_NATS:
             continue
         decoded += 1
         p = gamma.sum(axis=2)

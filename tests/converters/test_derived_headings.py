@@ -125,6 +125,23 @@ def test_turns_leave_the_smoothed_headings_where_the_point_shows_no_turn():
         assert np.array_equal(derive_orientation(t, 2.0, "turns").quat_xyzw, derive_orientation(t, 2.0).quat_xyzw)
 
 
+def test_a_jump_of_the_tracking_tells_the_decoder_nothing_of_the_heading():
+    # a bin whose motion lies beyond OUTLIER_SIGMAS spreads of every signature (a tracking glitch)
+    # weighs the same whatever the heading: it cannot drag the decoded turn; a bin near a signature
+    # does depend on the heading
+    from studio.converters import spot_turns
+
+    mean = np.array([0, -0.004, 0, 0, 0.002j, 0.03], dtype=complex)
+    sig = spot_turns._Signatures(mean, np.full(6, 0.002), np.full(6, 0.002))
+    disp = np.array([-0.001 + 0.0002j, 0.5 + 0.2j])  # 4 mm/s, then 2 m/s
+    grid = spot_turns._grid()
+    ll = spot_turns._log_emission(disp[:, None] * np.exp(-1j * grid)[None, :], disp, 0.25, sig)
+    assert ll.shape == (2, spot_turns.HEADING_CELLS, 6)
+    assert np.ptp(ll[0], axis=0).max() > 1.0  # the small motion: some headings fit it far better
+    assert np.ptp(ll[1], axis=0).max() == 0.0  # the jump: all headings alike, in every state
+    assert np.isfinite(ll).all()
+
+
 def _correlation_at_2hz(traj: Trajectory, method: str = "smoothed") -> float:
     """Increments at 2 Hz (in time) of the headings derived from ``traj``'s positions alone against
     those of its own orientation."""
