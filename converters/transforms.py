@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from studio.converters.options import HEADING_METHODS
+from studio.converters.spot_turns import decode_spot_turns
 from studio.core.errors import ConfigError, FormatError
 from studio.core.geometry import quat_angle, quat_conj, quat_mul
 from studio.core.trajectory import Trajectory
@@ -129,8 +130,6 @@ def derive_orientation(traj: Trajectory, window_m: float, method: str = "smoothe
             )
         yaw = _held_yaw(traj, yaw, moving, spread_stops=True)
         if method == "turns":
-            from studio.converters.spot_turns import decode_spot_turns
-
             turned, decoded, _ = decode_spot_turns(traj.stamps_ns, p[:, 0:2], np.unwrap(yaw), moving)
             if decoded:  # (where no stop was decoded, the smoothed headings as they are, bit for bit)
                 yaw = np.arctan2(np.sin(turned), np.cos(turned))
