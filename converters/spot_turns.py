@@ -37,6 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from studio.core.units import NS_PER_S
+
 __all__ = ["decode_spot_turns"]
 
 STOP_BIN_S = 0.25
@@ -218,16 +220,16 @@ def _stops(t_s: np.ndarray, moving: np.ndarray) -> list[tuple[int, int]]:
 
 def decode_spot_turns(
     stamps_ns: np.ndarray, xy: np.ndarray, yaw_rad: np.ndarray, moving: np.ndarray
-) -> tuple[np.ndarray, int, int]:
+) -> tuple[np.ndarray, int]:
     """``yaw_rad`` (unwrapped, the ``smoothed`` method's: an even turn across each stop) with the
     stops whose point shows a signature decoded (see the module docstring); returns the new
-    unwrapped yaw, the number of stops decoded and the number long enough to try."""
-    t_s = (stamps_ns - stamps_ns[0]) / 1e9
+    unwrapped yaw and the number of stops decoded."""
+    t_s = (stamps_ns - stamps_ns[0]) / NS_PER_S
     xy = xy - xy[0]
     yaw = np.array(yaw_rad, dtype=np.float64)
     stops = [(a, b, *_stop_bins(t_s, xy, a, b)) for a, b in _stops(t_s, moving)]
     if not stops:
-        return yaw, 0, 0
+        return yaw, 0
     states = len(TURN_RATES_RAD_S)
     mean = np.zeros(states, dtype=complex)
     mean[-1] = _INITIAL_FORWARD_MPS
@@ -259,4 +261,4 @@ def decode_spot_turns(
         knots = np.concatenate([[yaw[a - 1]], blended, [end]])
         yaw[a:b] = np.interp(t_s[a:b], knots_t, knots)
         yaw[b:] += shift
-    return yaw, decoded, len(stops)
+    return yaw, decoded

@@ -130,7 +130,7 @@ def derive_orientation(traj: Trajectory, window_m: float, method: str = "smoothe
             )
         yaw = _held_yaw(traj, yaw, moving, spread_stops=True)
         if method == "turns":
-            turned, decoded, _ = decode_spot_turns(traj.stamps_ns, p[:, 0:2], np.unwrap(yaw), moving)
+            turned, decoded = decode_spot_turns(traj.stamps_ns, p[:, 0:2], np.unwrap(yaw), moving)
             if decoded:  # (where no stop was decoded, the smoothed headings as they are, bit for bit)
                 yaw = np.arctan2(np.sin(turned), np.cos(turned))
         return _with_yaw(traj, yaw)
