@@ -158,8 +158,9 @@ def _values(
 
 
 def write_cosmo_jrl(path: Path, doc: dict[str, Any]) -> Path:
-    """The document as jrl's ``Writer`` writes it: compact JSON (``output_stream << output_json``)."""
+    """The document as jrl's ``Writer`` writes it: compact JSON (``output_stream << output_json``), the
+    keys of every object in order (nlohmann's json objects are ``std::map``s)."""
     import json
 
-    path.write_text(json.dumps(doc, separators=(",", ":")))
+    path.write_text(json.dumps(doc, separators=(",", ":"), sort_keys=True))
     return path
