@@ -409,7 +409,10 @@ class _Reader:
     def number(self, value: Any, path: str) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.fail(path, f"expected a number, got {json.dumps(value)[:40]}")
-        v = float(value)
+        try:
+            v = float(value)
+        except OverflowError:
+            raise self.fail(path, "a number beyond a double's range") from None
         if not np.isfinite(v):
             raise self.fail(path, "not a finite number")
         return v
@@ -962,7 +965,7 @@ def _number_array(r: _Reader, values: list[Any], width: int, paths: list[str]) -
         arr = np.array(values, dtype=np.float64)
         if arr.shape == (len(values), width) and np.isfinite(arr).all():
             return arr.reshape(len(values), width)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         pass
     for row, path in zip(values, paths):
         r.numbers(row, width, path)

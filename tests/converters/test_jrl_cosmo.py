@@ -11,7 +11,6 @@ naming the file and the JSON path, exit 2, nothing written."""
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -285,6 +284,13 @@ def _quaternion_off_unit(doc: dict) -> dict:
     return bad
 
 
+def _number_beyond_a_double(doc: dict) -> dict:
+    """Found by mutating the stand-in: an integer literal past a double was an OverflowError."""
+    bad = _bad(doc)
+    bad["measurements"]["a"][1]["measurements"][0]["covariance"][0] = 10**400
+    return bad
+
+
 def _robot_id_not_a_char(doc: dict) -> dict:
     return dict(_bad(doc), robots=[97, "bb"])
 
@@ -298,6 +304,7 @@ def _robot_id_not_a_char(doc: dict) -> dict:
         (_potential_entry_out_of_range, "potential_outlier_factors.b[0]", "measurements.b has 8 entries"),
         (_quaternion_off_unit, "groundtruth.b[1].rotation", "not unit length"),
         (_robot_id_not_a_char, "robots[1]", "expected a robot id"),
+        (_number_beyond_a_double, "measurements.a[1].measurements[0].covariance[0]", "beyond a double"),
     ],
 )
 def test_bad_jrl_is_one_line_naming_the_file_and_json_path(cosmo, tmp_path, change, place, needle):
@@ -323,3 +330,56 @@ def test_export_of_a_dataset_with_a_bad_priors_file_writes_nothing(cosmo, tmp_pa
     assert res.exit_code == 2, res.output
     assert "priors.txt" in res.output and "vertex 99" in res.output
     assert not (tmp_path / "x.jrl").exists()
+
+
+def test_a_planar_prior_round_trips_with_its_dense_covariance(tmp_path):
+    cov = np.array([[0.04, 0.01, 0.002], [0.01, 0.09, -0.003], [0.002, -0.003, 0.01]])
+    odo = {"type": "Pose2", "x": 1.0, "y": 0.0, "theta": 0.1}
+    doc = {
+        "name": "planar",
+        "robots": [97],
+        "measurements": {
+            "a": [
+                {
+                    "stamp": 10,
+                    "measurements": [
+                        {
+                            "type": "PriorFactorPose2",
+                            "key": key("a", 0),
+                            "prior": {"type": "Pose2", "x": 0.5, "y": -0.25, "theta": 0.3},
+                            "covariance": cov.flatten(order="F").tolist(),
+                        }
+                    ],
+                },
+                *(
+                    {
+                        "stamp": 10 + k,
+                        "measurements": [
+                            {
+                                "type": "BetweenFactorPose2",
+                                "key1": key("a", k - 1),
+                                "key2": key("a", k),
+                                "measurement": odo,
+                                "covariance": np.eye(3).flatten().tolist(),
+                            }
+                        ],
+                    }
+                    for k in (1, 2)
+                ),
+            ]
+        },
+    }
+    src = write_cosmo_jrl(tmp_path / "planar.jrl", doc)
+    assert _run("convert", "jrl", src, "-o", tmp_path / "ds", "--no-rrd").exit_code == 0
+    graph = read_multi_g2o(tmp_path / "ds")
+    priors = read_priors_txt(tmp_path / "ds" / "priors.txt", graph)
+    assert priors.poses.tolist() == [[0.5, -0.25, 0.3]]
+    info = np.linalg.inv(cov)
+    np.testing.assert_allclose(priors.information_upper[0], info[np.triu_indices(3)], rtol=1e-12)
+    res = _run("export", tmp_path / "ds", "--format", "jrl", "-o", tmp_path / "back.jrl")
+    assert res.exit_code == 0, res.output
+    back = json.loads((tmp_path / "back.jrl").read_text())
+    first = back["measurements"]["a"][0]["measurements"][0]
+    assert first["type"] == "PriorFactorPose2" and first["key"] == key("a", 0)
+    assert first["prior"] == {"type": "Pose2", "x": 0.5, "y": -0.25, "theta": 0.3}
+    np.testing.assert_allclose(np.array(first["covariance"]).reshape(3, 3, order="F"), cov, rtol=1e-12)
