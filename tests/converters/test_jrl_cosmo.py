@@ -11,6 +11,8 @@ naming the file and the JSON path, exit 2, nothing written."""
 from __future__ import annotations
 
 import json
+import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -383,3 +385,41 @@ def test_a_planar_prior_round_trips_with_its_dense_covariance(tmp_path):
     assert first["type"] == "PriorFactorPose2" and first["key"] == key("a", 0)
     assert first["prior"] == {"type": "Pose2", "x": 0.5, "y": -0.25, "theta": 0.3}
     np.testing.assert_allclose(np.array(first["covariance"]).reshape(3, 3, order="F"), cov, rtol=1e-12)
+
+
+# ------------------------------------------------------------------------------------ real files
+
+
+def _real_jrl_files() -> list[Path]:
+    root = os.environ.get("STUDIO_REAL_DATA")
+    return sorted(Path(root).rglob("*.jrl")) if root else []
+
+
+@pytest.mark.skipif(not os.environ.get("STUDIO_REAL_DATA"), reason="STUDIO_REAL_DATA names no real data folder")
+def test_real_jrl_files_convert_and_come_back_as_jrl_wrote_them(tmp_path):
+    """Every ``*.jrl`` under ``$STUDIO_REAL_DATA`` (COSMO-Bench's, MESA's) converts; its counts are
+    the file's own (robots, between factors by class, priors, labels); the export reads back, by
+    jrl's parsing rules, as the same factors, priors and labels."""
+    files = _real_jrl_files()
+    if not files:
+        pytest.skip(f"no *.jrl file under {os.environ['STUDIO_REAL_DATA']}")
+    for n, src in enumerate(files):
+        doc = json.loads(src.read_text())
+        before = jrl_parse(doc)
+        ds, back = tmp_path / f"ds{n}", tmp_path / f"back{n}.jrl"
+        res = _run("convert", "jrl", src, "-o", ds, "--no-rrd")
+        assert res.exit_code == 0, f"{src}: {res.output}"
+        between = [v for v in before["factors"].values() if v[0] == "BetweenFactorPose3"]
+        inter = sum(1 for v in between if v[2][0] >> 56 != v[2][1] >> 56)
+        counts = json.loads((ds / "import.json").read_text())["counts"]
+        assert counts["inter_loop_closures"] == inter, src
+        assert counts["odometry"] + counts["intra_loop_closures"] == len(between) - inter, src
+        assert counts.get("priors", 0) == len(before["factors"]) - len(between), src
+        assert counts["outliers"] == len(_labelled(before, "outlier_factors")), src
+        res = _run("export", ds, "--format", "jrl", "-o", back)
+        assert res.exit_code == 0, f"{src}: {res.output}"
+        after = jrl_parse(json.loads(back.read_text()))
+        assert _by_identity(after).keys() == _by_identity(before).keys(), src
+        for section in ("potential_outlier_factors", "outlier_factors"):
+            if section in before["labels"]:
+                assert _labelled(after, section) == _labelled(before, section), src
