@@ -249,6 +249,14 @@ def test_a_second_round_trip_keeps_every_factor_at_its_factor_id(cosmo, tmp_path
         np.testing.assert_allclose(cov2, cov, rtol=1e-12, atol=1e-15 * np.abs(cov).max())
 
 
+def test_formats_without_priors_say_they_leave_them_out(cosmo, tmp_path):
+    res = _run("export", cosmo["ds"], "--format", "symbols", "-o", tmp_path / "sym")
+    assert res.exit_code == 0, res.output
+    assert "symbols: the 2 pose priors (priors.txt) are left out" in res.output
+    meta = json.loads((tmp_path / "sym" / "export.json").read_text())
+    assert any("pose priors" in w for w in meta["warnings"])
+
+
 # ------------------------------------------------------------------------------------ bad input
 
 
