@@ -79,13 +79,15 @@ def jrl_parse(doc: dict) -> dict[str, Any]:
                 assert all(type(k) is int and 0 <= k < 1 << 64 for k in keys)
                 cov = np.array(f["covariance"], dtype=float).reshape(6, 6, order="F")
                 factors[(rid, e, m)] = (tag, stamp, keys, value, cov)
-    values = {
-        section: {
-            name[0]: {v["key"]: _pose3(v) for v in vals if v["type"] == "Pose3"} for name, vals in doc[section].items()
-        }
-        for section in ("groundtruth", "initialization")
-        if section in doc
-    }
+    values: dict[str, dict[str, dict[int, tuple]]] = {}
+    for section in ("groundtruth", "initialization"):
+        for name, vals in doc.get(section, {}).items():
+            held = values.setdefault(section, {}).setdefault(name[0], {})
+            for v in vals:
+                assert v["type"] == "Pose3"
+                if v["key"] in held:  # gtsam::Values::insert throws ValuesKeyAlreadyExists
+                    raise ValueError(f"{section}.{name}: key {v['key']} twice")
+                held[v["key"]] = _pose3(v)
     labels = {
         section: {name[0]: {tuple(p) for p in pairs} for name, pairs in doc[section].items()}
         for section in ("potential_outlier_factors", "outlier_factors")
