@@ -31,7 +31,7 @@ import numpy as np
 from studio.converters.options import GROUND_TRUTH_CHOICES, PARTITIONS
 from studio.converters.transforms import time_windows
 from studio.core.errors import ConfigError, FormatError
-from studio.core.model import PoseGraph, PoseKind, RangeBearing
+from studio.core.model import PoseGraph, PoseKind, Priors, RangeBearing
 from studio.core.option_values import check_option
 from studio.core.units import MAX_SPLIT_ROBOTS
 from studio.io.dpgo import contiguous_split
@@ -53,12 +53,16 @@ __all__ = [
 @dataclass(frozen=True, eq=False)
 class ImportedGraph:
     """What a graph source reads: the graph, its labelled outliers (``(k, 4)`` rows
-    ``agent_from vertex_from agent_to vertex_to``, 0-based agents) and its range-bearing sightings
-    (JRL's ``BearingRangeFactorPose2``; None when the source has none)."""
+    ``agent_from vertex_from agent_to vertex_to``, 0-based agents), its range-bearing sightings
+    (JRL's ``BearingRangeFactorPose2``), its pose priors (JRL's ``PriorFactorPose2/3``) and its
+    potential outliers (JRL's ``potential_outlier_factors``, rows as ``outliers``); None where the
+    source has none."""
 
     graph: PoseGraph
     outliers: np.ndarray
     range_bearing: RangeBearing | None = None
+    priors: Priors | None = None
+    potential_outliers: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)

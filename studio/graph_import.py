@@ -8,6 +8,8 @@ its measurements, and they are written as they are::
     ├── agents.json                                  # agentK -> the robots' names
     ├── inter_agent_lc.dat
     ├── outliers.txt                                 # the labelled outliers (JRL's outlier_factors)
+    ├── potential_outliers.txt                       # JRL's potential_outlier_factors, if the file has them
+    ├── priors.txt                                   # JRL's PriorFactorPose2/3, if any
     ├── range_bearing.txt                            # JRL's BearingRangeFactorPose2 sightings, if any
     ├── import.json                                  # source, inputs, options, counts, warnings
     └── OUT.rrd                                      # the recording (unless rrd=False)
@@ -35,7 +37,8 @@ from studio.core.model import PoseGraph, PoseKind, RangeBearing
 from studio.core.types import PathLike
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
-from studio.io.outliers_txt import write_outliers_txt
+from studio.io.outliers_txt import POTENTIAL_HEAD, POTENTIAL_OUTLIERS_NAME, write_outliers_txt
+from studio.io.priors_txt import PRIORS_NAME, write_priors_txt
 from studio.io.range_bearing import RANGE_BEARING_NAME, write_range_bearing
 from studio.io.strict_json import dumps_strict
 from studio.runtime.progress import Progress
@@ -123,6 +126,12 @@ def import_graph(
             **graph.edge_counts(),
             "outliers": len(outliers),
             **({"range_bearing": len(sightings)} if sightings is not None else {}),
+            **({"priors": len(imported.priors)} if imported.priors is not None else {}),
+            **(
+                {"potential_outliers": len(imported.potential_outliers)}
+                if imported.potential_outliers is not None
+                else {}
+            ),
         },
         "warnings": warnings,
     }
@@ -147,6 +156,12 @@ def _write_imported(
     write_outliers_txt(ds / "outliers.txt", outliers, [f"labelled in the {meta['source']} input"] * len(outliers))
     if sightings is not None:
         write_range_bearing(ds / RANGE_BEARING_NAME, sightings)
+    if imported.priors is not None:
+        write_priors_txt(ds / PRIORS_NAME, imported.priors)
+    if imported.potential_outliers is not None:
+        potential = imported.potential_outliers
+        kinds = [f"potential in the {meta['source']} input"] * len(potential)
+        write_outliers_txt(ds / POTENTIAL_OUTLIERS_NAME, potential, kinds, head=POTENTIAL_HEAD)
     (ds / IMPORT_NAME).write_text(dumps_strict(meta, str(out / IMPORT_NAME), indent=2) + "\n", encoding="utf-8")
     if rrd:
         from studio.recording.dataset import record_graph

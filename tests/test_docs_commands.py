@@ -178,6 +178,13 @@ def _vio(work: Path) -> None:
     write_tum(work / "bob_vio.txt", Trajectory("bob", bob.stamps_ns, p, q))
 
 
+def _cosmo(work: Path) -> None:
+    """``kth_r3_00_wifi.jrl``: a JRL file in COSMO-Bench's layout, as jrl's ``Writer`` writes it."""
+    from tests.converters.jrl_files import cosmo_team, write_cosmo_jrl
+
+    write_cosmo_jrl(work / "kth_r3_00_wifi.jrl", cosmo_team(poses=40)[0])
+
+
 #: What a command may name as an input, and how the stand-in is made in the work folder.
 INPUTS: dict[str, Callable[[Path], None]] = {
     "multi3500x8": lambda w: _preset_standin(w, "multi3500x8"),
@@ -193,6 +200,7 @@ INPUTS: dict[str, Callable[[Path], None]] = {
     "MRCLAM_Dataset1": _mrclam,
     "bob_vio.txt": _vio,
     "M3500.g2o": _single_g2o,
+    "kth_r3_00_wifi.jrl": _cosmo,
     # docs/bench.md's small spec (the doc writes it with a heredoc, which this test does not run)
     "small.toml": lambda w: (w / "small.toml").write_text(
         f'datasets = ["{DATA / "configs" / "small3x100.json"}"]\ncases = ["diagonal"]\nmethods = ["gtsam"]\n'
