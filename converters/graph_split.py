@@ -78,6 +78,10 @@ class SingleGraph:
     measurements: np.ndarray
     information_upper: np.ndarray
     where: str
+    vertex_ids: np.ndarray | None = None
+    """The file's own ids of the poses (increasing), where the graph came from a file."""
+    anchor: int = 0
+    """The pose held fixed: the file's first ``FIX`` line, else the first pose."""
 
     @property
     def num_poses(self) -> int:
