@@ -797,6 +797,7 @@ def solve(
         rrd=rrd,
         robots=robots,
         coarse_size=coarse,
+        warn=_warn,
     )
     if as_json:
         typer.echo(dumps_strict(res.to_dict(), "--json", indent=2))
@@ -830,7 +831,9 @@ def _replay_backend_help() -> str:
 @app.command()
 @cli_errors
 def replay(
-    dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder with ground truth."),
+    dataset: Path = typer.Argument(
+        ..., metavar="DATASET", help="A multi-g2o folder with ground truth, or a .g2o file with NAME_GT.tum beside it."
+    ),
     out: Path = typer.Option(..., "-o", "--out", help="Folder to write: schedule, metrics, summary, report, plot."),
     comms: str = typer.Option(
         "always", "--comms", help="always | never | range:R[,period=T,p=P] | rendezvous:FILE (Swarm-SLAM's format)."
@@ -883,6 +886,7 @@ def replay(
             rrd=rrd,
             parquet=parquet,
             progress=progress,
+            warn=_warn,
         )
     delivered = int((res.schedule.delivered_tick >= 0).sum())
     lines = [
@@ -907,8 +911,8 @@ def check(
     dataset: Path = typer.Argument(
         ...,
         metavar="DATASET",
-        help="A multi-g2o folder with <agent>_GT.tum ground truth, or a single g2o file NAME.g2o with "
-        "NAME_GT.tum beside it (kollagen's single view).",
+        help="A multi-g2o folder with <agent>_GT.tum ground truth, or a single g2o file NAME.g2o (at "
+        "NAME_GT.tum beside it, kollagen's single view, else at the file's own poses).",
     ),
     convention: ConventionChoice = typer.Option(  # type: ignore[valid-type]
         DEFAULT_CONVENTION,
@@ -925,7 +929,7 @@ def check(
     from studio.check import check as run_check
     from studio.check import format_check
 
-    report = run_check(dataset, convention=convention.value)  # type: ignore[attr-defined]
+    report = run_check(dataset, convention=convention.value, warn=_warn)  # type: ignore[attr-defined]
     typer.echo(report.to_json() if as_json else format_check(report, per_agent=per_agent), nl=not as_json or True)
 
 

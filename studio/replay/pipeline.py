@@ -24,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -124,13 +125,21 @@ def _components(num_robots: int, pairs: np.ndarray, linked: np.ndarray, present:
     return sorted(tuple(g) for g in groups.values())
 
 
-def _load(dataset: PathLike) -> tuple[Any, PoseGraph]:
-    from studio.solve import load_problem
+def _load(dataset: PathLike, warn: Callable[[str], None] | None = None) -> tuple[Any, PoseGraph]:
+    """A multi-g2o folder, or a single g2o file read as ``studio convert g2o`` reads it (one robot,
+    its ground truth ``<stem>_GT.tum`` beside it), with the problem over its global ids."""
+    from studio.solve import graph_problem, load_problem
 
     path = Path(dataset)
-    if not path.is_dir():
-        raise FormatError(f"{path}: replay needs a multi-g2o folder (agents with their own stamps)")
-    loaded = load_problem(path)
+    if path.is_file():
+        from studio.converters.g2o import read_g2o_graph
+
+        graph = read_g2o_graph([path], warn=warn).graph
+        loaded = graph_problem(graph, path, warn=warn)
+    elif path.is_dir():
+        loaded = load_problem(path, warn=warn)
+    else:
+        raise FormatError(f"{path}: no such dataset (a multi-g2o folder or a .g2o file)")
     graph = loaded.graph
     assert graph is not None
     missing = [a.name for a in graph.agents if a.ground_truth is None]
@@ -643,8 +652,10 @@ def replay(
     rrd: PathLike | None = None,
     parquet: bool = False,
     progress: Progress | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> ReplayResult:
-    """Replay ``dataset`` (a multi-g2o folder with ground truth) under the communication model
+    """Replay ``dataset`` (a multi-g2o folder with ground truth, or a single g2o file as ``studio
+    convert g2o`` reads it, with ``<stem>_GT.tum`` beside it) under the communication model
     ``comms`` through each of ``backends`` and write the outputs into the folder ``out`` (module doc).
 
     ``step_s``: the tick [s] contacts are evaluated on; ``every``: ticks between checkpoints (the
@@ -665,7 +676,7 @@ def replay(
     )
     rrd_path = _rrd_target(rrd, parquet=parquet)
     parsed, band = parse_comms(comms), None if bandwidth is None else parse_bandwidth(bandwidth)
-    loaded, graph = _load(dataset)
+    loaded, graph = _load(dataset, warn)
     inputs: list[PathLike] = [dataset]
     model = _model(parsed, len(graph.agents), inputs)
     times = _times(graph, dataset, period_s)
