@@ -494,13 +494,16 @@ def _rrd_target(rrd: PathLike | None, *, parquet: bool) -> Path | None:
     return rrd_path
 
 
-def _model(parsed: CommsModel | str, num_robots: int, inputs: list[PathLike]) -> CommsModel:
-    """The parsed ``--comms``; a rendezvous file (a path) is read and added to ``inputs``."""
+def _model(
+    parsed: CommsModel | str, num_robots: int, inputs: list[PathLike], warn: Callable[[str], None] | None = None
+) -> CommsModel:
+    """The parsed ``--comms``; a rendezvous file (a path) is read and added to ``inputs``; its lines
+    for robots the dataset does not have are one warning."""
     if not isinstance(parsed, str):
         return parsed
     from studio.io.rendezvous_txt import read_rendezvous
 
-    windows = read_rendezvous(parsed, num_robots)
+    windows = read_rendezvous(parsed, num_robots, warn=warn)
     inputs.append(parsed)
     return Rendezvous(windows, parsed)
 
@@ -678,7 +681,7 @@ def replay(
     parsed, band = parse_comms(comms), None if bandwidth is None else parse_bandwidth(bandwidth)
     loaded, graph = _load(dataset, warn)
     inputs: list[PathLike] = [dataset]
-    model = _model(parsed, len(graph.agents), inputs)
+    model = _model(parsed, len(graph.agents), inputs, warn)
     times = _times(graph, dataset, period_s)
     settings = IsamSettings(float(relinearize_threshold), relinearize_skip, 0, final_updates, bool(polish))
     _refuse_existing([out] + ([rrd_path] if rrd_path is not None else []), force=force, inputs=inputs)

@@ -164,14 +164,27 @@ def test_the_report_counts_contacts_disconnections_and_deliveries():
     ]
 
 
+def test_lines_for_robots_the_dataset_lacks_are_one_warning():
+    """cslam_experiments' schedules name up to six robots; each Swarm-SLAM robot reads its own line."""
+    text = "0,0,4\n1,3,11\n2,0,9\n3,5,7\n4,1,2\n5,0,30\n"
+    warnings: list[str] = []
+    windows = read_rendezvous(io.StringIO(text), 3, warn=warnings.append)
+    assert [w.tolist() for w in windows] == [[[0, 4]], [[3, 11]], [[0, 9]]]
+    assert len(warnings) == 1 and "robots 3, 4, 5" in warnings[0] and "robots 0..2" in warnings[0]
+    assert read_rendezvous(io.StringIO(text), 6, warn=warnings.append)[5].tolist() == [[0, 30]]
+    assert len(warnings) == 1
+
+
 def test_the_rendezvous_file_round_trips_and_bad_lines_name_file_and_line():
     text = "0,0,4,10,12\n\n1,3,11\n"
     windows = read_rendezvous(io.StringIO(text), 3)
     assert [w.tolist() for w in windows] == [[[0, 4], [10, 12]], [[3, 11]], []]
     assert rendezvous_text(windows) == "0,0,4,10,12\n1,3,11\n"
     for bad, match in [
-        ("5,0,4\n", r"<stream>:1: unknown robot 5 \(the dataset has robots 0..2\)"),
+        ("-1,0,4\n", "<stream>:1: robot id -1 is negative"),
         ("0,0,4\n0,5,6\n", "<stream>:2: robot 0 already has a line"),
+        ("5,0,4\n5,6,8\n", "<stream>:2: robot 5 already has a line"),
+        ("5,4,0\n", "<stream>:1: window 1 ends"),
         ("0,10,12,0,4\n", "<stream>:1: window 2 .* out of order or overlaps"),
         ("0,0,4,3,6\n", "<stream>:1: window 2 .* overlaps"),
         ("0,6,4\n", "<stream>:1: window 1 ends"),

@@ -150,8 +150,8 @@ def test_bad_input_is_one_line_exit_2_and_nothing_written(tiny, tmp_path):
     ds = str(tiny.dataset_dir)
     out = tmp_path / "never-written"
     sched = tmp_path / "rdv.txt"
-    sched.write_text("0,0,10\n7,0,5\n")
-    _fails(["replay", ds, "--comms", f"rendezvous:{sched}", "-o", str(out)], f"{sched}:2: unknown robot 7", out)
+    sched.write_text("0,0,10\n-7,0,5\n")
+    _fails(["replay", ds, "--comms", f"rendezvous:{sched}", "-o", str(out)], f"{sched}:2: robot id -7", out)
     sched.write_text("0,0,10,5,20\n")
     _fails(["replay", ds, "--comms", f"rendezvous:{sched}", "-o", str(out)], f"{sched}:1: window 2", out)
     _fails(["replay", ds, "--comms", "range:-5", "-o", str(out)], "must be > 0", out)
@@ -178,6 +178,20 @@ def test_a_rendezvous_file_is_used_and_copied_beside_the_schedule(tiny, tmp_path
     windows = res.schedule.windows()
     assert [(s, e) for a, b, s, e in windows.tolist() if (a, b) == (0, 1)] == [(20, 30), (100, 120)]
     assert res.report.connected_fraction[2] > res.report.connected_fraction[1]
+
+
+def test_a_schedule_naming_more_robots_is_one_warning(tiny, tmp_path):
+    """Swarm-SLAM's schedules (cslam_experiments) name up to six robots; the others' lines are ignored."""
+    sched = tmp_path / "rdv.txt"
+    sched.write_text("0,0,30,100,140\n1,20,120\n2,0,240\n3,0,10\n5,0,10\n")
+    r = runner.invoke(
+        app, ["replay", str(tiny.dataset_dir), "--comms", f"rendezvous:{sched}", "-o", str(tmp_path / "r")]
+    )
+    assert r.exit_code == 0, r.output
+    warnings = [ln for ln in r.output.splitlines() if ln.startswith("warning:")]
+    assert len(warnings) == 1 and "robots 3, 5" in warnings[0]
+    written = (tmp_path / "r" / "schedule" / "rendezvous.txt").read_text()
+    assert written == "0,0,30,100,140\n1,20,120\n2,0,240\n"
 
 
 def test_the_recording_shows_beliefs_links_and_closures_and_has_a_stable_fingerprint(tiny, tmp_path):
