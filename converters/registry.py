@@ -161,7 +161,7 @@ def _is_g2o(path: Path) -> bool:
 
 
 def _is_symbols(path: Path) -> bool:
-    return path.is_dir() and ((path / "fullGraph.g2o").is_file() or (path / "0.g2o").is_file())
+    return path.is_dir() and any((path / name).is_file() for name in ("fullGraph.g2o", "0.g2o", "robot_a.g2o"))
 
 
 def _is_dpgo(path: Path) -> bool:
@@ -235,9 +235,9 @@ SOURCES: dict[str, Source] = {
     ),
     "symbols": Source(
         Lazy("studio.converters.symbols", "read_symbols_trajectories"),
-        "one folder of Symbol-keyed g2o files (0.g2o, 1.g2o, ... or fullGraph.g2o)",
+        "one folder of Symbol-keyed g2o files (0.g2o, 1.g2o, ..., robot_a.g2o, ... or fullGraph.g2o)",
         "their Symbol characters",
-        "per-robot g2o files with GTSAM Symbol keys (DGS, Kimera-Multi)",
+        "per-robot g2o files with GTSAM Symbol or LabeledSymbol keys (DGS, Kimera, Swarm-SLAM)",
         one_input=True,
         read_graph=Lazy("studio.converters.symbols", "read_symbols_graph"),
         detect=_is_symbols,
