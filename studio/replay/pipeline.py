@@ -134,8 +134,7 @@ def _load(dataset: PathLike, warn: Callable[[str], None] | None = None) -> tuple
     if path.is_file():
         from studio.converters.g2o import read_g2o_graph
 
-        graph = read_g2o_graph([path], warn=warn).graph
-        loaded = graph_problem(graph, path, warn=warn)
+        loaded = graph_problem(read_g2o_graph([path], warn=warn).graph, path, warn=warn)
     elif path.is_dir():
         loaded = load_problem(path, warn=warn)
     else:
@@ -657,8 +656,7 @@ def replay(
     progress: Progress | None = None,
     warn: Callable[[str], None] | None = None,
 ) -> ReplayResult:
-    """Replay ``dataset`` (a multi-g2o folder with ground truth, or a single g2o file as ``studio
-    convert g2o`` reads it, with ``<stem>_GT.tum`` beside it) under the communication model
+    """Replay ``dataset`` (a multi-g2o folder or a g2o file, with ground truth) under the comms model
     ``comms`` through each of ``backends`` and write the outputs into the folder ``out`` (module doc).
 
     ``step_s``: the tick [s] contacts are evaluated on; ``every``: ticks between checkpoints (the
