@@ -228,13 +228,7 @@ def _single_g2o(
             f"no ground truth beside it ({path.stem}_GT.tum): checked at the file's own poses (its vertices, or "
             "poses composed along its edges), so the factors say how its initial estimate fits its edges"
         )
-    d = 3 if single.kind is PoseKind.SE2 else 6
-    info, count = block_diagonal_where_indefinite(single.information_upper, d)
-    if count:
-        notes.append(
-            f"{count} information matrices are not positive definite: each weighed by its translation and "
-            "rotation blocks, as SE-Sync reads them"
-        )
+    info = single.information_upper
     fr, to = single.from_index, single.to_index
     odo = to == fr + 1
     zeros = np.zeros(len(fr), dtype=np.int64)
@@ -243,6 +237,23 @@ def _single_g2o(
         for name, sel in (("odometry", odo), ("loop closures", ~odo))
     ]
     return single.kind, [truth], sets, [path.stem], notes
+
+
+def _weighable(edge_sets: list[EdgeSet], kind: PoseKind, notes: list[str]) -> list[EdgeSet]:
+    """Each information matrix that is not positive definite weighed by its translation and rotation
+    blocks where they are (as SE-Sync reads them; cubicle.g2o), with a note of how many."""
+    d = 3 if kind is PoseKind.SE2 else 6
+    out, total = [], 0
+    for name, fa, fv, ta, tv, meas, upper in edge_sets:
+        info, count = block_diagonal_where_indefinite(upper, d)
+        total += count
+        out.append((name, fa, fv, ta, tv, meas, info))
+    if total:
+        notes.append(
+            f"{total} information matrices are not positive definite: each weighed by its translation and "
+            "rotation blocks, as SE-Sync reads them"
+        )
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -280,6 +291,7 @@ def check(
         kind, truth, edge_sets, names, notes = _single_g2o(folder, warn)
     else:
         kind, truth, edge_sets, names = _multi_g2o(read_multi_g2o(folder), folder)
+    edge_sets = _weighable(edge_sets, kind, notes)
     listed = _read_listed_outliers(folder, [len(t) for t in truth]) if folder.is_dir() else None
     planar = (
         kind is PoseKind.SE3

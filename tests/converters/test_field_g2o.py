@@ -199,6 +199,13 @@ def test_indefinite_cross_blocks_are_weighed_by_their_blocks(tmp_path):
     assert r.exit_code == 0, r.output
     warnings = [ln for ln in r.output.splitlines() if ln.startswith("warning:")]
     assert len(warnings) == 2 and "1 information matrices are not positive definite" in warnings[1]
+    assert any(n.startswith("1 information matrices are not positive definite") for n in check(f).notes)
+    r = runner.invoke(app, ["convert", "g2o", str(f), "-o", str(tmp_path / "ds"), "--no-rrd", "-q"])
+    assert r.exit_code == 0, r.output
+    (tmp_path / "ds" / "agent1" / "agent1_GT.tum").write_text(  # check a folder at the file's poses
+        "".join(f"{k} {k} 0 0 0 0 0 1\n" for k in range(6))
+    )
+    assert any("1 information matrices" in n for n in check(tmp_path / "ds").notes)
 
 
 def test_round_trip_keeps_every_edge(tmp_path):
