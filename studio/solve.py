@@ -439,8 +439,8 @@ def _run_solver(
     names = [a.name for a in loaded.graph.agents] if loaded.graph is not None else None
 
     def vertex_name(v: int) -> str:
-        if names is None:
-            return f"vertex {v}"
+        if names is None:  # a single g2o file: the file's own id
+            return f"vertex {int(loaded.single.vertex_ids[v]) if loaded.single is not None else v}"
         k = int(np.searchsorted(loaded.offsets, v, side="right") - 1)
         return f"{names[k]} vertex {v - int(loaded.offsets[k])}"
 
