@@ -279,14 +279,16 @@ def _fixed_ids(
 ) -> np.ndarray:
     """The ids of the ``FIX`` lines, each a vertex of the file (or, in a file of edges only, an edge's end)."""
     ids = np.zeros(len(fixed), dtype=np.int64)
-    known = vids if len(vids) or not dangling else eids.reshape(-1)
     for k, (lineno, tok) in enumerate(fixed):
         try:
             ids[k] = int(tok)
         except (ValueError, OverflowError):
-            raise FormatError(f"{name}:{lineno}: FIX: vertex id {tok[:40]!r} is not an integer") from None
-        if not np.isin(ids[k], known):
-            raise FormatError(f"{name}:{lineno}: FIX names vertex {ids[k]}, which the file does not have")
+            raise FormatError(f"{name}:{lineno}: FIX: vertex id {tok[:40]!r} is not a 64-bit integer") from None
+    known = vids if len(vids) or not dangling else eids.reshape(-1)
+    missing = np.flatnonzero(~np.isin(ids, known))  # one sorted search: a file of many FIX ids stays fast
+    if missing.size:
+        k = int(missing[0])
+        raise FormatError(f"{name}:{fixed[k][0]}: FIX names vertex {ids[k]}, which the file does not have")
     return ids
 
 
