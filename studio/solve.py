@@ -442,12 +442,31 @@ def _write_solve_outputs(
         folder = staging / out.name
         folder.mkdir()
         name = _write_estimate(loaded, solution.poses, folder, stem, tum_names)
+        _write_jrr(
+            loaded, solution.poses, folder / f"{stem}.jrr", dataset_name=Path(dataset).name, method=result.method
+        )
         result = dataclasses.replace(result, estimate_path=out / name)
         (folder / SOLVE_JSON).write_text(
             dumps_strict(result.to_dict(), str(out / SOLVE_JSON), indent=2, default=_json_default) + "\n",
             encoding="utf-8",
         )
     return result
+
+
+def _write_jrr(loaded: Loaded, poses: np.ndarray, path: Path, *, dataset_name: str, method: str) -> None:
+    """The estimate as JRL results (:mod:`studio.io.jrr`): one robot per agent (a single g2o file:
+    one robot), its own poses in the dataset's pose kind; a central solve keeps no copies of other
+    robots' poses."""
+    from studio.io.jrr import write_jrr
+    from studio.io.symbol_g2o import robot_prefix
+    from studio.jrl_evaluate import graph_results
+
+    source = loaded.source_kind
+    if loaded.problem.kind is PoseKind.SE2 and source is PoseKind.SE3:
+        poses = planar_poses_to_se3(poses)
+    parts = [poses[loaded.offsets[k] : loaded.offsets[k + 1]] for k in range(len(loaded.offsets) - 1)]
+    robots = [robot_prefix(k) for k in range(len(parts))]
+    write_jrr(path, graph_results(source, robots, parts, dataset_name=dataset_name, method_name=method))
 
 
 @dataclass(eq=False)
