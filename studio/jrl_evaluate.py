@@ -34,25 +34,29 @@ def _symbol(key: int) -> str:
     return f"{chr(c) if 32 < c < 127 else '?'}{key & ((1 << _SHIFT) - 1)}"
 
 
-def _solutions(view: JrlDatasetView, results: JrlResults) -> list[RobotValues]:
-    """The results' solutions in the dataset's robot order; a robot of one missing from the other fails."""
-    for c in results.robots:
+def _solutions(view: JrlDatasetView, results: JrlResults, where: str) -> list[RobotValues]:
+    """The results' solutions in the dataset's robot order; a robot the dataset lacks fails."""
+    for k, c in enumerate(results.robots):
         if c not in view.robots:
-            raise EvaluationError(f"results: robot {c!r} is not in the dataset's robots {list(view.robots)}")
+            raise EvaluationError(
+                f"{where}: robots[{k}]: robot {c!r} is not in the dataset's robots {list(view.robots)}"
+            )
     if results.kind is not view.kind:
-        raise EvaluationError(f"results hold {results.kind.value} poses, the dataset {view.kind.value} ones")
+        raise EvaluationError(
+            f"{where}: the results hold {results.kind.value} poses, the dataset {view.kind.value} ones"
+        )
     sol = dict(zip(results.robots, results.solutions))
     empty = RobotValues(np.zeros(0, np.int64), np.zeros((0, view.kind.pose_width)))
     return [sol.get(c, empty) for c in view.robots]
 
 
-def _robot_ate(c: str, ref: RobotValues, est: RobotValues) -> tuple[float, float]:
+def _robot_ate(c: str, ref: RobotValues, est: RobotValues, where: str) -> tuple[float, float]:
     missing = est.missing(ref.keys)
     if len(missing):
         k = int(missing[0])
         raise EvaluationError(
-            f"results: robot {c!r} has no estimate of {_symbol(k)} (key {k}), which its ground truth holds "
-            f"({len(missing)} missing)"
+            f"{where}: solutions.{c}: robot {c!r} has no estimate of {_symbol(k)} (key {k}), which its ground "
+            f"truth holds ({len(missing)} missing)"
         )
     return ate(est.take(ref.keys), ref.poses)
 
@@ -62,14 +66,18 @@ def _own(c: str, values: RobotValues) -> RobotValues:
     return RobotValues(values.keys[mine], values.poses[mine])
 
 
-def metric_summary(view: JrlDatasetView, results: JrlResults) -> MetricSummary:
+def metric_summary(view: JrlDatasetView, results: JrlResults, *, where: str = "results") -> MetricSummary:
     """jrl ``computeMetricSummary``: mean residual always; per-robot ATE, their sum and the joint
     aligned ATE with ground truth; SVE with more than one robot; precision and recall with
-    potential and labelled outliers in the dataset and rejected outliers in the results."""
-    sols = _solutions(view, results)
-    kw: dict[str, object] = {"mean_residual": mean_residual(view.factors, sols)}
+    potential and labelled outliers in the dataset and rejected outliers in the results. ``where``
+    names the results in errors."""
+    sols = _solutions(view, results, where)
+    try:
+        kw: dict[str, object] = {"mean_residual": mean_residual(view.factors, sols)}
+    except EvaluationError as err:
+        raise EvaluationError(f"{where}: {err}") from None
     if view.groundtruth is not None:
-        per = {c: _robot_ate(c, ref, est) for c, ref, est in zip(view.robots, view.groundtruth, sols)}
+        per = {c: _robot_ate(c, ref, est, where) for c, ref, est in zip(view.robots, view.groundtruth, sols)}
         kw["robot_ate"] = per
         kw["total_ate"] = (sum(v[0] for v in per.values()), sum(v[1] for v in per.values()))
         refs = [_own(c, g) for c, g in zip(view.robots, view.groundtruth)]
@@ -141,7 +149,7 @@ def evaluate_jrr(
         raise EvaluationError(f"{out}: a JRL metrics file must end in .jrm")
     results = read_jrr(jrr)
     view = load_dataset_view(dataset)
-    summary = metric_summary(view, results)
+    summary = metric_summary(view, results, where=str(jrr))
     with staged_outputs(out.parent, [out.name], force=force, inputs=[dataset, jrr]) as staging:
         write_jrm(staging / out.name, summary)
     return JrrEvaluation(summary, out, view.skipped)

@@ -1,0 +1,132 @@
+"""studio evaluate with a .jrr: jrl's metric summary of a small JRL dataset, worked out by hand, written
+as a .jrm; bad results refused in one line with exit 2 and nothing written."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from studio.cli import app
+from studio.io.jrm import read_jrm
+
+runner = CliRunner()
+A, B = ord("a") << 56, ord("b") << 56
+I3 = [1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0]
+
+
+def pose2(key: int, x: float, y: float, theta: float) -> dict:
+    return {"key": key, "type": "Pose2", "x": x, "y": y, "theta": theta}
+
+
+def between(k1: int, k2: int, x: float, y: float, theta: float) -> dict:
+    m = {"type": "Pose2", "x": x, "y": y, "theta": theta}
+    return {"type": "BetweenFactorPose2", "key1": k1, "key2": k2, "measurement": m, "covariance": I3}
+
+
+def prior(k: int, x: float, y: float, theta: float) -> dict:
+    m = {"type": "Pose2", "x": x, "y": y, "theta": theta}
+    return {"type": "PriorFactorPose2", "key": k, "measurement": m, "covariance": I3}
+
+
+DATASET = {
+    "name": "tiny",
+    "robots": [97, 98],
+    "measurements": {
+        "a": [
+            {"stamp": 0, "measurements": [prior(A, 0, 0, 0)]},
+            {"stamp": 1, "measurements": [between(A, A + 1, 1, 0, 0)]},
+            {"stamp": 2, "measurements": [between(A + 1, B, 0, 1, 0)]},
+        ],
+        "b": [
+            {"stamp": 0, "measurements": [prior(B, 1, 1, 0)]},
+            {"stamp": 1, "measurements": [between(B, B + 1, 1, 0, 0)]},
+        ],
+    },
+    # robot a's ground truth holds its copy of b0, which it shares through its closure
+    "groundtruth": {
+        "a": [pose2(A, 0, 0, 0), pose2(A + 1, 1, 0, 0), pose2(B, 1, 1, 0)],
+        "b": [pose2(B, 1, 1, 0), pose2(B + 1, 2, 1, 0)],
+    },
+    "potential_outlier_factors": {"a": [[2, 0]], "b": [[1, 0]]},
+    "outlier_factors": {"a": [[2, 0]], "b": []},
+}
+
+RESULTS = {
+    "dataset_name": "tiny",
+    "method_name": "hand",
+    "robots": [97, 98],
+    "solutions": {
+        # every pose at its ground truth but robot a's copy of b0, turned by 0.3 rad
+        "a": [pose2(A, 0, 0, 0), pose2(A + 1, 1, 0, 0), pose2(B, 1, 1, 0.3)],
+        "b": [pose2(B, 1, 1, 0), pose2(B + 1, 2, 1, 0)],
+    },
+    "outliers": {"a": [[2, 0]], "b": []},
+}
+
+
+@pytest.fixture
+def files(tmp_path: Path) -> tuple[Path, Path]:
+    data, res = tmp_path / "tiny.jrl", tmp_path / "run.jrr"
+    data.write_text(json.dumps(DATASET))
+    res.write_text(json.dumps(RESULTS))
+    return data, res
+
+
+def test_the_metrics_of_a_small_case_equal_the_hand_computation(files):
+    data, res = files
+    out = runner.invoke(app, ["evaluate", str(data), "--estimate", str(res)])
+    assert out.exit_code == 0, out.output
+    m = read_jrm(res.with_suffix(".jrm"))
+    # positions exact, so the Umeyama fit is the identity; robot a: one of 3 poses 0.3 rad off
+    assert m.robot_ate is not None and m.total_ate is not None
+    assert m.robot_ate["a"] == pytest.approx((0.0, math.sqrt(0.09 / 3)), abs=1e-12)
+    assert m.robot_ate["b"] == pytest.approx((0.0, 0.0), abs=1e-12)
+    assert m.total_ate == pytest.approx((0.0, math.sqrt(0.03)), abs=1e-12)
+    assert m.joint_aligned_ate == pytest.approx((0.0, 0.0), abs=1e-12)  # own poses only
+    # b0 is the one shared variable: a's and b's estimates 0.3 rad apart
+    assert m.sve == pytest.approx((0.0, 0.3), abs=1e-12)
+    # GTSAM's 0.5 |r|^2 (unit covariances), averaged over the copies of b0 (a's, b's):
+    # a1 -> b0: (0.045 + 0) / 2; prior b0: (0.045 + 0) / 2;
+    # b0 -> b1 with a's b0: z^-1 b0^-1 b1 = (cos 0.3 - 1, -sin 0.3, -0.3), with b's: 0
+    b0_b1 = 0.5 * ((math.cos(0.3) - 1) ** 2 + math.sin(0.3) ** 2 + 0.09) / 2
+    assert m.mean_residual == pytest.approx(0.0225 + 0.0225 + b0_b1, abs=1e-12)
+    # a rejected its labelled outlier (a true negative), b kept its inlier (a true positive)
+    assert m.precision_recall == (1.0, 1.0)
+    assert m.robot_precision_recall == {"a": (-1.0, -1.0), "b": (1.0, 1.0)}
+    assert "SVE:                0, 0.3" in out.output
+
+
+def test_the_jrm_goes_through_the_output_guard(files, tmp_path: Path):
+    data, res = files
+    target = tmp_path / "named.jrm"
+    assert runner.invoke(app, ["evaluate", str(data), "-e", str(res), "--jrm", str(target)]).exit_code == 0
+    again = runner.invoke(app, ["evaluate", str(data), "-e", str(res), "--jrm", str(target)])
+    assert again.exit_code == 2 and "--force" in again.output
+    assert runner.invoke(app, ["evaluate", str(data), "-e", str(res), "--jrm", str(target), "--force"]).exit_code == 0
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda r: r["solutions"]["a"].pop(2), r"run.jrr: solutions.a: robot 'a' has no estimate of b0"),
+        (lambda r: r["solutions"]["b"][1].update(x=float("inf")), r"run.jrr: solutions.b\[1\]: not a finite number"),
+        (lambda r: r["solutions"].update(c=[]), "run.jrr: solutions.c: robot 'c' is not in robots"),
+        (lambda r: r.update(robots=[97, 98, 99]), r"run.jrr: robots\[2\]: robot 'c' is not in the dataset's robots"),
+    ],
+)
+def test_bad_results_get_one_line_and_exit_2_with_nothing_written(files, edit, message):
+    data, res = files
+    doc = json.loads(res.read_text())
+    edit(doc)
+    res.write_text(json.dumps(doc))
+    out = runner.invoke(app, ["evaluate", str(data), "--estimate", str(res)])
+    assert out.exit_code == 2
+    lines = out.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:"), out.output
+    assert re.search(message, lines[0]), lines[0]
+    assert not res.with_suffix(".jrm").exists()
