@@ -11,8 +11,10 @@ MESA tool would read from ``studio export --format jrl``.
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -24,7 +26,15 @@ from studio.io.jrl_factors import JrlDatasetView, dataset_view
 from studio.io.jrm import MetricSummary
 from studio.io.jrr import JrlResults
 
-__all__ = ["metric_summary", "evaluate_jrr", "JrrEvaluation", "graph_results", "load_dataset_view", "format_summary"]
+__all__ = [
+    "factor_ids_of_edges",
+    "metric_summary",
+    "evaluate_jrr",
+    "JrrEvaluation",
+    "graph_results",
+    "load_dataset_view",
+    "format_summary",
+]
 
 _SHIFT = 56
 
@@ -203,3 +213,20 @@ def graph_results(
         tuple(sols),
         None if outliers is None else tuple(np.asarray(o, dtype=np.int64).reshape(-1, 2) for o in outliers),
     )
+
+
+def factor_ids_of_edges(doc: dict[str, Any], keys: np.ndarray) -> dict[str, np.ndarray]:
+    """Per robot of a JRL document, the FactorIds ``(entry, measurement)`` of the between factors
+    whose ``(key1, key2)`` are rows of ``keys`` (``(k, 2)`` int64); a pair listed twice takes two
+    factors of those keys, in the document's order (repeated measurements)."""
+    wanted = Counter(map(tuple, np.asarray(keys, dtype=np.int64).reshape(-1, 2).tolist()))
+    out: dict[str, list[list[int]]] = {}
+    for c, entries in doc["measurements"].items():
+        found = out.setdefault(c, [])
+        for e, entry in enumerate(entries):
+            for m, factor in enumerate(entry.get("measurements", [])):
+                pair = (factor.get("key1"), factor.get("key2"))
+                if wanted.get(pair, 0) > 0:  # type: ignore[call-overload]
+                    wanted[pair] -= 1  # type: ignore[index]
+                    found.append([e, m])
+    return {c: np.array(v, dtype=np.int64).reshape(-1, 2) for c, v in out.items()}

@@ -22,11 +22,11 @@ A, B = ord("a") << 56, ord("b") << 56
 # number, compact): robot a's solution holds a copy of b's pose b0 it shares.
 JRL_WRITER_JRR = (
     '{"dataset_name":"tiny","method_name":"mesa","outliers":{"a":[[1,0]],"b":[]},"robots":[97,98],'
-    '"solutions":{"a":[{"key":%d,"rotation":[1.0,0.0,0.0,0.0],"translation":[0.0,0.0,0.0],"type":"Pose3"},'
-    '{"key":%d,"rotation":[0.0,0.0,0.0,1.0],"translation":[1.5,-2.0,3.0],"type":"Pose3"}],'
-    '"b":[{"key":%d,"rotation":[0.9800665778412416,0.0,0.0,0.19866933079506122],"translation":[1.0,-2.0,3.0],'
+    '"solutions":{"a":[{"key":KEY_A0,"rotation":[1.0,0.0,0.0,0.0],"translation":[0.0,0.0,0.0],"type":"Pose3"},'
+    '{"key":KEY_B0,"rotation":[0.0,0.0,0.0,1.0],"translation":[1.5,-2.0,3.0],"type":"Pose3"}],'
+    '"b":[{"key":KEY_B0,"rotation":[0.9800665778412416,0.0,0.0,0.19866933079506122],"translation":[1.0,-2.0,3.0],'
     '"type":"Pose3"}]}}'
-) % (A, B, B)
+).replace("KEY_A0", str(A)).replace("KEY_B0", str(B))
 
 
 def test_a_jrr_as_jrls_writer_writes_it_is_read(tmp_path: Path):

@@ -8,12 +8,19 @@ import math
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from studio.cli import app
+from studio.evaluate import evaluate
 from studio.io.jrm import read_jrm
+from studio.io.jrr import read_jrr
+from studio.jrl_evaluate import evaluate_jrr, factor_ids_of_edges
+from studio.solve import solve
+from studio.synth import load_synth_config, synthesize
 
+DATA = Path(__file__).resolve().parent.parent / "data"
 runner = CliRunner()
 A, B = ord("a") << 56, ord("b") << 56
 I3 = [1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0]
@@ -130,3 +137,45 @@ def test_bad_results_get_one_line_and_exit_2_with_nothing_written(files, edit, m
     assert len(lines) == 1 and lines[0].startswith("error:"), out.output
     assert re.search(message, lines[0]), lines[0]
     assert not res.with_suffix(".jrm").exists()
+
+
+def test_factor_ids_of_rejected_edges_follow_the_documents_order():
+    doc = {
+        "measurements": {
+            "a": [
+                {"stamp": 0, "measurements": [prior(A, 0, 0, 0), between(A, A + 1, 1, 0, 0)]},
+                {"stamp": 1, "measurements": [between(A + 1, B, 0, 1, 0), between(A + 1, B, 0, 1, 0)]},
+            ],
+            "b": [{"stamp": 0, "measurements": [between(B, A + 1, 0, -1, 0)]}],
+        }
+    }
+    # the pair (a1, b0) rejected twice takes both repeated measurements; (b0, a1) is b's factor
+    found = factor_ids_of_edges(doc, np.array([[A + 1, B], [A + 1, B], [B, A + 1]]))
+    assert found["a"].tolist() == [[1, 0], [1, 1]] and found["b"].tolist() == [[0, 0]]
+
+
+@pytest.fixture(scope="module")
+def solved(tmp_path_factory):
+    root = tmp_path_factory.mktemp("jrr")
+    small = synthesize(load_synth_config(DATA / "configs" / "small3x100.json"), root, rrd=False, jobs=1)
+    solve(small.dataset_dir, root / "est")
+    return small.dataset_dir, root / "est" / "small3x100.jrr"
+
+
+def test_solve_writes_a_jrr_whose_ate_is_evos_aligned_ape(solved, tmp_path):
+    dataset, jrr = solved
+    res = read_jrr(jrr)
+    assert res.robots == ("a", "b", "c") and res.method_name == "gtsam" and res.outliers is None
+    scored = evaluate_jrr(dataset, jrr, jrm=tmp_path / "m.jrm")
+    m = scored.summary
+    assert m.robot_ate is not None and m.joint_aligned_ate is not None
+    # jrl's ATE is the RMSE after a rigid Umeyama fit: evo's se3-aligned APE on the same poses
+    tum = jrr.parent / "estimate" / "tum"
+    joint = evaluate(dataset, estimate=tum, align="se3").overall
+    assert m.joint_aligned_ate[0] == pytest.approx(joint.ape_translation_m.rmse, rel=1e-9)
+    assert m.joint_aligned_ate[1] == pytest.approx(math.radians(joint.ape_rotation_deg.rmse), rel=1e-9)
+    per = evaluate(dataset, estimate=tum, align="se3", align_per_agent=True).agents
+    for c, agent in zip("abc", per):
+        assert m.robot_ate[c][0] == pytest.approx(agent.ape_translation_m.rmse, rel=1e-9)
+    assert m.total_ate == pytest.approx(tuple(map(sum, zip(*m.robot_ate.values()))))
+    assert m.sve is not None and math.isnan(m.sve[0])  # a central solve shares no variable
