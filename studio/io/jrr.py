@@ -159,6 +159,16 @@ def _robots(doc: dict[str, Any], where: str) -> tuple[str, ...]:
 def pose_rows(values: list[Any], kind: PoseKind, where: str, path: str, paths: list[str] | None = None) -> np.ndarray:
     """``(n, width)`` pose rows of value objects (``x y theta`` or ``x y z qx qy qz qw``); errors
     name ``path[n]``, or ``paths[n]`` when given."""
+    try:  # the fast path; anything odd is found and named by the checks below
+        if kind is PoseKind.SE2:
+            fast = np.array([[v["x"], v["y"], v["theta"]] for v in values], dtype=np.float64).reshape(-1, 3)
+        else:
+            flat = [[*v["translation"], *v["rotation"]] for v in values]
+            fast = np.array(flat, dtype=np.float64).reshape(-1, 7)[:, [0, 1, 2, 4, 5, 6, 3]]
+        if np.isfinite(fast).all() and len(fast) == len(values):
+            return _unit_quaternions(fast, kind, where, path, paths)
+    except (KeyError, TypeError, ValueError):
+        pass
     rows = []
     for n, v in enumerate(values):
         vpath = paths[n] if paths is not None else f"{path}[{n}]"
@@ -177,6 +187,11 @@ def pose_rows(values: list[Any], kind: PoseKind, where: str, path: str, paths: l
             raise FormatError(f"{where}: {vpath}: not a finite number in the pose")
         rows.append(row)
     out = np.array(rows, dtype=np.float64).reshape(len(rows), 3 if kind is PoseKind.SE2 else 7)
+    return _unit_quaternions(out, kind, where, path, paths)
+
+
+def _unit_quaternions(out: np.ndarray, kind: PoseKind, where: str, path: str, paths: list[str] | None) -> np.ndarray:
+    """``out`` with its quaternions normalised; one off unit length beyond the tolerance fails."""
     if kind is PoseKind.SE3 and len(out):
         norms = np.linalg.norm(out[:, 3:7], axis=1)
         bad = np.flatnonzero(np.abs(norms - 1.0) > QUAT_TOLERANCE)
