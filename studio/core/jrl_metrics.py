@@ -112,8 +112,8 @@ def _quat_of_matrix(r: np.ndarray) -> np.ndarray:
         v[j] = (m[j, i] + m[i, j]) / (4 * v[i])
         v[h] = (m[h, i] + m[i, h]) / (4 * v[i])
         q = [v[0], v[1], v[2], (m[h, j] - m[j, h]) / (4 * v[i])]
-    out = np.array(q)
-    return out / np.linalg.norm(out)
+    out: np.ndarray = np.array(q) / np.linalg.norm(q)
+    return out
 
 
 def apply_rigid(poses: np.ndarray, r: np.ndarray, t: np.ndarray) -> np.ndarray:

@@ -143,14 +143,21 @@ def dataset_view(doc: Any, where: str) -> JrlDatasetView:
     measurements = doc.get("measurements")
     if not isinstance(measurements, dict):
         raise FormatError(f"{where}: measurements: expected an object from robot id to entries")
+    for c in measurements:
+        if c not in robots:
+            raise FormatError(f"{where}: measurements.{c}: robot {c!r} is not in robots {list(robots)}")
     collect = _Collect()
     measured = []
     for c in robots:
         ids = set()
         entries = measurements.get(c, [])
-        for e, entry in enumerate(entries if isinstance(entries, list) else []):
-            factors = entry.get("measurements", []) if isinstance(entry, dict) else []
-            for m, factor in enumerate(factors if isinstance(factors, list) else []):
+        if not isinstance(entries, list):
+            raise FormatError(f"{where}: measurements.{c}: expected a list of entries")
+        for e, entry in enumerate(entries):
+            factors = entry.get("measurements", []) if isinstance(entry, dict) else None
+            if not isinstance(factors, list):
+                raise FormatError(f"{where}: measurements.{c}[{e}]: expected an entry with a list of measurements")
+            for m, factor in enumerate(factors):
                 ids.add((e, m))
                 collect.add(factor, where, f"measurements.{c}[{e}].measurements[{m}]")
         measured.append(ids)

@@ -161,10 +161,15 @@ def pose_rows(values: list[Any], kind: PoseKind, where: str, path: str, paths: l
     name ``path[n]``, or ``paths[n]`` when given."""
     try:  # the fast path; anything odd is found and named by the checks below
         if kind is PoseKind.SE2:
-            fast = np.array([[v["x"], v["y"], v["theta"]] for v in values], dtype=np.float64).reshape(-1, 3)
+            raw = np.array([[v["x"], v["y"], v["theta"]] for v in values]).reshape(-1, 3)
         else:
-            flat = [[*v["translation"], *v["rotation"]] for v in values]
-            fast = np.array(flat, dtype=np.float64).reshape(-1, 7)[:, [0, 1, 2, 4, 5, 6, 3]]
+            if any(len(v["translation"]) != 3 for v in values):
+                raise TypeError
+            raw = np.array([[*v["translation"], *v["rotation"]] for v in values]).reshape(-1, 7)
+        # a string among the numbers makes a text array (numpy would parse "1" as 1.0 if asked for floats)
+        fast = raw.astype(np.float64) if raw.dtype.kind in "fiu" else np.full(raw.shape, np.nan)
+        if kind is PoseKind.SE3:
+            fast = fast[:, [0, 1, 2, 4, 5, 6, 3]]
         if np.isfinite(fast).all() and len(fast) == len(values):
             return _unit_quaternions(fast, kind, where, path, paths)
     except (KeyError, TypeError, ValueError):

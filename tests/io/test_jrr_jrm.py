@@ -21,12 +21,16 @@ A, B = ord("a") << 56, ord("b") << 56
 # What jrl's Writer::writeResults writes (nlohmann: std::map objects with sorted keys, a char as a
 # number, compact): robot a's solution holds a copy of b's pose b0 it shares.
 JRL_WRITER_JRR = (
-    '{"dataset_name":"tiny","method_name":"mesa","outliers":{"a":[[1,0]],"b":[]},"robots":[97,98],'
-    '"solutions":{"a":[{"key":KEY_A0,"rotation":[1.0,0.0,0.0,0.0],"translation":[0.0,0.0,0.0],"type":"Pose3"},'
-    '{"key":KEY_B0,"rotation":[0.0,0.0,0.0,1.0],"translation":[1.5,-2.0,3.0],"type":"Pose3"}],'
-    '"b":[{"key":KEY_B0,"rotation":[0.9800665778412416,0.0,0.0,0.19866933079506122],"translation":[1.0,-2.0,3.0],'
-    '"type":"Pose3"}]}}'
-).replace("KEY_A0", str(A)).replace("KEY_B0", str(B))
+    (
+        '{"dataset_name":"tiny","method_name":"mesa","outliers":{"a":[[1,0]],"b":[]},"robots":[97,98],'
+        '"solutions":{"a":[{"key":KEY_A0,"rotation":[1.0,0.0,0.0,0.0],"translation":[0.0,0.0,0.0],"type":"Pose3"},'
+        '{"key":KEY_B0,"rotation":[0.0,0.0,0.0,1.0],"translation":[1.5,-2.0,3.0],"type":"Pose3"}],'
+        '"b":[{"key":KEY_B0,"rotation":[0.9800665778412416,0.0,0.0,0.19866933079506122],"translation":[1.0,-2.0,3.0],'
+        '"type":"Pose3"}]}}'
+    )
+    .replace("KEY_A0", str(A))
+    .replace("KEY_B0", str(B))
+)
 
 
 def test_a_jrr_as_jrls_writer_writes_it_is_read(tmp_path: Path):
@@ -95,6 +99,8 @@ def test_planar_results_and_one_character_robot_ids(tmp_path: Path):
         (lambda d: d["solutions"]["a"][1].update(key=A), r"solutions\.a: key \d+ is listed twice"),
         (lambda d: d.update(robots=[97, 300]), r"robots\[1\]: expected a robot id"),
         (lambda d: d["solutions"]["a"][0].pop("rotation"), r"solutions\.a\[0\]: a Pose3 value needs"),
+        (lambda d: d["solutions"]["a"][0]["translation"].pop(), r"solutions\.a\[0\]: a Pose3 value needs"),
+        (lambda d: d["solutions"]["b"][0]["translation"].__setitem__(2, "3"), r"solutions\.b\[0\]: not a finite"),
     ],
 )
 def test_a_bad_jrr_is_refused_naming_the_json_path(tmp_path: Path, edit, message):

@@ -179,3 +179,31 @@ def test_solve_writes_a_jrr_whose_ate_is_evos_aligned_ape(solved, tmp_path):
         assert m.robot_ate[c][0] == pytest.approx(agent.ape_translation_m.rmse, rel=1e-9)
     assert m.total_ate == pytest.approx(tuple(map(sum, zip(*m.robot_ate.values()))))
     assert m.sve is not None and math.isnan(m.sve[0])  # a central solve shares no variable
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda d: d["measurements"].update(c=[]), r"tiny.jrl: measurements.c: robot 'c' is not in robots"),
+        (
+            lambda d: d["measurements"]["a"][1]["measurements"][0].update(covariance=[1.0]),
+            r"measurements.a\[1\]"
+            r".measurements\[0\].covariance: expected 9 numbers",
+        ),
+        (
+            lambda d: d["measurements"]["b"][1]["measurements"][0].update(key2=-5),
+            r"measurements.b\[1\].measurements"
+            r"\[0\]: expected GTSAM keys",
+        ),
+        (lambda d: d["groundtruth"]["b"][0].update(x="1"), r"groundtruth.b\[0\]: not a finite number"),
+    ],
+)
+def test_a_bad_jrl_dataset_is_one_line_naming_the_json_path(files, edit, message):
+    data, res = files
+    doc = json.loads(data.read_text())
+    edit(doc)
+    data.write_text(json.dumps(doc))
+    out = runner.invoke(app, ["evaluate", str(data), "--estimate", str(res)])
+    assert out.exit_code == 2 and len(out.output.strip().splitlines()) == 1
+    assert re.search(message, out.output), out.output
+    assert not res.with_suffix(".jrm").exists()
