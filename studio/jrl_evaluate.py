@@ -123,12 +123,37 @@ def load_dataset_view(dataset: PathLike) -> JrlDatasetView:
     return dataset_view(doc, str(path))
 
 
-def _read_graph(path: Path) -> tuple[PoseGraph, np.ndarray | None]:
-    from studio.io.multig2o import read_multi_g2o
+def _single_g2o_graph(path: Path) -> PoseGraph:
+    """A single g2o file as one robot, with its edges (the residual needs them) and, where
+    ``NAME_GT.tum`` is beside it, its ground truth and stamps (else none, and ids as seconds)."""
+    from studio.core.errors import FormatError
+    from studio.core.units import NS_PER_S
+    from studio.io.g2o import read_g2o
+    from studio.io.graph_table import AgentPoses, EdgeTable, assemble_graph
     from studio.io.singleg2o import read_single_g2o_dataset
 
+    doc = read_g2o(path)
+    n = len(doc.vertex_ids)
+    order = np.argsort(doc.vertex_ids, kind="stable")
+    if n == 0 or not np.array_equal(doc.vertex_ids[order], np.arange(n)):
+        raise FormatError(f"{path}: vertex ids must be 0..{max(n - 1, 0)} to be scored as JRL results")
+    stamps, truth = np.arange(n, dtype=np.int64) * NS_PER_S, None
+    if path.with_name(f"{path.stem}_GT.tum").is_file():
+        agent = read_single_g2o_dataset(path).agents[0]
+        stamps, truth = agent.stamps_ns, agent.ground_truth
+    rows = np.zeros(len(doc.edge_from), dtype=np.int64)
+    table = EdgeTable(
+        doc.kind, rows, doc.edge_from, rows, doc.edge_to, doc.edge_measurements, doc.edge_information_upper
+    )
+    agent_poses = AgentPoses(path.stem, stamps, doc.vertex_poses[order], truth)
+    return assemble_graph([agent_poses], table, where=str(path), metadata={"source": str(path)})
+
+
+def _read_graph(path: Path) -> tuple[PoseGraph, np.ndarray | None]:
+    from studio.io.multig2o import read_multi_g2o
+
     if path.is_file():
-        return read_single_g2o_dataset(path), None
+        return _single_g2o_graph(path), None
     graph = read_multi_g2o(path)
     labels = path / "outliers.txt"
     if not labels.is_file():

@@ -207,3 +207,45 @@ def test_a_bad_jrl_dataset_is_one_line_naming_the_json_path(files, edit, message
     assert out.exit_code == 2 and len(out.output.strip().splitlines()) == 1
     assert re.search(message, out.output), out.output
     assert not res.with_suffix(".jrm").exists()
+
+
+def test_the_mean_residual_is_gtsams_error_of_the_jrl_graph(solved):
+    """With one estimate per key, jrl's mean residual is GTSAM's NonlinearFactorGraph::error of the
+    dataset's JRL factors at the solution: checked with GTSAM itself on the studio's JRL export."""
+    gtsam = pytest.importorskip("gtsam")
+    from studio.io.jrl import jrl_document
+    from studio.io.multig2o import read_multi_g2o
+
+    dataset, jrr = solved
+    doc = jrl_document(read_multi_g2o(dataset), name="small3x100")
+    graph = gtsam.NonlinearFactorGraph()
+    for entries in doc["measurements"].values():
+        for entry in entries:
+            for f in entry["measurements"]:
+                z = f["measurement"]
+                w, x, y, q = z["rotation"]
+                pose = gtsam.Pose3(gtsam.Rot3.Quaternion(w, x, y, q), np.array(z["translation"]))
+                noise = gtsam.noiseModel.Gaussian.Covariance(np.array(f["covariance"]).reshape(6, 6))
+                graph.add(gtsam.BetweenFactorPose3(f["key1"], f["key2"], pose, noise))
+    values = gtsam.Values()
+    for sol in read_jrr(jrr).solutions:
+        for key, p in zip(sol.keys.tolist(), sol.poses):
+            rot = gtsam.Rot3.Quaternion(p[6], p[3], p[4], p[5])
+            values.insert(key, gtsam.Pose3(rot, p[0:3]))
+    ours = evaluate_jrr(dataset, jrr, jrm=jrr.with_name("gtsam-check.jrm")).summary.mean_residual
+    assert ours == pytest.approx(graph.error(values), rel=1e-9)
+
+
+def test_a_single_g2o_dataset_is_one_robot_with_its_edges(tmp_path):
+    small = synthesize(load_synth_config(DATA / "configs" / "tiny_three.json"), tmp_path, rrd=False, jobs=1)
+    single = small.single_dir / "tiny_three.g2o"  # 2D records, NAME_GT.tum beside it
+    res = solve(single, tmp_path / "est")
+    m = evaluate_jrr(single, tmp_path / "est" / "tiny_three.jrr").summary
+    # a planar between factor's GTSAM 4.2 residual is g2o's EDGE_SE2 error: half the chi2
+    assert m.mean_residual == pytest.approx(res.chi2_final / 2, rel=1e-9)
+    assert m.robot_ate is not None and m.sve is None  # one robot: no SVE, as jrl
+    bare = tmp_path / "bare" / "tiny_three.g2o"
+    bare.parent.mkdir()
+    bare.write_bytes(single.read_bytes())
+    m = evaluate_jrr(bare, tmp_path / "est" / "tiny_three.jrr", jrm=tmp_path / "bare.jrm").summary
+    assert m.robot_ate is None and m.mean_residual == pytest.approx(res.chi2_final / 2, rel=1e-9)
