@@ -191,6 +191,8 @@ def evaluate_jrr(
 
 
 def _fmt(p: tuple[float, float] | None, unit: str = "m / rad") -> str:
+    if p is not None and all(np.isnan(p)):
+        return "- (no variable is shared)"
     return "-" if p is None else f"{p[0]:.6g}, {p[1]:.6g}  ({unit})"
 
 

@@ -56,10 +56,13 @@ MAX_POINTS_PER_SNAPSHOT = 4000
 MAX_CLOSURE_SEGMENTS = 1500
 
 
-def replay_blueprint(backends: Sequence[str], truth_xyz: np.ndarray | None = None, *, planar: bool = False) -> Any:
-    """One view per back-end beside the APE and communication plots, the time panel following
-    (a viewer opens at the end). With ``truth_xyz`` (the ground-truth positions) every view looks
-    at the whole team; planar data is seen from straight above with no ground grid."""
+def replay_blueprint(
+    backends: Sequence[str], truth_xyz: np.ndarray | None = None, *, planar: bool = False, sve: bool = False
+) -> Any:
+    """One view per back-end beside the APE and communication plots (and, with ``sve``, the shared
+    variable error's), the time panel following (a viewer opens at the end). With ``truth_xyz``
+    (the ground-truth positions) every view looks at the whole team; planar data is seen from
+    straight above with no ground grid."""
     import rerun.blueprint as rrb
 
     from studio.recording.dataset import eye_over, fixed_id
@@ -102,9 +105,17 @@ def replay_blueprint(backends: Sequence[str], truth_xyz: np.ndarray | None = Non
                 fixed(
                     rrb.Vertical(
                         fixed(rrb.TimeSeriesView(name="team APE se3 [m]", origin=f"{REPLAY}/metrics/ape_se3_m"), "ape"),
-                        fixed(
-                            rrb.TimeSeriesView(name="shared variable error [m]", origin=f"{REPLAY}/metrics/sve_t_m"),
-                            "sve",
+                        *(
+                            [
+                                fixed(
+                                    rrb.TimeSeriesView(
+                                        name="shared variable error [m]", origin=f"{REPLAY}/metrics/sve_t_m"
+                                    ),
+                                    "sve",
+                                )
+                            ]
+                            if sve
+                            else []
                         ),
                         fixed(rrb.TimeSeriesView(name="robots in contact", origin=REPLAY_IN_CONTACT), "contact"),
                         fixed(rrb.TimeSeriesView(name="closures delivered", origin=REPLAY_DELIVERED), "delivered"),
@@ -290,7 +301,9 @@ def write_replay_recording(
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)
         rec.set_log_time_enabled(False)
         with closing(rec, target, shown=path):
-            rec.save(target, default_blueprint=replay_blueprint(backends, truth, planar=planar))
+            rec.save(
+                target, default_blueprint=replay_blueprint(backends, truth, planar=planar, sve=bool(columns.get("sve")))
+            )
             rec.send_recording_name(name)
             log_replay(rec, graph, **columns)
 
