@@ -88,6 +88,7 @@ def test_never_connected_leaves_every_back_end_on_its_own(tiny, tmp_path):
 
 def test_the_same_dataset_model_and_seed_give_the_same_bytes(tiny, tmp_path):
     files = ["schedule/contacts.csv", "schedule/closures.csv", "metrics.csv", "summary.csv", "links.csv"]
+    files += ["centralized.jrr", "independent.jrr", "swarm.jrr", "dgs.jrr"]
     spec = "range:10,period=3,p=0.5"
     every = ["centralized", "independent", "swarm", "dgs"]
     a = replay(tiny.dataset_dir, tmp_path / "a", comms=spec, seed=4, every=10, backends=every)
