@@ -42,6 +42,7 @@ from studio.core.errors import FormatError
 from studio.core.jrl_metrics import RobotValues
 from studio.core.model import PoseKind
 from studio.core.types import PathLike
+from studio.io.g2o import MAX_TEXT_BYTES
 from studio.io.strict_json import dumps_strict
 
 __all__ = [
@@ -59,7 +60,6 @@ __all__ = [
 
 #: How far from unit length a quaternion may be and still be read (then normalised).
 QUAT_TOLERANCE = 1e-5
-_MAX_BYTES = 1 << 30
 _TYPES = {"Pose2": PoseKind.SE2, "Pose3": PoseKind.SE3}
 
 
@@ -120,8 +120,8 @@ def load_json(source: PathLike, what: str) -> tuple[Any, str]:
     try:
         if path.is_dir():
             raise FormatError(f"{path}: is a folder, not a {what} file")
-        if path.stat().st_size > _MAX_BYTES:
-            raise FormatError(f"{path}: over the {_MAX_BYTES} byte (1 GiB) limit of text inputs")
+        if path.stat().st_size > MAX_TEXT_BYTES:
+            raise FormatError(f"{path}: over the {MAX_TEXT_BYTES} byte (1 GiB) limit of text inputs")
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise FormatError(f"{path}: no such file") from None
