@@ -281,6 +281,12 @@ def evaluate(
         "--jrm",
         help="With a .jrr estimate: where to write JRL's metrics (default: beside the .jrr, FILE.jrm).",
     ),
+    partial: bool = typer.Option(
+        False,
+        "--partial",
+        help="With a .jrr estimate: score each robot's ATE over the ground-truth poses its solution holds "
+        "(jrl's partial results; a replay's robots hold copies only of the poses they were sent).",
+    ),
 ) -> None:
     """Score an estimate against the ground truth with evo: APE and RPE per agent and over all agents.
 
@@ -297,7 +303,7 @@ def evaluate(
     if estimate is not None and estimate.suffix == ".jrr":
         from studio.jrl_evaluate import evaluate_jrr, format_summary
 
-        scored = evaluate_jrr(dataset, estimate, jrm=jrm, force=force)
+        scored = evaluate_jrr(dataset, estimate, jrm=jrm, force=force, partial=partial)
         if scored.skipped:
             kinds = ", ".join(f"{n} {t}" for t, n in sorted(scored.skipped.items()))
             _warn(f"{dataset}: the mean residual leaves out factors the studio does not evaluate: {kinds}")

@@ -60,13 +60,18 @@ def _solutions(view: JrlDatasetView, results: JrlResults, where: str) -> list[Ro
     return [sol.get(c, empty) for c in view.robots]
 
 
-def _robot_ate(c: str, ref: RobotValues, est: RobotValues, where: str) -> tuple[float, float]:
+def _robot_ate(c: str, ref: RobotValues, est: RobotValues, where: str, partial: bool) -> tuple[float, float]:
+    """jrl ``computeATE`` of robot ``c``; ``partial``: its ``allow_partial_results`` (only the
+    ground-truth keys the robot's solution holds are scored), else a missing key fails."""
     missing = est.missing(ref.keys)
-    if len(missing):
+    if len(missing) and partial:
+        held = ~np.isin(ref.keys, missing)
+        ref = RobotValues(ref.keys[held], ref.poses[held])
+    elif len(missing):
         k = int(missing[0])
         raise EvaluationError(
             f"{where}: solutions.{c}: robot {c!r} has no estimate of {_symbol(k)} (key {k}), which its ground "
-            f"truth holds ({len(missing)} missing)"
+            f"truth holds ({len(missing)} missing; partial results score only the poses each robot holds)"
         )
     return ate(est.take(ref.keys), ref.poses)
 
@@ -76,18 +81,22 @@ def _own(c: str, values: RobotValues) -> RobotValues:
     return RobotValues(values.keys[mine], values.poses[mine])
 
 
-def metric_summary(view: JrlDatasetView, results: JrlResults, *, where: str = "results") -> MetricSummary:
+def metric_summary(
+    view: JrlDatasetView, results: JrlResults, *, where: str = "results", partial: bool = False
+) -> MetricSummary:
     """jrl ``computeMetricSummary``: mean residual always; per-robot ATE, their sum and the joint
     aligned ATE with ground truth; SVE with more than one robot; precision and recall with
     potential and labelled outliers in the dataset and rejected outliers in the results. ``where``
-    names the results in errors."""
+    names the results in errors; ``partial``: ATE as jrl scores partial results
+    (``allow_partial_results``: each robot over the ground-truth keys its solution holds, e.g. a
+    replay's robots, which keep copies only of the poses they were sent)."""
     sols = _solutions(view, results, where)
     try:
         kw: dict[str, object] = {"mean_residual": mean_residual(view.factors, sols)}
     except EvaluationError as err:
         raise EvaluationError(f"{where}: {err}") from None
     if view.groundtruth is not None:
-        per = {c: _robot_ate(c, ref, est, where) for c, ref, est in zip(view.robots, view.groundtruth, sols)}
+        per = {c: _robot_ate(c, ref, est, where, partial) for c, ref, est in zip(view.robots, view.groundtruth, sols)}
         kw["robot_ate"] = per
         kw["total_ate"] = (sum(v[0] for v in per.values()), sum(v[1] for v in per.values()))
         refs = [_own(c, g) for c, g in zip(view.robots, view.groundtruth)]
@@ -171,10 +180,10 @@ class JrrEvaluation:
 
 
 def evaluate_jrr(
-    dataset: PathLike, jrr: PathLike, *, jrm: PathLike | None = None, force: bool = False
+    dataset: PathLike, jrr: PathLike, *, jrm: PathLike | None = None, force: bool = False, partial: bool = False
 ) -> JrrEvaluation:
-    """Score the ``.jrr`` ``jrr`` on ``dataset`` (:func:`metric_summary`) and write the ``.jrm``
-    (default: beside the ``.jrr``, same stem) through the output guard."""
+    """Score the ``.jrr`` ``jrr`` on ``dataset`` (:func:`metric_summary`, ``partial`` as there) and
+    write the ``.jrm`` (default: beside the ``.jrr``, same stem) through the output guard."""
     from studio.io.atomic import staged_outputs
     from studio.io.jrm import write_jrm
     from studio.io.jrr import read_jrr
@@ -184,7 +193,7 @@ def evaluate_jrr(
         raise EvaluationError(f"{out}: a JRL metrics file must end in .jrm")
     results = read_jrr(jrr)
     view = load_dataset_view(dataset)
-    summary = metric_summary(view, results, where=str(jrr))
+    summary = metric_summary(view, results, where=str(jrr), partial=partial)
     with staged_outputs(out.parent, [out.name], force=force, inputs=[dataset, jrr]) as staging:
         write_jrm(staging / out.name, summary)
     return JrrEvaluation(summary, out, view.skipped)

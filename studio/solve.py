@@ -465,11 +465,30 @@ def _write_jrr(loaded: Loaded, result: SolveResult, path: Path, *, dataset_name:
         poses = planar_poses_to_se3(poses)
     parts = [poses[loaded.offsets[k] : loaded.offsets[k + 1]] for k in range(len(loaded.offsets) - 1)]
     robots = [robot_prefix(k) for k in range(len(parts))]
-    outliers = None
-    if result.rejected is not None and loaded.graph is not None:
-        outliers = _rejected_factor_ids(loaded.graph, result.rejected, robots, dataset_name)
-    results = graph_results(source, robots, parts, dataset_name=dataset_name, method_name=result.method)
+    outliers, shared = None, None
+    if loaded.graph is not None:
+        shared = _shared_copies(loaded.graph, parts, robots)
+        if result.rejected is not None:
+            outliers = _rejected_factor_ids(loaded.graph, result.rejected, robots, dataset_name)
+    results = graph_results(source, robots, parts, dataset_name=dataset_name, method_name=result.method, shared=shared)
     write_jrr(path, dataclasses.replace(results, outliers=outliers))
+
+
+def _shared_copies(graph: PoseGraph, parts: list[np.ndarray], robots: list[str]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per robot, ``(keys, poses)`` of the other robots' poses its measurements name (an
+    inter-robot closure is its ``from`` robot's measurement, as in the JRL export), at the one
+    estimate a central solve has: jrl's results hold every value a robot's factors touch."""
+    inter = graph.inter
+    base = np.array([ord(c) << 56 for c in robots], dtype=np.int64)
+    out = []
+    for k in range(len(robots)):
+        mine = inter.from_agent == k
+        keys, first = np.unique(base[inter.to_agent[mine]] + inter.to_index[mine], return_index=True)
+        agents, index = inter.to_agent[mine][first], inter.to_index[mine][first]
+        width = parts[k].shape[1]
+        poses = np.array([parts[a][i] for a, i in zip(agents.tolist(), index.tolist())]).reshape(len(keys), width)
+        out.append((keys, poses))
+    return out
 
 
 def _rejected_factor_ids(
