@@ -184,13 +184,14 @@ def evaluate_jrr(
 ) -> JrrEvaluation:
     """Score the ``.jrr`` ``jrr`` on ``dataset`` (:func:`metric_summary`, ``partial`` as there) and
     write the ``.jrm`` (default: beside the ``.jrr``, same stem) through the output guard."""
-    from studio.io.atomic import staged_outputs
+    from studio.io.atomic import check_outputs, staged_outputs
     from studio.io.jrm import write_jrm
     from studio.io.jrr import read_jrr
 
     out = Path(jrm) if jrm is not None else Path(jrr).with_suffix(".jrm")
     if out.suffix != ".jrm":
         raise EvaluationError(f"{out}: a JRL metrics file must end in .jrm")
+    check_outputs(out.parent, [out.name], force=force, inputs=[dataset, jrr])  # every refusal before any work
     results = read_jrr(jrr)
     view = load_dataset_view(dataset)
     summary = metric_summary(view, results, where=str(jrr), partial=partial)

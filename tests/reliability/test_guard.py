@@ -79,7 +79,8 @@ def world(made, tmp_path, monkeypatch) -> Path:
 
 
 def _initial_jrr(dataset: Path, path: Path) -> None:
-    """JRL results of ``dataset``'s initial estimate (one robot per agent, its own poses)."""
+    """JRL results of ``dataset``'s initial estimate (one robot per agent, its own poses: partial
+    results where the dataset's JRL gives robots copies of shared poses)."""
     from studio.io.jrr import write_jrr
     from studio.io.multig2o import read_multi_g2o
     from studio.io.symbol_g2o import robot_prefix
@@ -101,7 +102,10 @@ COMMANDS: dict[str, Callable[[Path], tuple[list, Path]]] = {
     ),
     "record": lambda w: (["record", w / "ds", "-o", "OUT.rrd"], w / "ds"),
     "evaluate --rrd": lambda w: (["evaluate", w / "ds", "--rrd", "OUT.rrd"], w / "ds"),
-    "evaluate --jrm": lambda w: (["evaluate", w / "ds", "--estimate", w / "run.jrr", "--jrm", "OUT.jrm"], w / "ds"),
+    "evaluate --jrm": lambda w: (
+        ["evaluate", w / "ds", "--estimate", w / "run.jrr", "--partial", "--jrm", "OUT.jrm"],
+        w / "ds",
+    ),
     "convert": lambda w: (["convert", "tum", w / "alpha.tum", w / "bob.tum", "-o", "OUT", "--no-rrd"], w / "bob.tum"),
     "snapshot": lambda w: (["snapshot", w / "ds.rrd", "-o", "OUT.png"], w / "ds.rrd"),
     "bench": lambda w: (["bench", w / "bench.toml", "-o", "OUT", "-q"], w / "ds"),
