@@ -253,7 +253,8 @@ def evaluate(
         None,
         "--estimate",
         "-e",
-        help="An optimizer's output: the folder studio solve wrote (or its solve.json), a single g2o file "
+        help="An optimizer's output: the folder studio solve wrote (or its solve.json), a JRL results file "
+        "FILE.jrr (scored with jrl's metrics into FILE.jrm: docs/evaluation.md), a single g2o file "
         "(ids as in the dataset's single g2o), a multi-g2o folder, or a folder of <agent>.tum / "
         "<agent>_*.tum files. Default: the dataset's initial estimate.",
     ),
@@ -274,7 +275,18 @@ def evaluate(
     rrd: Path | None = typer.Option(
         None, "--rrd", help="Also write the per-node APE series into this new Rerun recording (.rrd)."
     ),
-    force: bool = typer.Option(False, "--force", help="Replace an existing --rrd file."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing --rrd or .jrm file."),
+    jrm: Path | None = typer.Option(
+        None,
+        "--jrm",
+        help="With a .jrr estimate: where to write JRL's metrics (default: beside the .jrr, FILE.jrm).",
+    ),
+    partial: bool = typer.Option(
+        False,
+        "--partial",
+        help="With a .jrr estimate: score each robot's ATE over the ground-truth poses its solution holds "
+        "(jrl's partial results; a replay's robots hold copies only of the poses they were sent).",
+    ),
 ) -> None:
     """Score an estimate against the ground truth with evo: APE and RPE per agent and over all agents.
 
@@ -288,6 +300,22 @@ def evaluate(
 
     if as_json and markdown:
         raise ConfigError("--json and --markdown exclude each other")
+    if estimate is not None and estimate.suffix == ".jrr":
+        from studio.jrl_evaluate import evaluate_jrr, format_summary
+
+        scored = evaluate_jrr(dataset, estimate, jrm=jrm, force=force, partial=partial)
+        if scored.skipped:
+            kinds = ", ".join(f"{n} {t}" for t, n in sorted(scored.skipped.items()))
+            _warn(f"{dataset}: the mean residual leaves out factors the studio does not evaluate: {kinds}")
+        if as_json:
+            import json
+
+            from studio.io.jrm import jrm_document
+
+            typer.echo(json.dumps(jrm_document(scored.summary), indent=2))
+        else:
+            typer.echo(format_summary(scored.summary) + f"wrote {scored.jrm_path}")
+        return
     with terminal_progress() as progress:
         ev = evaluate_dataset(
             dataset,

@@ -501,12 +501,67 @@ def _write_solve_outputs(
         folder = staging / out.name
         folder.mkdir()
         name = _write_estimate(loaded, solution.poses, folder, stem, tum_names)
+        _write_jrr(loaded, result, folder / f"{stem}.jrr", dataset_name=Path(dataset).name)
         result = dataclasses.replace(result, estimate_path=out / name)
         (folder / SOLVE_JSON).write_text(
             dumps_strict(result.to_dict(), str(out / SOLVE_JSON), indent=2, default=_json_default) + "\n",
             encoding="utf-8",
         )
     return result
+
+
+def _write_jrr(loaded: Loaded, result: SolveResult, path: Path, *, dataset_name: str) -> None:
+    """The estimate as JRL results (:mod:`studio.io.jrr`): one robot per agent (a single g2o file:
+    one robot), its own poses in the dataset's pose kind; a central solve keeps no copies of other
+    robots' poses. A robust method's rejected closures are its ``outliers``, by their FactorIds in
+    the studio's JRL export of the dataset (``studio export --format jrl``)."""
+    from studio.io.jrr import write_jrr
+    from studio.io.symbol_g2o import robot_prefix
+    from studio.jrl_evaluate import graph_results
+
+    poses, source = result.solution.poses, loaded.source_kind
+    if loaded.problem.kind is PoseKind.SE2 and source is PoseKind.SE3:
+        poses = planar_poses_to_se3(poses)
+    parts = [poses[loaded.offsets[k] : loaded.offsets[k + 1]] for k in range(len(loaded.offsets) - 1)]
+    robots = [robot_prefix(k) for k in range(len(parts))]
+    outliers, shared = None, None
+    if loaded.graph is not None:
+        shared = _shared_copies(loaded.graph, parts, robots)
+        if result.rejected is not None:
+            outliers = _rejected_factor_ids(loaded.graph, result.rejected, robots, dataset_name)
+    results = graph_results(source, robots, parts, dataset_name=dataset_name, method_name=result.method, shared=shared)
+    write_jrr(path, dataclasses.replace(results, outliers=outliers))
+
+
+def _shared_copies(graph: PoseGraph, parts: list[np.ndarray], robots: list[str]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per robot, ``(keys, poses)`` of the other robots' poses its measurements name (an
+    inter-robot closure is its ``from`` robot's measurement, as in the JRL export), at the one
+    estimate a central solve has: jrl's results hold every value a robot's factors touch."""
+    inter = graph.inter
+    base = np.array([ord(c) << 56 for c in robots], dtype=np.int64)
+    out = []
+    for k in range(len(robots)):
+        mine = inter.from_agent == k
+        keys, first = np.unique(base[inter.to_agent[mine]] + inter.to_index[mine], return_index=True)
+        agents, index = inter.to_agent[mine][first], inter.to_index[mine][first]
+        width = parts[k].shape[1]
+        poses = np.array([parts[a][i] for a, i in zip(agents.tolist(), index.tolist())]).reshape(len(keys), width)
+        out.append((keys, poses))
+    return out
+
+
+def _rejected_factor_ids(
+    graph: PoseGraph, rejected: np.ndarray, robots: list[str], name: str
+) -> tuple[np.ndarray, ...]:
+    """Per robot, the FactorIds of the ``rejected`` rows (``from_agent from_vertex to_agent
+    to_vertex``) in the studio's JRL export of ``graph``."""
+    from studio.io.jrl import jrl_document
+    from studio.jrl_evaluate import factor_ids_of_edges
+
+    base = np.array([ord(c) << 56 for c in robots], dtype=np.int64)
+    keys = np.column_stack([base[rejected[:, 0]] + rejected[:, 1], base[rejected[:, 2]] + rejected[:, 3]])
+    found = factor_ids_of_edges(jrl_document(graph, name=name), keys)
+    return tuple(found.get(c, np.zeros((0, 2), np.int64)) for c in robots)
 
 
 @dataclass(eq=False)
