@@ -18,9 +18,10 @@ from studio.core.option_values import check_option
 
 __all__ = ["GraphOptions", "option_help", "HEADING_METHODS", "PARTITIONS", "GROUND_TRUTH_CHOICES"]
 
-#: ``derive_orientation`` methods: ``smoothed`` (the default), ``turns`` (``smoothed`` with turns on
-#: the spot decoded from the tracked point's motion in stops) and ``chord`` (the first one).
-HEADING_METHODS = ("smoothed", "turns", "chord")
+#: ``derive_orientation`` methods: ``auto`` (the default: one of the others and its window chosen from
+#: the path, :mod:`studio.converters.heading_choice`), ``smoothed``, ``turns`` (``smoothed`` with turns
+#: on the spot decoded from the tracked point's motion in stops) and ``chord``.
+HEADING_METHODS = ("auto", "smoothed", "turns", "chord")
 #: How ``studio convert g2o --split N`` cuts a single-robot graph into robots.
 PARTITIONS = ("contiguous", "metis", "time")
 #: Where a single g2o file's ground truth comes from (``--ground-truth``).

@@ -562,6 +562,9 @@ def convert(
                 f"  headings derived from motion (the orientation carried no information): "
                 f"{', '.join(sorted(res.orientation))}"
             )
+        for name, choice in sorted(res.heading_choices.items()):
+            window = f" over {choice.window_m:.3g} m" if choice.method == "chord" else ""
+            typer.echo(f"  heading method for {name}: auto chose {choice.method}{window}: {choice.reason}")
         for gap in res.build.gaps:
             typer.echo(f"  gap: {gap.agent} vertex {gap.vertex}: {gap.seconds:.3f} s, {gap.metres:.2f} m bridged")
         for fit in res.odometry_fits:

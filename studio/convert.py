@@ -35,6 +35,7 @@ import numpy as np
 from studio._callable import make_callable
 from studio.convert_config import ConvertConfig
 from studio.converters.build import OUTLIER_KIND, BuildResult, GraphOptions, build_graph
+from studio.converters.heading_choice import HeadingChoice, choose_heading_method
 from studio.converters.odometry_source import (
     OdometryFit,
     apply_odometry_sources,
@@ -101,6 +102,8 @@ class ConvertResult:
     range_bearing: RangeBearing | None = None
     """Agent-to-agent sightings (``range_bearing.txt``), where the source has them."""
     sightings_fit: SightingsFit | None = None
+    heading_choices: dict[str, HeadingChoice] = field(default_factory=dict)
+    """Per trajectory whose headings ``heading_method="auto"`` derived, the method it chose and why."""
 
 
 #: The pipeline's own keys of convert.json (besides the source, inputs, agents and graph options).
@@ -119,7 +122,7 @@ _TUPLE_FIELDS = ("body_frames", "odometry_from")
 _OMITTED_AT_DEFAULT: dict[str, Any] = {
     "odometry": "synthetic",
     "odometry_from": (),
-    "heading_method": "smoothed",
+    "heading_method": "auto",
     "sightings_as_closures": False,
     "keyframes_at_sightings": False,
 }
@@ -250,13 +253,17 @@ HEADING_METHOD_TEXT = {
     "turns": "turns: smoothed, and in stops of 1.5 s or more turns on the spot decoded from the tracked "
     "point's motion (its signatures learned from the path; stops without one turn evenly)",
     "chord": "chord: yaw of the chord over {w:g} m of path, held while moving less than a quarter of it",
+    "auto": "auto: turns or chord and its window chosen per agent from its positions (heading_choice)",
 }
 
 
-def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tuple[list[Trajectory], dict[str, str]]:
+def prepare_trajectories(
+    cfg: ConvertConfig, trajs: Sequence[Trajectory]
+) -> tuple[list[Trajectory], dict[str, str], dict[str, HeadingChoice]]:
     """Body frames, derived headings and the split, in that order (see the module docstring).
 
-    Returns the trajectories to build and, per agent whose headings were derived, ``DERIVED``."""
+    Returns the trajectories to build, per agent whose headings were derived ``DERIVED``, and per
+    trajectory whose headings ``auto`` derived (before the split) what it chose."""
     defaults = get_source(cfg.source).body_frames  # the source's own (AirMuseum's robots)
     frames = {t.name: defaults[t.name.lower()] for t in trajs if t.name.lower() in defaults}
     if cfg.options.planar:  # body frames the datasets state (EuRoC's IMU), for the yaw of the heading
@@ -273,10 +280,15 @@ def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tup
         frames[name] = code
     out = [apply_body_frame(t, frames[t.name]) if t.name in frames and frames[t.name] != "flu" else t for t in trajs]
     orientation = {}
+    choices = {}
     derived = []
     for t in out:
         if cfg.orientation == "derive" or (cfg.orientation == "auto" and orientation_is_uninformative(t)):
-            t = derive_orientation(t, cfg.heading_window_m, cfg.heading_method)
+            method, window_m, smooth_s = cfg.heading_method, cfg.heading_window_m, 0.0
+            if method == "auto":
+                choice = choices[t.name] = choose_heading_method(t, cfg.heading_window_m)
+                method, window_m, smooth_s = choice.method, choice.window_m, choice.smooth_s
+            t = derive_orientation(t, window_m, method, smooth_s=smooth_s)
             orientation[t.name] = DERIVED
         derived.append(t)
     if cfg.split:
@@ -287,7 +299,7 @@ def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tup
             if t.name in orientation:
                 orientation.update({p.name: DERIVED for p in parts})
         derived = split
-    return derived, orientation
+    return derived, orientation, choices
 
 
 def convert(
@@ -347,6 +359,7 @@ def convert(
         tuple(built.fits),
         built.range_bearing,
         built.sightings_fit,
+        heading_choices=built.heading_choices,
     )
 
 
@@ -360,6 +373,7 @@ class _Built:
     fits: list[OdometryFit]
     range_bearing: RangeBearing | None
     sightings_fit: SightingsFit | None
+    heading_choices: dict[str, HeadingChoice]
 
 
 def _read_and_build(
@@ -373,7 +387,7 @@ def _read_and_build(
     try:
         with np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
             read = reader(cfg.inputs, agents=cfg.agents, warn=warn, progress=progress)
-            trajs, orientation = prepare_trajectories(cfg, read)
+            trajs, orientation, choices = prepare_trajectories(cfg, read)
             if cfg.options.planar:
                 from studio.converters.planar_checks import planar_warnings
 
@@ -397,7 +411,7 @@ def _read_and_build(
             f"{', '.join(Path(p).name for p in cfg.inputs)}: numbers out of the finite range "
             f"while reading or building ({err}): a value in the input is absurd"
         ) from None
-    return _Built(trajs, orientation, build, fits, rb, sight_fit)
+    return _Built(trajs, orientation, build, fits, rb, sight_fit, choices)
 
 
 def _write_dataset(
@@ -425,6 +439,8 @@ def _write_dataset(
     report = _report(build, trajs, warnings, orientation)
     if orientation:
         report["heading_method"] = HEADING_METHOD_TEXT[cfg.heading_method].format(w=cfg.heading_window_m)
+    if built.heading_choices:
+        report["heading_choice"] = {name: c.to_dict() for name, c in built.heading_choices.items()}
     fits = built.fits
     report["odometry"] = {
         "kind": "real" if fits else "synthetic",

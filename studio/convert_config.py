@@ -53,19 +53,24 @@ class ConvertConfig:
     )
     """``keep`` the trajectories' orientation, ``derive`` headings from the motion, or ``auto``: derive
     where the orientation carries no information (all the same, e.g. identity)."""
-    heading_window_m: float = _pipeline(2.0, "Path length over which a derived heading is measured, in metres.")
-    """Path length [m] over which a derived heading is measured."""
+    heading_window_m: float = _pipeline(
+        2.0, "Path length over which a derived heading is measured (auto: the longest chord), in metres."
+    )
+    """Path length [m] over which a derived heading is measured (``chord``; ``auto``'s longest chord)."""
     heading_method: str = _pipeline(
-        "smoothed",
-        "Derived headings: smoothed (central differences of positions smoothed over about 1 s), "
-        "turns (smoothed, with turns on the spot decoded from the tracked point's motion in stops) "
-        "or chord (the chord over --heading-window-m of path).",
+        "auto",
+        "Derived headings: auto (turns or chord and its window chosen from each path's rate, speed, "
+        "stops and turns; the choice is printed and in report.json), smoothed (central differences of "
+        "positions smoothed over about 1 s), turns (smoothed, with turns on the spot decoded from the "
+        "tracked point's motion in stops) or chord (the chord over --heading-window-m of path).",
         choices=tuple(HEADING_METHODS),
     )
-    """How headings are derived from motion: ``smoothed`` (central differences of positions smoothed
-    over about 1 s), ``turns`` (``smoothed``, with turns on the spot decoded from the tracked point's
-    motion in stops: :mod:`studio.converters.spot_turns`) or ``chord`` (the chord over
-    ``heading_window_m`` of path); see :func:`studio.converters.transforms.derive_orientation`."""
+    """How headings are derived from motion: ``auto`` (``turns`` or ``chord`` and its window chosen
+    from each path: :mod:`studio.converters.heading_choice`; ``heading_window_m`` is its longest
+    chord), ``smoothed`` (central differences of positions smoothed over about 1 s), ``turns``
+    (``smoothed``, with turns on the spot decoded from the tracked point's motion in stops:
+    :mod:`studio.converters.spot_turns`) or ``chord`` (the chord over ``heading_window_m`` of path);
+    see :func:`studio.converters.transforms.derive_orientation`."""
     body_frames: tuple[str, ...] = _pipeline(
         (),
         "An agent's body axes, e.g. robotA=ufl (the source's own, AirMuseum's, are the default).",
