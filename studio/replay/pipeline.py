@@ -151,12 +151,20 @@ def build_schedule(
     """The schedule of ``model`` for ``graph`` on ticks of ``step_ns`` (see :mod:`studio.core.comms`)."""
     ticks = tick_grid(times.start_ns, times.end_ns, step_ns)
     positions = tuple(np.asarray(a.se3_poses(ground_truth=True))[:, 0:3] for a in graph.agents)
-    contact = contacts(model, ticks_ns=ticks, pose_ns=times.pose_ns, positions_xyz=positions, seed=seed)
     n = len(graph.agents)
     index = {(int(a), int(b)): k for k, (a, b) in enumerate(robot_pairs(n).tolist())}
     fa, ta = graph.inter.from_agent, graph.inter.to_agent
     pair = np.array(
         [-1 if a == b else index[(min(a, b), max(a, b))] for a, b in zip(fa.tolist(), ta.tolist())], dtype=np.int64
+    )
+    contact = contacts(
+        model,
+        ticks_ns=ticks,
+        pose_ns=times.pose_ns,
+        positions_xyz=positions,
+        seed=seed,
+        closure_pair=pair,
+        measured_ns=times.inter_ns,
     )
     kind = graph.kind
     closure_bytes = 8 * (4 + kind.pose_width + kind.information_width)
