@@ -20,7 +20,7 @@ import typer
 
 from studio.converters.registry import SOURCES
 from studio.core.alignment import Alignment
-from studio.core.comms_registry import comms_help
+from studio.core.comms_registry import DEFAULT_COMMS, comms_help
 from studio.core.conventions import DEFAULT_CONVENTION, Convention
 from studio.core.errors import StudioError
 from studio.core.preset_names import PRESET_NAMES
@@ -701,7 +701,7 @@ def _replay_backend_help() -> str:
 def replay(
     dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder with ground truth."),
     out: Path = typer.Option(..., "-o", "--out", help="Folder to write: schedule, metrics, summary, report, plot."),
-    comms: str = typer.Option("always", "--comms", metavar="<model>", help=comms_help()),
+    comms: str = typer.Option(DEFAULT_COMMS, "--comms", metavar="<model>", help=comms_help()),
     backend: str = typer.Option("", "--backend", "-b", help=_replay_backend_help()),
     bandwidth: str | None = typer.Option(
         None, "--bandwidth", help="Per link: N/s closures or NB/s bytes; the rest waits for the next contact."

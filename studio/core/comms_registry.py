@@ -16,7 +16,15 @@ from typing import Any, Protocol
 from studio.core.errors import ConfigError
 from studio.core.lazy import Lazy
 
-__all__ = ["CommsParser", "CommsModelEntry", "COMMS_MODELS", "get_comms_model", "comms_grammar", "comms_help"]
+__all__ = [
+    "DEFAULT_COMMS",
+    "CommsParser",
+    "CommsModelEntry",
+    "COMMS_MODELS",
+    "get_comms_model",
+    "comms_grammar",
+    "comms_help",
+]
 
 
 class CommsParser(Protocol):
@@ -36,6 +44,9 @@ class CommsModelEntry:
     parse: CommsParser
     """The parser (a :class:`~studio.core.lazy.Lazy` reference into :mod:`studio.core.comms`)."""
 
+
+#: What ``studio replay`` runs without ``--comms``.
+DEFAULT_COMMS = "always"
 
 COMMS_MODELS: dict[str, CommsModelEntry] = {
     "always": CommsModelEntry(

@@ -44,6 +44,7 @@ from studio.core.comms import (
     robot_pairs,
     tick_grid,
 )
+from studio.core.comms_registry import DEFAULT_COMMS
 from studio.core.errors import ConfigError, FormatError, GraphError
 from studio.core.model import PoseGraph
 from studio.core.option_values import check_count, check_option
@@ -636,7 +637,7 @@ def replay(
     dataset: PathLike,
     out: PathLike,
     *,
-    comms: str = "always",
+    comms: str = DEFAULT_COMMS,
     backends: tuple[str, ...] | list[str] = DEFAULT_BACKENDS,
     step_s: float = 1.0,
     every: int = 50,
