@@ -27,6 +27,7 @@ from studio.core.preset_names import PRESET_NAMES
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.runtime.progress import terminal_progress
 from studio.solvers import DEFAULT_METHOD, METHODS
+from studio.solvers.isam_settings import IsamSettings
 from studio.solvers.options import Init, Optimizer, SolveOptions
 
 app = typer.Typer(
@@ -696,6 +697,10 @@ def _replay_backend_help() -> str:
     return f"Comma-separated back-ends ({', '.join(backend_names())}); default {','.join(DEFAULT_BACKENDS)}."
 
 
+#: ISAM2's defaults (``--relinearize-skip`` ...), declared once on :class:`IsamSettings`.
+_ISAM = IsamSettings()
+
+
 @app.command()
 @cli_errors
 def replay(
@@ -712,10 +717,14 @@ def replay(
         None, "--period", help="Clock: pose index x this period [s] instead of the dataset's stamps."
     ),
     comms_seed: int = typer.Option(0, "--comms-seed", help="Seed of the contacts' success draws (range with p)."),
-    relinearize_skip: int = typer.Option(10, "--relinearize-skip", help="ISAM2: relinearize every N updates."),
-    relinearize_threshold: float = typer.Option(0.1, "--relinearize-threshold", help="ISAM2: delta threshold."),
+    relinearize_skip: int = typer.Option(
+        _ISAM.relinearize_skip, "--relinearize-skip", help="ISAM2: relinearize every N updates."
+    ),
+    relinearize_threshold: float = typer.Option(
+        _ISAM.relinearize_threshold, "--relinearize-threshold", help="ISAM2: delta threshold."
+    ),
     polish: bool = typer.Option(
-        True, "--polish/--no-polish", help="End with Gauss-Newton to convergence on what each solver holds."
+        _ISAM.polish, "--polish/--no-polish", help="End with Gauss-Newton to convergence on what each solver holds."
     ),
     rrd: Path | None = typer.Option(None, "--rrd", help="Also write the replay as a Rerun recording (.rrd)."),
     parquet: bool = typer.Option(False, "--parquet", help="Also write each CSV table as Parquet (needs pyarrow)."),

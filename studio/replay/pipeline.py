@@ -56,7 +56,7 @@ from studio.replay.backends import World
 from studio.replay.metrics import as_se3, first_pose_errors, se3_errors
 from studio.replay.registry import DEFAULT_BACKENDS, get_backend
 from studio.runtime.progress import Progress, report
-from studio.solvers.incremental import IsamSettings
+from studio.solvers.isam_settings import IsamSettings
 from studio.solvers.problem import graph_chi2
 
 __all__ = ["replay", "ReplayResult", "BackendRun", "build_schedule", "DEFAULT_BACKENDS", "REPLAY_JSON"]
@@ -633,6 +633,10 @@ def _write_recording(
     )
 
 
+#: ISAM2's defaults, declared once on :class:`IsamSettings`.
+_ISAM = IsamSettings()
+
+
 def replay(
     dataset: PathLike,
     out: PathLike,
@@ -644,10 +648,10 @@ def replay(
     period_s: float | None = None,
     seed: int = 0,
     bandwidth: str | None = None,
-    relinearize_skip: int = 10,
-    relinearize_threshold: float = 0.1,
-    final_updates: int = 3,
-    polish: bool = True,
+    relinearize_skip: int = _ISAM.relinearize_skip,
+    relinearize_threshold: float = _ISAM.relinearize_threshold,
+    final_updates: int = _ISAM.final_updates,
+    polish: bool = _ISAM.polish,
     force: bool = False,
     rrd: PathLike | None = None,
     parquet: bool = False,
