@@ -866,6 +866,25 @@ def sweep(
         )
 
 
+@app.command()
+@cli_errors
+def samples(
+    folder: Path = typer.Argument(..., metavar="DIR", help="The folder to write (new; replaced only with --force)."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing DIR."),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
+) -> None:
+    """Write a small simulated sample in every source's layout (TUM, S3E, AirMuseum, bags, EuRoC,
+    KITTI, Kimera-Multi, MR.CLAM), a single g2o graph and a kollagen config, to try the commands on.
+
+    Example: studio samples samples/ ; cd samples ; studio convert mrclam MRCLAM_Dataset1 --planar -o out/mrclam
+    """
+    from studio.samples import write_samples
+
+    names = write_samples(folder, force=force)
+    if not quiet:
+        typer.echo(f"{folder}: {len(names)} samples\n" + "\n".join(f"  {name}" for name in names))
+
+
 def _tune_allocator() -> None:
     """glibc tuning for the commands that make many short-lived arrays (synth, convert); it keeps
     freed memory for reuse, so the other commands (solve: +80 MB peak) do without it."""
