@@ -119,3 +119,13 @@ def test_what_each_source_takes_is_built_from_its_entry():
         assert {"partition", "ground_truth"}.isdisjoint(taken) and {"split", "overlap_s", "seed"} <= taken
     # a graph source read through a config is synthesized like a trajectory source
     assert "seed" in accepted_options("jrl", synthesize=True)
+
+
+def test_the_library_refuses_what_a_graph_source_would_ignore(tmp_path):
+    """import_graph checks its options against the source's entry too: a JRL file has no `_GT.tum`
+    beside it to choose from, so a ground-truth choice would be ignored."""
+    from studio.graph_import import import_graph
+
+    with pytest.raises(ConfigError, match=r"^ground_truth: studio convert jrl does not take it") as err:
+        import_graph("jrl", [tmp_path / "x.jrl"], tmp_path / "out", options=GraphImportOptions(ground_truth="none"))
+    assert err.value.option == "ground_truth" and not (tmp_path / "out").exists()
