@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from studio._callable import make_callable
-from studio.convert_config import ConvertConfig
+from studio.convert_config import ConvertConfig, check_source_options
 from studio.converters.build import OUTLIER_KIND, BuildResult, GraphOptions, build_graph
 from studio.converters.heading_choice import HeadingChoice, choose_heading_method
 from studio.converters.odometry_source import (
@@ -42,7 +42,8 @@ from studio.converters.odometry_source import (
     parse_odometry_spec,
     read_odometry_sources,
 )
-from studio.converters.registry import check_inputs, get_reader, get_source
+from studio.converters.options import GraphImportOptions
+from studio.converters.registry import check_inputs, get_reader, get_source, guess_source, source_names
 from studio.converters.sightings import (
     Sightings,
     SightingsFit,
@@ -63,6 +64,7 @@ from studio.core.option_values import check_option
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB
+from studio.graph_import import ImportResult, import_graph
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
 from studio.io.outliers_txt import write_outliers_txt
@@ -75,6 +77,7 @@ __all__ = [
     "ConvertConfig",
     "ConvertResult",
     "convert",
+    "convert_with_options",
     "read_convert_config",
     "convert_config_to_json",
     "pipeline_flags",
@@ -514,6 +517,66 @@ def _real_measurements(
             )
             build = dataclasses.replace(build, graph=with_sighting_closures(build.graph, closures))
     return build, fits, rb, sight_fit
+
+
+def _merged_config(
+    source: str | None, inputs: Sequence[PathLike], given: Mapping[str, Any], base: ConvertConfig | None
+) -> ConvertConfig:
+    """``base`` (a config read from a file, or the defaults of ``source``) with the options given
+    winning: source, inputs and agents where given, each graph and pipeline option by name."""
+    if base is None:
+        if not source:
+            raise ConfigError(
+                f"give a FORMAT ({', '.join(source_names())}), inputs whose format can be guessed, or --config"
+            )
+        base = ConvertConfig(source, ())
+    graph = {k: v for k, v in given.items() if k in _OPTION_FIELDS}
+    pipeline = {k: v for k, v in given.items() if k in _PIPELINE_FIELDS}
+    return dataclasses.replace(
+        base,
+        source=source or base.source,
+        inputs=tuple(str(p) for p in inputs) if inputs else base.inputs,
+        agents=tuple(given["agents"]) if "agents" in given else base.agents,
+        options=dataclasses.replace(base.options, **graph),
+        **pipeline,
+    )
+
+
+def convert_with_options(
+    source: str | None,
+    inputs: Sequence[PathLike],
+    out: PathLike,
+    *,
+    given: Mapping[str, Any] | None = None,
+    config: PathLike | None = None,
+    force: bool = False,
+    rrd: bool = True,
+    warn: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
+) -> ConvertResult | ImportResult:
+    """``studio convert`` as one call. ``source``: a source's name, or None to guess it from the
+    inputs (or take it from ``config``); a name that is no source is the first input. ``given``: the
+    options the user set, by the names of :func:`studio.convert_config.convert_options` (each refused
+    where the source would ignore it, or without the option it needs); ``config``: a convert.json they
+    win over. A graph source without a config writes its graph as it is
+    (:func:`studio.graph_import.import_graph`); anything else is synthesized (:func:`convert`)."""
+    inputs = list(inputs)
+    if source is not None and source not in source_names():
+        inputs = [source, *inputs]
+        source = guess_source(inputs)
+    options: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in (given or {}).items()}
+    if config is None and source and get_source(source).read_graph is not None:
+        check_source_options(source, options, synthesize=False)
+        imported = GraphImportOptions(**options)
+        return import_graph(source, inputs, out, options=imported, force=force, rrd=rrd, warn=warn, progress=progress)
+    base = None if config is None else read_convert_config(config)
+    name = source or (base.source if base is not None else None)
+    if name:
+        values = {} if base is None else {**vars(base), **dataclasses.asdict(base.options)}
+        check_source_options(name, options, synthesize=True, base=values)
+    memory = options.pop("max_memory_gb", DEFAULT_MAX_MEMORY_GB)
+    cfg = _merged_config(source, inputs, options, base)
+    return convert(cfg, out, force=force, warn=warn, progress=progress, rrd=rrd, max_memory_gb=memory)
 
 
 make_callable(__name__)  # studio.convert(...) is studio.convert.convert(...) (studio/_callable.py)

@@ -30,7 +30,7 @@ import contextlib
 import dataclasses
 import os
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, get_args
@@ -47,6 +47,7 @@ from studio.core.geometry import (
     se3_poses_to_planar,
 )
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
+from studio.core.option_values import check_option
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE as MAX_COORDINATE_M  # the one bound of every number
@@ -329,6 +330,7 @@ def solve(
     robots: int = 0,
     coarse_size: int | None = None,
     warn: Callable[[str], None] | None = None,
+    method_options: Mapping[str, Any] | None = None,
 ) -> SolveResult:
     """Optimize ``dataset`` with ``method`` and write the estimate and ``solve.json`` into the folder
     ``out`` (staged, renamed into place; an existing ``out`` is replaced only with ``force``).
@@ -339,7 +341,9 @@ def solve(
     ``robots``: ``dgs`` on a single g2o file, that many robots of contiguous vertex ids (a multi-g2o
     folder's robots are its agents); with ground truth, ``dgs`` also scores every round (APE).
     ``coarse_size``: ``dgs``'s two-level correction, poses per run moved rigidly (0: plain DGS;
-    None: :class:`SolveOptions`'s default). ``warn`` gets the reader's warnings (one line each)."""
+    None: :class:`SolveOptions`'s default). ``method_options``: any other option the method's registry
+    entry reads, by its :class:`SolveOptions` name (dgs: ``rotation_tol``, ``schedule`` ...); one it
+    does not read is refused. ``warn`` gets the reader's warnings (one line each)."""
     entry = method_entry(method)
     options = _solve_options(entry, optimizer, init, max_iterations, relative_tolerance, command, robots)
     if coarse_size is not None:
@@ -348,6 +352,7 @@ def solve(
                 f"coarse_size: expected 0 (plain DGS) or a count of poses, got {coarse_size!r}", option="coarse_size"
             )
         options = dataclasses.replace(options, coarse_size=coarse_size)
+    options = _with_method_options(entry, options, method_options or {})
     out = Path(out)
     rrd_path = None if rrd is None else Path(rrd)
     if rrd_path is not None and rrd_path.suffix != ".rrd":
@@ -413,6 +418,19 @@ def _solve_options(
             option="robots",
         )
     return SolveOptions(optimizer, init, max_iterations, float(relative_tolerance), command, robots)  # type: ignore[arg-type]
+
+
+def _with_method_options(entry: SolveMethod, options: SolveOptions, given: Mapping[str, Any]) -> SolveOptions:
+    """``options`` with the method's own options ``given`` by name: each one the entry reads, a
+    number finite and not negative (the method checks its own ranges and words)."""
+    for key, value in given.items():
+        if key not in entry.options:
+            raise ConfigError(
+                f"{key}: method {entry.name} does not read it (it reads {', '.join(entry.options)})", option=key
+            )
+        if isinstance(value, (bool, int, float)):
+            check_option(key, value)
+    return dataclasses.replace(options, **given)
 
 
 def _run_solver(

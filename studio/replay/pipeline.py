@@ -45,6 +45,7 @@ from studio.core.comms import (
     robot_pairs,
     tick_grid,
 )
+from studio.core.comms_registry import DEFAULT_COMMS
 from studio.core.errors import ConfigError, FormatError, GraphError
 from studio.core.model import PoseGraph, PoseKind
 from studio.core.option_values import check_count, check_option
@@ -56,7 +57,7 @@ from studio.replay.backends import KeptPoses, Step, World
 from studio.replay.metrics import as_se3, first_pose_errors, robot_values, se3_errors
 from studio.replay.registry import DEFAULT_BACKENDS, get_backend
 from studio.runtime.progress import Progress, report
-from studio.solvers.incremental import IsamSettings
+from studio.solvers.isam_settings import IsamSettings
 from studio.solvers.problem import graph_chi2
 
 __all__ = ["replay", "ReplayResult", "BackendRun", "build_schedule", "DEFAULT_BACKENDS", "REPLAY_JSON"]
@@ -164,12 +165,20 @@ def build_schedule(
     """The schedule of ``model`` for ``graph`` on ticks of ``step_ns`` (see :mod:`studio.core.comms`)."""
     ticks = tick_grid(times.start_ns, times.end_ns, step_ns)
     positions = tuple(np.asarray(a.se3_poses(ground_truth=True))[:, 0:3] for a in graph.agents)
-    contact = contacts(model, ticks_ns=ticks, pose_ns=times.pose_ns, positions_xyz=positions, seed=seed)
     n = len(graph.agents)
     index = {(int(a), int(b)): k for k, (a, b) in enumerate(robot_pairs(n).tolist())}
     fa, ta = graph.inter.from_agent, graph.inter.to_agent
     pair = np.array(
         [-1 if a == b else index[(min(a, b), max(a, b))] for a, b in zip(fa.tolist(), ta.tolist())], dtype=np.int64
+    )
+    contact = contacts(
+        model,
+        ticks_ns=ticks,
+        pose_ns=times.pose_ns,
+        positions_xyz=positions,
+        seed=seed,
+        closure_pair=pair,
+        measured_ns=times.inter_ns,
     )
     kind = graph.kind
     closure_bytes = 8 * (4 + kind.pose_width + kind.information_width)
@@ -694,21 +703,25 @@ def _write_recording(
     )
 
 
+#: ISAM2's defaults, declared once on :class:`IsamSettings`.
+_ISAM = IsamSettings()
+
+
 def replay(
     dataset: PathLike,
     out: PathLike,
     *,
-    comms: str = "always",
+    comms: str = DEFAULT_COMMS,
     backends: tuple[str, ...] | list[str] = DEFAULT_BACKENDS,
     step_s: float = 1.0,
     every: int = 50,
     period_s: float | None = None,
     seed: int = 0,
     bandwidth: str | None = None,
-    relinearize_skip: int = 10,
-    relinearize_threshold: float = 0.1,
-    final_updates: int = 3,
-    polish: bool = True,
+    relinearize_skip: int = _ISAM.relinearize_skip,
+    relinearize_threshold: float = _ISAM.relinearize_threshold,
+    final_updates: int = _ISAM.final_updates,
+    polish: bool = _ISAM.polish,
     force: bool = False,
     rrd: PathLike | None = None,
     parquet: bool = False,

@@ -86,6 +86,24 @@ def test_never_connected_leaves_every_back_end_on_its_own(tiny, tmp_path):
     assert runs["swarm"].messages.sum() == 0
 
 
+def test_recorded_delivers_every_closure_when_measured_and_links_only_then(tiny, tmp_path):
+    names = ["centralized", "swarm"]
+    on = replay(tiny.dataset_dir, tmp_path / "always", comms="always", every=25, backends=names)
+    rec = replay(tiny.dataset_dir, tmp_path / "recorded", comms="recorded", every=25, backends=names)
+    assert (rec.schedule.delivered_tick >= 0).all()
+    assert np.array_equal(rec.schedule.delivered_tick, on.schedule.delivered_tick)
+    # contact exactly at the ticks where closures arrive, nowhere else
+    pair_of = {tuple(p): k for k, p in enumerate(rec.schedule.pairs.tolist())}
+    expected = np.zeros_like(rec.schedule.contact)
+    for a, b, t in zip(rec.schedule.closure_from, rec.schedule.closure_to, rec.schedule.delivered_tick):
+        expected[t, pair_of[(min(a, b), max(a, b))]] = True
+    assert np.array_equal(rec.schedule.contact, expected) and expected.sum() < on.schedule.contact.sum()
+    # the centralized solver sees the same closures at the same ticks; swarm talks less
+    assert rec.runs[0].chi2_final == pytest.approx(on.runs[0].chi2_final, rel=1e-9)
+    assert 0 < rec.runs[1].messages.sum() < on.runs[1].messages.sum()
+    assert json.loads((rec.out_dir / "replay.json").read_text())["comms"] == "recorded"
+
+
 def test_the_same_dataset_model_and_seed_give_the_same_bytes(tiny, tmp_path):
     files = ["schedule/contacts.csv", "schedule/closures.csv", "metrics.csv", "summary.csv", "links.csv"]
     files += ["centralized.jrr", "independent.jrr", "swarm.jrr", "dgs.jrr"]
