@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from studio.core.errors import ConfigError
 from studio.core.lazy import Lazy
-from studio.solvers.options import DEFAULT_MAX_ROUNDS, G2O_DEFAULT_ITERATIONS, SolveOptions
+from studio.solvers.options import DEFAULT_MAX_ROUNDS, G2O_DEFAULT_ITERATIONS, SESYNC_MAX_ITERATIONS, SolveOptions
 
 if TYPE_CHECKING:  # the back-ends' protocol: numpy types, not loaded to declare the registry
     from studio.solvers.problem import Method
@@ -89,6 +89,13 @@ METHODS: dict[str, SolveMethod] = {
             Lazy("studio.solvers.gtsam_method", "solve_gnc"),
             "robust: rejects outlier loop closures",
             _GTSAM_OPTIONS,
+        ),
+        SolveMethod(
+            "sesync",
+            Lazy("studio.solvers.sesync", "solve_sesync"),
+            "SE-Sync: Riemannian staircase on SE-Sync's objective, certified or a suboptimality bound",
+            ("max_iterations",),
+            {"max_iterations": SESYNC_MAX_ITERATIONS},
         ),
         SolveMethod("command", Lazy("studio.solvers.command", "solve_command"), "an external program", ("command",)),
         SolveMethod(
