@@ -90,13 +90,6 @@ METHODS: dict[str, SolveMethod] = {
             "robust: rejects outlier loop closures",
             _GTSAM_OPTIONS,
         ),
-        SolveMethod(
-            "sesync",
-            Lazy("studio.solvers.sesync", "solve_sesync"),
-            "SE-Sync: Riemannian staircase on SE-Sync's objective, certified or a suboptimality bound",
-            ("max_iterations",),
-            {"max_iterations": SESYNC_MAX_ITERATIONS},
-        ),
         SolveMethod("command", Lazy("studio.solvers.command", "solve_command"), "an external program", ("command",)),
         SolveMethod(
             "dgs",
@@ -116,6 +109,13 @@ METHODS: dict[str, SolveMethod] = {
             ),
             {"max_iterations": DEFAULT_MAX_ROUNDS},
             scores_rounds=True,
+        ),
+        SolveMethod(
+            "sesync",
+            Lazy("studio.solvers.sesync", "solve_sesync"),
+            "SE-Sync: Riemannian staircase on SE-Sync's objective, certified or a suboptimality bound",
+            ("max_iterations",),
+            {"max_iterations": SESYNC_MAX_ITERATIONS},
         ),
     )
 }

@@ -236,6 +236,7 @@ def solve_sesync(problem: Problem, options: SolveOptions, on_iteration: Iteratio
         sum(s["iterations"] for s in steps),
         (graph_chi2(problem, guess), graph_chi2(problem, poses)),
         notes={"init_s": t_init, "init": "chordal (SE-Sync)", "staircase": steps, **certificate_notes(cert)},
+        minimizes_chi2=False,
     )
 
 
