@@ -186,8 +186,9 @@ def solve_gtsam(problem: Problem, options: SolveOptions, on_iteration: Iteration
     if certified_start["poses"] is not None:
         poses = certified_start.pop("poses")
         history.append(graph_chi2(problem, poses))
+        iterations += 1  # the answer from the certified start counts as the last iteration
         if on_iteration is not None:
-            on_iteration(iterations + 1, poses)
+            on_iteration(iterations, poses)
     certified_start.pop("poses", None)
     return Solution(
         poses,
