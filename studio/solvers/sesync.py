@@ -43,7 +43,11 @@ __all__ = ["solve_sesync", "chordal_rotations", "round_rotations", "staircase", 
 MAX_RANK_EXTRA = 7
 #: Riemannian gradient norm at which a rank's trust-region run stops (SE-Sync's ``grad_norm_tol``
 #: is 1e-2; smaller here so that f agrees with SE-Sync's to four digits).
-GRAD_TOL = 1e-4
+GRAD_TOL = 1e-2
+#: The truncated conjugate gradient's stopping rule, SE-Sync's ``STPCG_theta`` and ``STPCG_kappa``
+#: (pymanopt's default theta, 1, asks for quadratic convergence and many more inner iterations).
+TCG_THETA = 0.5
+TCG_KAPPA = 0.1
 
 
 def _so_project(blocks: np.ndarray) -> np.ndarray:
@@ -146,11 +150,15 @@ def _riemannian_problem(sync: SyncProblem, r: int) -> tuple[Any, Any]:
         out = 2.0 * _blocks(sync.q_times(_matrix(dp).T).T, n, d) - dp @ cache["sym"]
         return manifold.projection(p, out)  # type: ignore[no-any-return]
 
+    def precondition(p: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return manifold.projection(p, _blocks(sync.precondition(_matrix(v).T).T, n, d))  # type: ignore[no-any-return]
+
     return manifold, pymanopt.Problem(
         manifold,
         cost,
         euclidean_gradient=gradient,
         riemannian_hessian=pymanopt.function.numpy(manifold)(hessian),
+        preconditioner=precondition,
     )
 
 
@@ -159,7 +167,9 @@ def _minimize(sync: SyncProblem, y: np.ndarray, max_iterations: int) -> tuple[np
     from pymanopt.optimizers import TrustRegions
 
     _, problem = _riemannian_problem(sync, y.shape[0])
-    opt = TrustRegions(max_iterations=max_iterations, min_gradient_norm=GRAD_TOL, verbosity=0)
+    opt = TrustRegions(
+        max_iterations=max_iterations, min_gradient_norm=GRAD_TOL, theta=TCG_THETA, kappa=TCG_KAPPA, verbosity=0
+    )
     result = opt.run(problem, initial_point=_blocks(y, sync.n, sync.d))
     return _matrix(result.point), int(result.iterations)
 

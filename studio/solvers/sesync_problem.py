@@ -22,7 +22,9 @@ so on the optimum ``f*``, and ``tr(Lambda) = f(Y)``; when ``lambda_min(S) >= -et
 ``min_eig_num_tol``, 1e-3) the estimate is certified, and in every case
 ``f(estimate) - tr(Lambda) - n d min(lambda_min, 0)`` bounds how far above ``f*`` the estimate is.
 ``lambda_min`` is found by LOBPCG (scipy) started from ``Y``'s rows, which span ``S``'s null space
-at a critical point, preconditioned by a sparse LU of ``M_RR`` (``M_RR >= Q``).
+at a critical point, preconditioned by a sparse LU of ``M_RR`` (``M_RR >= Q``). The trust-region
+steps are preconditioned as SE-Sync's are, by a regularized factorization of ``M`` (here SuperLU's:
+scikit-sparse's CHOLMOD does not build against this system's SuiteSparse).
 """
 
 from __future__ import annotations
@@ -96,6 +98,17 @@ class SyncProblem:
     """The rotation-only connection Laplacian ``L(G^rho)`` (``dn x dn``, chordal initialization)."""
     kappa: np.ndarray
     tau: np.ndarray
+    precon: Any = None
+    """SE-Sync's regularized-Cholesky preconditioner: a sparse LU of ``M + lambda I`` with ``lambda``
+    such that its condition number is at most 1e6 (SE-Sync's ``reg_Cholesky_precon_max_condition_number``)."""
+
+    def precondition(self, x: np.ndarray) -> np.ndarray:
+        """``Q^-1 x`` approximately (``(dn, k)``): the rotation block of ``(M + lambda I)^-1 [0; x]``,
+        as SE-Sync preconditions its simplified problem."""
+        rhs = np.zeros((self.n + x.shape[0], x.shape[1]))
+        rhs[self.n :] = x
+        out: np.ndarray = self.precon.solve(rhs)[self.n :]
+        return out
 
     def translations(self, y: np.ndarray) -> np.ndarray:
         """``L^+ M_tR Y^T`` as ``(n, r)`` with vertex 0's row zero (the optimal ``t`` is minus it)."""
@@ -171,7 +184,12 @@ def build(
     # a symmetric ordering: half the fill of SuperLU's default COLAMD on a Laplacian
     lap = spla.splu(m_tt[1:, 1:].tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
     w_rot = w[m:, n:]
-    return SyncProblem(kind, d, n, m_tt, m_tr, m_rr, lap, (w_rot.T @ w_rot).tocsc(), kappa, tau)
+    # ||M|| from above by its largest absolute row sum (SE-Sync estimates it by LOBPCG)
+    reg = float(abs(big).sum(axis=1).max()) / (1e6 - 1)
+    precon = spla.splu(
+        (big + reg * sp.identity(n + d * n)).tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True}
+    )
+    return SyncProblem(kind, d, n, m_tt, m_tr, m_rr, lap, (w_rot.T @ w_rot).tocsc(), kappa, tau, precon)
 
 
 @dataclass(frozen=True)
@@ -211,20 +229,24 @@ def lambda_blocks(sync: SyncProblem, y: np.ndarray) -> np.ndarray:
 def min_eigenpair(
     sync: SyncProblem, y: np.ndarray, blocks: np.ndarray, *, sharpen: bool = True, seed: int = 0
 ) -> tuple[float, np.ndarray]:
-    """The smallest eigenvalue of ``S = Q - Lambda`` and its eigenvector (LOBPCG, scipy);
+    """The smallest eigenvalue of ``S = Q - Lambda`` and its eigenvector (LOBPCG, scipy, preconditioned
+    by a sparse LU of ``M_RR >= Q``, cheaper here than the full factorization the steps use);
     ``sharpen=False``: a negative value from the first pass is enough (the staircase's escape)."""
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
     d, n = sync.d, sync.n
-    lam = sp.block_diag(list(blocks), format="csr")
+    rows = (np.arange(n)[:, None, None] * d + np.arange(d)[None, :, None]).repeat(d, axis=2)
+    lam = sp.csr_matrix((blocks.ravel(), (rows.ravel(), rows.transpose(0, 2, 1).ravel())), shape=(d * n, d * n))
 
     def s_times(x: np.ndarray) -> np.ndarray:
         return sync.q_times(x) - np.asarray(lam @ x)
 
     op = spla.LinearOperator((d * n, d * n), matvec=s_times, matmat=s_times, dtype=np.float64)
     shift = 1e-6 * float(sync.m_rr.diagonal().mean())
-    lu = spla.splu((sync.m_rr + shift * sp.identity(d * n)).tocsc())
+    lu = spla.splu(
+        (sync.m_rr + shift * sp.identity(d * n)).tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True}
+    )
     pre = spla.LinearOperator((d * n, d * n), matvec=lu.solve, matmat=lu.solve, dtype=np.float64)
     rng = np.random.default_rng(seed)
     vecs = np.concatenate([y.T, rng.standard_normal((d * n, 4))], axis=1)
