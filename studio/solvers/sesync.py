@@ -43,7 +43,7 @@ __all__ = ["solve_sesync", "chordal_rotations", "round_rotations", "staircase", 
 MAX_RANK_EXTRA = 7
 #: Riemannian gradient norm at which a rank's trust-region run stops (SE-Sync's ``grad_norm_tol``
 #: is 1e-2; smaller here so that f agrees with SE-Sync's to four digits).
-GRAD_TOL = 1e-2
+GRAD_TOL = 1e-3
 #: The truncated conjugate gradient's stopping rule, SE-Sync's ``STPCG_theta`` and ``STPCG_kappa``
 #: (pymanopt's default theta, 1, asks for quadratic convergence and many more inner iterations).
 TCG_THETA = 0.5
