@@ -94,7 +94,7 @@ def round_rotations(y: np.ndarray, n: int, d: int) -> np.ndarray:
 def _qr_retraction(p: np.ndarray) -> np.ndarray:
     """The Q factor (positive diagonal of R) of each ``(r, d)`` block: Gram-Schmidt on the ``d``
     columns at once for every block (numpy's batched QR is slow on many tiny blocks)."""
-    q = p.copy()
+    q: np.ndarray = p.copy()
     for j in range(q.shape[2]):
         for k in range(j):
             q[:, :, j] -= np.einsum("nr,nr->n", q[:, :, k], q[:, :, j])[:, None] * q[:, :, k]

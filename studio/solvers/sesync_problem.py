@@ -161,8 +161,8 @@ def build(
     st, sk = np.sqrt(tau), np.sqrt(kappa)
     e = np.arange(m)
     # translation rows: t_j - t_i - R_i t_ij
-    rows = [e, e, np.repeat(e, d)]
-    cols = [to, fr, (n + d * fr[:, None] + np.arange(d)).ravel()]
+    rows: list[np.ndarray] = [e, e, np.repeat(e, d)]
+    cols: list[np.ndarray] = [to, fr, (n + d * fr[:, None] + np.arange(d)).ravel()]
     vals = [st, -st, (-st[:, None] * t_ij).ravel()]
     # rotation rows (row m + d e + l): column l of R_j - R_i R_ij
     ell, k = np.meshgrid(np.arange(d), np.arange(d), indexing="ij")  # ell: residual column, k: R_i column
@@ -240,7 +240,8 @@ def min_eigenpair(
     lam = sp.csr_matrix((blocks.ravel(), (rows.ravel(), rows.transpose(0, 2, 1).ravel())), shape=(d * n, d * n))
 
     def s_times(x: np.ndarray) -> np.ndarray:
-        return sync.q_times(x) - np.asarray(lam @ x)
+        out: np.ndarray = sync.q_times(x) - np.asarray(lam @ x)
+        return out
 
     op = spla.LinearOperator((d * n, d * n), matvec=s_times, matmat=s_times, dtype=np.float64)
     shift = 1e-6 * float(sync.m_rr.diagonal().mean())
