@@ -186,9 +186,9 @@ def build(
     w_rot = w[m:, n:]
     # ||M|| from above by its largest absolute row sum (SE-Sync estimates it by LOBPCG)
     reg = float(abs(big).sum(axis=1).max()) / (1e6 - 1)
-    precon = spla.splu(
-        (big + reg * sp.identity(n + d * n)).tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True}
-    )
+    # SuperLU's default COLAMD here: on M the symmetric minimum degree fills far more (sphere2500:
+    # 16.4M entries against 3.0M, 4.0 s against 0.18 s to factor)
+    precon = spla.splu((big + reg * sp.identity(n + d * n)).tocsc())
     return SyncProblem(kind, d, n, m_tt, m_tr, m_rr, lap, (w_rot.T @ w_rot).tocsc(), kappa, tau, precon)
 
 
