@@ -205,7 +205,8 @@ def solve_gtsam(problem: Problem, options: SolveOptions, on_iteration: Iteration
 
 
 def _from_certified(gtsam: Any, problem: Problem, options: SolveOptions, graph: Any, chi2: float) -> dict[str, Any]:
-    """Gauss-Newton from SE-Sync's certified solution (:mod:`studio.solvers.sesync`): a local
+    """Gauss-Newton (or ``options``' Levenberg-Marquardt) from SE-Sync's certified solution
+    (:mod:`studio.solvers.sesync`): a local
     method's answer may lie in a worse basin of chi2 than the one around the global optimum of
     SE-Sync's (isotropic) objective. ``poses`` holds the better answer when it is lower than
     ``chi2``, else None; the rest says what was compared and which was chosen."""
@@ -216,10 +217,18 @@ def _from_certified(gtsam: Any, problem: Problem, options: SolveOptions, graph: 
         start = solve_sesync(problem, dataclasses.replace(options, max_iterations=1000)).poses
     except ConfigError as err:  # pymanopt missing: the local answer stands, and the notes say so
         return {"poses": None, "chosen": "local", "skipped": str(err)}
-    params = gtsam.GaussNewtonParams()
+    lm = options.optimizer == "lm"
+    params = gtsam.LevenbergMarquardtParams() if lm else gtsam.GaussNewtonParams()
     params.setMaxIterations(max(options.max_iterations, 50))
     params.setRelativeErrorTol(options.relative_tolerance)
-    result = gtsam.GaussNewtonOptimizer(graph, _values(gtsam, problem.kind, start), params).optimize()
+    optimizer = gtsam.LevenbergMarquardtOptimizer if lm else gtsam.GaussNewtonOptimizer
+    try:
+        result = optimizer(graph, _values(gtsam, problem.kind, start), params).optimize()
+    except RuntimeError:  # Gauss-Newton's system indeterminate (see solve_gtsam): Levenberg-Marquardt
+        lm_params = gtsam.LevenbergMarquardtParams()
+        lm_params.setMaxIterations(max(options.max_iterations, 50))
+        lm_params.setRelativeErrorTol(options.relative_tolerance)
+        result = gtsam.LevenbergMarquardtOptimizer(graph, _values(gtsam, problem.kind, start), lm_params).optimize()
     poses = _poses(gtsam, problem.kind, result)
     refined = graph_chi2(problem, poses)
     better = bool(np.isfinite(refined) and refined < chi2)
