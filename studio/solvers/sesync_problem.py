@@ -30,7 +30,7 @@ scikit-sparse's CHOLMOD does not build against this system's SuiteSparse).
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -98,9 +98,25 @@ class SyncProblem:
     """The rotation-only connection Laplacian ``L(G^rho)`` (``dn x dn``, chordal initialization)."""
     kappa: np.ndarray
     tau: np.ndarray
-    precon: Any = None
-    """SE-Sync's regularized-Cholesky preconditioner: a sparse LU of ``M + lambda I`` with ``lambda``
-    such that its condition number is at most 1e6 (SE-Sync's ``reg_Cholesky_precon_max_condition_number``)."""
+    cache: dict[str, Any] = field(default_factory=dict)
+    """The preconditioner, factored when first used (a certificate alone does not need it)."""
+
+    @property
+    def precon(self) -> Any:
+        """SE-Sync's regularized-Cholesky preconditioner: a sparse LU of ``M + lambda I`` with
+        ``lambda`` such that its condition number is at most 1e6 (SE-Sync's
+        ``reg_Cholesky_precon_max_condition_number``)."""
+        if "precon" not in self.cache:
+            import scipy.sparse as sp
+            import scipy.sparse.linalg as spla
+
+            big = sp.bmat([[self.m_tt, self.m_tr], [self.m_tr.T, self.m_rr]], format="csc")
+            # ||M|| from above by its largest absolute row sum (SE-Sync estimates it by LOBPCG)
+            reg = float(abs(big).sum(axis=1).max()) / (1e6 - 1)
+            # SuperLU's default COLAMD here: on M the symmetric minimum degree fills far more
+            # (sphere2500: 16.4M entries against 3.0M, 4.0 s against 0.18 s to factor)
+            self.cache["precon"] = spla.splu((big + reg * sp.identity(big.shape[0])).tocsc())
+        return self.cache["precon"]
 
     def precondition(self, x: np.ndarray) -> np.ndarray:
         """``Q^-1 x`` approximately (``(dn, k)``): the rotation block of ``(M + lambda I)^-1 [0; x]``,
@@ -184,12 +200,7 @@ def build(
     # a symmetric ordering: half the fill of SuperLU's default COLAMD on a Laplacian
     lap = spla.splu(m_tt[1:, 1:].tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
     w_rot = w[m:, n:]
-    # ||M|| from above by its largest absolute row sum (SE-Sync estimates it by LOBPCG)
-    reg = float(abs(big).sum(axis=1).max()) / (1e6 - 1)
-    # SuperLU's default COLAMD here: on M the symmetric minimum degree fills far more (sphere2500:
-    # 16.4M entries against 3.0M, 4.0 s against 0.18 s to factor)
-    precon = spla.splu((big + reg * sp.identity(n + d * n)).tocsc())
-    return SyncProblem(kind, d, n, m_tt, m_tr, m_rr, lap, (w_rot.T @ w_rot).tocsc(), kappa, tau, precon)
+    return SyncProblem(kind, d, n, m_tt, m_tr, m_rr, lap, (w_rot.T @ w_rot).tocsc(), kappa, tau)
 
 
 @dataclass(frozen=True)
