@@ -90,6 +90,12 @@ def _as_flags(err: StudioError) -> str:
 _HELD_WARNINGS: list[list[str]] = []
 
 
+def _one_line(text: str) -> str:
+    """``text`` with its line breaks, NUL and other control characters escaped (``\\n``): a
+    message quoting a value the user gave (an option, a name from data) stays one line."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 def cli_errors(func):
     """Turn a StudioError into one line on stderr and exit code 2 (no traceback). The command's
     warnings are held until it ends: printed after it succeeds, dropped when it fails on bad input,
@@ -104,7 +110,7 @@ def cli_errors(func):
             return func(*args, **kwargs)
         except StudioError as err:
             held.clear()
-            typer.echo(f"error: {_as_flags(err)}", err=True)
+            typer.echo(f"error: {_one_line(_as_flags(err))}", err=True)
             raise typer.Exit(2) from None
         finally:
             _HELD_WARNINGS.pop()
