@@ -186,6 +186,8 @@ def synth(
     t0 = time.perf_counter()
     cfg = load_synth_config(config, warn=_warn)
     options: dict[str, Any] = {
+        # the config file is an input: an output being replaced may not hold it
+        "inputs": [Path(config)] if Path(config).exists() else [],
         "force": force,
         "multi_records": multi_records.value,
         "single_records": single_records.value,
@@ -525,7 +527,16 @@ def convert(
         )
     t0 = time.perf_counter()
     with terminal_progress(not quiet) as progress:
-        res = run_convert(cfg, out, force=force, warn=_warn, progress=progress, rrd=rrd, max_memory_gb=max_memory_gb)
+        res = run_convert(
+            cfg,
+            out,
+            force=force,
+            warn=_warn,
+            progress=progress,
+            rrd=rrd,
+            max_memory_gb=max_memory_gb,
+            inputs=[config] if config is not None else [],
+        )
     if not quiet:
         g = res.build.graph
         counts = g.edge_counts()

@@ -25,7 +25,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import json
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -300,6 +300,7 @@ def convert(
     recorder: Callable[[PoseGraph, Path], None] | None = None,
     rrd: bool = True,
     max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
+    inputs: Iterable[PathLike] = (),
 ) -> ConvertResult:
     """Read ``cfg``'s sources, build the graph and write the dataset folder ``out``.
 
@@ -308,7 +309,8 @@ def convert(
     dataset while it is still in the staging folder, so they appear atomically with the rest; the
     keyframes' real stamps are ``graph.agents[k].stamps_ns``. With ``rrd`` (the default) the Rerun
     recording ``OUT/<name>.rrd`` is written inside the dataset folder the same way. A loop-closure
-    search estimated to need more than ``max_memory_gb`` is refused before it starts.
+    search estimated to need more than ``max_memory_gb`` is refused before it starts. ``inputs``:
+    files read besides ``cfg``'s (the ``convert.json`` it came from), which ``out`` may not hold.
     """
     out = Path(out).absolute()
     if out.name in ("", ".", ".."):
@@ -318,7 +320,8 @@ def convert(
     check_option("max_memory_gb", max_memory_gb, allow_zero=False)
     cfg = _resolve_inputs(cfg)
     odometry_inputs = [parse_odometry_spec(spec)[1] for spec in cfg.odometry_from]
-    check_not_overlapping([out], [*cfg.inputs, *odometry_inputs])
+    read: list[PathLike] = [*cfg.inputs, *odometry_inputs, *inputs]
+    check_not_overlapping([out], read)
     warnings: list[str] = []
 
     def _warn(msg: str) -> None:
@@ -328,7 +331,7 @@ def convert(
 
     check_inputs(cfg.source, cfg.inputs, cfg.agents)
     built = _read_and_build(cfg, _warn, progress, max_memory_gb)
-    with staged_outputs(out.parent, [out.name], force=force, inputs=[*cfg.inputs, *odometry_inputs]) as staging:
+    with staged_outputs(out.parent, [out.name], force=force, inputs=read) as staging:
         ds = staging / out.name
         ds.mkdir()
         _write_dataset(cfg, built, ds, warnings, progress)

@@ -246,6 +246,7 @@ def synthesize(
     rrd: bool = True,
     generator: Generator[SynthConfig] = STUDIO,
     progress: Progress | None = None,
+    inputs: Iterable[PathLike] = (),
 ) -> SynthResult:
     """Generate ``config`` and write it as kollagen's ``generate CONFIG OUT`` does.
 
@@ -255,7 +256,8 @@ def synthesize(
     ``jobs`` caps the processes used (default: the idle cores, see
     :func:`~studio.runtime.parallel.default_jobs`); the bytes do not depend on it.
     Configs estimated to need more memory or disk than the limits are refused before any work.
-    ``progress`` hears of each agent, agent pair, written part and recorded agent.
+    ``progress`` hears of each agent, agent pair, written part and recorded agent. ``inputs``: the
+    files the config came from (its JSON), which no output may hold, even with ``force``.
     """
     _check_request(config, jobs, max_memory_gb, max_output_gb, multi_records)
     out_dir = Path(out_dir)
@@ -263,7 +265,7 @@ def synthesize(
     extras = [f"{name}{suffix}" for suffix in generator.extra_suffixes(config)]
     config_name, rrd_name = f"{name}.config.json", f"{name}.rrd"
     names = [name, *extras, config_name] + ([rrd_name] if rrd else [])
-    with staged_outputs(out_dir, names, force=force, inputs=()) as staging:
+    with staged_outputs(out_dir, names, force=force, inputs=inputs) as staging:
         output = _write_dataset(
             config,
             staging,
@@ -379,6 +381,7 @@ def synthesize_seeds(
     rrd: bool = True,
     generator: Generator[SynthConfig] = STUDIO,
     progress: Progress | None = None,
+    inputs: Iterable[PathLike] = (),
 ) -> SeedsResult:
     """:func:`synthesize` of each replicate in ``seeds`` (see :func:`generate`), in this process,
     into ``OUT/seed<k>/`` (:func:`seed_folder_name`): the same files, byte for byte, as
@@ -389,22 +392,27 @@ def synthesize_seeds(
     the guard's marker) are kept, unless ``force``, which writes them again. A seed folder that is
     not a studio output is refused, as :func:`synthesize` refuses one. The seeds' files are made
     durable together (one sync of the file system every :data:`SYNC_EVERY` seeds and at the end)
-    instead of a dozen fsyncs per seed.
+    instead of a dozen fsyncs per seed. Every seed folder to write is checked before the first is
+    written (a folder of the user's, an input inside one), so a refusal leaves nothing behind.
     """
     from studio.generator.config import replicate_config
-    from studio.io.atomic import is_studio_output, sync_file_system
+    from studio.io.atomic import check_outputs, is_studio_output, sync_file_system
 
     _check_request(config, jobs, max_memory_gb, max_output_gb, multi_records)
     out_dir = Path(out_dir)
+    inputs = list(inputs)
+    todo = {seed for seed in seeds if force or not is_studio_output(out_dir / seed_folder_name(seed))}
+    if todo:
+        check_outputs(out_dir, [seed_folder_name(seed) for seed in sorted(todo)], force=force, inputs=inputs)
     written: list[int] = []
     kept: list[int] = []
     for done, seed in enumerate(seeds):
         folder = seed_folder_name(seed)
-        if not force and is_studio_output(out_dir / folder):
+        if seed not in todo:
             kept.append(seed)
         else:
             replicate = replicate_config(config, seed)
-            with staged_outputs(out_dir, [folder], force=force, inputs=(), durable=False) as staging:
+            with staged_outputs(out_dir, [folder], force=force, inputs=inputs, durable=False) as staging:
                 (staging / folder).mkdir()
                 _write_dataset(
                     replicate,

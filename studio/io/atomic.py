@@ -47,6 +47,7 @@ __all__ = [
     "output_workspace",
     "write_replacing",
     "check_not_overlapping",
+    "check_distinct_outputs",
     "check_workspace",
     "verify_rrd",
     "os_error_message",
@@ -103,6 +104,20 @@ def check_not_overlapping(outputs: Iterable[PathLike], inputs: Iterable[PathLike
             if _inside(r, ri) or _inside(ri, r):
                 what = "is" if r == ri else ("contains" if _inside(ri, r) else "sits inside")
                 raise OutputError(f"{out}: the output {what} the input {given}; choose another output path")
+
+
+def check_distinct_outputs(outputs: Iterable[PathLike]) -> None:
+    """Refuse two outputs of one run that are the same path or one inside the other (resolved):
+    the second would replace or write into the first (``replay -o r.rrd --rrd r.rrd``). A command
+    with several output options calls it before any work, beside :func:`check_outputs`."""
+    seen: list[tuple[PathLike, Path]] = []
+    for out in outputs:
+        r = _resolve(out)
+        for given, other in seen:
+            if _inside(r, other) or _inside(other, r):
+                what = "is" if r == other else ("sits inside" if _inside(r, other) else "contains")
+                raise OutputError(f"{out}: the output {what} the other output {given}; give them distinct paths")
+        seen.append((out, r))
 
 
 def verify_rrd(path: PathLike) -> None:

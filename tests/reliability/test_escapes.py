@@ -65,3 +65,71 @@ def test_agent_names_in_agents_json_stay_inside_the_output(world, hostile):
     assert res.exit_code == 0, res.stderr
     assert all(m.startswith("est") for m in set(guard._tree(world)) - set(before))
     assert not Path("/tmp/studio-escaped.tum").exists()
+
+
+# --------------------------------------------------------------------------- inputs inside outputs
+@pytest.fixture
+def config_in_output(world) -> Path:
+    """``out/`` holds a synth run of ``tiny_three.json`` and a copy of that config inside the dataset
+    folder it wrote (``out/tiny_three/tiny_three.json``); ``out/seed0001/`` holds another copy."""
+    from studio.synth import load_synth_config, synthesize, synthesize_seeds
+
+    cfg = load_synth_config(world / "tiny_three.json")
+    synthesize(cfg, world / "out", rrd=False, jobs=1)
+    synthesize_seeds(cfg, world / "out", [0, 1], rrd=False, jobs=1)
+    for folder in ("tiny_three", "seed0001"):
+        (world / "out" / folder / "tiny_three.json").write_bytes((world / "tiny_three.json").read_bytes())
+    return world / "out"
+
+
+def test_synth_force_never_replaces_the_folder_holding_its_config(world, config_in_output):
+    """``studio synth out/my/my.json -o out --force`` deleted the config it was given."""
+    refused_intact(
+        ["synth", "out/tiny_three/tiny_three.json", "-o", "out", "--force", "--no-rrd"], world, "contains the input"
+    )
+
+
+def test_synth_seeds_force_never_replaces_the_seed_folder_holding_its_config(world, config_in_output):
+    refused_intact(
+        ["synth", "out/seed0001/tiny_three.json", "-o", "out", "--force", "--seeds", "0..2", "--no-rrd"],
+        world,
+        "out/seed0001: the output contains the input",
+    )
+
+
+def test_synth_seeds_checks_every_seed_folder_before_writing_the_first(world):
+    """``--seeds 0..2 -o out`` where ``out/seed0001`` is the user's folder wrote ``seed0000`` first."""
+    (world / "out" / "seed0001").mkdir(parents=True)
+    (world / "out" / "seed0001" / "notes.txt").write_text("mine\n")
+    refused_intact(
+        ["synth", "tiny_three.json", "-o", "out", "--seeds", "0..2", "--no-rrd"], world, "out/seed0001 already exists"
+    )
+    refused_intact(
+        ["synth", "tiny_three.json", "-o", "out", "--seeds", "0..2", "--no-rrd", "--force"],
+        world,
+        "a folder studio did not write",
+    )
+
+
+def test_replay_refuses_a_recording_that_is_its_output_folder_before_any_work(world):
+    """``studio replay ds -o r.rrd --rrd r.rrd`` wrote the replay folder, then refused."""
+    refused_intact(["replay", "ds", "-o", "r.rrd", "--rrd", "r.rrd"], world, "r.rrd: the output is the other output")
+    refused_intact(["replay", "ds", "-o", "rr", "--rrd", "rr/x.rrd"], world, "sits inside the other output rr")
+
+
+def test_convert_force_never_replaces_the_folder_holding_its_convert_json(world):
+    res = guard.runner.invoke(guard.app, ["convert", "tum", "alpha.tum", "bob.tum", "-o", "conv", "--no-rrd"])
+    assert res.exit_code == 0, res.stderr
+    refused_intact(
+        ["convert", "--config", "conv/convert.json", "-o", "conv", "--force", "--no-rrd"], world, "contains the input"
+    )
+
+
+def test_distinct_outputs():
+    from studio.core.errors import OutputError
+    from studio.io.atomic import check_distinct_outputs
+
+    check_distinct_outputs(["a", "b", "a.rrd", "ab/c"])
+    for pair, what in ((["a", "a"], "is"), (["a", "a/b.rrd"], "sits inside"), (["a/b", "a"], "contains")):
+        with pytest.raises(OutputError, match=f"the output {what} the other output"):
+            check_distinct_outputs(pair)
