@@ -424,8 +424,6 @@ def convert(
     config: Path = typer.Option(
         None,
         "--config",
-        exists=True,
-        dir_okay=False,
         help="A convert.json: reproduce its dataset (options given here win).",
     ),
     force: bool = typer.Option(False, "--force", help="Replace an existing dataset folder."),

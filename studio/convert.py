@@ -63,6 +63,7 @@ from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB
 from studio.io.atomic import check_not_overlapping, staged_outputs
+from studio.io.input_files import read_input_bytes
 from studio.io.multig2o import write_multi_g2o
 from studio.io.outliers_txt import write_outliers_txt
 from studio.io.range_bearing import RANGE_BEARING_NAME, write_range_bearing
@@ -174,7 +175,9 @@ def config_from_mapping(data: Mapping[str, Any], where: str = "config") -> Conve
 def read_convert_config(path: PathLike) -> ConvertConfig:
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_input_bytes(path).decode("utf-8")  # a FIFO or device: refused, never waited on
+    except FormatError as err:
+        raise ConfigError(str(err)) from None
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError) as err:

@@ -68,6 +68,7 @@ from studio.io.graph_table import (
     information_matrix,
     matrix_to_upper,
 )
+from studio.io.input_files import read_input_bytes
 from studio.io.strict_json import dumps_strict
 from studio.io.symbol_g2o import INDEX_BITS, robot_prefix
 
@@ -338,7 +339,7 @@ def _load(source: PathLike) -> tuple[Any, str]:
             raise FormatError(f"{path}: is a folder, not a JRL file")
         if path.stat().st_size > MAX_TEXT_BYTES:
             raise FormatError(f"{path}: over the {MAX_TEXT_BYTES} byte (1 GiB) limit of text inputs")
-        text = path.read_text(encoding="utf-8")
+        text = read_input_bytes(path).decode("utf-8")  # a FIFO or device: refused, never waited on
     except FileNotFoundError:
         raise FormatError(f"{path}: no such file") from None
     except UnicodeDecodeError:

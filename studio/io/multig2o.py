@@ -45,6 +45,7 @@ from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
+from studio.io.input_files import read_input_bytes
 from studio.io.inter_lc_dat import Precision, read_inter_lc_dat, write_inter_lc_dat
 from studio.io.names import safe_file_names
 from studio.io.tum import read_tum, write_tum
@@ -179,7 +180,7 @@ def _read_agents_file(folder: Path) -> list[tuple[str, str]] | None:
     if not path.is_file():
         return None
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = json.loads(read_input_bytes(path).decode("utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
         raise FormatError(f"{path}: not a readable agents file ({err})") from None
     entries = data.get("agents") if isinstance(data, dict) else None

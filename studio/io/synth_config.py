@@ -19,10 +19,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NoReturn
 
-from studio.core.errors import ConfigError
+from studio.core.errors import ConfigError, FormatError
 from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE, MIN_MAGNITUDE
 from studio.generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
+from studio.io.input_files import read_input_bytes
 from studio.io.studio_block import studio_block_to_json
 
 __all__ = [
@@ -250,7 +251,9 @@ def read_synth_config(path: PathLike, *, warn: Callable[[str], None] | None = No
             raise ConfigError(f"{path}: is a folder, not a JSON file")
         if size > MAX_CONFIG_BYTES:
             raise ConfigError(f"{path}: {size} bytes is too large for a config (limit {MAX_CONFIG_BYTES})")
-        raw = path.read_bytes()
+        raw = read_input_bytes(path)  # a FIFO or device: refused, never waited on
+    except FormatError as err:
+        raise ConfigError(str(err)) from None
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
     except OSError as err:

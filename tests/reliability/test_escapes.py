@@ -133,3 +133,59 @@ def test_distinct_outputs():
     for pair, what in ((["a", "a"], "is"), (["a", "a/b.rrd"], "sits inside"), (["a/b", "a"], "contains")):
         with pytest.raises(OutputError, match=f"the output {what} the other output"):
             check_distinct_outputs(pair)
+
+
+# --------------------------------------------------------------------------- inputs that are not files
+_NOT_FILES = {
+    "rendezvous": ["replay", "ds", "--comms", "rendezvous:{p}", "-o", "out"],
+    "jrl": ["convert", "jrl", "{p}", "-o", "out", "--no-rrd"],
+    "synth config": ["synth", "{p}", "-o", "out", "--no-rrd"],
+    "convert.json": ["convert", "--config", "{p}", "-o", "out", "--no-rrd"],
+    "tum": ["convert", "tum", "{p}", "bob.tum", "-o", "out", "--no-rrd"],
+    "sweep spec": ["sweep", "{p}", "-o", "out"],
+}
+
+_RUN_ALL = """
+import json, sys
+from typer.testing import CliRunner
+from studio.cli import app
+out = {}
+for key, args in json.loads(sys.argv[1]).items():
+    res = CliRunner().invoke(app, args)
+    out[key] = [res.exit_code, res.stderr, res.stdout]
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "folder"])
+def test_an_input_that_is_not_a_regular_file_is_one_line_and_never_blocks(world, kind):
+    """A FIFO given as a rendezvous file or a JRL file blocked forever. The commands run in a child
+    process with a timeout, so a reader that waits on the FIFO fails the test instead of hanging it."""
+    import os
+    import subprocess
+    import sys
+
+    if kind == "fifo":
+        os.mkfifo(world / "in.x")
+        path, match = "in.x", "is a FIFO (named pipe), not a regular file"
+    elif kind == "device":
+        path, match = "/dev/zero", "/dev/zero: is a character device, not a regular file"
+    else:
+        (world / "in.x").mkdir()
+        path, match = "in.x", "is a folder"
+    cases = {key: [a.format(p=path) for a in args] for key, args in _NOT_FILES.items()}
+    before = guard._tree(world)
+    child = subprocess.run(
+        [sys.executable, "-c", _RUN_ALL, json.dumps(cases)],
+        capture_output=True,
+        text=True,
+        timeout=25,
+        cwd=world,
+        env={**os.environ, "RERUN_ANALYTICS": "0"},
+    )
+    assert child.returncode == 0, child.stderr
+    results = json.loads(child.stdout)
+    for key, (code, err, out) in results.items():
+        assert code == 2 and out == "", (key, code, err, out)
+        assert len(err.splitlines()) == 1 and err.startswith("error: ") and match in err, (key, err)
+    assert guard._tree(world) == before
