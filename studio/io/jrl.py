@@ -47,7 +47,9 @@ robot, a negative range and a covariance that is not symmetric positive definite
 
 from __future__ import annotations
 
+import itertools
 import json
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -58,7 +60,7 @@ import numpy as np
 from studio.core.errors import FormatError, GraphError
 from studio.core.model import PoseGraph, PoseKind, RangeBearing
 from studio.core.types import PathLike
-from studio.core.units import NS_PER_S
+from studio.core.units import MAX_MAGNITUDE, NS_PER_S
 from studio.io.g2o import MAX_TEXT_BYTES
 from studio.io.graph_table import (
     AgentPoses,
@@ -69,6 +71,7 @@ from studio.io.graph_table import (
     matrix_to_upper,
 )
 from studio.io.input_files import read_input_bytes
+from studio.io.numbers import json_float
 from studio.io.strict_json import dumps_strict
 from studio.io.symbol_g2o import INDEX_BITS, robot_prefix
 
@@ -300,18 +303,15 @@ class _Reader:
             raise self.fail(path, f"missing key {key!r}")
         return obj[key]
 
-    def number(self, value: Any, path: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.fail(path, f"expected a number, got {json.dumps(value)[:40]}")
-        v = float(value)
-        if not np.isfinite(v):
-            raise self.fail(path, "not a finite number")
-        return v
+    def number(self, value: Any, path: str, bound: float = sys.float_info.max) -> float:
+        # never a string or a boolean (a bool is an int to Python); a 400-digit integer is refused,
+        # not an OverflowError
+        return json_float(value, f"{self.where}: {path}", bound=bound, what="value")
 
-    def numbers(self, value: Any, n: int, path: str) -> list[float]:
+    def numbers(self, value: Any, n: int, path: str, bound: float = sys.float_info.max) -> list[float]:
         if not isinstance(value, list) or len(value) != n:
             raise self.fail(path, f"expected a list of {n} numbers")
-        return [self.number(v, f"{path}[{i}]") for i, v in enumerate(value)]
+        return [self.number(v, f"{path}[{i}]", bound) for i, v in enumerate(value)]
 
     def uint(self, value: Any, path: str) -> int:
         if isinstance(value, bool) or not isinstance(value, int) or value < 0 or value >= 1 << 64:
@@ -320,8 +320,8 @@ class _Reader:
 
     def pose(self, kind: PoseKind, obj: Any, path: str) -> list[float]:
         if kind is PoseKind.SE2:
-            return [self.number(self.get(obj, k, path), f"{path}.{k}") for k in ("x", "y", "theta")]
-        t = self.numbers(self.get(obj, "translation", path), 3, f"{path}.translation")
+            return [self.number(self.get(obj, k, path), f"{path}.{k}", MAX_MAGNITUDE) for k in ("x", "y", "theta")]
+        t = self.numbers(self.get(obj, "translation", path), 3, f"{path}.translation", MAX_MAGNITUDE)
         w, x, y, z = self.numbers(self.get(obj, "rotation", path), 4, f"{path}.rotation")
         norm = float(np.sqrt(w * w + x * x + y * y + z * z))
         if abs(norm - 1.0) > 1e-6:
@@ -347,11 +347,21 @@ def _load(source: PathLike) -> tuple[Any, str]:
     except OSError as err:
         raise FormatError(f"{path}: cannot read ({err.strerror})") from None
     try:
-        return json.loads(text), str(path)
+        return json.loads(text, parse_int=_parse_int), str(path)
     except json.JSONDecodeError as err:
         raise FormatError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
     except RecursionError:
         raise FormatError(f"{path}: JSON nested too deeply") from None
+    except ValueError as err:  # an integer of thousands of digits (_parse_int)
+        raise FormatError(f"{path}: not valid JRL ({err})") from None
+
+
+def _parse_int(text: str) -> int:
+    """JSON integers of at most 40 digits (a key or stamp has 20): Python's own limit, 4300 digits,
+    raises a ValueError about itself, and a 400-digit integer overflows a float."""
+    if len(text) > 40:
+        raise ValueError(f"an integer of {len(text.lstrip('-'))} digits, beyond any JRL key, stamp or value")
+    return int(text)
 
 
 def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> JrlGraph:
@@ -708,10 +718,12 @@ def _outlier_rows(
 def _number_array(r: _Reader, values: list[Any], width: int, paths: list[str]) -> np.ndarray:
     """``(n, width)`` floats of JSON number lists; a bad one is named by its path (slow path)."""
     try:
+        # numpy reads "0.5" and true as numbers; JRL's parser does not: only ints and floats pass
+        plain = set(map(type, itertools.chain.from_iterable(values))) <= {int, float}
         arr = np.array(values, dtype=np.float64)
-        if arr.shape == (len(values), width) and np.isfinite(arr).all():
+        if plain and arr.shape == (len(values), width) and np.isfinite(arr).all():
             return arr.reshape(len(values), width)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         pass
     for row, path in zip(values, paths):
         r.numbers(row, width, path)
@@ -727,6 +739,9 @@ def _pose_array(r: _Reader, kind: PoseKind, values: list[Any], paths: list[str])
         else:
             flat = [[*v["translation"], *v["rotation"]] for v in values]
             arr = _number_array(r, flat, 7, paths)[:, [0, 1, 2, 4, 5, 6, 3]]
+        if np.any(np.abs(arr[:, : 2 if kind is PoseKind.SE2 else 3]) > MAX_MAGNITUDE):
+            raise r.fail(paths[0], "beyond the bound")  # the slow path below names the value
+        if kind is not PoseKind.SE2:
             norms = np.linalg.norm(arr[:, 3:], axis=1)
             bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-6)
             if bad.size:

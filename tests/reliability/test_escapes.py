@@ -26,6 +26,7 @@ def test_export_name_must_be_one_plain_component(world, fmt, hostile):
     """``--name ../../ds/agent1/posegraph`` once wrote DPGO's g2o over the dataset's own file
     (exit 0); ``/abs`` and ``../../escaped`` wrote outside ``-o``."""
     out = "out.jrl" if fmt == "jrl" else "out"
+    Path("/tmp/studio-escaped.g2o").unlink(missing_ok=True)  # an earlier run of the old code
     err = refused_intact(["export", "ds", "-f", fmt, "-o", out, "--name", hostile], world, "--name: ")
     assert "\\n" in err or "\n" not in hostile  # the line break is shown escaped, the message one line
     assert not Path("/tmp/studio-escaped.g2o").exists()
@@ -189,3 +190,96 @@ def test_an_input_that_is_not_a_regular_file_is_one_line_and_never_blocks(world,
         assert code == 2 and out == "", (key, code, err, out)
         assert len(err.splitlines()) == 1 and err.startswith("error: ") and match in err, (key, err)
     assert guard._tree(world) == before
+
+
+# --------------------------------------------------------------------------- readers that believed their numbers
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("[]", 'agents.json: expected {"format"'),
+        ("null", 'agents.json: expected {"format"'),
+        ('"agents"', 'agents.json: expected {"format"'),
+        (["agent1", "agent1", "agent3"], "agents[1]: the folder 'agent1' is already agents[0]'s"),
+        (["agent1", "agent2"], "agents.json: the agent folder agent3 is not listed"),
+    ],
+)
+def test_a_bad_agents_json_is_one_line_naming_it(world, text, match):
+    """``[]`` and ``null`` raised AttributeError in every dataset command; two agents named to one
+    folder read one folder twice; an unlisted folder was blamed on inter_agent_lc.dat."""
+    if isinstance(text, list):
+        names = ["a", "b", "c"]
+        agents = [{"folder": f, "name": n} for f, n in zip(text, names)]
+        text = json.dumps({"format": "cslam-studio agents 1", "agents": agents})
+    (world / "ds" / "agents.json").write_text(text)
+    for command in (["record", "ds", "-o", "x.rrd"], ["solve", "ds", "-o", "est"], ["check", "ds"]):
+        refused_intact(command, world, match)
+
+
+@pytest.mark.parametrize(
+    ("line", "match"),
+    [
+        (f"0,0,{2**70}", "rz.txt:1: time [s] 1180591620717411303424 is outside [-9223372036, 9223372036]"),
+        ("0,0,1_0", "rz.txt:1: expected ROBOT_ID,start,end,... as integers (decimal digits), got '0,0,1_0'"),
+        ("1_0,0,3", "rz.txt:1: expected ROBOT_ID,start,end,... as integers (decimal digits), got '1_0,0,3'"),
+        ("0,0," + "9" * 5000, "rz.txt:1: expected an integer (decimal digits) for the time [s], got '99999"),
+        ("0,true,3", "rz.txt:1: expected ROBOT_ID,start,end,... as integers (decimal digits), got '0,true,3'"),
+    ],
+)
+def test_rendezvous_numbers_are_plain_bounded_integers(world, line, match):
+    """A window ending at 2^70 was an OverflowError; ``1_0`` was read as 10 (Swarm-SLAM reads 1)."""
+    (world / "rz.txt").write_text(line + "\n")
+    refused_intact(["replay", "ds", "--comms", "rendezvous:rz.txt", "-o", "out"], world, match)
+
+
+def test_a_replay_clock_beyond_int64_is_one_line(world):
+    """``--period 1e8 --step 1e8`` wrapped int64 stamps round into a GTSAM error."""
+    refused_intact(
+        ["replay", "ds", "--period", "1e8", "--step", "1e8", "-o", "out"], world, "--period: 100000000000000000 ns x"
+    )
+
+
+def test_a_comms_period_below_the_clock_says_so(world):
+    refused_intact(
+        ["replay", "ds", "--comms", "range:5,period=4e-10", "-o", "out"], world, "below the replay's 1 ns clock"
+    )
+
+
+def _jrl_with(world: Path, old: str, new: str) -> None:
+    text = (world / "ds.jrl").read_text()
+    assert old in text
+    (world / "bad.jrl").write_text(text.replace(old, new, 1))
+
+
+@pytest.fixture
+def jrl_world(world) -> Path:
+    res = guard.runner.invoke(guard.app, ["export", "ds", "-f", "jrl", "-o", "ds.jrl"])
+    assert res.exit_code == 0, res.stderr
+    return world
+
+
+@pytest.mark.parametrize(
+    ("value", "match"),
+    [
+        ('"0.5"', "translation[0]: expected a number, got the string '0.5'"),
+        ("true", "translation[0]: expected a number, got the boolean true"),
+        ("1e300", "translation[0]: value 1e+300 is beyond 1e+09 in magnitude"),
+        ("9" * 400, "an integer of 400 digits"),
+        ("9" * 5000, "an integer of 5000 digits"),
+    ],
+)
+def test_jrl_numbers_are_numbers_within_the_bounds(jrl_world, value, match):
+    """Strings and booleans were read as numbers, 1e300 m accepted, a 400-digit integer an
+    OverflowError and a 5000-digit one Python's ValueError about its own limit."""
+    text = (jrl_world / "ds.jrl").read_text()
+    start = text.index('"translation":[') + len('"translation":[')
+    end = text.index(",", start)
+    (jrl_world / "bad.jrl").write_text(text[:start] + value + text[end:])
+    refused_intact(["convert", "jrl", "bad.jrl", "-o", "out", "--no-rrd"], jrl_world, match)
+
+
+def test_a_jrl_key_of_5000_digits_is_one_line(jrl_world):
+    text = (jrl_world / "ds.jrl").read_text()
+    start = text.index('"key1":') + len('"key1":')
+    end = text.index(",", start)
+    (jrl_world / "bad.jrl").write_text(text[:start] + "9" * 5000 + text[end:])
+    refused_intact(["convert", "jrl", "bad.jrl", "-o", "out", "--no-rrd"], jrl_world, "an integer of 5000 digits")
