@@ -238,10 +238,20 @@ def read_measurements_csv_files(paths: Sequence[PathLike]) -> PoseGraph:
     trans = allrows[:, 8:11]
     kappa = allrows[:, 11]
     tau = allrows[:, 12]
+    # ids bounded before anything is allocated from them (a pose id of 2,000,000,000 asked for
+    # 15 GiB): every robot has a row, and a robot's poses 0..n-1 are joined by n-1 rows at least
     n_robots = int(max(ra.max(), rb.max())) + 1
+    if n_robots > len(ids):
+        raise FormatError(f"{where}: robot id {n_robots - 1} with only {len(ids)} measurements (ids count from 0)")
     sizes = np.zeros(n_robots, dtype=np.int64)
     np.maximum.at(sizes, ra, pa + 1)
     np.maximum.at(sizes, rb, pb + 1)
+    if int(sizes.sum()) > len(ids) + n_robots:
+        r = int(np.argmax(sizes))
+        raise FormatError(
+            f"{where}: robot {r} pose {int(sizes[r]) - 1}: ids beyond the {len(ids)} measurements "
+            "(DPGO's pose ids count from 0, each pose joined to the next by odometry)"
+        )
     if np.any(sizes == 0):
         raise FormatError(f"{where}: robot {int(np.flatnonzero(sizes == 0)[0])} has no measurements")
     agents = [

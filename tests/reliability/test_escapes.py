@@ -283,3 +283,27 @@ def test_a_jrl_key_of_5000_digits_is_one_line(jrl_world):
     end = text.index(",", start)
     (jrl_world / "bad.jrl").write_text(text[:start] + "9" * 5000 + text[end:])
     refused_intact(["convert", "jrl", "bad.jrl", "-o", "out", "--no-rrd"], jrl_world, "an integer of 5000 digits")
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "match"),
+    [
+        (3, "2000000000", "robot 0 pose 2000000000: ids beyond the"),
+        (0, "1999999999", "robot id 1999999999 with only"),
+    ],
+)
+def test_dpgo_ids_are_bounded_before_poses_are_allocated(world, field, value, match):
+    """An id of 2,000,000,000 in measurements.csv allocated about 15 GiB before anything was said."""
+    res = guard.runner.invoke(guard.app, ["export", "ds", "-f", "dpgo", "-o", "dp"])
+    assert res.exit_code == 0, res.stderr
+    csv = world / "dp" / "robot0" / "measurements.csv"
+    lines = csv.read_text().splitlines()
+    fields = lines[2].split(",")
+    fields[field] = value
+    lines[2] = ",".join(fields)
+    csv.write_text("\n".join(lines) + "\n")
+    import resource
+
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    refused_intact(["convert", "dpgo", "dp", "-o", "out", "--no-rrd"], world, match)
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 1_000_000  # kB: under 1 GB more
