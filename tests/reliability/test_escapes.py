@@ -307,3 +307,87 @@ def test_dpgo_ids_are_bounded_before_poses_are_allocated(world, field, value, ma
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     refused_intact(["convert", "dpgo", "dp", "-o", "out", "--no-rrd"], world, match)
     assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 1_000_000  # kB: under 1 GB more
+
+
+# --------------------------------------------------------------------------- the library validates as the CLI does
+def _tiny():
+    from studio.synth import load_synth_config
+    from tests.conftest import DATA
+
+    return load_synth_config(DATA / "configs" / "tiny_three.json")
+
+
+def _with(**changes):
+    import dataclasses
+
+    cfg = _tiny()
+    inter = {k: v for k, v in changes.items() if k in ("loop_closure_radius",)}
+    top = {k: v for k, v in changes.items() if k not in inter}
+    if inter:
+        top["inter"] = dataclasses.replace(cfg.inter, **inter)
+    return dataclasses.replace(cfg, **top)
+
+
+@pytest.mark.parametrize(
+    ("make", "kwargs", "match"),
+    [
+        (lambda: {"number_of_agents": 2}, {}, "config: number_of_steps: missing key"),
+        (lambda: 42, {}, "config: expected a SynthConfig"),
+        (
+            lambda: None,
+            {},
+            "config: expected a SynthConfig, a kollagen JSON document (dict) or a config file's path, got NoneType",
+        ),
+        (lambda: "/nonexistent/x.json", {}, "/nonexistent/x.json: no such file"),
+        (lambda: _with(stepsize=0.0), {}, "config: agent_parameters.stepsize: must be positive, got 0.0"),
+        (lambda: _with(stepsize=float("nan")), {}, "config: agent_parameters.stepsize: must be finite"),
+        (lambda: _with(loop_closure_radius=0.0), {}, "inter_agent_loop_closure_parameters.loop_closure_radius"),
+        (lambda: _with(number_of_steps=2.5), {}, "config: number_of_steps: must be an integer, got 2.5"),
+        (lambda: _with(number_of_agents=0, agents=()), {}, "config: number_of_agents: must be at least 1, got 0"),
+        (_tiny, {"seed": None}, "seed: expected a non-negative integer, got None"),
+        (_tiny, {"seed": -1}, "seed: expected a non-negative integer, got -1"),
+        (_tiny, {"jobs": "2"}, "jobs: expected None or 0 (the idle cores) .. 4096, got '2'"),
+    ],
+)
+def test_generate_refuses_what_the_json_reader_refuses(make, kwargs, match):
+    """A dict, a path, None, a zero or NaN step, a zero radius, no agents, a float step count, a
+    None seed or a string job count raised AttributeError, ZeroDivisionError, IndexError,
+    TypeError or MemoryError from the in-memory generator."""
+    from studio.core.errors import ConfigError
+    from studio.synth import generate
+
+    with pytest.raises(ConfigError) as info:
+        generate(make(), **kwargs)
+    assert match in str(info.value) and "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("seeds", "kwargs", "match"),
+    [
+        (None, {}, "seeds: expected an iterable of non-negative integers, got None"),
+        ([0, None], {}, "seed: expected a non-negative integer, got None"),
+        ([0, 1.5], {}, "seed: expected a non-negative integer, got 1.5"),
+        ([0, 1], {"jobs": "2"}, "jobs: expected None or 0"),
+    ],
+)
+def test_generate_many_checks_its_arguments_at_the_call(seeds, kwargs, match):
+    from studio.core.errors import ConfigError
+    from studio.synth import generate_many
+
+    with pytest.raises(ConfigError, match=match.replace("(", r"\(").replace(")", r"\)").replace(".", r"\.")):
+        generate_many(_tiny(), seeds, **kwargs)  # no next(): the call itself refuses
+    with pytest.raises(ConfigError, match="agent_parameters.stepsize: must be positive"):
+        generate_many(_with(stepsize=0.0), [0])
+
+
+def test_a_valid_config_generates_the_same_graph_checked_or_not():
+    from studio.generator.extended import STUDIO
+    from studio.synth import generate, generate_many
+
+    cfg = _tiny()
+    direct = STUDIO.generate(cfg, jobs=1).graph  # unchecked
+    a = generate(cfg)
+    (b,) = list(generate_many(cfg, [0], jobs=1))
+    for g in (a, b):
+        assert [x.num_poses for x in g.agents] == [x.num_poses for x in direct.agents]
+        assert all((x.se3_poses() == y.se3_poses()).all() for x, y in zip(g.agents, direct.agents))
