@@ -34,7 +34,7 @@ import numpy as np
 from studio.core.errors import FormatError
 from studio.core.model import PoseGraph, PoseKind
 from studio.core.types import PathLike
-from studio.core.units import NS_PER_S
+from studio.core.units import MAX_MAGNITUDE, NS_PER_S
 from studio.io.g2o import G2oDocument, _open_text, write_g2o
 from studio.io.graph_table import AgentPoses, EdgeTable, assemble_graph, graph_edge_table, information_matrix
 from studio.io.textfmt import float_columns, int_column, join_array, literal
@@ -189,6 +189,9 @@ def _check_csv_rows(table: np.ndarray, body: str, name: str) -> None:
     bad = np.flatnonzero((table[:, 11] <= 0) | (table[:, 12] <= 0))
     if bad.size:
         fail(int(bad[0]), "kappa and tau must be positive")
+    bad = np.flatnonzero((np.abs(table[:, 8:11]) > MAX_MAGNITUDE).any(axis=1))
+    if bad.size:  # the documented bound of every coordinate (studio.core.units)
+        fail(int(bad[0]), f"translation {table[bad[0], 8:11].tolist()} is beyond {MAX_MAGNITUDE:g} m")
 
 
 def read_measurements_csv_files(paths: Sequence[PathLike]) -> PoseGraph:

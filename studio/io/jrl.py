@@ -636,8 +636,11 @@ def _read_values(
                 raise r.fail(f"{vpath}.type", f"expected {_VALUE[kind]} values, got {str(vtype)[:40]!r}")
             decoded.append(keys.decode(key, f"{vpath}.key"))
         poses = _pose_array(r, kind, items, vpaths).tolist()
-        for (a, i), pose in zip(decoded, poses):
-            out.setdefault(a, {})[i] = pose
+        for (a, i), pose, vpath in zip(decoded, poses, vpaths):
+            robot = out.setdefault(a, {})
+            if i in robot:  # the second silently won
+                raise r.fail(f"{vpath}.key", f"pose {i} of robot {keys.robots[a]!r} is given twice in {section}")
+            robot[i] = pose
     return out
 
 
@@ -692,6 +695,7 @@ def _outlier_rows(
 ) -> np.ndarray:
     """``(k, 4)`` rows ``agent_from vertex_from agent_to vertex_to`` of the ``outlier_factors``."""
     outliers = []
+    listed: dict[tuple[Any, ...], str] = {}
     labelled = data.get("outlier_factors") or {}
     if not isinstance(labelled, dict):
         raise r.fail("outlier_factors", "expected an object of robot -> [[entry, measurement], ...]")
@@ -699,11 +703,14 @@ def _outlier_rows(
         if not isinstance(pairs, list):
             raise r.fail(f"outlier_factors.{c}", "expected a list of [entry, measurement] pairs")
         for n, pair in enumerate(pairs):
-            if not (isinstance(pair, list) and len(pair) == 2 and all(isinstance(x, int) for x in pair)):
+            if not (isinstance(pair, list) and len(pair) == 2 and all(type(x) is int for x in pair)):
                 raise r.fail(f"outlier_factors.{c}[{n}]", "expected [entry, measurement]")
             row = ids.get((c, pair[0], pair[1]))
             if row is None:
                 raise r.fail(f"outlier_factors.{c}[{n}]", f"no pose-graph measurement {pair} in measurements.{c}")
+            if (c, *pair) in listed:  # written twice to outliers.txt otherwise
+                raise r.fail(f"outlier_factors.{c}[{n}]", f"{pair} is listed already ({listed[(c, *pair)]})")
+            listed[(c, *pair)] = f"outlier_factors.{c}[{n}]"
             outliers.append(
                 (
                     int(table.from_agent[row]),

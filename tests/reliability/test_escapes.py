@@ -391,3 +391,121 @@ def test_a_valid_config_generates_the_same_graph_checked_or_not():
     for g in (a, b):
         assert [x.num_poses for x in g.agents] == [x.num_poses for x in direct.agents]
         assert all((x.se3_poses() == y.se3_poses()).all() for x, y in zip(g.agents, direct.agents))
+
+
+# --------------------------------------------------------------------------- misleading successes
+def test_a_dpgo_measurement_of_1e300_m_is_refused_naming_its_line(world):
+    res = guard.runner.invoke(guard.app, ["export", "ds", "-f", "dpgo", "-o", "dp"])
+    assert res.exit_code == 0, res.stderr
+    csv = world / "dp" / "robot0" / "measurements.csv"
+    lines = csv.read_text().splitlines()
+    fields = lines[2].split(",")
+    fields[8] = "1e300"
+    lines[2] = ",".join(fields)
+    csv.write_text("\n".join(lines) + "\n")
+    refused_intact(["convert", "dpgo", "dp", "-o", "out", "--no-rrd"], world, "measurements.csv:3: translation [1e+300")
+
+
+def test_an_imported_measurement_beyond_the_bound_is_refused_by_every_graph_source(world):
+    """Symbol g2o files (and every graph source) imported a 1e300 m measurement as data."""
+    g2o = world / "ds" / "agent1" / "posegraph.g2o"
+    lines = g2o.read_text().splitlines()
+    k = next(n for n, line in enumerate(lines) if line.startswith("EDGE"))
+    fields = lines[k].split()
+    fields[3] = "1e300"
+    lines[k] = " ".join(fields)
+    g2o.write_text("\n".join(lines) + "\n")
+    res = guard.runner.invoke(guard.app, ["export", "ds", "-f", "symbols", "-o", "sy"])
+    assert res.exit_code == 0, res.stderr
+    refused_intact(["convert", "symbols", "sy", "-o", "out", "--no-rrd"], world, "is beyond 1e+09 m ([1e+300")
+
+
+def test_a_jrl_pose_given_twice_is_refused_naming_it(jrl_world):
+    """The second value of a key silently won."""
+    doc = json.loads((jrl_world / "ds.jrl").read_text())
+    values = doc["initialization"]["a"]
+    second = dict(values[1], key=values[0]["key"])
+    doc["initialization"]["a"] = [values[0], second, *values[2:]]
+    (jrl_world / "bad.jrl").write_text(json.dumps(doc))
+    refused_intact(
+        ["convert", "jrl", "bad.jrl", "-o", "out", "--no-rrd"],
+        jrl_world,
+        "initialization.a[1].key: pose 0 of robot 'a' is given twice in initialization",
+    )
+
+
+def test_a_jrl_outlier_listed_twice_is_refused_naming_it(jrl_world):
+    """An outlier listed twice was written twice to outliers.txt."""
+    doc = json.loads((jrl_world / "ds.jrl").read_text())
+    inter = (0, 0)  # any pose-graph measurement may be labelled
+    doc["outlier_factors"] = {"a": [list(inter), list(inter)]}
+    (jrl_world / "bad.jrl").write_text(json.dumps(doc))
+    refused_intact(
+        ["convert", "jrl", "bad.jrl", "-o", "out", "--no-rrd"],
+        jrl_world,
+        f"outlier_factors.a[1]: {list(inter)} is listed already (outlier_factors.a[0])",
+    )
+
+
+def _mrclam(world: Path):
+    from tests.converters.mrclam_files import ROBOT_BARCODES, write_mrclam_dataset
+
+    root = write_mrclam_dataset(world / "mr", seconds=30.0)
+    return root, ROBOT_BARCODES
+
+
+def _edit_data_row(path: Path, pick, column: int, value: str) -> int:
+    """Set ``column`` of the first data row ``pick(fields)`` accepts; returns its line number."""
+    lines = path.read_text().splitlines()
+    for k, line in enumerate(lines):
+        if line.startswith("#") or not pick(line.split()):
+            continue
+        parts = line.split()
+        parts[column] = value
+        lines[k] = "\t".join(parts)
+        path.write_text("\n".join(lines) + "\n")
+        return k + 1
+    raise AssertionError("no such row")
+
+
+def test_an_mrclam_barcode_given_to_two_subjects_is_refused(world):
+    """Barcodes.dat giving one barcode to a landmark and a robot silently moved the sightings."""
+    root, robots = _mrclam(world)
+    line = _edit_data_row(root / "Barcodes.dat", lambda f: f[0] == "6", 1, str(robots[1]))
+    refused_intact(
+        ["convert", "mrclam", "mr", "-o", "out", "--no-rrd"],
+        world,
+        f"Barcodes.dat:{line}: barcode {robots[1]} is given to a second subject (6)",
+    )
+
+
+def test_an_mrclam_fractional_barcode_is_refused_not_truncated(world):
+    """A barcode of 14.5 was read as robot 2's 14."""
+    root, robots = _mrclam(world)
+    path = root / "Robot1_Measurement.dat"
+    line = _edit_data_row(path, lambda f: f[1] == str(robots[1]), 1, f"{robots[1]}.5")
+    refused_intact(
+        ["convert", "mrclam", "mr", "-o", "out", "--no-rrd"],
+        world,
+        f"Robot1_Measurement.dat:{line}: barcode {robots[1]}.5 is not a barcode (an integer)",
+    )
+
+
+def test_an_mrclam_sighting_stamp_error_names_the_files_line(world):
+    """A stamp error on a later line was reported as "row 1" (its row among the sightings)."""
+    root, robots = _mrclam(world)
+    path = root / "Robot1_Measurement.dat"
+    lines = path.read_text().splitlines()
+    sightings = [k for k, ln in enumerate(lines) if not ln.startswith("#") and ln.split()[1] in map(str, robots)]
+    landmark_first = [k for k, ln in enumerate(lines) if not ln.startswith("#")][0] < sightings[0]
+    assert landmark_first or len(sightings) > 1
+    target = sightings[1]  # not the first sighting: its row among the sightings is not its line
+    parts = lines[target].split()
+    parts[0] = "1e300"
+    lines[target] = "\t".join(parts)
+    path.write_text("\n".join(lines) + "\n")
+    refused_intact(
+        ["convert", "mrclam", "mr", "-o", "out", "--no-rrd"],
+        world,
+        f"Robot1_Measurement.dat:{target + 1}: time 1e+300 s is beyond the int64 nanosecond range",
+    )
