@@ -225,6 +225,9 @@ class GraphImportOptions:
             )
         if self.partition not in PARTITIONS:
             raise ConfigError(f"partition: expected one of {', '.join(PARTITIONS)}, got {self.partition!r}")
+        if not self.split and (self.partition != "contiguous" or self.overlap_s):
+            what = "overlap_s" if self.overlap_s else "partition"
+            raise ConfigError(f"{what}: applies only with split (a single graph cut into robots)", option=what)
         if self.ground_truth not in GROUND_TRUTH_CHOICES:
             raise ConfigError(
                 f"ground_truth: expected one of {', '.join(GROUND_TRUTH_CHOICES)}, got {self.ground_truth!r}"

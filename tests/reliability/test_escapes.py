@@ -509,3 +509,25 @@ def test_an_mrclam_sighting_stamp_error_names_the_files_line(world):
         world,
         f"Robot1_Measurement.dat:{target + 1}: time 1e+300 s is beyond the int64 nanosecond range",
     )
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        (["--partition", "time"], "--partition: applies only with --split N"),
+        (["--partition", "contiguous"], "--partition: applies only with --split N"),
+        (["--overlap", "2"], "--overlap: applies only with --split N"),
+    ],
+)
+def test_a_split_option_without_split_is_refused_not_ignored(world, args, match):
+    """``--partition`` without ``--split`` was silently ignored."""
+    refused_intact(["convert", "g2o", "single/tiny_three.g2o", *args, "-o", "out", "--no-rrd"], world, match)
+
+
+def test_graph_import_options_refuse_a_partition_without_a_split():
+    from studio.converters.graph_split import GraphImportOptions
+    from studio.core.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="partition: applies only with split"):
+        GraphImportOptions(partition="time")
+    assert GraphImportOptions(split=2, partition="time", overlap_s=1.0).overlap_s == 1.0
