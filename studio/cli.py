@@ -185,6 +185,17 @@ def synth(
 
     t0 = time.perf_counter()
     cfg = load_synth_config(config, warn=_warn)
+    if Path(config).exists():  # a config over the limits is named by its file, not its name alone
+        from studio.core.errors import ConfigError
+        from studio.core.option_values import check_option
+        from studio.synth import check_resources
+
+        check_option("max_memory_gb", max_memory_gb, allow_zero=False)
+        check_option("max_output_gb", max_output_gb, allow_zero=False)
+        try:
+            check_resources(cfg, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
+        except ConfigError as err:
+            raise ConfigError(f"{config}: {str(err).removeprefix(cfg.name + ': ')}", option=err.option) from None
     options: dict[str, Any] = {
         # the config file is an input: an output being replaced may not hold it
         "inputs": [Path(config)] if Path(config).exists() else [],

@@ -488,7 +488,10 @@ def _real_measurements(
         names = {t.name for t in read}
         for name in sources:
             if name not in names:
-                raise ConfigError(f"odometry_from: no agent {name!r} (agents: {', '.join(t.name for t in read)})")
+                raise ConfigError(
+                    f"odometry_from: no agent {name!r} (agents: {', '.join(t.name for t in read)})",
+                    option="odometry_from",
+                )
     fits: list[OdometryFit] = []
     if sources:
         graph, fits = apply_odometry_sources(build.graph, sources)

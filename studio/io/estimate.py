@@ -139,6 +139,11 @@ def _tum_files(folder: Path, graph: PoseGraph) -> dict[str, Path]:
             raise EvaluationError(
                 f"{folder}: several TUM files for agent {agent.name}: {', '.join(p.name for p in mine)}"
             )
+        other = next((name for name, path in found.items() if path == mine[0]), None)
+        if other is not None:  # one trajectory would be scored as two agents'
+            raise EvaluationError(
+                f"{folder}: {mine[0].name} is the TUM file of both agent {other} and agent {agent.name}"
+            )
         found[agent.name] = mine[0]
     return found
 

@@ -270,11 +270,29 @@ def read_synth_config(path: PathLike, *, warn: Callable[[str], None] | None = No
     except RecursionError:
         raise ConfigError(f"{path}: invalid JSON: nested too deeply") from None
     except ValueError as err:
-        raise ConfigError(f"{path}: invalid JSON: {err}") from None
+        raise ConfigError(f"{path}{_constant_place(text, str(err))}: invalid JSON: {err}") from None
     name = path.stem
     if name.endswith(".config") and len(name) > len(".config"):
         name = name[: -len(".config")]
+    if name in ("", ".", ".."):  # the outputs are named after it: ..json -> "."
+        raise ConfigError(
+            f"{path}: the dataset is named after the file's stem {name!r}, which names no folder; rename the file"
+        )
     return parse_synth_config(data, source=str(path), name=name, warn=warn)
+
+
+def _constant_place(text: str, message: str) -> str:
+    """``:LINE:COLUMN`` of the first ``NaN``/``Infinity`` literal outside strings, when ``message``
+    is about one (the decoder's hook is not told where it is), else ``""``."""
+    if "is not valid JSON" not in message:
+        return ""
+    import re
+
+    for m in re.finditer(r'"(?:[^"\\]|\\.)*"|-?Infinity|NaN', text):
+        if not m.group().startswith('"'):
+            line = text.count("\n", 0, m.start()) + 1
+            return f":{line}:{m.start() - (text.rfind(chr(10), 0, m.start()) + 1) + 1}"
+    return ""
 
 
 def _reject_constant(name: str) -> NoReturn:

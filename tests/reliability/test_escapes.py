@@ -531,3 +531,72 @@ def test_graph_import_options_refuse_a_partition_without_a_split():
     with pytest.raises(ConfigError, match="partition: applies only with split"):
         GraphImportOptions(partition="time")
     assert GraphImportOptions(split=2, partition="time", overlap_s=1.0).overlap_s == 1.0
+
+
+# --------------------------------------------------------------------------- each message names what it is about
+def test_an_unknown_odometry_from_agent_is_named_by_its_flag(world):
+    refused_intact(
+        ["convert", "tum", "alpha.tum", "bob.tum", "-o", "out", "--no-rrd", "--odometry-from", "zed=alpha.tum"],
+        world,
+        "--odometry-from: no agent 'zed' (agents: alpha, bob)",
+    )
+
+
+@pytest.mark.parametrize(("literal", "place"), [("NaN", "1:21"), ("-Infinity", "2:22")])
+def test_a_nan_literal_in_a_config_is_named_by_file_line_and_column(world, literal, place):
+    head = '{"a": "NaN x",\n  ' if place == "2:22" else "{"
+    text = head + '"number_of_steps": ' + literal + "}"
+    (world / "nan.json").write_text(text)
+    refused_intact(["synth", "nan.json", "-o", "out"], world, f"nan.json:{place}: invalid JSON: {literal} is not")
+
+
+def test_a_config_over_the_memory_limit_is_named_by_its_file(world):
+    doc = json.loads((world / "tiny_three.json").read_text())
+    doc["number_of_agents"], doc["number_of_steps"] = 10_000, 1
+    doc["agent_parameters"]["agent_specific"] = doc["agent_parameters"]["agent_specific"][:1]
+    (world / "big.json").write_text(json.dumps(doc))
+    refused_intact(["synth", "big.json", "-o", "out"], world, "error: big.json: 5e+04 poses and their loop-closure")
+
+
+def test_a_config_file_whose_stem_names_no_folder_is_named(world):
+    (world / "..json").write_bytes((world / "tiny_three.json").read_bytes())
+    refused_intact(["synth", "..json", "-o", "out"], world, "..json: the dataset is named after the file's stem '.'")
+
+
+def test_check_names_the_file_of_an_edge_with_negative_information(world):
+    g2o = world / "ds" / "agent1" / "posegraph.g2o"
+    lines = g2o.read_text().splitlines()
+    k = next(n for n, line in enumerate(lines) if line.startswith("EDGE"))
+    fields = lines[k].split()
+    fields[10] = "-" + fields[10]  # the first diagonal entry of the information
+    lines[k] = " ".join(fields)
+    g2o.write_text("\n".join(lines) + "\n")
+    refused_intact(["check", "ds"], world, "ds/agent1/posegraph.g2o: odometry edge")
+
+
+def test_a_ground_truth_beyond_the_bound_is_blamed_not_the_estimate(world):
+    """A ground-truth pose at 1e300 was reported as the estimate's error not being finite."""
+    res = guard.runner.invoke(guard.app, ["solve", "ds", "-o", "est"])
+    assert res.exit_code == 0, res.stderr
+    gt = world / "ds" / "agent1" / "agent1_GT.tum"
+    lines = gt.read_text().splitlines()
+    k = next(n for n, line in enumerate(lines) if line and not line.startswith("#"))
+    fields = lines[k].split()
+    fields[1] = "1e300"
+    lines[k] = " ".join(fields)
+    gt.write_text("\n".join(lines) + "\n")
+    refused_intact(["evaluate", "ds", "--estimate", "est/estimate"], world, "agent1_GT.tum: pose 0 lies beyond 1e+09 m")
+
+
+def test_one_tum_file_is_not_the_estimate_of_two_agents(world):
+    for name, src in (("x", "alpha"), ("x_1", "bob")):
+        (world / f"{name}.tum").write_bytes((world / f"{src}.tum").read_bytes())
+    res = guard.runner.invoke(guard.app, ["convert", "tum", "x.tum", "x_1.tum", "-o", "conv", "--no-rrd"])
+    assert res.exit_code == 0, res.stderr
+    (world / "est").mkdir()
+    (world / "est" / "x_1.tum").write_bytes((world / "x_1.tum").read_bytes())
+    refused_intact(
+        ["evaluate", "conv", "--estimate", "est"],
+        world,
+        "x_1.tum is the TUM file of both agent x and agent x_1",
+    )
