@@ -67,7 +67,7 @@ from studio.io.input_files import read_input_bytes
 from studio.io.multig2o import write_multi_g2o
 from studio.io.outliers_txt import write_outliers_txt
 from studio.io.range_bearing import RANGE_BEARING_NAME, write_range_bearing
-from studio.io.strict_json import dumps_strict
+from studio.io.strict_json import dumps_strict, unique_keys
 from studio.io.textfmt import write_text
 from studio.runtime.progress import Progress
 
@@ -183,9 +183,11 @@ def read_convert_config(path: PathLike) -> ConvertConfig:
     except (OSError, UnicodeDecodeError) as err:
         raise ConfigError(f"{path}: cannot read ({err})") from None
     try:
-        data = json.loads(text)
+        data = json.loads(text, object_pairs_hook=unique_keys)
     except json.JSONDecodeError as err:
         raise ConfigError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
+    except ValueError as err:  # a key given twice: the decoder would keep the last silently
+        raise ConfigError(f"{path}: not valid JSON ({err})") from None
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a JSON object")
     return config_from_mapping(data, str(path))

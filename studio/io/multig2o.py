@@ -48,6 +48,7 @@ from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.io.input_files import read_input_bytes
 from studio.io.inter_lc_dat import Precision, read_inter_lc_dat, write_inter_lc_dat
 from studio.io.names import safe_file_names
+from studio.io.strict_json import unique_keys
 from studio.io.tum import read_tum, write_tum
 
 __all__ = [
@@ -180,8 +181,8 @@ def _read_agents_file(folder: Path) -> list[tuple[str, str]] | None:
     if not path.is_file():
         return None
     try:
-        data = json.loads(read_input_bytes(path).decode("utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        data = json.loads(read_input_bytes(path).decode("utf-8"), object_pairs_hook=unique_keys)
+    except (OSError, UnicodeDecodeError, ValueError) as err:
         raise FormatError(f"{path}: not a readable agents file ({err})") from None
     if not isinstance(data, dict):  # [] or null once raised AttributeError in every dataset command
         data = {}

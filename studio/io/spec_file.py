@@ -12,6 +12,7 @@ from typing import Any
 from studio.core.errors import ConfigError, FormatError
 from studio.core.types import PathLike
 from studio.io.input_files import read_input_bytes
+from studio.io.strict_json import unique_keys
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -52,7 +53,7 @@ def read_spec_file(path: PathLike, *, what: str = "spec") -> Any:
         depth = _nesting_depth(text)
         if depth > MAX_SPEC_DEPTH:
             raise ConfigError(f"{path}: nested {depth} deep, over the limit of {MAX_SPEC_DEPTH}; not a {what}")
-        return json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
+        return json.loads(text, object_pairs_hook=unique_keys) if path.suffix == ".json" else tomllib.loads(text)
     except RecursionError:
         raise ConfigError(f"{path}: nested too deeply; not a {what}") from None
     except UnicodeDecodeError as err:
@@ -61,6 +62,8 @@ def read_spec_file(path: PathLike, *, what: str = "spec") -> Any:
         raise ConfigError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
     except tomllib.TOMLDecodeError as err:
         raise ConfigError(f"{path}: not valid TOML ({err})") from None
+    except ValueError as err:  # a key given twice (unique_keys)
+        raise ConfigError(f"{path}: not valid JSON ({err})") from None
     except OSError as err:
         raise ConfigError(f"{path}: cannot read ({err.strerror})") from None
 

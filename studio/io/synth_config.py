@@ -24,6 +24,7 @@ from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE, MIN_MAGNITUDE
 from studio.generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
 from studio.io.input_files import read_input_bytes
+from studio.io.strict_json import unique_keys
 from studio.io.studio_block import studio_block_to_json
 
 __all__ = [
@@ -264,7 +265,7 @@ def read_synth_config(path: PathLike, *, warn: Callable[[str], None] | None = No
         line = raw[: err.start].count(b"\n") + 1
         raise ConfigError(f"{path}:{line}: not UTF-8 text") from None
     try:
-        data = json.loads(text, parse_constant=_reject_constant, parse_int=_parse_int)
+        data = json.loads(text, parse_constant=_reject_constant, parse_int=_parse_int, object_pairs_hook=unique_keys)
     except json.JSONDecodeError as err:
         raise ConfigError(f"{path}:{err.lineno}:{err.colno}: invalid JSON: {err.msg}") from None
     except RecursionError:

@@ -600,3 +600,23 @@ def test_one_tum_file_is_not_the_estimate_of_two_agents(world):
         world,
         "x_1.tum is the TUM file of both agent x and agent x_1",
     )
+
+
+def test_a_key_given_twice_is_refused_in_every_small_json(world):
+    """The decoder kept the last of two values silently."""
+    doc = (world / "tiny_three.json").read_text()
+    (world / "dup.json").write_text(
+        doc.replace('"number_of_steps": 60,', '"number_of_steps": 60, "number_of_steps": 6,')
+    )
+    refused_intact(["synth", "dup.json", "-o", "out"], world, "the key 'number_of_steps' is given twice in one object")
+    agents = '{"format": "cslam-studio agents 1", "agents": [], "agents": []}'
+    (world / "ds" / "agents.json").write_text(agents)
+    refused_intact(["check", "ds"], world, "agents.json: not a readable agents file (the key 'agents' is given twice")
+    (world / "ds" / "agents.json").unlink()
+    res = guard.runner.invoke(guard.app, ["convert", "tum", "alpha.tum", "bob.tum", "-o", "conv", "--no-rrd"])
+    assert res.exit_code == 0, res.stderr
+    text = (world / "conv" / "convert.json").read_text()
+    (world / "c.json").write_text(text.replace('"seed": 0,', '"seed": 0, "seed": 3,'))
+    refused_intact(["convert", "--config", "c.json", "-o", "out", "--no-rrd"], world, "the key 'seed' is given twice")
+    (world / "s.json").write_text('{"base": "tiny_three.json", "base": "x.json", "grid": {"seed": [0]}}')
+    refused_intact(["sweep", "s.json", "-o", "out"], world, "s.json: not valid JSON (the key 'base' is given twice")
