@@ -485,13 +485,21 @@ def output_workspace(folder: PathLike, *, kind: str, inputs: Iterable[PathLike] 
         raise OutputError(os_error_message(err, parent)) from None
     with _target_lock(parent, folder.name):
         check_workspace(folder, kind=kind, inputs=inputs)
+        created = False
         try:
             if not folder.exists():
                 folder.mkdir()
+                created = True
             if _marker(folder) != _WORKSPACE + kind:
                 _mark(folder, _WORKSPACE + kind)
             yield folder
-        except OSError as err:
+        except (OSError, OutputError) as err:
+            # a write that failed (a full or read-only disk) in a folder this run made leaves nothing
+            # half-written behind; a folder of earlier runs keeps their finished work to resume from
+            if created:
+                shutil.rmtree(folder, ignore_errors=True)
+            if isinstance(err, OutputError):
+                raise
             raise OutputError(os_error_message(err, folder)) from None
 
 

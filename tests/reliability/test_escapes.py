@@ -620,3 +620,38 @@ def test_a_key_given_twice_is_refused_in_every_small_json(world):
     refused_intact(["convert", "--config", "c.json", "-o", "out", "--no-rrd"], world, "the key 'seed' is given twice")
     (world / "s.json").write_text('{"base": "tiny_three.json", "base": "x.json", "grid": {"seed": [0]}}')
     refused_intact(["sweep", "s.json", "-o", "out"], world, "s.json: not valid JSON (the key 'base' is given twice")
+
+
+# --------------------------------------------------------------------------- bench and sweep onto a full disk
+@pytest.mark.parametrize("command", ["sweep", "bench"])
+def test_bench_and_sweep_onto_a_full_disk_leave_no_partial_folder(world, tmp_path, command):
+    """Both left a half-made output folder (``runs/``, ``datasets/``, ``configs/``) on a full file
+    system. A folder the failed run made is removed; one of earlier runs keeps their work."""
+    import os
+
+    from tests.reliability.test_outputs import _tmpfs
+
+    with _tmpfs(tmp_path / "disk", "size=1m") as disk:
+        st = os.statvfs(disk)
+        (disk / "filler").write_bytes(b"\0" * (st.f_bavail * st.f_frsize - 8 * 1024))
+        spec = "s.toml" if command == "sweep" else "bench.toml"
+        res = guard.runner.invoke(guard.app, [command, spec, "-o", str(disk / "out")])
+        assert res.exit_code == 2, (res.stderr, res.exception)
+        assert len(res.stderr.splitlines()) == 1 and "No space left on device" in res.stderr, res.stderr
+        assert sorted(p.name for p in disk.iterdir()) == ["filler"]
+
+
+def test_a_workspace_of_earlier_runs_is_kept_when_a_run_fails(tmp_path):
+    from studio.core.errors import OutputError
+    from studio.io.atomic import output_workspace
+
+    with output_workspace(tmp_path / "ws", kind="bench") as ws:
+        (ws / "cell.json").write_text("{}")
+    with pytest.raises(OutputError, match="No space left on device"):
+        with output_workspace(tmp_path / "ws", kind="bench") as ws:
+            raise OSError(28, "No space left on device", str(ws / "cell2.json"))
+    assert (tmp_path / "ws" / "cell.json").read_text() == "{}"
+    with pytest.raises(OutputError, match="No space left on device"):
+        with output_workspace(tmp_path / "new", kind="bench") as ws:
+            raise OSError(28, "No space left on device", str(ws / "cell.json"))
+    assert not (tmp_path / "new").exists()
