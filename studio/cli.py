@@ -614,9 +614,9 @@ def _convert_graph(
     if given & synthetic:
         flag = "--" + sorted(given & synthetic)[0].replace("_", "-")
         raise ConfigError(f"{flag}: {source} inputs hold their own measurements; the option is for trajectory sources")
-    for name, flag in (("partition", "--partition"), ("overlap_s", "--overlap")):
+    for name in ("partition", "overlap_s"):
         if name in given and not split:  # it would be silently ignored: nothing is cut
-            raise ConfigError(f"{flag}: applies only with --split N (the single graph cut into N robots)")
+            raise ConfigError(f"{name}: applies only with --split N (the single graph cut into N robots)", option=name)
     options = GraphImportOptions(split=split, partition=partition, overlap_s=overlap, ground_truth=ground_truth)
     t0 = time.perf_counter()
     with terminal_progress(not quiet) as progress:
