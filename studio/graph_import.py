@@ -81,9 +81,12 @@ def _check_magnitudes(graph: PoseGraph, where: str) -> None:
             f"({table.measurements[k, :width].tolist()})"
         )
     for agent in graph.agents:
-        far = np.flatnonzero((np.abs(agent.se3_poses()[:, :3]) > MAX_MAGNITUDE).any(axis=1))
-        if far.size:
-            raise FormatError(f"{where}: {agent.name} pose {int(far[0])} lies beyond {MAX_MAGNITUDE:g} m")
+        for truth in (False, True):
+            poses = agent.se3_poses(ground_truth=truth)
+            far = np.zeros(0) if poses is None else np.flatnonzero((np.abs(poses[:, :3]) > MAX_MAGNITUDE).any(axis=1))
+            if far.size:
+                what = "ground-truth pose" if truth else "pose"
+                raise FormatError(f"{where}: {agent.name} {what} {int(far[0])} lies beyond {MAX_MAGNITUDE:g} m")
 
 
 def import_graph(

@@ -127,7 +127,7 @@ def _read_multi_g2o(folder: Path, graph: PoseGraph) -> tuple[Trajectory, ...]:
 
 def _tum_files(folder: Path, graph: PoseGraph) -> dict[str, Path]:
     files = [p for p in folder.iterdir() if p.is_file() and p.suffix == ".tum" and not p.name.endswith("_GT.tum")]
-    found = {}
+    found: dict[str, Path] = {}
     for agent in graph.agents:
         # the agent's own file (as ``studio solve`` writes it: its name made safe) wins; else one
         # ``<agent>_*.tum``, as a converter's inputs are often named

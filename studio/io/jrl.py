@@ -708,9 +708,10 @@ def _outlier_rows(
             row = ids.get((c, pair[0], pair[1]))
             if row is None:
                 raise r.fail(f"outlier_factors.{c}[{n}]", f"no pose-graph measurement {pair} in measurements.{c}")
-            if (c, *pair) in listed:  # written twice to outliers.txt otherwise
-                raise r.fail(f"outlier_factors.{c}[{n}]", f"{pair} is listed already ({listed[(c, *pair)]})")
-            listed[(c, *pair)] = f"outlier_factors.{c}[{n}]"
+            key = (c, pair[0], pair[1])
+            if key in listed:  # written twice to outliers.txt otherwise
+                raise r.fail(f"outlier_factors.{c}[{n}]", f"{pair} is listed already ({listed[key]})")
+            listed[key] = f"outlier_factors.{c}[{n}]"
             outliers.append(
                 (
                     int(table.from_agent[row]),

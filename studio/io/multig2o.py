@@ -189,7 +189,7 @@ def _read_agents_file(folder: Path) -> list[tuple[str, str]] | None:
     entries = data.get("agents")
     if data.get("format") != _AGENTS_FORMAT or not isinstance(entries, list) or not entries:
         raise FormatError(f'{path}: expected {{"format": "{_AGENTS_FORMAT}", "agents": [...]}}')
-    out = []
+    out: list[tuple[str, str]] = []
     for k, e in enumerate(entries):
         if not (
             isinstance(e, dict)
