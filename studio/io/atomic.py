@@ -594,7 +594,9 @@ def staged_outputs(
             except (OSError, OutputError) as err:
                 # one line naming the real target, never the staging folder (a full disk, a recording
                 # Rerun could not finish)
-                msg = os_error_message(err) if isinstance(err, OSError) else str(err)
+                # a write's OSError often carries no file name: the output it was for is named then
+                target = parent / names[0] if len(names) == 1 else parent
+                msg = os_error_message(err, target) if isinstance(err, OSError) else str(err)
                 raise OutputError(
                     msg.replace(str(staging) + os.sep, str(parent) + os.sep).replace(str(staging), str(parent))
                 ) from None

@@ -655,3 +655,20 @@ def test_a_workspace_of_earlier_runs_is_kept_when_a_run_fails(tmp_path):
         with output_workspace(tmp_path / "new", kind="bench") as ws:
             raise OSError(28, "No space left on device", str(ws / "cell.json"))
     assert not (tmp_path / "new").exists()
+
+
+def test_solve_onto_a_full_disk_names_its_output_folder(world, tmp_path):
+    """A write's OSError carries no file name: the line was only "No space left on device"."""
+    import os
+
+    from tests.reliability.test_outputs import _tmpfs
+
+    with _tmpfs(tmp_path / "disk", "size=1m") as disk:
+        st = os.statvfs(disk)
+        (disk / "filler").write_bytes(b"\0" * (st.f_bavail * st.f_frsize - 8 * 1024))
+        before = guard._tree(world)
+        res = guard.runner.invoke(guard.app, ["solve", "ds", "-o", str(disk / "est")])
+        assert res.exit_code == 2, (res.stderr, res.exception)
+        assert res.stderr == f"error: {disk / 'est'}: No space left on device\n", res.stderr
+        assert sorted(p.name for p in disk.iterdir()) == ["filler"]
+        assert guard._tree(world) == before
