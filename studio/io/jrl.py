@@ -72,7 +72,7 @@ from studio.io.graph_table import (
 )
 from studio.io.input_files import read_input_bytes
 from studio.io.numbers import json_float
-from studio.io.strict_json import dumps_strict
+from studio.io.strict_json import dumps_strict, unique_keys
 from studio.io.symbol_g2o import INDEX_BITS, robot_prefix
 
 __all__ = [
@@ -347,12 +347,12 @@ def _load(source: PathLike) -> tuple[Any, str]:
     except OSError as err:
         raise FormatError(f"{path}: cannot read ({err.strerror})") from None
     try:
-        return json.loads(text, parse_int=_parse_int), str(path)
+        return json.loads(text, parse_int=_parse_int, object_pairs_hook=unique_keys), str(path)
     except json.JSONDecodeError as err:
         raise FormatError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
     except RecursionError:
         raise FormatError(f"{path}: JSON nested too deeply") from None
-    except ValueError as err:  # an integer of thousands of digits (_parse_int)
+    except ValueError as err:  # an integer of thousands of digits (_parse_int), a key given twice
         raise FormatError(f"{path}: not valid JRL ({err})") from None
 
 

@@ -672,3 +672,12 @@ def test_solve_onto_a_full_disk_names_its_output_folder(world, tmp_path):
         assert res.stderr == f"error: {disk / 'est'}: No space left on device\n", res.stderr
         assert sorted(p.name for p in disk.iterdir()) == ["filler"]
         assert guard._tree(world) == before
+
+
+def test_a_jrl_key_given_twice_is_refused(jrl_world):
+    text = (jrl_world / "ds.jrl").read_text()
+    assert text.startswith('{"name":')
+    (jrl_world / "bad.jrl").write_text('{"name": "other", ' + text[1:])
+    refused_intact(
+        ["convert", "jrl", "bad.jrl", "-o", "out", "--no-rrd"], jrl_world, "the key 'name' is given twice in one object"
+    )
