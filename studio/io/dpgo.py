@@ -25,6 +25,7 @@ for which DPGO's rule gives back ``kappa``).
 from __future__ import annotations
 
 import io
+import os
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -194,6 +195,10 @@ def _check_csv_rows(table: np.ndarray, body: str, name: str) -> None:
         fail(int(bad[0]), f"translation {table[bad[0], 8:11].tolist()} is beyond {MAX_MAGNITUDE:g} m")
 
 
+_ID_ROOM, _ID_SLACK = 16, 1024
+"""Poses (and robots) a table of ``n`` measurements may name: at most ``16 n + 1024``."""
+
+
 def read_measurements_csv_files(paths: Sequence[PathLike]) -> PoseGraph:
     """Read DPGO ``measurements.csv`` files (one per robot, or one for all) into a graph of
     ``robot0..robotR-1``: poses ``0..max`` per robot, the initial estimate by dead reckoning along
@@ -201,7 +206,8 @@ def read_measurements_csv_files(paths: Sequence[PathLike]) -> PoseGraph:
     if not paths:
         raise FormatError("no measurements.csv files given")
     blocks = []
-    where = str(Path(paths[0]).parent) if len(paths) > 1 else str(paths[0])
+    # several robots' files: the folder holding them all (robotR/measurements.csv of one export)
+    where = os.path.commonpath([str(Path(p).parent) for p in paths]) if len(paths) > 1 else str(paths[0])
     for p in paths:
         text, name = _open_text(p)
         first, _, body = text.partition("\n")
@@ -224,7 +230,8 @@ def read_measurements_csv_files(paths: Sequence[PathLike]) -> PoseGraph:
         _check_csv_rows(parsed, body, name)
         blocks.append(parsed)
     if not blocks:
-        raise FormatError(f"{where}: no measurements")
+        many = f" in its {len(paths)} measurements.csv files" if len(paths) > 1 else ""
+        raise FormatError(f"{where}: no measurements{many} (only DPGO's header)")
     allrows = np.concatenate(blocks)
     ids = allrows[:, :4].astype(np.int64)
     # a loop closure between two robots is in both robots' files: keep its first row
@@ -242,17 +249,20 @@ def read_measurements_csv_files(paths: Sequence[PathLike]) -> PoseGraph:
     kappa = allrows[:, 11]
     tau = allrows[:, 12]
     # ids bounded before anything is allocated from them (a pose id of 2,000,000,000 asked for
-    # 15 GiB): every robot has a row, and a robot's poses 0..n-1 are joined by n-1 rows at least
+    # 15 GiB). A whole dataset has a row per robot and n-1 odometry rows per robot of n poses; the
+    # bound leaves room for one robot's file alone (the others' poses seen only in its closures,
+    # refused later as not connected, with a message that says so)
+    limit = _ID_ROOM * len(ids) + _ID_SLACK
     n_robots = int(max(ra.max(), rb.max())) + 1
-    if n_robots > len(ids):
+    if n_robots > limit:
         raise FormatError(f"{where}: robot id {n_robots - 1} with only {len(ids)} measurements (ids count from 0)")
     sizes = np.zeros(n_robots, dtype=np.int64)
     np.maximum.at(sizes, ra, pa + 1)
     np.maximum.at(sizes, rb, pb + 1)
-    if int(sizes.sum()) > len(ids) + n_robots:
+    if int(sizes.sum()) > limit:
         r = int(np.argmax(sizes))
         raise FormatError(
-            f"{where}: robot {r} pose {int(sizes[r]) - 1}: ids beyond the {len(ids)} measurements "
+            f"{where}: robot {r} pose {int(sizes[r]) - 1}: ids far beyond the {len(ids)} measurements read "
             "(DPGO's pose ids count from 0, each pose joined to the next by odometry)"
         )
     if np.any(sizes == 0):

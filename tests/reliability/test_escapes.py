@@ -288,7 +288,7 @@ def test_a_jrl_key_of_5000_digits_is_one_line(jrl_world):
 @pytest.mark.parametrize(
     ("field", "value", "match"),
     [
-        (3, "2000000000", "robot 0 pose 2000000000: ids beyond the"),
+        (3, "2000000000", "robot 0 pose 2000000000: ids far beyond the"),
         (0, "1999999999", "robot id 1999999999 with only"),
     ],
 )
@@ -680,4 +680,27 @@ def test_a_jrl_key_given_twice_is_refused(jrl_world):
     (jrl_world / "bad.jrl").write_text('{"name": "other", ' + text[1:])
     refused_intact(
         ["convert", "jrl", "bad.jrl", "-o", "out", "--no-rrd"], jrl_world, "the key 'name' is given twice in one object"
+    )
+
+
+def test_dpgo_files_holding_only_the_header_are_named(world):
+    """A measurements.csv holding only its header was reported without its file (the first robot's
+    folder named for all of them)."""
+    res = guard.runner.invoke(guard.app, ["export", "ds", "-f", "dpgo", "-o", "dp"])
+    assert res.exit_code == 0, res.stderr
+    for r in range(3):
+        csv = world / "dp" / f"robot{r}" / "measurements.csv"
+        csv.write_text(csv.read_text().splitlines()[0] + "\n")
+    refused_intact(
+        ["convert", "dpgo", "dp", "-o", "out", "--no-rrd"],
+        world,
+        f"{world / 'dp'}: no measurements in its 3 measurements.csv files (only DPGO's header)",
+    )
+
+
+def test_one_robots_dpgo_file_alone_is_refused_as_not_connected_not_as_ids(world):
+    res = guard.runner.invoke(guard.app, ["export", "ds", "-f", "dpgo", "-o", "dp"])
+    assert res.exit_code == 0, res.stderr
+    refused_intact(
+        ["convert", "dpgo", "dp/robot0/measurements.csv", "-o", "out", "--no-rrd"], world, "are not connected"
     )
