@@ -96,6 +96,19 @@ def _one_line(text: str) -> str:
     return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
+def _output_not_cwd(out: Path) -> None:
+    """Refuse ``-o`` naming the current folder or one of its parents (``-o .``) in one line that
+    names the option, before the command reads anything (the guard refuses it too, naming only
+    the resolved folder)."""
+    import os
+
+    from studio.core.errors import OutputError
+
+    here, target = Path(os.path.realpath(os.getcwd())), Path(os.path.realpath(os.path.abspath(out)))
+    if target == here or target in here.parents:
+        raise OutputError(f"-o {out}: is the current folder or one of its parents; name a new folder inside it")
+
+
 def cli_errors(func):
     """Turn a StudioError into one line on stderr and exit code 2 (no traceback). The command's
     warnings are held until it ends: printed after it succeeds, dropped when it fails on bad input,
@@ -465,6 +478,7 @@ def convert(
     studio convert bag run.bag --agent alpha=/alpha/odom --agent bob=/tf:odom:bob/base_link -o out/ds ;
     studio convert --config out/ds/convert.json -o out/ds2
     """
+    _output_not_cwd(out)
     _tune_allocator()
     import dataclasses
 
@@ -726,6 +740,7 @@ def export(
 
     Example: studio export out/multi3500x8 --format symbols -o out/multi3500x8_symbols
     """
+    _output_not_cwd(out)
     from studio.core.errors import ConfigError
     from studio.export import EXPORT_FORMATS, export_dataset
 
@@ -810,6 +825,7 @@ def solve(
     Example: studio solve out/multi3500x8 -o out/multi3500x8-solved ; then
     studio evaluate out/multi3500x8 --estimate out/multi3500x8-solved/estimate --align se3
     """
+    _output_not_cwd(out)
     from studio.io.strict_json import dumps_strict
     from studio.solve import solve as run_solve
 
@@ -888,6 +904,7 @@ def replay(
 
     Example: studio replay out/multi3500x8 --comms range:20 -o out/replay-range20
     """
+    _output_not_cwd(out)
     from studio.core.option_values import check_count
     from studio.replay import DEFAULT_BACKENDS
     from studio.replay import replay as run_replay
@@ -973,6 +990,7 @@ def bench(
 
     Cells already finished in OUT are not run again. Example: studio bench paper -o out/bench
     """
+    _output_not_cwd(out)
     from studio.bench import bench as run_bench
     from studio.bench import format_paper_table, load_bench_spec
 
@@ -1006,6 +1024,7 @@ def sweep(
 
     Finished cells are not run again. Example: studio sweep radius.toml -o out/sweep --workers 2
     """
+    _output_not_cwd(out)
     from studio.sweep import load_sweep_spec
     from studio.sweep import sweep as run_sweep
 

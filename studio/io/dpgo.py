@@ -199,6 +199,27 @@ _ID_ROOM, _ID_SLACK = 16, 1024
 """Poses (and robots) a table of ``n`` measurements may name: at most ``16 n + 1024``."""
 
 
+def _pose_counts(ra: np.ndarray, pa: np.ndarray, rb: np.ndarray, pb: np.ndarray, rows: int, where: str) -> np.ndarray:
+    """Each robot's pose count (its largest id + 1), the ids bounded before anything is allocated
+    from them (a pose id of 2,000,000,000 asked for 15 GiB). A whole dataset has a row per robot
+    and n-1 odometry rows per robot of n poses; the bound leaves room for one robot's file alone
+    (the others' poses seen only in its closures, refused later as not connected, saying so)."""
+    limit = _ID_ROOM * rows + _ID_SLACK
+    n_robots = int(max(ra.max(), rb.max())) + 1
+    if n_robots > limit:
+        raise FormatError(f"{where}: robot id {n_robots - 1} with only {rows} measurements (ids count from 0)")
+    sizes = np.zeros(n_robots, dtype=np.int64)
+    np.maximum.at(sizes, ra, pa + 1)
+    np.maximum.at(sizes, rb, pb + 1)
+    if int(sizes.sum()) > limit:
+        r = int(np.argmax(sizes))
+        raise FormatError(
+            f"{where}: robot {r} pose {int(sizes[r]) - 1}: ids far beyond the {rows} measurements read "
+            "(DPGO's pose ids count from 0, each pose joined to the next by odometry)"
+        )
+    return sizes
+
+
 def read_measurements_csv_files(paths: Sequence[PathLike]) -> PoseGraph:
     """Read DPGO ``measurements.csv`` files (one per robot, or one for all) into a graph of
     ``robot0..robotR-1``: poses ``0..max`` per robot, the initial estimate by dead reckoning along
@@ -248,23 +269,8 @@ def read_measurements_csv_files(paths: Sequence[PathLike]) -> PoseGraph:
     trans = allrows[:, 8:11]
     kappa = allrows[:, 11]
     tau = allrows[:, 12]
-    # ids bounded before anything is allocated from them (a pose id of 2,000,000,000 asked for
-    # 15 GiB). A whole dataset has a row per robot and n-1 odometry rows per robot of n poses; the
-    # bound leaves room for one robot's file alone (the others' poses seen only in its closures,
-    # refused later as not connected, with a message that says so)
-    limit = _ID_ROOM * len(ids) + _ID_SLACK
-    n_robots = int(max(ra.max(), rb.max())) + 1
-    if n_robots > limit:
-        raise FormatError(f"{where}: robot id {n_robots - 1} with only {len(ids)} measurements (ids count from 0)")
-    sizes = np.zeros(n_robots, dtype=np.int64)
-    np.maximum.at(sizes, ra, pa + 1)
-    np.maximum.at(sizes, rb, pb + 1)
-    if int(sizes.sum()) > limit:
-        r = int(np.argmax(sizes))
-        raise FormatError(
-            f"{where}: robot {r} pose {int(sizes[r]) - 1}: ids far beyond the {len(ids)} measurements read "
-            "(DPGO's pose ids count from 0, each pose joined to the next by odometry)"
-        )
+    sizes = _pose_counts(ra, pa, rb, pb, len(ids), where)
+    n_robots = len(sizes)
     if np.any(sizes == 0):
         raise FormatError(f"{where}: robot {int(np.flatnonzero(sizes == 0)[0])} has no measurements")
     agents = [

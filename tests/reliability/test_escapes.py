@@ -704,3 +704,20 @@ def test_one_robots_dpgo_file_alone_is_refused_as_not_connected_not_as_ids(world
     refused_intact(
         ["convert", "dpgo", "dp/robot0/measurements.csv", "-o", "out", "--no-rrd"], world, "are not connected"
     )
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["convert", "tum", "alpha.tum", "bob.tum", "-o", ".", "--force"],
+        ["solve", "ds", "-o", ".", "--force"],
+        ["replay", "ds", "-o", "..", "--force"],
+        ["export", "ds", "-f", "dpgo", "-o", ".", "--force"],
+        ["bench", "bench.toml", "-o", "."],
+        ["sweep", "s.toml", "-o", "."],
+    ],
+)
+def test_o_dot_names_the_option(world, args):
+    """``-o .`` with ``--force`` named only the resolved folder, not the option."""
+    out = args[args.index("-o") + 1]
+    refused_intact(args, world, f"-o {out}: is the current folder or one of its parents")
