@@ -721,3 +721,23 @@ def test_o_dot_names_the_option(world, args):
     """``-o .`` with ``--force`` named only the resolved folder, not the option."""
     out = args[args.index("-o") + 1]
     refused_intact(args, world, f"-o {out}: is the current folder or one of its parents")
+
+
+@pytest.mark.parametrize("hostile", HOSTILE_NAMES)
+def test_agent_names_in_a_jrl_file_stay_inside_the_output(jrl_world, hostile):
+    """A JRL file's agent names (its studio block) become agents.json names, never folders."""
+    doc = json.loads((jrl_world / "ds.jrl").read_text())
+    doc["studio"]["agents"] = [hostile, "bob", "carol"]
+    (jrl_world / "named.jrl").write_text(json.dumps(doc))
+    before = guard._tree(jrl_world)
+    res = guard.runner.invoke(guard.app, ["convert", "jrl", "named.jrl", "-o", "out", "--no-rrd"])
+    assert res.exit_code == 0, res.stderr
+    made = set(guard._tree(jrl_world)) - set(before)
+    assert made and all(m == "out" or m.startswith("out/") for m in made), made
+    assert sorted(p.name for p in (jrl_world / "out").iterdir() if p.is_dir()) == ["agent1", "agent2", "agent3"]
+    names = [a["name"] for a in json.loads((jrl_world / "out" / "agents.json").read_text())["agents"]]
+    assert names == [hostile, "bob", "carol"]  # kept as data, where it belongs
+    res = guard.runner.invoke(guard.app, ["solve", "out", "-o", "est"])
+    assert res.exit_code == 0, res.stderr
+    assert all(p.parent == jrl_world / "est" / "estimate" / "tum" for p in (jrl_world / "est").rglob("*.tum"))
+    assert not Path("/tmp/studio-escaped.tum").exists()
