@@ -1,12 +1,17 @@
 """Any single g2o file (the single-robot benchmarks: M3500, INTEL, CSAIL, sphere2500, KITTI...), as
 one robot or split into robots (:mod:`studio.converters.graph_split`).
 
-The file's vertex ids are renumbered ``0..n-1`` in increasing order. A file of edges only (some KITTI
-files) gets its initial estimate composed along its edges from the first id. Records the studio does
-not read (``FIX``, ``EDGE_SE2_XY``, ``VERTEX_XY``...) are counted in one warning and skipped. The
+This is the one reader of a single g2o file: ``studio convert g2o``, ``solve``, ``check`` and
+``replay`` all read it through :func:`read_single_g2o`. The file's vertex ids are renumbered
+``0..n-1`` in increasing order. A file of edges only (SE-Sync's CSAIL, manhattan, KITTI files) gets
+its initial estimate composed along a breadth-first spanning tree of all its edges from the first
+id, so a missing odometry link (ais2klinik lacks 7289->7290) is bridged by the loop closures.
+Repeated edges are kept, each a measurement. ``FIX`` names the pose held fixed (the gauge).
+Quaternions within 1e-5 of unit length are normalised (one warning with the count). Records the
+studio does not read (``EDGE_SE2_XY``, ``VERTEX_XY``...) are counted in one warning and skipped. The
 ground truth is ``<stem>_GT.tum`` beside the file where there is one (its stamps are the poses'
 stamps), or with ``ground_truth="vertices"`` the file's own vertices (the initial estimate is then
-composed along the odometry); otherwise the graph has none, and the stamps are the indices in seconds.
+composed along the edges); otherwise the graph has none, and the stamps are the indices in seconds.
 """
 
 from __future__ import annotations
@@ -31,7 +36,7 @@ from studio.core.model import PoseKind
 from studio.core.trajectory import Trajectory, Warn
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
-from studio.io.g2o import read_g2o
+from studio.io.g2o import G2oDocument, normalised_note, read_g2o
 from studio.io.graph_table import AgentPoses, EdgeTable, assemble_graph, dead_reckoning
 from studio.io.tum import read_tum
 
@@ -47,31 +52,39 @@ def truth_file(path: Path) -> Path | None:
     return None
 
 
+def _read_doc(path: Path, warn: Warn | None) -> G2oDocument:
+    """The file's records, its warnings given once each (skipped records, normalised quaternions)."""
+    unknown: dict[str, int] = {}
+    doc = read_g2o(path, unknown=unknown, dangling=True)
+    if warn is not None:
+        if unknown:
+            warn(
+                f"{path}: skipped records the studio does not read: "
+                + ", ".join(f"{n} {tag}" for tag, n in sorted(unknown.items()))
+            )
+        if doc.normalised_quaternions:
+            warn(normalised_note(str(path), doc.normalised_quaternions))
+    if len(doc.vertex_ids):
+        if len(doc.edge_from) and not np.isin(np.concatenate([doc.edge_from, doc.edge_to]), doc.vertex_ids).all():
+            read_g2o(path, unknown={})  # names the line of the first edge to an unknown vertex
+    elif not len(doc.edge_from):
+        raise FormatError(f"{path}: no vertices and no edges")
+    return doc
+
+
 def read_single_g2o(path: PathLike, *, ground_truth: str = "auto", warn: Warn | None = None) -> SingleGraph:
     """One g2o file as one robot's graph (see the module doc)."""
     path = Path(path)
-    unknown: dict[str, int] = {}
-    doc = read_g2o(path, unknown=unknown, dangling=True)
-    if unknown and warn is not None:
-        warn(
-            f"{path}: skipped records the studio does not read: "
-            + ", ".join(f"{n} {tag}" for tag, n in sorted(unknown.items()))
-        )
+    doc = _read_doc(path, warn)
     kind = doc.kind
     has_vertices = len(doc.vertex_ids) > 0
-    if has_vertices:
-        if len(doc.edge_from) and not np.isin(np.concatenate([doc.edge_from, doc.edge_to]), doc.vertex_ids).all():
-            read_g2o(path, unknown={})  # names the line of the first edge to an unknown vertex
-        ids = doc.vertex_ids
-    else:
-        if not len(doc.edge_from):
-            raise FormatError(f"{path}: no vertices and no edges")
-        ids = np.unique(np.concatenate([doc.edge_from, doc.edge_to]))
+    ids = doc.vertex_ids if has_vertices else np.unique(np.concatenate([doc.edge_from, doc.edge_to]))
     order = np.argsort(ids, kind="stable")
     sorted_ids = ids[order]
     n = len(sorted_ids)
     fi = np.searchsorted(sorted_ids, doc.edge_from)
     ti = np.searchsorted(sorted_ids, doc.edge_to)
+    anchor = int(np.searchsorted(sorted_ids, doc.fixed_ids[0])) if len(doc.fixed_ids) else 0
     where = str(path)
     truth_path = truth_file(path) if ground_truth == "auto" else None
     stamps = np.arange(n, dtype=np.int64) * NS_PER_S
@@ -92,7 +105,19 @@ def read_single_g2o(path: PathLike, *, ground_truth: str = "auto", warn: Warn | 
         if ground_truth == "vertices" and not has_vertices:
             raise ConfigError(f"{path}: --ground-truth vertices needs a file with vertices")
         initial = dead_reckoning(kind, n, fi, ti, doc.edge_measurements, where=where)
-    return SingleGraph(kind, stamps, initial, truth, fi, ti, doc.edge_measurements, doc.edge_information_upper, where)
+    return SingleGraph(
+        kind,
+        stamps,
+        initial,
+        truth,
+        fi,
+        ti,
+        doc.edge_measurements,
+        doc.edge_information_upper,
+        where,
+        sorted_ids,
+        anchor,
+    )
 
 
 def read_g2o_graph(

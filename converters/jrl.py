@@ -1,5 +1,6 @@
 """JRL files (``studio convert jrl FILE.jrl``): the graph, ground truth, initial estimate, the
-labelled outliers and the ``BearingRangeFactorPose2`` sightings as they are (:mod:`studio.io.jrl`)."""
+labelled and potential outliers, the pose priors and the ``BearingRangeFactorPose2`` sightings as
+they are (:mod:`studio.io.jrl`)."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ def read_jrl_graph(
     if options is not None and options.split:
         raise ConfigError("--split: only single g2o files are split into robots (studio convert g2o)")
     doc = read_jrl(inputs[0], warn=warn)
-    return ImportedGraph(doc.graph, doc.outliers, doc.range_bearing)
+    return ImportedGraph(doc.graph, doc.outliers, doc.range_bearing, doc.priors, doc.potential_outliers)
 
 
 def read_jrl_trajectories(

@@ -1,5 +1,6 @@
 """Folders of GTSAM-Symbol-keyed g2o files, one per robot (DGS / distributed-mapper's
-``data/example_*robots/``, Kimera-Multi / Kimera-RPGO): ``studio convert symbols FOLDER``
+``data/example_*robots/`` ``0.g2o, 1.g2o...``, Kimera-RPGO's ``robot_a.g2o, robot_b.g2o...``,
+Kimera-Multi), or Swarm-SLAM's ``LabeledSymbol`` keys: ``studio convert symbols FOLDER``
 (:mod:`studio.io.symbol_g2o`)."""
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ def read_symbols_graph(
         raise ConfigError(f"studio convert symbols takes one folder, got {len(inputs)} inputs")
     if options is not None and options.split:
         raise ConfigError("--split: only single g2o files are split into robots (studio convert g2o)")
-    graph = read_symbol_g2o_folder(inputs[0])
+    graph = read_symbol_g2o_folder(inputs[0], warn=warn)
     return ImportedGraph(graph, outliers_beside(Path(inputs[0]), graph))
 
 

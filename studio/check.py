@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -42,7 +43,7 @@ import numpy as np
 from studio._callable import make_callable
 from studio.check_sightings import RangeBearingCheck, check_range_bearing, format_range_bearing_check
 from studio.core.errors import FormatError
-from studio.core.geometry import is_planar_se3, se3_information_to_se2
+from studio.core.geometry import block_diagonal_where_indefinite, is_planar_se3, se3_information_to_se2
 from studio.core.model import PoseKind
 from studio.core.residuals import Convention, chi2_parts, chi2_terms, edge_errors
 from studio.core.types import PathLike
@@ -191,12 +192,16 @@ CLASSES = ("odometry", "intra", "inter", "loop closures")
 EdgeSet = tuple[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
-def _multi_g2o(graph: Any, folder: Path) -> tuple[PoseKind, list[np.ndarray], list[EdgeSet], list[str]]:
+def _multi_g2o(
+    graph: Any, folder: Path, notes: list[str]
+) -> tuple[PoseKind, list[np.ndarray], list[EdgeSet], list[str]]:
+    """A multi-g2o folder at its ground truth; agents without one (distributed-mapper's examples
+    converted) are checked at their own poses, said in a note."""
     missing = [a.name for a in graph.agents if a.ground_truth is None]
     if missing:
-        raise FormatError(
-            f"{folder}: agent {missing[0]} has no ground truth ({missing[0]}_GT.tum); "
-            "a dataset is checked at its ground truth"
+        notes.append(
+            f"no ground truth for {len(missing)} of {len(graph.agents)} agents (the first: {missing[0]}): "
+            "they are checked at their own poses, so their factors say how the initial estimate fits the edges"
         )
     sets: list[EdgeSet] = []
     for k, a in enumerate(graph.agents):
@@ -205,44 +210,55 @@ def _multi_g2o(graph: Any, folder: Path) -> tuple[PoseKind, list[np.ndarray], li
             sets.append((name, ks, edges.from_index, ks, edges.to_index, edges.measurements, edges.information_upper))
     i = graph.inter
     sets.append(("inter", i.from_agent, i.from_index, i.to_agent, i.to_index, i.measurements, i.information_upper))
-    return graph.kind, [a.ground_truth for a in graph.agents], sets, [a.name for a in graph.agents]
+    truth = [a.initial if a.ground_truth is None else a.ground_truth for a in graph.agents]
+    return graph.kind, truth, sets, [a.name for a in graph.agents]
 
 
-def _single_g2o(path: Path) -> tuple[PoseKind, list[np.ndarray], list[EdgeSet], list[str]]:
-    """kollagen's single view: ``NAME.g2o`` with ``NAME_GT.tum`` beside it (ids concatenated).
-    Edges between consecutive ids are odometry (kollagen's connectors included), others loop closures."""
-    from studio.io.g2o import read_g2o
-    from studio.io.tum import read_tum
+def _single_g2o(
+    path: Path, warn: Callable[[str], None] | None
+) -> tuple[PoseKind, list[np.ndarray], list[EdgeSet], list[str], list[str]]:
+    """A single g2o file as ``studio convert g2o`` reads it, at its ground truth (``NAME_GT.tum``
+    beside it, kollagen's single view) or, without one, at the file's own poses (its vertices, or
+    for a file of edges only the poses composed along a spanning tree of its edges), said in a note.
+    Edges between consecutive ids are odometry (kollagen's connectors included), others loop
+    closures; the last item is the notes."""
+    from studio.converters.g2o import read_single_g2o
 
-    gt_path = path.with_name(f"{path.stem}_GT.tum")
-    if not gt_path.is_file():
-        raise FormatError(
-            f"{path}: no ground truth beside it ({gt_path.name}); a dataset is checked at its ground truth"
+    single = read_single_g2o(path, warn=warn)
+    notes = []
+    truth = single.ground_truth
+    if truth is None:
+        truth = single.initial
+        notes.append(
+            f"no ground truth beside it ({path.stem}_GT.tum): checked at the file's own poses (its vertices, or "
+            "poses composed along its edges), so the factors say how its initial estimate fits its edges"
         )
-    doc = read_g2o(path)
-    gt = read_tum(gt_path).poses_xyz_quat_xyzw
-    n = len(doc.vertex_ids)
-    if len(gt) != n or not np.array_equal(np.sort(doc.vertex_ids), np.arange(n)):
-        raise FormatError(f"{gt_path}: {len(gt)} poses for the {n} vertices (ids 0..{n - 1}) of {path.name}")
-    if doc.kind is PoseKind.SE2:
-        from studio.core.geometry import se3_poses_to_planar
-
-        gt = se3_poses_to_planar(gt)
-    odo = doc.edge_to == doc.edge_from + 1
-    zeros = np.zeros(len(doc.edge_from), dtype=np.int64)
+    info = single.information_upper
+    fr, to = single.from_index, single.to_index
+    odo = to == fr + 1
+    zeros = np.zeros(len(fr), dtype=np.int64)
     sets: list[EdgeSet] = [
-        (
-            name,
-            zeros[sel],
-            doc.edge_from[sel],
-            zeros[sel],
-            doc.edge_to[sel],
-            doc.edge_measurements[sel],
-            doc.edge_information_upper[sel],
-        )
+        (name, zeros[sel], fr[sel], zeros[sel], to[sel], single.measurements[sel], info[sel])
         for name, sel in (("odometry", odo), ("loop closures", ~odo))
     ]
-    return doc.kind, [gt], sets, [path.stem]
+    return single.kind, [truth], sets, [path.stem], notes
+
+
+def _weighable(edge_sets: list[EdgeSet], kind: PoseKind, notes: list[str]) -> list[EdgeSet]:
+    """Each information matrix that is not positive definite weighed by its translation and rotation
+    blocks where they are (as SE-Sync reads them; cubicle.g2o), with a note of how many."""
+    d = 3 if kind is PoseKind.SE2 else 6
+    out, total = [], 0
+    for name, fa, fv, ta, tv, meas, upper in edge_sets:
+        info, count = block_diagonal_where_indefinite(upper, d)
+        total += count
+        out.append((name, fa, fv, ta, tv, meas, info))
+    if total:
+        notes.append(
+            f"{total} information matrices are not positive definite: each weighed by its translation and "
+            "rotation blocks, as SE-Sync reads them"
+        )
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -259,9 +275,12 @@ class _EdgeChi2:
     rotation: np.ndarray
 
 
-def check(dataset: PathLike, *, convention: Convention = "g2o") -> CheckReport:
+def check(
+    dataset: PathLike, *, convention: Convention = "g2o", warn: Callable[[str], None] | None = None
+) -> CheckReport:
     """Check ``dataset`` at its ground truth (see the module docstring): a multi-g2o folder, or a
-    single g2o file with ``<stem>_GT.tum`` beside it (kollagen's single view).
+    single g2o file (with ``<stem>_GT.tum`` beside it, kollagen's single view, or checked at its own
+    poses); ``warn`` gets the reader's warnings (normalised quaternions, skipped records).
 
     The steps: read the dataset and its listed outliers, decide whether it is checked in SE(2),
     compute every edge's chi2, flag the outlier candidates, sum per class and agent, and count the
@@ -272,13 +291,13 @@ def check(dataset: PathLike, *, convention: Convention = "g2o") -> CheckReport:
     if convention not in ("g2o", "rotvec"):
         raise ConfigError(f"convention: expected g2o or rotvec, got {convention!r}")
     folder = Path(dataset)
+    notes: list[str] = []
     if folder.is_file():
-        loaded = _single_g2o(folder)
+        kind, truth, edge_sets, names, notes = _single_g2o(folder, warn)
     else:
-        loaded = _multi_g2o(read_multi_g2o(folder), folder)
-    kind, truth, edge_sets, names = loaded
+        kind, truth, edge_sets, names = _multi_g2o(read_multi_g2o(folder), folder, notes)
+    edge_sets = _weighable(edge_sets, kind, notes)
     listed = _read_listed_outliers(folder, [len(t) for t in truth]) if folder.is_dir() else None
-    notes = []
     planar = (
         kind is PoseKind.SE3
         and all(is_planar_se3(t) for t in truth)

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from studio.core.errors import ConfigError, FormatError, GraphError
-from studio.core.model import PoseGraph, PoseKind, RangeBearing
+from studio.core.model import PoseGraph, PoseKind, Priors, RangeBearing
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.export_formats import EXPORT_FORMATS, ExportFormat
@@ -36,13 +36,21 @@ from studio.io.graph_table import graph_edge_table, information_matrix
 from studio.io.jrl import write_jrl
 from studio.io.multig2o import read_multi_g2o
 from studio.io.names import check_name_component
-from studio.io.outliers_txt import read_outlier_kinds, write_outliers_txt
+from studio.io.outliers_txt import POTENTIAL_OUTLIERS_NAME, read_outlier_kinds, write_outliers_txt
+from studio.io.priors_txt import PRIORS_NAME, read_priors_txt
 from studio.io.range_bearing import RANGE_BEARING_NAME, read_range_bearing
 from studio.io.strict_json import dumps_strict
 from studio.io.symbol_g2o import robot_prefix, write_symbol_g2o_folder
 from studio.io.tum import write_tum
 
-__all__ = ["ExportFormat", "EXPORT_FORMATS", "ExportResult", "export_dataset", "read_dataset_outliers"]
+__all__ = [
+    "ExportFormat",
+    "EXPORT_FORMATS",
+    "ExportResult",
+    "DatasetExtras",
+    "export_dataset",
+    "read_dataset_outliers",
+]
 
 _EXPORT_FORMAT = "cslam-studio export 1"
 
@@ -56,21 +64,41 @@ class ExportResult:
     warnings: tuple[str, ...] = field(default_factory=tuple)
 
 
+@dataclass(frozen=True, eq=False)
+class DatasetExtras:
+    """What a dataset folder may hold beside its graph and ``outliers.txt``: range-bearing sightings
+    (``range_bearing.txt``), pose priors (``priors.txt``) and potential outliers
+    (``potential_outliers.txt``, edge rows); None where the folder has none or the format carries none."""
+
+    range_bearing: RangeBearing | None = None
+    priors: Priors | None = None
+    potential_outliers: np.ndarray | None = None
+
+
 def _write_jrl(
     graph: PoseGraph,
     target: Path,
     name: str,
     outliers: np.ndarray,
     warn: Callable[[str], None],
-    sightings: RangeBearing | None,
+    extras: DatasetExtras,
 ) -> list[str]:
+    sightings = extras.range_bearing
     if sightings is not None and len(sightings) and graph.kind is not PoseKind.SE2:
         warn(
             f"jrl: the {len(sightings)} range-bearing sightings (range_bearing.txt) are left out: the dataset has "
             "3D records and JRL's 3D bearing is a Unit3; convert with --planar to carry them as BearingRangeFactorPose2"
         )
         sightings = None
-    write_jrl(target, graph, name=name, outliers=outliers, range_bearing=sightings)
+    write_jrl(
+        target,
+        graph,
+        name=name,
+        outliers=outliers,
+        range_bearing=sightings,
+        priors=extras.priors,
+        potential_outliers=extras.potential_outliers,
+    )
     return [target.name]
 
 
@@ -94,7 +122,7 @@ def _write_dpgo(
     name: str,
     outliers: np.ndarray,
     warn: Callable[[str], None],
-    sightings: RangeBearing | None = None,
+    extras: DatasetExtras | None = None,
 ) -> list[str]:
     target.mkdir()
     files = [f"{name}.g2o"]
@@ -137,7 +165,7 @@ def _write_symbols(
     name: str,
     outliers: np.ndarray,
     warn: Callable[[str], None],
-    sightings: RangeBearing | None = None,
+    extras: DatasetExtras | None = None,
 ) -> list[str]:
     target.mkdir()
     return write_symbol_g2o_folder(graph, target) + _write_outliers(target, outliers)
@@ -152,10 +180,11 @@ def _write_outliers(target: Path, outliers: np.ndarray) -> list[str]:
     return ["outliers.txt"]
 
 
-def read_dataset_outliers(dataset: PathLike, graph: PoseGraph) -> np.ndarray:
-    """The labelled outliers of a dataset folder (``outliers.txt``), ``(k, 4)`` rows with 0-based
-    agents; none when the dataset lists none. Rows naming no edge of ``graph`` are refused."""
-    path = Path(dataset) / "outliers.txt"
+def read_dataset_outliers(dataset: PathLike, graph: PoseGraph, name: str = "outliers.txt") -> np.ndarray:
+    """The labelled outliers of a dataset folder (``outliers.txt``; ``name``: another file of its
+    rows, ``potential_outliers.txt``), ``(k, 4)`` rows with 0-based agents; none when the dataset
+    lists none. Rows naming no edge of ``graph`` are refused."""
+    path = Path(dataset) / name
     if not path.is_file():
         return np.zeros((0, 4), dtype=np.int64)
     rows, _ = read_outlier_kinds(path)
@@ -165,6 +194,19 @@ def read_dataset_outliers(dataset: PathLike, graph: PoseGraph) -> np.ndarray:
         if tuple(r) not in have:
             raise FormatError(f"{path}: row {k + 1} ({r[0] + 1} {r[1]} {r[2] + 1} {r[3]}) names no edge of the dataset")
     return rows
+
+
+def _dataset_extras(dataset: Path, graph: PoseGraph) -> DatasetExtras:
+    """The sightings, priors and potential outliers of the dataset folder, where it has them."""
+    rb_path, priors_path = dataset / RANGE_BEARING_NAME, dataset / PRIORS_NAME
+    potential = None
+    if (dataset / POTENTIAL_OUTLIERS_NAME).is_file():
+        potential = read_dataset_outliers(dataset, graph, POTENTIAL_OUTLIERS_NAME)
+    return DatasetExtras(
+        read_range_bearing(rb_path, graph) if rb_path.is_file() else None,
+        read_priors_txt(priors_path, graph) if priors_path.is_file() else None,
+        potential,
+    )
 
 
 def export_dataset(
@@ -191,8 +233,8 @@ def export_dataset(
         raise ConfigError(f"{out}: -o must name the {'folder' if spec.folder else 'file'} to write")
     graph = read_multi_g2o(dataset)
     outliers = read_dataset_outliers(dataset, graph)
-    rb_path = dataset / RANGE_BEARING_NAME
-    sightings = read_range_bearing(rb_path, graph) if rb_path.is_file() else None
+    extras = _dataset_extras(dataset, graph)
+    sightings = extras.range_bearing
     label = name or dataset.resolve().name
     warnings: list[str] = []
 
@@ -209,8 +251,15 @@ def export_dataset(
             _warn(
                 f"{format}: the {len(sightings)} range-bearing sightings (range_bearing.txt) are left out: the format has none"
             )
+        if extras.priors is not None and len(extras.priors) and not spec.priors:
+            _warn(f"{format}: the {len(extras.priors)} pose priors (priors.txt) are left out: the format has none")
+        carried = DatasetExtras(
+            sightings if spec.sightings else None,
+            extras.priors if spec.priors else None,
+            extras.potential_outliers if spec.priors else None,
+        )
         try:
-            files = spec.write(graph, target, label, outliers, _warn, sightings if spec.sightings else None)
+            files = spec.write(graph, target, label, outliers, _warn, carried)
         except GraphError as err:
             raise FormatError(f"{dataset}: {err}") from None
         if spec.folder:

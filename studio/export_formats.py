@@ -18,7 +18,8 @@ from studio.core.lazy import Lazy
 if TYPE_CHECKING:
     import numpy as np
 
-    from studio.core.model import PoseGraph, RangeBearing
+    from studio.core.model import PoseGraph
+    from studio.export import DatasetExtras
 
 __all__ = ["ExportFormat", "EXPORT_FORMATS"]
 
@@ -26,19 +27,26 @@ __all__ = ["ExportFormat", "EXPORT_FORMATS"]
 @dataclass(frozen=True)
 class ExportFormat:
     """One export format: its help line, whether it writes a file or a folder, its writer
-    ``write(graph, target, name, outliers, warn, sightings) -> [files written]``, and whether it
-    carries range-bearing sightings (``range_bearing.txt``; the others say they leave them out)."""
+    ``write(graph, target, name, outliers, warn, extras) -> [files written]`` (``extras``: a
+    :class:`studio.export.DatasetExtras` holding only what the format carries), whether it carries
+    range-bearing sightings (``range_bearing.txt``) and whether it carries pose priors and potential
+    outliers (``priors.txt``, ``potential_outliers.txt``); the others say they leave them out."""
 
     help: str
     folder: bool
-    write: Callable[[PoseGraph, Path, str, np.ndarray, Callable[[str], None], RangeBearing | None], list[str]]
+    write: Callable[[PoseGraph, Path, str, np.ndarray, Callable[[str], None], DatasetExtras], list[str]]
     sightings: bool = False
+    priors: bool = False
 
 
 #: The export formats, by name.
 EXPORT_FORMATS: dict[str, ExportFormat] = {
     "jrl": ExportFormat(
-        "one JRL file (JRL, MESA, COSMO-Bench)", False, Lazy("studio.export", "_write_jrl"), sightings=True
+        "one JRL file (JRL, MESA, COSMO-Bench)",
+        False,
+        Lazy("studio.export", "_write_jrl"),
+        sightings=True,
+        priors=True,
     ),
     "dpgo": ExportFormat(
         "DPGO's single g2o and a measurements.csv per robot", True, Lazy("studio.export", "_write_dpgo")

@@ -8,6 +8,8 @@ its measurements, and they are written as they are::
     ├── agents.json                                  # agentK -> the robots' names
     ├── inter_agent_lc.dat
     ├── outliers.txt                                 # the labelled outliers (JRL's outlier_factors)
+    ├── potential_outliers.txt                       # JRL's potential_outlier_factors, if the file has them
+    ├── priors.txt                                   # JRL's PriorFactorPose2/3, if any
     ├── range_bearing.txt                            # JRL's BearingRangeFactorPose2 sightings, if any
     ├── import.json                                  # source, inputs, options, counts, warnings
     └── OUT.rrd                                      # the recording (unless rrd=False)
@@ -28,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from studio.convert_config import check_source_options
 from studio.converters.graph_split import GraphImportOptions, ImportedGraph
 from studio.converters.registry import check_inputs, get_source
 from studio.core.errors import ConfigError, FormatError, OutputError
@@ -36,7 +39,8 @@ from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
-from studio.io.outliers_txt import write_outliers_txt
+from studio.io.outliers_txt import POTENTIAL_HEAD, POTENTIAL_OUTLIERS_NAME, write_outliers_txt
+from studio.io.priors_txt import PRIORS_NAME, write_priors_txt
 from studio.io.range_bearing import RANGE_BEARING_NAME, write_range_bearing
 from studio.io.strict_json import dumps_strict
 from studio.runtime.progress import Progress
@@ -106,6 +110,10 @@ def import_graph(
     src = get_source(source)
     if src.read_graph is None:
         raise ConfigError(f"{source} is not a graph source (graph sources: {', '.join(graph_source_names())})")
+    # an option set away from its default that this source's reader would ignore is refused
+    unset = GraphImportOptions()
+    changed = {k: v for k, v in asdict(options).items() if v != getattr(unset, k)}
+    check_source_options(source, changed, synthesize=False)
     out = Path(out).absolute()
     if out.name in ("", ".", ".."):
         raise OutputError(f"{out}: -o must name the dataset folder itself")
@@ -150,6 +158,12 @@ def import_graph(
             **graph.edge_counts(),
             "outliers": len(outliers),
             **({"range_bearing": len(sightings)} if sightings is not None else {}),
+            **({"priors": len(imported.priors)} if imported.priors is not None else {}),
+            **(
+                {"potential_outliers": len(imported.potential_outliers)}
+                if imported.potential_outliers is not None
+                else {}
+            ),
         },
         "warnings": warnings,
     }
@@ -174,6 +188,12 @@ def _write_imported(
     write_outliers_txt(ds / "outliers.txt", outliers, [f"labelled in the {meta['source']} input"] * len(outliers))
     if sightings is not None:
         write_range_bearing(ds / RANGE_BEARING_NAME, sightings)
+    if imported.priors is not None:
+        write_priors_txt(ds / PRIORS_NAME, imported.priors)
+    if imported.potential_outliers is not None:
+        potential = imported.potential_outliers
+        kinds = [f"potential in the {meta['source']} input"] * len(potential)
+        write_outliers_txt(ds / POTENTIAL_OUTLIERS_NAME, potential, kinds, head=POTENTIAL_HEAD)
     (ds / IMPORT_NAME).write_text(dumps_strict(meta, str(out / IMPORT_NAME), indent=2) + "\n", encoding="utf-8")
     if rrd:
         from studio.recording.dataset import record_graph

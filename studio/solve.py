@@ -8,8 +8,11 @@ kollagen's connector edges joining agent k's last pose to agent k+1's first).
 * A multi-g2o folder is flattened to global ids (agent k's vertices after agents 0..k-1's); vertex 0
   of the first agent is held fixed. The estimate is written as a multi-g2o folder (the dataset's
   edges, the optimized vertices, no ground truth) with one TUM file per agent in ``tum/``.
-* A single g2o file is solved as it is (vertex 0 fixed) and the estimate written as
-  ``<stem>.g2o`` with the same ids, which ``studio evaluate DATASET --estimate`` scores directly.
+* A single g2o file is read as ``studio convert g2o`` reads it (:func:`studio.converters.g2o.read_single_g2o`:
+  a file of edges only starts from poses composed along a spanning tree of its edges, quaternions
+  within 1e-5 of unit length are normalised, ``FIX`` names the pose held fixed, else the first id),
+  solved, and the estimate written as ``<stem>.g2o`` with the file's ids, which
+  ``studio evaluate DATASET --estimate`` scores directly.
 * A 3D dataset whose poses and measurements are all planar (z, roll and pitch zero, as kollagen's
   3D records of its planar walk) is solved in SE(2) (``dimension="auto"``) and written back in 3D;
   its chi2 is the planar one.
@@ -27,7 +30,7 @@ import contextlib
 import dataclasses
 import os
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, get_args
@@ -36,8 +39,15 @@ import numpy as np
 
 from studio._callable import make_callable
 from studio.core.errors import ConfigError, FormatError, OutputError
-from studio.core.geometry import is_planar_se3, planar_poses_to_se3, se3_information_to_se2, se3_poses_to_planar
+from studio.core.geometry import (
+    block_diagonal_where_indefinite,
+    is_planar_se3,
+    planar_poses_to_se3,
+    se3_information_to_se2,
+    se3_poses_to_planar,
+)
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
+from studio.core.option_values import check_option
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE as MAX_COORDINATE_M  # the one bound of every number
@@ -49,7 +59,7 @@ from studio.solvers import DEFAULT_METHOD, SolveMethod, method_entry
 from studio.solvers.problem import Init, Iteration, Optimizer, Problem, Solution, SolveOptions, graph_chi2
 from studio.solvers.validate import check_problem, check_solution
 
-__all__ = ["SolveResult", "solve", "load_problem", "Dimension", "SOLVE_JSON"]
+__all__ = ["SolveResult", "solve", "load_problem", "graph_problem", "Dimension", "SOLVE_JSON"]
 
 Dimension = Literal["auto", "2d", "3d"]
 
@@ -65,7 +75,8 @@ class Loaded:
     """The dataset (multi-g2o input), or None for a single g2o file."""
     offsets: np.ndarray
     """First global id of each agent (multi-g2o), or ``[0, n]`` for a single g2o file."""
-    single_doc: Any = None
+    single: Any = None
+    """The :class:`~studio.converters.graph_split.SingleGraph` of a single g2o file."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,35 +166,67 @@ def _flatten(graph: PoseGraph) -> tuple[Problem, np.ndarray]:
     return problem, offsets
 
 
-def load_problem(dataset: PathLike, *, dimension: Dimension = "auto") -> Loaded:
-    """Read a multi-g2o folder or a single g2o file into a :class:`Problem` (see the module doc)."""
-    from studio.io.g2o import read_g2o
+def _single_problem(path: Path, warn: Callable[[str], None] | None) -> tuple[Problem, Any]:
+    """A single g2o file read as ``studio convert g2o`` reads it; loop closures (robust) are the
+    edges between non-consecutive ids."""
+    from studio.converters.g2o import read_single_g2o
+
+    single = read_single_g2o(path, ground_truth="none", warn=warn)
+    fr, to = single.from_index, single.to_index
+    problem = Problem(
+        single.kind,
+        single.initial,
+        fr,
+        to,
+        single.measurements,
+        single.information_upper,
+        to != fr + 1,
+        single.anchor,
+    )
+    return problem, single
+
+
+def load_problem(
+    dataset: PathLike, *, dimension: Dimension = "auto", warn: Callable[[str], None] | None = None
+) -> Loaded:
+    """Read a multi-g2o folder or a single g2o file into a :class:`Problem` (see the module doc);
+    ``warn`` gets the reader's warnings (skipped records, normalised quaternions)."""
     from studio.io.multig2o import read_multi_g2o
 
     path = Path(dataset)
     if dimension not in ("auto", "2d", "3d"):
         raise ConfigError(f"dimension: expected auto, 2d or 3d, got {dimension!r}")
-    graph: PoseGraph | None = None
-    doc = None
     if path.is_dir():
-        graph = read_multi_g2o(path)
-        problem, offsets = _flatten(graph)
-    elif path.is_file():
-        doc = read_g2o(path)
-        n = len(doc.vertex_ids)
-        order = np.argsort(doc.vertex_ids, kind="stable")
-        if n == 0 or not np.array_equal(doc.vertex_ids[order], np.arange(n)):
-            raise FormatError(f"{path}: vertex ids must be 0..{n - 1} to be solved")
-        fr, to = doc.edge_from, doc.edge_to
-        problem = Problem(
-            doc.kind, doc.vertex_poses[order], fr, to, doc.edge_measurements, doc.edge_information_upper, to != fr + 1
-        )
-        offsets = np.array([0, n])
-    else:
+        return graph_problem(read_multi_g2o(path), path, dimension=dimension, warn=warn)
+    if not path.is_file():
         raise FormatError(f"{path}: no such dataset (a multi-g2o folder or a .g2o file)")
+    problem, single = _single_problem(path, warn)
+    return _loaded(problem, path, None, np.array([0, problem.num_vertices]), single, dimension, warn)
+
+
+def graph_problem(
+    graph: PoseGraph, path: Path, *, dimension: Dimension = "auto", warn: Callable[[str], None] | None = None
+) -> Loaded:
+    """A dataset's graph (read from ``path``) as a :class:`Problem` over global ids (see the module doc)."""
+    problem, offsets = _flatten(graph)
+    return _loaded(problem, path, graph, offsets, None, dimension, warn)
+
+
+def _loaded(
+    problem: Problem,
+    path: Path,
+    graph: PoseGraph | None,
+    offsets: np.ndarray,
+    single: Any,
+    dimension: Dimension,
+    warn: Callable[[str], None] | None,
+) -> Loaded:
+    """The problem checked for edges and magnitudes, its information made weighable, and solved in
+    SE(2) where its 3D records are planar (``dimension``)."""
     if problem.num_edges == 0:
         raise FormatError(f"{path}: the graph has no edges to optimize")
     _check_magnitudes(problem, path)
+    problem = _weighable(problem, path, warn)
     source_kind = problem.kind
     if source_kind is PoseKind.SE2 and dimension == "3d":
         raise ConfigError(f"dimension: {path} is planar (2D records); it cannot be solved in 3D")
@@ -193,7 +236,22 @@ def load_problem(dataset: PathLike, *, dimension: Dimension = "auto") -> Loaded:
             raise ConfigError(f"dimension: {path} is not planar (z, roll or pitch non-zero); use --dimension 3d")
         if planar:
             problem = _planar_problem(problem)
-    return Loaded(problem, source_kind, graph, offsets, doc)
+    return Loaded(problem, source_kind, graph, offsets, single)
+
+
+def _weighable(problem: Problem, path: Path, warn: Callable[[str], None] | None) -> Problem:
+    """The problem with each information matrix that is not positive definite weighed by its
+    translation and rotation blocks, as SE-Sync reads them (one warning with the count)."""
+    d = 3 if problem.kind is PoseKind.SE2 else 6
+    upper, count = block_diagonal_where_indefinite(problem.information_upper, d)
+    if not count:
+        return problem
+    if warn is not None:
+        warn(
+            f"{path}: {count} information matrices are not positive definite; each is weighed by its "
+            "translation and rotation blocks (the cross block dropped), as SE-Sync reads them"
+        )
+    return dataclasses.replace(problem, information_upper=upper)
 
 
 def _check_magnitudes(problem: Problem, path: Path) -> None:
@@ -223,18 +281,19 @@ def _write_estimate(loaded: Loaded, poses: np.ndarray, staging: Path, stem: str,
     if loaded.problem.kind is PoseKind.SE2 and loaded.source_kind is PoseKind.SE3:
         lifted = planar_poses_to_se3(poses)
     if loaded.graph is None:
-        doc = loaded.single_doc
+        single = loaded.single
+        ids = single.vertex_ids
         name = f"{stem}.g2o"
         write_g2o(
             staging / name,
             G2oDocument(
-                doc.kind,
-                np.arange(len(lifted)),
+                loaded.source_kind,
+                ids,
                 lifted,
-                doc.edge_from,
-                doc.edge_to,
-                doc.edge_measurements,
-                doc.edge_information_upper,
+                ids[single.from_index],
+                ids[single.to_index],
+                single.measurements,
+                single.information_upper,
             ),
         )
         return name
@@ -270,6 +329,8 @@ def solve(
     rrd: PathLike | None = None,
     robots: int = 0,
     coarse_size: int | None = None,
+    warn: Callable[[str], None] | None = None,
+    method_options: Mapping[str, Any] | None = None,
 ) -> SolveResult:
     """Optimize ``dataset`` with ``method`` and write the estimate and ``solve.json`` into the folder
     ``out`` (staged, renamed into place; an existing ``out`` is replaced only with ``force``).
@@ -280,7 +341,9 @@ def solve(
     ``robots``: ``dgs`` on a single g2o file, that many robots of contiguous vertex ids (a multi-g2o
     folder's robots are its agents); with ground truth, ``dgs`` also scores every round (APE).
     ``coarse_size``: ``dgs``'s two-level correction, poses per run moved rigidly (0: plain DGS;
-    None: :class:`SolveOptions`'s default)."""
+    None: :class:`SolveOptions`'s default). ``method_options``: any other option the method's registry
+    entry reads, by its :class:`SolveOptions` name (dgs: ``rotation_tol``, ``schedule`` ...); one it
+    does not read is refused. ``warn`` gets the reader's warnings (one line each)."""
     entry = method_entry(method)
     options = _solve_options(entry, optimizer, init, max_iterations, relative_tolerance, command, robots)
     if coarse_size is not None:
@@ -289,6 +352,7 @@ def solve(
                 f"coarse_size: expected 0 (plain DGS) or a count of poses, got {coarse_size!r}", option="coarse_size"
             )
         options = dataclasses.replace(options, coarse_size=coarse_size)
+    options = _with_method_options(entry, options, method_options or {})
     out = Path(out)
     rrd_path = None if rrd is None else Path(rrd)
     if rrd_path is not None and rrd_path.suffix != ".rrd":
@@ -296,7 +360,7 @@ def solve(
     inputs = dataset_inputs(dataset)
     _check_solve_outputs(out, rrd_path, inputs, force)  # every refusal before any work
     t0 = time.perf_counter()
-    loaded = load_problem(dataset, dimension=dimension)
+    loaded = load_problem(dataset, dimension=dimension, warn=warn)
     tum_names = _tum_names(loaded, dataset)
     problem = loaded.problem
     iterates: list[tuple[int, np.ndarray]] = []
@@ -356,6 +420,19 @@ def _solve_options(
     return SolveOptions(optimizer, init, max_iterations, float(relative_tolerance), command, robots)  # type: ignore[arg-type]
 
 
+def _with_method_options(entry: SolveMethod, options: SolveOptions, given: Mapping[str, Any]) -> SolveOptions:
+    """``options`` with the method's own options ``given`` by name: each one the entry reads, a
+    number finite and not negative (the method checks its own ranges and words)."""
+    for key, value in given.items():
+        if key not in entry.options:
+            raise ConfigError(
+                f"{key}: method {entry.name} does not read it (it reads {', '.join(entry.options)})", option=key
+            )
+        if isinstance(value, (bool, int, float)):
+            check_option(key, value)
+    return dataclasses.replace(options, **given)
+
+
 def _run_solver(
     loaded: Loaded,
     entry: SolveMethod,
@@ -380,8 +457,8 @@ def _run_solver(
     names = [a.name for a in loaded.graph.agents] if loaded.graph is not None else None
 
     def vertex_name(v: int) -> str:
-        if names is None:
-            return f"vertex {v}"
+        if names is None:  # a single g2o file: the file's own id
+            return f"vertex {int(loaded.single.vertex_ids[v]) if loaded.single is not None else v}"
         k = int(np.searchsorted(loaded.offsets, v, side="right") - 1)
         return f"{names[k]} vertex {v - int(loaded.offsets[k])}"
 
@@ -442,12 +519,67 @@ def _write_solve_outputs(
         folder = staging / out.name
         folder.mkdir()
         name = _write_estimate(loaded, solution.poses, folder, stem, tum_names)
+        _write_jrr(loaded, result, folder / f"{stem}.jrr", dataset_name=Path(dataset).name)
         result = dataclasses.replace(result, estimate_path=out / name)
         (folder / SOLVE_JSON).write_text(
             dumps_strict(result.to_dict(), str(out / SOLVE_JSON), indent=2, default=_json_default) + "\n",
             encoding="utf-8",
         )
     return result
+
+
+def _write_jrr(loaded: Loaded, result: SolveResult, path: Path, *, dataset_name: str) -> None:
+    """The estimate as JRL results (:mod:`studio.io.jrr`): one robot per agent (a single g2o file:
+    one robot), its own poses in the dataset's pose kind; a central solve keeps no copies of other
+    robots' poses. A robust method's rejected closures are its ``outliers``, by their FactorIds in
+    the studio's JRL export of the dataset (``studio export --format jrl``)."""
+    from studio.io.jrr import write_jrr
+    from studio.io.symbol_g2o import robot_prefix
+    from studio.jrl_evaluate import graph_results
+
+    poses, source = result.solution.poses, loaded.source_kind
+    if loaded.problem.kind is PoseKind.SE2 and source is PoseKind.SE3:
+        poses = planar_poses_to_se3(poses)
+    parts = [poses[loaded.offsets[k] : loaded.offsets[k + 1]] for k in range(len(loaded.offsets) - 1)]
+    robots = [robot_prefix(k) for k in range(len(parts))]
+    outliers, shared = None, None
+    if loaded.graph is not None:
+        shared = _shared_copies(loaded.graph, parts, robots)
+        if result.rejected is not None:
+            outliers = _rejected_factor_ids(loaded.graph, result.rejected, robots, dataset_name)
+    results = graph_results(source, robots, parts, dataset_name=dataset_name, method_name=result.method, shared=shared)
+    write_jrr(path, dataclasses.replace(results, outliers=outliers))
+
+
+def _shared_copies(graph: PoseGraph, parts: list[np.ndarray], robots: list[str]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per robot, ``(keys, poses)`` of the other robots' poses its measurements name (an
+    inter-robot closure is its ``from`` robot's measurement, as in the JRL export), at the one
+    estimate a central solve has: jrl's results hold every value a robot's factors touch."""
+    inter = graph.inter
+    base = np.array([ord(c) << 56 for c in robots], dtype=np.int64)
+    out = []
+    for k in range(len(robots)):
+        mine = inter.from_agent == k
+        keys, first = np.unique(base[inter.to_agent[mine]] + inter.to_index[mine], return_index=True)
+        agents, index = inter.to_agent[mine][first], inter.to_index[mine][first]
+        width = parts[k].shape[1]
+        poses = np.array([parts[a][i] for a, i in zip(agents.tolist(), index.tolist())]).reshape(len(keys), width)
+        out.append((keys, poses))
+    return out
+
+
+def _rejected_factor_ids(
+    graph: PoseGraph, rejected: np.ndarray, robots: list[str], name: str
+) -> tuple[np.ndarray, ...]:
+    """Per robot, the FactorIds of the ``rejected`` rows (``from_agent from_vertex to_agent
+    to_vertex``) in the studio's JRL export of ``graph``."""
+    from studio.io.jrl import jrl_document
+    from studio.jrl_evaluate import factor_ids_of_edges
+
+    base = np.array([ord(c) << 56 for c in robots], dtype=np.int64)
+    keys = np.column_stack([base[rejected[:, 0]] + rejected[:, 1], base[rejected[:, 2]] + rejected[:, 3]])
+    found = factor_ids_of_edges(jrl_document(graph, name=name), keys)
+    return tuple(found.get(c, np.zeros((0, 2), np.int64)) for c in robots)
 
 
 @dataclass(eq=False)

@@ -19,6 +19,7 @@ __all__ = [
     "yaw_to_quat_xyzw",
     "se2_information_to_se3",
     "upper_to_matrix",
+    "block_diagonal_where_indefinite",
     "SE3_Z_INFORMATION",
     "planar_poses_to_se3",
     "se3_poses_to_planar",
@@ -74,6 +75,31 @@ def upper_to_matrix(upper: np.ndarray, dim: int) -> np.ndarray:
     out[:, rows, cols] = upper
     out[:, cols, rows] = upper
     return out
+
+
+def block_diagonal_where_indefinite(upper: np.ndarray, dim: int) -> tuple[np.ndarray, int]:
+    """``upper`` with each information matrix that is not positive definite replaced by its
+    translation and rotation blocks (the cross block zeroed), where that makes it positive definite;
+    and how many were replaced. SE-Sync reads only those blocks (their traces), so files written for
+    it may hold cross blocks that break definiteness (its ``cubicle.g2o``: 5021 of 16869 edges)."""
+    upper = np.asarray(upper, dtype=np.float64)
+    if not len(upper) or not np.isfinite(upper).all():
+        return upper, 0
+    mats = upper_to_matrix(upper, dim)
+    bad = np.flatnonzero(~(np.linalg.eigvalsh(mats)[:, 0] > 0))
+    if not bad.size:
+        return upper, 0
+    k = 2 if dim == 3 else 3
+    blocks = mats[bad]
+    blocks[:, :k, k:] = 0.0
+    blocks[:, k:, :k] = 0.0
+    fixed = bad[np.linalg.eigvalsh(blocks)[:, 0] > 0]
+    if not fixed.size:
+        return upper, 0
+    rows, cols = np.triu_indices(dim)
+    out = upper.copy()
+    out[fixed] = blocks[np.isin(bad, fixed)][:, rows, cols]
+    return out, int(fixed.size)
 
 
 #: Where each planar information entry (xx, xy, xt, yy, yt, tt) goes in the 21 of (x, y, z, rx, ry, rz).

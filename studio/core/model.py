@@ -21,7 +21,16 @@ import numpy.typing as npt
 from studio.core.errors import GraphError
 from studio.core.geometry import planar_poses_to_se3, se2_information_to_se3
 
-__all__ = ["PoseKind", "Edges", "InterAgentEdges", "AgentGraph", "PoseGraph", "RangeBearing", "graphs_equal"]
+__all__ = [
+    "PoseKind",
+    "Edges",
+    "InterAgentEdges",
+    "AgentGraph",
+    "PoseGraph",
+    "RangeBearing",
+    "Priors",
+    "graphs_equal",
+]
 
 _QUAT_TOLERANCE = 1e-6
 
@@ -421,3 +430,54 @@ class RangeBearing:
                     f"range-bearing row {k}: {side} vertex {int(index[k])} of agent "
                     f"{graph.agents[agent[k]].name}, which has {int(sizes[agent[k]])} poses"
                 )
+
+
+@dataclass(frozen=True, eq=False)
+class Priors:
+    """Pose priors (JRL's ``PriorFactorPose2``/``PriorFactorPose3``: COSMO-Bench anchors each robot at
+    its first pose), as columns, one row per prior. ``agent`` is a 0-based position in
+    :attr:`PoseGraph.agents`, ``index`` the pose within it; ``poses`` the prior's value in the graph's
+    pose layout and ``information_upper`` its information in the edges' convention (the prior is a
+    measurement of the pose from the world origin)."""
+
+    kind: PoseKind
+    agent: np.ndarray
+    index: np.ndarray
+    poses: np.ndarray
+    information_upper: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "agent", _as_index(self.agent, "prior agent"))
+        object.__setattr__(self, "index", _as_index(self.index, "prior index"))
+        object.__setattr__(self, "poses", _as_rows(self.poses, self.kind.pose_width, "prior poses"))
+        object.__setattr__(
+            self,
+            "information_upper",
+            _as_rows(self.information_upper, self.kind.information_width, "prior information_upper"),
+        )
+        if not len(self.agent) == len(self.index) == len(self.poses) == len(self.information_upper):
+            raise GraphError("prior columns must have matching lengths")
+        _check_poses(self.poses, self.kind, "prior poses")
+
+    def __len__(self) -> int:
+        return len(self.agent)
+
+    @classmethod
+    def empty(cls, kind: PoseKind) -> Priors:
+        z = np.zeros(0, dtype=np.int64)
+        return cls(kind, z, z, np.zeros((0, kind.pose_width)), np.zeros((0, kind.information_width)))
+
+    def check_against(self, graph: PoseGraph) -> None:
+        """Every prior is on a pose of ``graph``, of its kind; raises :class:`GraphError` naming the row."""
+        if self.kind is not graph.kind:
+            raise GraphError(f"priors are {self.kind.value}, the graph {graph.kind.value}")
+        sizes = np.array([a.num_poses for a in graph.agents])
+        bad = _first_outside(self.agent, len(sizes))
+        if bad is not None:
+            raise GraphError(f"prior {bad}: unknown agent {int(self.agent[bad])}")
+        bad = _first_outside(self.index, sizes[self.agent])
+        if bad is not None:
+            a = graph.agents[self.agent[bad]]
+            raise GraphError(
+                f"prior {bad}: vertex {int(self.index[bad])} of agent {a.name}, which has {a.num_poses} poses"
+            )

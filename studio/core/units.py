@@ -13,6 +13,7 @@ __all__ = [
     "CHI2_RISE_TOLERANCE",
     "MAX_SPLIT_ROBOTS",
     "MAX_STAMP_S",
+    "QUAT_NORM_TOLERANCE",
 ]
 
 #: Nanoseconds per second: timestamps are int64 nanoseconds inside the studio.
@@ -46,3 +47,8 @@ MAX_SPLIT_ROBOTS = 10_000
 #: Largest time [s] whose nanoseconds fit int64 (about 292 years): a time in seconds beyond it
 #: cannot become a stamp.
 MAX_STAMP_S = ((1 << 63) - 1) / 1e9 * (1 - 1e-12)
+
+#: How far from unit length a quaternion read from a file may be and still be normalised (g2o, GTSAM
+#: and SE-Sync normalise; files written with six decimals, SE-Sync's ``cubicle.g2o``, are off by up to
+#: 1.7e-6). Farther is a broken file, refused.
+QUAT_NORM_TOLERANCE = 1e-5

@@ -5,8 +5,13 @@ double round-trips). In SE(3) records, a positive zero in z, qx, qy or in an off
 entry is written ``0.0``, as kollagen writes the planar data it lifts to 3D; that keeps files written
 from planar graphs byte-identical to kollagen's. Vertices come first, then edges, in column order.
 
-Reading accepts the same four records (and skips blank lines and ``#`` comments); anything else is a
-:class:`~studio.core.errors.FormatError` naming ``file:line``. Files are UTF-8 (a byte-order mark is
+Reading accepts the same four records and ``FIX id...`` (the gauge: the vertices held fixed), and
+skips blank lines, ``#`` comments and ``PARAMS``; anything else is a
+:class:`~studio.core.errors.FormatError` naming ``file:line``. A quaternion within
+:data:`~studio.core.units.QUAT_NORM_TOLERANCE` (1e-5) of unit length is normalised, as g2o, GTSAM and
+SE-Sync do (SE-Sync's ``cubicle.g2o`` writes six decimals, off by up to 1.7e-6); the document counts
+them (:attr:`G2oDocument.normalised_quaternions`) so a command can say so in one line. One farther
+from unit length is refused naming its line. Files are UTF-8 (a byte-order mark is
 skipped) of at most :data:`MAX_TEXT_BYTES` (1 GiB), checked before reading; the TUM and
 ``inter_agent_lc.dat`` readers share these rules.
 """
@@ -15,7 +20,7 @@ from __future__ import annotations
 
 import io
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
@@ -24,6 +29,7 @@ import numpy as np
 from studio.core.errors import FormatError
 from studio.core.model import PoseKind
 from studio.core.types import PathLike
+from studio.core.units import QUAT_NORM_TOLERANCE
 from studio.io.input_files import read_input_bytes
 from studio.io.textfmt import (
     Floats,
@@ -42,6 +48,7 @@ __all__ = [
     "SE3_INFO_ZERO_LITERAL",
     "SE3_POSE_ZERO_LITERAL",
     "MAX_TEXT_BYTES",
+    "normalised_note",
 ]
 
 _TAGS = {
@@ -72,6 +79,18 @@ class G2oDocument:
     edge_to: np.ndarray
     edge_measurements: np.ndarray
     edge_information_upper: np.ndarray
+    fixed_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    """The ids of the file's ``FIX`` lines (the gauge), in file order."""
+    normalised_quaternions: int = 0
+    """How many quaternions reading normalised (off unit length by more than 1e-12, within 1e-5)."""
+
+
+def normalised_note(name: str, count: int) -> str:
+    """The one line a command prints when reading normalised ``count`` quaternions of ``name``."""
+    return (
+        f"{name}: normalised {count} quaternion{'s' if count != 1 else ''} within {QUAT_NORM_TOLERANCE:g} "
+        "of unit length (written with few decimals)"
+    )
 
 
 def _pose_fields(poses: np.ndarray, kind: PoseKind) -> Floats:
@@ -187,6 +206,7 @@ def read_g2o(
     """
     text, name = _open_text(source)
     groups: dict[str, tuple[list[int], list[list[str]]]] = {}
+    fixed: list[tuple[int, str]] = []
     kind = None
     for lineno, raw in enumerate(io.StringIO(text), start=1):
         if not edges and raw.startswith("EDGE_"):
@@ -195,11 +215,14 @@ def read_g2o(
         if not parts or parts[0].startswith("#"):
             continue
         tag = parts[0]
+        if tag == "FIX":
+            fixed.extend((lineno, tok) for tok in parts[1:])
+            continue
         if tag not in _WIDTH:
             if unknown is not None:
                 unknown[tag[:40]] = unknown.get(tag[:40], 0) + 1
                 continue
-            if tag.startswith(("FIX", "PARAMS")):
+            if tag.startswith("PARAMS"):
                 continue
             raise FormatError(f"{name}:{lineno}: unknown record {tag[:40]!r}")
         if kind is None:
@@ -232,19 +255,48 @@ def read_g2o(
         if not known.all():
             r, c = np.argwhere(~known)[0]
             raise FormatError(f"{name}:{elines[r]}: edge refers to unknown vertex {int(eids[r, c])}")
+    fixed_ids = _fixed_ids(fixed, vids, eids, name, dangling=dangling)
+    normalised = 0
     if kind is PoseKind.SE3:
-        _check_quats(vposes, vlines, name)
-        _check_quats(emeas, elines, name)
-    return G2oDocument(kind, vids, vposes, eids[:, 0].copy(), eids[:, 1].copy(), emeas, einfo)
+        normalised = _normalise_quats(vposes, vlines, name) + _normalise_quats(emeas, elines, name)
+    return G2oDocument(kind, vids, vposes, eids[:, 0].copy(), eids[:, 1].copy(), emeas, einfo, fixed_ids, normalised)
 
 
-def _check_quats(poses: np.ndarray, lines: list[int], name: str) -> None:
+def _fixed_ids(
+    fixed: list[tuple[int, str]], vids: np.ndarray, eids: np.ndarray, name: str, *, dangling: bool
+) -> np.ndarray:
+    """The ids of the ``FIX`` lines, each a vertex of the file (or, in a file of edges only, an edge's end)."""
+    ids = np.zeros(len(fixed), dtype=np.int64)
+    for k, (lineno, tok) in enumerate(fixed):
+        try:
+            ids[k] = int(tok)
+        except (ValueError, OverflowError):
+            raise FormatError(f"{name}:{lineno}: FIX: vertex id {tok[:40]!r} is not a 64-bit integer") from None
+    known = vids if len(vids) or not dangling else eids.reshape(-1)
+    missing = np.flatnonzero(~np.isin(ids, known))  # one sorted search: a file of many FIX ids stays fast
+    if missing.size:
+        k = int(missing[0])
+        raise FormatError(f"{name}:{fixed[k][0]}: FIX names vertex {ids[k]}, which the file does not have")
+    return ids
+
+
+def _normalise_quats(poses: np.ndarray, lines: list[int], name: str) -> int:
+    """Normalise in place the quaternions ``poses[:, 3:7]`` off unit length by more than 1e-12 and at
+    most :data:`QUAT_NORM_TOLERANCE`; return how many. The rest stay as written, so that a file written
+    with every digit reads back bit for bit."""
     if not len(poses):
-        return
+        return 0
     norms = _row_norms(poses[:, 3:7])
-    bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-6)
+    off = np.abs(norms - 1.0)
+    bad = np.flatnonzero(~(off <= QUAT_NORM_TOLERANCE))
     if bad.size:
-        raise FormatError(f"{name}:{lines[bad[0]]}: quaternion is not unit length (norm {norms[bad[0]]:.6g})")
+        raise FormatError(
+            f"{name}:{lines[bad[0]]}: quaternion is not unit length (norm {norms[bad[0]]:.9g}; "
+            f"at most {QUAT_NORM_TOLERANCE:g} off is normalised)"
+        )
+    fix = off > 1e-12
+    poses[fix, 3:7] /= norms[fix, None]
+    return int(np.count_nonzero(fix))
 
 
 def _ints(rows: list[list[str]], a: int, b: int, lines: list[int], name: str) -> np.ndarray:

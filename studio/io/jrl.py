@@ -1,10 +1,11 @@
-"""JRL ("JSON Robot Log", DanMcGann/jrl ``format/*.md``; MESA's and COSMO-Bench's format).
+"""JRL ("JSON Robot Log", DanMcGann/jrl; MESA's, riMESA's and COSMO-Bench's format).
 
-What the studio writes, following jrl's ``Writer`` and ``Parser`` (``src/Writer.cpp``,
-``src/Parser.cpp``, ``include/jrl/IOMeasurements.h``)::
+Read and written as jrl's own code reads and writes it (``src/Parser.cpp``, ``src/Writer.cpp``,
+``include/jrl/IOMeasurements.h``, ``src/IOValues.cpp``; where ``format/*.md`` differs, the code
+wins)::
 
     {"name": NAME,
-     "robots": ["a", "b", ...],                   # robot k's character: studio.io.symbol_g2o
+     "robots": [97, 98, ...],                     # robot k's character, as a number
      "measurements": {"a": [{"stamp": 12, "measurements": [FACTOR, ...]}, ...], ...},
      "groundtruth":    {"a": [{"key": K, "type": "Pose3", "translation": [x, y, z],
                                "rotation": [w, x, y, z]}, ...], ...},
@@ -13,36 +14,50 @@ What the studio writes, following jrl's ``Writer`` and ``Parser`` (``src/Writer.
      "outlier_factors":           {"a": [[entry, measurement], ...], ...},
      "studio": {"format": "cslam-studio jrl 1", "agents": [NAME, ...], "stamps_ns": {"a": [...]}}}
 
-* Keys are GTSAM Symbols ``ord(robot) << 56 | index``.
+* Robot ids are ``char``: the ``Writer`` (nlohmann's json) writes each as a number and the
+  ``Parser`` reads them with ``get<std::vector<char>>()``, which takes numbers only; the studio
+  writes numbers and reads numbers 1..127 and, as ``format/DATASET_FORMAT.md`` and hand-written
+  files show them, one-character strings. A section's robot is its key, a one-character string.
+* Keys are GTSAM Symbols ``ord(robot) << 56 | index`` (robot k's character: studio.io.symbol_g2o).
 * A FACTOR is ``{"type": "BetweenFactorPose3", "key1", "key2", "measurement": POSE,
-  "covariance": [36 values, row-major]}`` (``BetweenFactorPose2`` with ``{"x", "y", "theta"}`` and 9
-  values for planar graphs). The covariance is over GTSAM's tangent order, rotation first for Pose3
-  (``rx ry rz x y z``, the rotation as a rotation vector): the studio's g2o-convention information
-  (``x y z`` then the quaternion's vector part) is converted (``J^T I J`` with
-  ``J = diag(1, 1, 1, 1/2, 1/2, 1/2)``, reordered, inverted) and converted back on reading.
+  "covariance": [36 values]}`` (``BetweenFactorPose2`` with ``{"x", "y", "theta"}`` and 9 values
+  for planar graphs) or ``{"type": "PriorFactorPose3", "key", "prior": POSE, "covariance"}``. A
+  covariance is dense, column-major (``Eigen::Map`` of the list), over GTSAM's tangent order,
+  rotation first for Pose3 (``rx ry rz x y z``, the rotation as a rotation vector): the studio's
+  g2o-convention information (``x y z`` then the quaternion's vector part) is converted (``J^T I J``
+  with ``J = diag(1, 1, 1, 1/2, 1/2, 1/2)``, reordered, inverted) and converted back on reading.
 * Each measurement is an entry of the robot that owns it at its stamp (int64 nanoseconds inside the
-  studio, written as they are): odometry and intra-robot loop closures at the later pose's stamp,
-  inter-robot loop closures in the ``from`` robot's entries at the later of the two stamps.
-* Every inter-robot loop closure (and every labelled outlier) is a potential outlier; the dataset's
-  labelled outliers (``outliers.txt``) are the outlier factors. FactorIds are per robot, as jrl's
-  ``Parser`` reads them.
+  studio, written as they are): a prior first in the entry of its pose's stamp, odometry and
+  intra-robot loop closures at the later pose's stamp, inter-robot loop closures in the ``from``
+  robot's entries at the later of the two stamps. A factor listed by two robots is two measurements,
+  as MESA's centralised runner adds every robot's factors.
+* A robot's values hold every pose its measurements touch: its own, then copies of the other robots'
+  poses (jrl's ``Dataset``: ground-truth copies must agree, initialization copies may differ).
+  Reading, a pose takes its owner's value, else the first copy; ground-truth copies that disagree
+  are one warning.
+* Potential outliers: the dataset's ``potential_outliers.txt`` where it has one (a JRL read keeps the
+  file's), else every inter-robot loop closure; every labelled outlier (``outliers.txt``,
+  ``outlier_factors``) is a potential one. FactorIds are per robot, ``[entry, measurement]``, as
+  jrl's ``Parser`` reads a ``std::set<FactorId>``; labels on factors the studio does not hold (a
+  prior, a skipped type) are dropped with one warning.
 * JRL values carry no stamps: the poses' stamps and the agents' names are in the ``studio`` block,
   which jrl's parser ignores. Without it (a file from elsewhere), pose ``k > 0`` takes the stamp of
-  the entry holding the odometry into it.
+  the entry holding the odometry into it, pose 0 the robot's first entry's.
 
-Reading accepts ``BetweenFactorPose2/3`` and ``PriorFactorPose2/3`` (priors are dropped: the studio's
-graphs have no priors) and ``BearingRangeFactorPose2`` between two robots' poses, read back into the
+Reading accepts ``BetweenFactorPose2/3``, ``PriorFactorPose2/3`` (kept: :attr:`JrlGraph.priors`)
+and ``BearingRangeFactorPose2`` between two robots' poses, read back into the
 sightings table :mod:`studio.io.range_bearing` holds (:attr:`JrlGraph.range_bearing`, in stamp order
 as ``studio convert mrclam`` makes it); range factors, bearing-range factors of other kinds
 (``Pose3``'s ``Unit3`` bearing, landmarks' ``2D``/``3D``) and point factors are counted in one
 warning and skipped. A ``BearingRangeFactorPose2`` is read as jrl's ``Parser`` reads it
 (``parseBearingRange``: the bearing a ``Rot2`` object's ``theta``, the range a ``Scalar`` object's
 ``value``; the bare numbers ``format/VALUE_FORMAT.md`` lists are accepted too) with its covariance
-row-major over (bearing, range); a bearing-range correlation is dropped with one warning (the
+over (bearing, range); a bearing-range correlation is dropped with one warning (the
 sightings table holds two standard deviations). Missing keys, robots not in ``robots``, keys of
-unknown robots, mixed Pose2/Pose3, a bearing-range factor in a Pose3 graph or between poses of one
-robot, a negative range and a covariance that is not symmetric positive definite are a
-:class:`FormatError` naming the JSON path.
+unknown robots, mixed Pose2/Pose3, a prior on a pose no value or pose-graph measurement names, a
+FactorId past its robot's entries or its entry's measurements, a quaternion off unit length by more
+than 1e-6, a bearing-range factor in a Pose3 graph or between poses of one robot, a negative range
+and a covariance that is not positive definite are a :class:`FormatError` naming the JSON path.
 """
 
 from __future__ import annotations
@@ -58,7 +73,7 @@ from typing import Any
 import numpy as np
 
 from studio.core.errors import FormatError, GraphError
-from studio.core.model import PoseGraph, PoseKind, RangeBearing
+from studio.core.model import PoseGraph, PoseKind, Priors, RangeBearing
 from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE, NS_PER_S
 from studio.io.g2o import MAX_TEXT_BYTES
@@ -71,7 +86,6 @@ from studio.io.graph_table import (
     matrix_to_upper,
 )
 from studio.io.input_files import read_input_bytes
-from studio.io.numbers import json_float
 from studio.io.strict_json import dumps_strict, unique_keys
 from studio.io.symbol_g2o import INDEX_BITS, robot_prefix
 
@@ -126,14 +140,37 @@ def covariance_to_information(kind: PoseKind, cov: np.ndarray) -> np.ndarray:
 
 
 def _pose_values(kind: PoseKind, poses: np.ndarray) -> list[dict[str, Any]]:
+    """jrl's ``serialize<Pose2/Pose3>`` of each pose (its quaternion ``w x y z``)."""
+    tag = _VALUE[kind]
     if kind is PoseKind.SE2:
-        return [{"x": x, "y": y, "theta": t} for x, y, t in poses.tolist()]
-    return [{"translation": [x, y, z], "rotation": [qw, qx, qy, qz]} for x, y, z, qx, qy, qz, qw in poses.tolist()]
+        return [{"type": tag, "x": x, "y": y, "theta": t} for x, y, t in poses.tolist()]
+    return [
+        {"type": tag, "translation": [x, y, z], "rotation": [qw, qx, qy, qz]}
+        for x, y, z, qx, qy, qz, qw in poses.tolist()
+    ]
 
 
-def _values(kind: PoseKind, prefix: str, poses: np.ndarray) -> list[dict[str, Any]]:
-    base = ord(prefix) << INDEX_BITS
-    return [{"key": base + i, "type": _VALUE[kind], **v} for i, v in enumerate(_pose_values(kind, poses))]
+def _value_sections(
+    graph: PoseGraph, truth: bool, touched: list[set[tuple[int, int]]]
+) -> dict[str, list[dict[str, Any]]]:
+    """Each robot's values as jrl's ``Dataset`` holds them: its own poses, then copies of the other
+    robots' poses its measurements touch (``touched``: ``(agent, index)`` per robot), so that every
+    key of a robot's factors has a value in its own section (what MESA's robots optimise over)."""
+    out = {}
+    kind = graph.kind
+    for k, a in enumerate(graph.agents):
+        prefix = robot_prefix(k)
+        poses = a.ground_truth if truth else a.initial
+        assert poses is not None
+        base = ord(prefix) << INDEX_BITS
+        vals = [{"key": base + i, **v} for i, v in enumerate(_pose_values(kind, poses))]
+        for b, i in sorted(touched[k]):
+            other = graph.agents[b].ground_truth if truth else graph.agents[b].initial
+            assert other is not None
+            key = (ord(robot_prefix(b)) << INDEX_BITS) + i
+            vals.append({"key": key, **_pose_values(kind, other[i : i + 1])[0]})
+        out[prefix] = vals
+    return out
 
 
 def _bearing_range_factors(
@@ -182,12 +219,21 @@ def _labelled(table: EdgeTable, outliers: np.ndarray | None) -> np.ndarray:
 
 
 def jrl_document(
-    graph: PoseGraph, *, name: str, outliers: np.ndarray | None = None, range_bearing: RangeBearing | None = None
+    graph: PoseGraph,
+    *,
+    name: str,
+    outliers: np.ndarray | None = None,
+    range_bearing: RangeBearing | None = None,
+    priors: Priors | None = None,
+    potential_outliers: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """The JRL object of ``graph`` (see the module doc). ``outliers``: ``(k, 4)`` rows
-    ``agent_from vertex_from agent_to vertex_to`` (0-based agents) of the labelled outliers.
-    ``range_bearing``: sightings written as ``BearingRangeFactorPose2`` at their stamps in the
-    observer's measurements (planar graphs only: JRL's 3D bearing is a ``Unit3``)."""
+    ``agent_from vertex_from agent_to vertex_to`` (0-based agents) of the labelled outliers;
+    ``potential_outliers`` the same rows of the potential outliers (default: every inter-robot loop
+    closure); every labelled outlier is a potential one. ``range_bearing``: sightings written as
+    ``BearingRangeFactorPose2`` at their stamps in the observer's measurements (planar graphs only:
+    JRL's 3D bearing is a ``Unit3``). ``priors``: ``PriorFactorPose2/3`` first in the entry at their
+    pose's stamp."""
     kind = graph.kind
     prefixes = [robot_prefix(k) for k in range(len(graph.agents))]
     for a in graph.agents:
@@ -195,61 +241,50 @@ def jrl_document(
             raise GraphError(f"{a.name}: JRL stamps are unsigned; the first stamp is {int(a.stamps_ns[0])} ns")
     table = graph_edge_table(graph)
     base = np.array([ord(p) << INDEX_BITS for p in prefixes], dtype=np.int64)
-    key1 = (base[table.from_agent] + table.from_index).tolist()
-    key2 = (base[table.to_agent] + table.to_index).tolist()
     starts = np.cumsum([0] + [a.num_poses for a in graph.agents])
     all_stamps = np.concatenate([a.stamps_ns for a in graph.agents])
     stamp = np.maximum(
         all_stamps[starts[table.from_agent] + table.from_index], all_stamps[starts[table.to_agent] + table.to_index]
     )
-    try:
-        cov = information_to_covariance(kind, table.information_upper)
-    except GraphError as err:
-        raise GraphError(f"JRL: {err}") from None
-    cov_lists = cov.reshape(len(table), -1).tolist()
-    meas = _pose_values(kind, table.measurements)
-    tag = _BETWEEN[kind]
-    inter = table.from_agent != table.to_agent
     label = _labelled(table, outliers)
+    potential = label | (
+        table.from_agent != table.to_agent if potential_outliers is None else _labelled(table, potential_outliers)
+    )
+    between = _between_factors(kind, table, base)
     rb_stamp, rb_factor, rb_robot = _bearing_range_factors(graph, range_bearing, base)
+    pr_stamp, pr_factor, pr_robot = _prior_factors(graph, priors, base)
     measurements: dict[str, list[dict[str, Any]]] = {}
-    potential: dict[str, list[list[int]]] = {}
+    marked: dict[str, list[list[int]]] = {}
     labelled: dict[str, list[list[int]]] = {}
     for k, p in enumerate(prefixes):
         mine = np.flatnonzero(table.from_agent == k)
-        order = mine[np.argsort(stamp[mine], kind="stable")].tolist()
-        extra = np.flatnonzero(rb_robot == k).tolist()
-        # between factors by stamp, then the robot's sightings merged in (after factors of equal stamp)
-        items = [(int(stamp[e]), 0, e) for e in order] + [(int(rb_stamp[j]), 1, j) for j in extra]
-        if extra:
-            items.sort(key=lambda it: (it[0], it[1]))
+        # priors first in an entry, then between factors by stamp, then the robot's sightings
+        items = [(int(pr_stamp[j]), 0, j) for j in np.flatnonzero(pr_robot == k).tolist()]
+        items += [(int(stamp[e]), 1, e) for e in mine[np.argsort(stamp[mine], kind="stable")].tolist()]
+        items += [(int(rb_stamp[j]), 2, j) for j in np.flatnonzero(rb_robot == k).tolist()]
+        items.sort(key=lambda it: (it[0], it[1]))
         entries: list[dict[str, Any]] = []
         pot: list[list[int]] = []
         out: list[list[int]] = []
-        last = None
-        for at, is_rb, e in items:
-            if at != last:
+        for at, what, e in items:
+            if not entries or entries[-1]["stamp"] != at:
                 entries.append({"stamp": at, "measurements": []})
-                last = at
             factors = entries[-1]["measurements"]
-            if is_rb:
-                factors.append(rb_factor[e])
-                continue
-            if inter[e] or label[e]:
+            if what == 1 and potential[e]:
                 pot.append([len(entries) - 1, len(factors)])
-            if label[e]:
+            if what == 1 and label[e]:
                 out.append([len(entries) - 1, len(factors)])
-            factors.append(
-                {"type": tag, "key1": key1[e], "key2": key2[e], "measurement": meas[e], "covariance": cov_lists[e]}
-            )
+            factors.append((pr_factor, between, rb_factor)[what][e])
         measurements[p] = entries
-        potential[p] = pot
+        marked[p] = pot
         labelled[p] = out
-    doc: dict[str, Any] = {"name": name, "robots": prefixes, "measurements": measurements}
+    # jrl's Writer writes a robot id (a char) as a number; its Parser reads them back as chars
+    doc: dict[str, Any] = {"name": name, "robots": [ord(p) for p in prefixes], "measurements": measurements}
+    touched = _touched(graph, table, range_bearing)
     if all(a.ground_truth is not None for a in graph.agents):
-        doc["groundtruth"] = {p: _values(kind, p, a.ground_truth) for p, a in zip(prefixes, graph.agents)}  # type: ignore[arg-type]
-    doc["initialization"] = {p: _values(kind, p, a.initial) for p, a in zip(prefixes, graph.agents)}
-    doc["potential_outlier_factors"] = potential
+        doc["groundtruth"] = _value_sections(graph, True, touched)
+    doc["initialization"] = _value_sections(graph, False, touched)
+    doc["potential_outlier_factors"] = marked
     doc["outlier_factors"] = labelled
     doc["studio"] = {
         "format": STUDIO_BLOCK_FORMAT,
@@ -259,6 +294,64 @@ def jrl_document(
     return doc
 
 
+def _touched(graph: PoseGraph, table: EdgeTable, rb: RangeBearing | None) -> list[set[tuple[int, int]]]:
+    """Per robot, the other robots' poses its measurements touch (the ``to`` end of the inter-robot
+    loop closures in its entries; the observed end of its sightings, planar graphs only)."""
+    touched: list[set[tuple[int, int]]] = [set() for _ in graph.agents]
+    inter = np.flatnonzero(table.from_agent != table.to_agent)
+    for k, b, i in zip(
+        table.from_agent[inter].tolist(), table.to_agent[inter].tolist(), table.to_index[inter].tolist()
+    ):
+        touched[k].add((b, i))
+    if rb is not None and graph.kind is PoseKind.SE2:
+        for k, b, i in zip(rb.observer_agent.tolist(), rb.observed_agent.tolist(), rb.observed_index.tolist()):
+            touched[k].add((b, i))
+    return touched
+
+
+def _covariance_lists(kind: PoseKind, information_upper: np.ndarray) -> list[list[float]]:
+    """jrl's covariance lists (column-major, as ``serializeCovariance`` writes an Eigen matrix)."""
+    try:
+        cov = information_to_covariance(kind, information_upper)
+    except GraphError as err:
+        raise GraphError(f"JRL: {err}") from None
+    lists: list[list[float]] = cov.transpose(0, 2, 1).reshape(len(cov), -1).tolist()
+    return lists
+
+
+def _between_factors(kind: PoseKind, table: EdgeTable, base: np.ndarray) -> list[dict[str, Any]]:
+    """``BetweenFactorPose2/3`` of every edge of ``table``, in its order."""
+    key1 = (base[table.from_agent] + table.from_index).tolist()
+    key2 = (base[table.to_agent] + table.to_index).tolist()
+    tag = _BETWEEN[kind]
+    return [
+        {"type": tag, "key1": a, "key2": b, "measurement": m, "covariance": c}
+        for a, b, m, c in zip(
+            key1, key2, _pose_values(kind, table.measurements), _covariance_lists(kind, table.information_upper)
+        )
+    ]
+
+
+def _prior_factors(
+    graph: PoseGraph, priors: Priors | None, base: np.ndarray
+) -> tuple[np.ndarray, list[dict[str, Any]], np.ndarray]:
+    """``PriorFactorPose2/3`` of each prior (``key``, ``prior``, ``covariance``, as jrl's
+    ``serializePrior`` writes them): stamps (their pose's), factors, robots."""
+    if priors is None or not len(priors):
+        return np.zeros(0, np.int64), [], np.zeros(0, np.int64)
+    priors.check_against(graph)
+    stamps = np.array([graph.agents[a].stamps_ns[i] for a, i in zip(priors.agent.tolist(), priors.index.tolist())])
+    keys = (base[priors.agent] + priors.index).tolist()
+    tag = _PRIOR[graph.kind]
+    factors = [
+        {"type": tag, "key": k, "prior": v, "covariance": c}
+        for k, v, c in zip(
+            keys, _pose_values(graph.kind, priors.poses), _covariance_lists(graph.kind, priors.information_upper)
+        )
+    ]
+    return stamps.astype(np.int64), factors, priors.agent
+
+
 def write_jrl(
     path: PathLike,
     graph: PoseGraph,
@@ -266,9 +359,18 @@ def write_jrl(
     name: str,
     outliers: np.ndarray | None = None,
     range_bearing: RangeBearing | None = None,
+    priors: Priors | None = None,
+    potential_outliers: np.ndarray | None = None,
 ) -> None:
     """Write ``graph`` as a JRL file (compact JSON, numbers as Python's shortest round-trip repr)."""
-    doc = jrl_document(graph, name=name, outliers=outliers, range_bearing=range_bearing)
+    doc = jrl_document(
+        graph,
+        name=name,
+        outliers=outliers,
+        range_bearing=range_bearing,
+        priors=priors,
+        potential_outliers=potential_outliers,
+    )
     text = dumps_strict(doc, str(path), separators=(",", ":"))
     with open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write(text)
@@ -287,6 +389,10 @@ class JrlGraph:
     """Factor types skipped (range, bearing-range but Pose2's, point factors, priors), with their counts."""
     range_bearing: RangeBearing | None = None
     """The ``BearingRangeFactorPose2`` sightings (None when the file has none)."""
+    priors: Priors | None = None
+    """The ``PriorFactorPose2/3`` factors (None when the file has none)."""
+    potential_outliers: np.ndarray | None = None
+    """``(k, 4)`` edge rows of ``potential_outlier_factors`` (None when the file has no such section)."""
 
 
 class _Reader:
@@ -304,9 +410,17 @@ class _Reader:
         return obj[key]
 
     def number(self, value: Any, path: str, bound: float = sys.float_info.max) -> float:
-        # never a string or a boolean (a bool is an int to Python); a 400-digit integer is refused,
-        # not an OverflowError
-        return json_float(value, f"{self.where}: {path}", bound=bound, what="value")
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(path, f"expected a number, got {json.dumps(value)[:40]}")
+        try:
+            v = float(value)
+        except OverflowError:
+            raise self.fail(path, "a number beyond a double's range") from None
+        if not np.isfinite(v):
+            raise self.fail(path, "not a finite number")
+        if abs(v) > bound:  # translations: the documented bound of every coordinate
+            raise self.fail(path, f"{v:g} is beyond {bound:g} m")
+        return v
 
     def numbers(self, value: Any, n: int, path: str, bound: float = sys.float_info.max) -> list[float]:
         if not isinstance(value, list) or len(value) != n:
@@ -330,6 +444,8 @@ class _Reader:
 
 
 _INT64_MIN, _INT64_MAX = -(1 << 63), (1 << 63) - 1
+#: jrl's robot ids are chars that name a JSON object key (``std::string(1, robot)``): ASCII.
+_ROBOT_ID_END = 128
 
 
 def _load(source: PathLike) -> tuple[Any, str]:
@@ -357,9 +473,9 @@ def _load(source: PathLike) -> tuple[Any, str]:
 
 
 def _parse_int(text: str) -> int:
-    """JSON integers of at most 40 digits (a key or stamp has 20): Python's own limit, 4300 digits,
-    raises a ValueError about itself, and a 400-digit integer overflows a float."""
-    if len(text) > 40:
+    """JSON integers of at most 4000 digits: Python's own limit, 4300 digits, raises a ValueError
+    about itself (a longer one than a double holds is refused where it is used, with its path)."""
+    if len(text) > 4000:
         raise ValueError(f"an integer of {len(text.lstrip('-'))} digits, beyond any JRL key, stamp or value")
     return int(text)
 
@@ -381,14 +497,14 @@ def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> 
     dim = 3 if kind is PoseKind.SE2 else 6
     meas = _pose_array(r, kind, factors.measurements, [f"{p}.measurement" for p in factors.paths])
     cov = _number_array(r, factors.covariances, dim * dim, [f"{p}.covariance" for p in factors.paths])
-    cov = cov.reshape(-1, dim, dim)
+    cov = _column_major(cov, dim)
     if factors.skipped and warn is not None:
         warn(
             f"{where}: skipped factors the studio's pose graphs do not hold: "
             + ", ".join(f"{n} {t}" for t, n in sorted(factors.skipped.items()))
         )
-    init = _read_values(r, keys, data, "initialization", kind)
-    truth = _read_values(r, keys, data, "groundtruth", kind)
+    init = _read_values(r, keys, data, "initialization", kind, warn)
+    truth = _read_values(r, keys, data, "groundtruth", kind, warn)
     edge = np.array(factors.rows, dtype=np.int64).reshape(-1, 4)
     agents, local = _robot_poses(r, robots, studio, edge, factors, init, truth)
     fi = np.array([local[a][i] for a, i in zip(edge[:, 0].tolist(), edge[:, 1].tolist())], dtype=np.int64)
@@ -400,9 +516,63 @@ def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> 
         raise r.fail(f"measurements.{c}[{e}].measurements[{m}].covariance", "not positive definite")
     table = EdgeTable(kind, edge[:, 0], fi, edge[:, 2], ti, meas, covariance_to_information(kind, cov))
     graph = assemble_graph(agents, table, where=where, metadata={"source": where, "name": str(name)})
-    outliers = _outlier_rows(r, data, factors.ids, table)
     sightings = _sightings(r, kind, factors.bearing_range, local, agents, warn)
-    return JrlGraph(graph, outliers, str(name), factors.skipped, sightings)
+    priors = _prior_table(r, kind, factors.priors, local, agents)
+    outliers, potential = _labels(r, data, factors, table, warn)
+    return JrlGraph(graph, outliers, str(name), factors.skipped, sightings, priors, potential)
+
+
+def _column_major(flat: np.ndarray, dim: int) -> np.ndarray:
+    """``(n, dim, dim)`` matrices of jrl's covariance lists: ``parseCovariance`` maps them with
+    ``Eigen::Map<gtsam::Matrix>``, column-major (one matrix whatever the order when symmetric)."""
+    out: np.ndarray = flat.reshape(-1, dim, dim).transpose(0, 2, 1)
+    return out
+
+
+def _labels(
+    r: _Reader, data: dict[str, Any], factors: _Factors, table: EdgeTable, warn: Callable[[str], None] | None
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """The labelled outliers (``outlier_factors``; none without the section) and the potential
+    outliers (``potential_outlier_factors``; None without it), as edge rows."""
+    outliers = _labelled_rows(r, data, "outlier_factors", factors, table)
+    potential = _labelled_rows(r, data, "potential_outlier_factors", factors, table)
+    elsewhere = (outliers[1] if outliers else 0) + (potential[1] if potential else 0)
+    if elsewhere and warn is not None:
+        warn(
+            f"{r.where}: {elsewhere} outlier labels name factors the studio's graphs do not hold (priors, skipped types); dropped"
+        )
+    rows = outliers[0] if outliers else np.zeros((0, 4), dtype=np.int64)
+    return rows, potential[0] if potential else None
+
+
+def _prior_table(
+    r: _Reader, kind: PoseKind, found: list[_Prior], local: list[dict[int, int]], agents: list[AgentPoses]
+) -> Priors | None:
+    """The ``PriorFactorPose2/3`` factors as a :class:`Priors` table (None without any): each on a
+    pose of the graph (one a value or a pose-graph measurement names), of the graph's kind, with a
+    positive definite covariance."""
+    if not found:
+        return None
+    dim = 3 if kind is PoseKind.SE2 else 6
+    for p in found:
+        if p.kind is not kind:
+            raise r.fail(f"{p.path}.type", f"{_PRIOR[p.kind]} in a graph of {_BETWEEN[kind]} measurements")
+        a, i = p.pose
+        if i not in local[a]:
+            raise r.fail(
+                f"{p.path}.key",
+                f"a prior on pose {i} of {agents[a].name!r}, which no value or pose-graph measurement names",
+            )
+    poses = _pose_array(r, kind, [p.value for p in found], [f"{p.path}.prior" for p in found])
+    cov = _column_major(
+        _number_array(r, [p.covariance for p in found], dim * dim, [f"{p.path}.covariance" for p in found]), dim
+    )
+    sign, _ = np.linalg.slogdet(cov)
+    if np.any(sign <= 0):
+        raise r.fail(f"{found[int(np.flatnonzero(sign <= 0)[0])].path}.covariance", "not positive definite")
+    agent = np.array([p.pose[0] for p in found], dtype=np.int64)
+    index = np.array([local[p.pose[0]][p.pose[1]] for p in found], dtype=np.int64)
+    return Priors(kind, agent, index, poses, covariance_to_information(kind, cov))
 
 
 def _read_header(r: _Reader, data: Any) -> tuple[Any, list[str], dict[str, Any] | None]:
@@ -411,9 +581,7 @@ def _read_header(r: _Reader, data: Any) -> tuple[Any, list[str], dict[str, Any] 
     if not isinstance(data, dict):
         raise FormatError(f"{r.where}: expected a JSON object at the top")
     name = r.get(data, "name", "$")
-    robots = r.get(data, "robots", "$")
-    if not isinstance(robots, list) or not robots or not all(isinstance(c, str) and len(c) == 1 for c in robots):
-        raise r.fail("robots", "expected a non-empty list of one-character robot ids")
+    robots = _robot_ids(r, r.get(data, "robots", "$"))
     if len(set(robots)) != len(robots):
         raise r.fail("robots", "a robot id is listed twice")
     measurements = r.get(data, "measurements", "$")
@@ -431,6 +599,27 @@ def _read_header(r: _Reader, data: Any) -> tuple[Any, list[str], dict[str, Any] 
     if studio is not None and studio.get("format") != STUDIO_BLOCK_FORMAT:
         studio = None
     return name, robots, studio
+
+
+def _robot_ids(r: _Reader, robots: Any) -> list[str]:
+    """The robots' characters. jrl's ``Parser`` reads ``robots`` with ``get<std::vector<char>>()``
+    and its ``Writer`` writes a ``char`` as a number (``"robots": [97, 98]``); one-character strings,
+    as ``format/DATASET_FORMAT.md`` shows them and hand-written files have them, are read too. A
+    section's robot is the first character of its key (``el.key()[0]``), a key's the top byte."""
+    if not isinstance(robots, list) or not robots:
+        raise r.fail("robots", "expected a non-empty list of robot ids (jrl writes each char as a number)")
+    out = []
+    for n, c in enumerate(robots):
+        if isinstance(c, int) and not isinstance(c, bool) and 0 < c < _ROBOT_ID_END:
+            out.append(chr(c))
+        elif isinstance(c, str) and len(c) == 1 and 0 < ord(c) < _ROBOT_ID_END:
+            out.append(c)
+        else:
+            raise r.fail(
+                f"robots[{n}]",
+                f"expected a robot id, a char code 1..127 or a one-character string, got {json.dumps(c)[:40]}",
+            )
+    return out
 
 
 class _Keys:
@@ -469,6 +658,21 @@ class _Factors:
     """Each robot's first entry's stamp."""
     bearing_range: list[_BearingRange] = field(default_factory=list)
     """The ``BearingRangeFactorPose2`` factors, in reading order."""
+    priors: list[_Prior] = field(default_factory=list)
+    """The ``PriorFactorPose2/3`` factors, in reading order."""
+    entry_sizes: dict[str, list[int]] = field(default_factory=dict)
+    """Each robot's entries' numbers of measurements (what a FactorId may name)."""
+
+
+@dataclass(frozen=True, eq=False)
+class _Prior:
+    """One ``PriorFactorPose2/3`` as read (key decoded; value and covariance as JSON)."""
+
+    path: str
+    kind: PoseKind
+    pose: tuple[int, int]
+    value: Any
+    covariance: Any
 
 
 @dataclass(frozen=True, eq=False)
@@ -486,14 +690,16 @@ class _BearingRange:
 
 
 def _read_factors(r: _Reader, keys: _Keys, measurements: dict[str, Any]) -> _Factors:
-    """Every robot's entries and their factors: Between factors kept, priors and non-pose factors
+    """Every robot's entries and their factors: Between and Prior factors kept, non-pose factors
     counted as skipped, anything else (or a kind mixed with the other) a FormatError."""
     out = _Factors()
     between = {v: k for k, v in _BETWEEN.items()}
+    prior = {v: k for k, v in _PRIOR.items()}
     for c in keys.robots:
         entries = measurements.get(c, [])
         if not isinstance(entries, list):
             raise r.fail(f"measurements.{c}", "expected a list of entries")
+        sizes = out.entry_sizes.setdefault(c, [])
         for e, entry in enumerate(entries):
             path = f"measurements.{c}[{e}]"
             stamp = r.uint(r.get(entry, "stamp", path), f"{path}.stamp")
@@ -503,6 +709,7 @@ def _read_factors(r: _Reader, keys: _Keys, measurements: dict[str, Any]) -> _Fac
             factors = entry.get("measurements", []) if isinstance(entry, dict) else []
             if not isinstance(factors, list):
                 raise r.fail(f"{path}.measurements", "expected a list of measurements")
+            sizes.append(len(factors))
             for m, factor in enumerate(factors):
                 fpath = f"{path}.measurements[{m}]"
                 tag = r.get(factor, "type", fpath)
@@ -511,7 +718,12 @@ def _read_factors(r: _Reader, keys: _Keys, measurements: dict[str, Any]) -> _Fac
                 if tag == _BEARING_RANGE:
                     out.bearing_range.append(_read_bearing_range(r, keys, factor, fpath, stamp))
                     continue
-                if tag in _PRIOR.values() or tag.startswith(_SKIPPED_TYPES):
+                if tag in prior:
+                    key = keys.decode(r.uint(r.get(factor, "key", fpath), f"{fpath}.key"), f"{fpath}.key")
+                    value, cov = r.get(factor, "prior", fpath), r.get(factor, "covariance", fpath)
+                    out.priors.append(_Prior(fpath, prior[tag], key, value, cov))
+                    continue
+                if tag.startswith(_SKIPPED_TYPES):
                     out.skipped[tag] = out.skipped.get(tag, 0) + 1
                     continue
                 fkind = between.get(tag)
@@ -614,14 +826,20 @@ def _sightings(
 
 
 def _read_values(
-    r: _Reader, keys: _Keys, data: dict[str, Any], section: str, kind: PoseKind
+    r: _Reader, keys: _Keys, data: dict[str, Any], section: str, kind: PoseKind, warn: Callable[[str], None] | None
 ) -> dict[int, dict[int, list[float]]] | None:
     """A values section (``initialization``, ``groundtruth``): robot position -> pose index -> pose
-    row; None when the document has no such section."""
+    row; None when the document has no such section.
+
+    A robot's values hold every pose it observed, so a pose another robot owns can be listed by
+    several robots (jrl's ``Dataset``: ground-truth copies must agree, initialization copies may
+    differ). A pose takes its owner's value, where the owner lists it, else the first copy; ground-
+    truth copies that disagree with it are counted in one warning."""
     block = data.get(section)
     if block is None:
         return None
-    out: dict[int, dict[int, list[float]]] = {}
+    own: dict[int, dict[int, list[float]]] = {}
+    copies: dict[int, dict[int, list[float]]] = {}
     for c, vals in block.items():
         items = vals.values() if isinstance(vals, dict) else vals
         if not isinstance(items, (list, type({}.values()))):
@@ -636,12 +854,37 @@ def _read_values(
                 raise r.fail(f"{vpath}.type", f"expected {_VALUE[kind]} values, got {str(vtype)[:40]!r}")
             decoded.append(keys.decode(key, f"{vpath}.key"))
         poses = _pose_array(r, kind, items, vpaths).tolist()
+        mine = keys.position[ord(c)]
         for (a, i), pose, vpath in zip(decoded, poses, vpaths):
-            robot = out.setdefault(a, {})
-            if i in robot:  # the second silently won
-                raise r.fail(f"{vpath}.key", f"pose {i} of robot {keys.robots[a]!r} is given twice in {section}")
-            robot[i] = pose
-    return out
+            if a == mine:
+                robot = own.setdefault(a, {})
+                if i in robot:  # its owner gives it twice: the second silently won
+                    raise r.fail(f"{vpath}.key", f"pose {i} of robot {c!r} is given twice in {section}.{c}")
+                robot[i] = pose
+            else:
+                copies.setdefault(a, {}).setdefault(i, pose)
+    differ = 0
+    for a, got in copies.items():
+        have = own.setdefault(a, {})
+        for i, pose in got.items():
+            if i not in have:
+                have[i] = pose
+            elif not _same_pose(kind, have[i], pose):
+                differ += 1
+    if differ and section == "groundtruth" and warn is not None:
+        warn(
+            f"{r.where}: groundtruth: {differ} copies of other robots' poses differ from their owners' values "
+            "(jrl requires them equal); the owners' values are kept"
+        )
+    return own
+
+
+def _same_pose(kind: PoseKind, a: list[float], b: list[float]) -> bool:
+    """Whether two pose rows are one pose (a quaternion and its negation are one rotation)."""
+    if kind is PoseKind.SE2:
+        return bool(np.allclose(a[:2], b[:2], rtol=0, atol=1e-9) and abs(np.angle(np.exp(1j * (a[2] - b[2])))) <= 1e-9)
+    close_t = np.allclose(a[:3], b[:3], rtol=0, atol=1e-9)
+    return bool(close_t and abs(abs(float(np.dot(a[3:], b[3:]))) - 1.0) <= 1e-12)
 
 
 def _robot_poses(
@@ -690,29 +933,44 @@ def _robot_values(
     return np.array([have[v] for v in index], dtype=np.float64)
 
 
-def _outlier_rows(
-    r: _Reader, data: dict[str, Any], ids: dict[tuple[str, int, int], int], table: EdgeTable
-) -> np.ndarray:
-    """``(k, 4)`` rows ``agent_from vertex_from agent_to vertex_to`` of the ``outlier_factors``."""
-    outliers = []
-    listed: dict[tuple[Any, ...], str] = {}
-    labelled = data.get("outlier_factors") or {}
+def _labelled_rows(
+    r: _Reader, data: dict[str, Any], section: str, factors: _Factors, table: EdgeTable
+) -> tuple[np.ndarray, int] | None:
+    """``(k, 4)`` rows ``agent_from vertex_from agent_to vertex_to`` of the FactorIds of ``section``
+    (``outlier_factors``, ``potential_outlier_factors``: robot -> ``[[entry, measurement], ...]``, as
+    jrl's ``Parser`` reads a ``std::set<FactorId>``) and how many name a factor the graph does not
+    hold (a prior, a skipped type); None when the document has no such section. A FactorId past its
+    robot's entries or its entry's measurements is a FormatError."""
+    labelled = data.get(section)
+    if labelled is None:
+        return None
     if not isinstance(labelled, dict):
-        raise r.fail("outlier_factors", "expected an object of robot -> [[entry, measurement], ...]")
+        raise r.fail(section, "expected an object of robot -> [[entry, measurement], ...]")
+    rows, elsewhere = [], 0
+    listed: dict[tuple[str, int, int], str] = {}
     for c, pairs in labelled.items():
         if not isinstance(pairs, list):
-            raise r.fail(f"outlier_factors.{c}", "expected a list of [entry, measurement] pairs")
+            raise r.fail(f"{section}.{c}", "expected a list of [entry, measurement] pairs")
+        sizes = factors.entry_sizes.get(c, [])
         for n, pair in enumerate(pairs):
-            if not (isinstance(pair, list) and len(pair) == 2 and all(type(x) is int for x in pair)):
-                raise r.fail(f"outlier_factors.{c}[{n}]", "expected [entry, measurement]")
-            row = ids.get((c, pair[0], pair[1]))
+            path = f"{section}.{c}[{n}]"
+            if not (isinstance(pair, list) and len(pair) == 2 and all(type(x) is int and x >= 0 for x in pair)):
+                raise r.fail(path, "expected a FactorId [entry, measurement] of two unsigned integers")
+            e, m = pair
+            if e >= len(sizes):
+                raise r.fail(path, f"FactorId {pair} is out of range: measurements.{c} has {len(sizes)} entries")
+            if m >= sizes[e]:
+                raise r.fail(
+                    path, f"FactorId {pair} is out of range: measurements.{c}[{e}] has {sizes[e]} measurements"
+                )
+            if (c, e, m) in listed:  # written (and counted) twice otherwise
+                raise r.fail(path, f"{pair} is listed already ({listed[(c, e, m)]})")
+            listed[(c, e, m)] = path
+            row = factors.ids.get((c, e, m))
             if row is None:
-                raise r.fail(f"outlier_factors.{c}[{n}]", f"no pose-graph measurement {pair} in measurements.{c}")
-            key = (c, pair[0], pair[1])
-            if key in listed:  # written twice to outliers.txt otherwise
-                raise r.fail(f"outlier_factors.{c}[{n}]", f"{pair} is listed already ({listed[key]})")
-            listed[key] = f"outlier_factors.{c}[{n}]"
-            outliers.append(
+                elsewhere += 1
+                continue
+            rows.append(
                 (
                     int(table.from_agent[row]),
                     int(table.from_index[row]),
@@ -720,7 +978,7 @@ def _outlier_rows(
                     int(table.to_index[row]),
                 )
             )
-    return np.array(outliers, dtype=np.int64).reshape(-1, 4)
+    return np.array(rows, dtype=np.int64).reshape(-1, 4), elsewhere
 
 
 def _number_array(r: _Reader, values: list[Any], width: int, paths: list[str]) -> np.ndarray:

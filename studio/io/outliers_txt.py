@@ -19,7 +19,17 @@ import numpy as np
 from studio.core.errors import FormatError
 from studio.core.types import PathLike
 
-__all__ = ["write_outliers_txt", "read_outliers_txt", "read_outlier_kinds"]
+__all__ = [
+    "write_outliers_txt",
+    "read_outliers_txt",
+    "read_outlier_kinds",
+    "POTENTIAL_OUTLIERS_NAME",
+    "POTENTIAL_HEAD",
+]
+
+#: The potential outliers of a dataset (JRL's ``potential_outlier_factors``: the measurements a
+#: robust back-end may reject), in this file's rows, beside ``outliers.txt``.
+POTENTIAL_OUTLIERS_NAME = "potential_outliers.txt"
 
 #: A field: an optional minus sign and 1 to 18 digits (every such number fits int64).
 _INTEGER = re.compile(r"-?[0-9]{1,18}")
@@ -32,11 +42,18 @@ _HEAD = (
     "# or '# kind: aliasing' (a far-away place with the same heading and local grid pattern).\n"
 )
 
+POTENTIAL_HEAD = (
+    "# Measurements that may be outliers (JRL's potential_outlier_factors): a robust back-end may\n"
+    "# reject them, every other measurement is a known inlier. Columns: agent_from vertex_from\n"
+    "# agent_to vertex_to; agents 1-based as in inter_agent_lc.dat, vertices 0-based.\n"
+)
 
-def write_outliers_txt(path: PathLike, rows: np.ndarray, kinds: Sequence[str]) -> None:
-    """Write (k, 4) rows with 0-based agents, grouped by kind in order of first appearance."""
+
+def write_outliers_txt(path: PathLike, rows: np.ndarray, kinds: Sequence[str], *, head: str = _HEAD) -> None:
+    """Write (k, 4) rows with 0-based agents, grouped by kind in order of first appearance, after
+    ``head`` (the outliers' header; :data:`POTENTIAL_HEAD` for ``potential_outliers.txt``)."""
     rows = np.asarray(rows, dtype=np.int64).reshape(-1, 4)
-    text = [_HEAD]
+    text = [head]
     for kind in dict.fromkeys(kinds):
         text.append(f"# kind: {kind}\n")
         text.extend(f"{a + 1} {b} {c + 1} {d}\n" for (a, b, c, d), k in zip(rows.tolist(), kinds) if k == kind)

@@ -6,14 +6,18 @@ As Swarm-SLAM reads it: no header; ``ROBOT_ID`` the robot's integer id (0-based;
 position of the agent in the dataset's order); ``start``/``end`` whole seconds from the start of
 the run (Swarm-SLAM adds its start time to them), a window inclusive at both ends; a robot is
 "alive" (can communicate) inside one of its windows, and a robot without a line never is. Two
-robots talk when both are alive. This reader is stricter than Swarm-SLAM's: a line must have
-pairs of non-negative integers, windows in order and not overlapping, each robot once; empty lines
-are skipped. Errors name ``file:line``.
+robots talk when both are alive. Each Swarm-SLAM robot reads only its own line, so a schedule may
+name more robots than a run has (cslam_experiments' ``config/rendezvous/`` files name up to six):
+lines for robots the dataset does not have are ignored, with one warning naming them. Otherwise
+this reader is stricter than Swarm-SLAM's: a line must have pairs of non-negative integers,
+windows in order and not overlapping, each robot once; empty lines are skipped. Errors name
+``file:line``.
 """
 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from typing import IO
 
 import numpy as np
@@ -30,11 +34,15 @@ _DIGITS = re.compile(r"[+-]?[0-9]+")
 __all__ = ["read_rendezvous", "write_rendezvous", "rendezvous_text"]
 
 
-def read_rendezvous(source: PathLike | IO[str], num_robots: int) -> tuple[np.ndarray, ...]:
-    """Per robot ``0..num_robots-1``, its ``(k, 2)`` int64 windows ``[start, end]`` in seconds."""
+def read_rendezvous(
+    source: PathLike | IO[str], num_robots: int, *, warn: Callable[[str], None] | None = None
+) -> tuple[np.ndarray, ...]:
+    """Per robot ``0..num_robots-1``, its ``(k, 2)`` int64 windows ``[start, end]`` in seconds;
+    ``warn`` gets one line naming the robots of other lines (ignored, as Swarm-SLAM does)."""
     text, name = _open_text(source)
     windows: dict[int, np.ndarray] = {}
     where: dict[int, str] = {}
+    others: dict[int, str] = {}
     for number, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         if not line:
@@ -49,13 +57,13 @@ def read_rendezvous(source: PathLike | IO[str], num_robots: int) -> tuple[np.nda
                 f"{place}: expected ROBOT_ID,start,end,... as integers (decimal digits), got {line[:60]!r}"
             )
         robot = text_int(fields[0], place, what="robot id")
-        if robot < 0 or robot >= num_robots:
-            raise FormatError(f"{place}: unknown robot {robot} (the dataset has robots 0..{num_robots - 1})")
         values = [robot] + [
             text_int(f, place, lo=-int(MAX_STAMP_S), hi=int(MAX_STAMP_S), what="time [s]") for f in fields[1:]
         ]
-        if robot in windows:
-            raise FormatError(f"{place}: robot {robot} already has a line ({where[robot]})")
+        if robot < 0:
+            raise FormatError(f"{place}: robot id {robot} is negative (ids are 0-based)")
+        if robot in windows or robot in others:
+            raise FormatError(f"{place}: robot {robot} already has a line ({where.get(robot) or others[robot]})")
         times = values[1:]
         if len(times) % 2:
             raise FormatError(f"{place}: robot {robot} has an odd number of times (a window needs start and end)")
@@ -64,8 +72,16 @@ def read_rendezvous(source: PathLike | IO[str], num_robots: int) -> tuple[np.nda
             check_windows((w,), [place])
         except ConfigError as err:
             raise FormatError(str(err)) from None
+        if robot >= num_robots:
+            others[robot] = place
+            continue
         windows[robot] = w
         where[robot] = place
+    if others and warn is not None:
+        warn(
+            f"{name}: ignored the lines of robots {', '.join(map(str, sorted(others)))}, which the dataset does not "
+            f"have (robots 0..{num_robots - 1}), as Swarm-SLAM's robots read only their own line"
+        )
     empty = np.zeros((0, 2), dtype=np.int64)
     return tuple(windows.get(k, empty) for k in range(num_robots))
 

@@ -157,12 +157,20 @@ def solve_gtsam(problem: Problem, options: SolveOptions, on_iteration: Iteration
     switched = False
     while iterations < options.max_iterations:
         before = gtsam.Values(opt.values())  # a copy: the optimizer owns its values
-        opt.iterate()
-        new_error = opt.error()
+        try:
+            opt.iterate()
+            new_error = opt.error()
+        except RuntimeError as err:
+            # Gauss-Newton's Cholesky finds the system indeterminate on some connected graphs whose
+            # information is ill-conditioned (SE-Sync's ais2klinik, bridged over a missing odometry
+            # link by its loop closures): Levenberg-Marquardt's damping keeps it solvable
+            if options.optimizer != "gn" or switched or "Indeterminate" not in str(err):
+                raise
+            new_error = np.inf
         if new_error > error and options.optimizer == "gn" and not switched:
             # a Gauss-Newton step that raises the cost (over-confident information far from the
-            # optimum, e.g. kollagen's Exact odometry): go on with Levenberg-Marquardt from the last
-            # good values instead of stopping there
+            # optimum, e.g. kollagen's Exact odometry) or cannot be solved: go on with
+            # Levenberg-Marquardt from the last good values instead of stopping there
             switched = True
             opt = _optimizer(gtsam, graph, before, dataclasses.replace(options, optimizer="lm"))
             continue
@@ -182,7 +190,7 @@ def solve_gtsam(problem: Problem, options: SolveOptions, on_iteration: Iteration
             "build_s": t_build,
             "init_s": t_init,
             "init": options.init,
-            "optimizer": options.optimizer + (" then lm (a gn step raised the cost)" if switched else ""),
+            "optimizer": options.optimizer + (" then lm (a gn step raised the cost or failed)" if switched else ""),
         },
     )
 
