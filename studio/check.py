@@ -323,6 +323,18 @@ def check(
     )
 
 
+def _edge_file(folder: Path, a_from: int, a_to: int) -> Path:
+    """The file holding an edge from agent ``a_from`` to ``a_to``: the agent's ``posegraph.g2o`` or
+    ``inter_agent_lc.dat`` of a multi-g2o folder; a single g2o file itself."""
+    if folder.is_file():
+        return folder
+    if a_from != a_to:
+        return folder / "inter_agent_lc.dat"
+    from studio.io.multig2o import agent_folders
+
+    return agent_folders(folder)[a_from][1] / "posegraph.g2o"
+
+
 def _edge_chi2(
     folder: Path,
     truth: list[np.ndarray],
@@ -354,7 +366,8 @@ def _edge_chi2(
         if len(bad):
             k = int(bad[0])
             raise FormatError(
-                f"{folder}: {name} edge {names[int(np.asarray(a_from)[k])]} vertex {int(v_from[k])} -> "
+                f"{_edge_file(folder, int(np.asarray(a_from)[k]), int(np.asarray(a_to)[k]))}: {name} edge "
+                f"{names[int(np.asarray(a_from)[k])]} vertex {int(v_from[k])} -> "
                 f"{names[int(np.asarray(a_to)[k])]} vertex {int(v_to[k])}: the information matrix is not positive "
                 f"definite ({len(bad)} such edges); chi2 cannot judge it"
             )

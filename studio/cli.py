@@ -93,6 +93,25 @@ def _as_flags(err: StudioError) -> str:
 _HELD_WARNINGS: list[list[str]] = []
 
 
+def _one_line(text: str) -> str:
+    """``text`` with its line breaks, NUL and other control characters escaped (``\\n``): a
+    message quoting a value the user gave (an option, a name from data) stays one line."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def _output_not_cwd(out: Path) -> None:
+    """Refuse ``-o`` naming the current folder or one of its parents (``-o .``) in one line that
+    names the option, before the command reads anything (the guard refuses it too, naming only
+    the resolved folder)."""
+    import os
+
+    from studio.core.errors import OutputError
+
+    here, target = Path(os.path.realpath(os.getcwd())), Path(os.path.realpath(os.path.abspath(out)))
+    if target == here or target in here.parents:
+        raise OutputError(f"-o {out}: is the current folder or one of its parents; name a new folder inside it")
+
+
 def cli_errors(func):
     """Turn a StudioError into one line on stderr and exit code 2 (no traceback). The command's
     warnings are held until it ends: printed after it succeeds, dropped when it fails on bad input,
@@ -107,7 +126,7 @@ def cli_errors(func):
             return func(*args, **kwargs)
         except StudioError as err:
             held.clear()
-            typer.echo(f"error: {_as_flags(err)}", err=True)
+            typer.echo(f"error: {_one_line(_as_flags(err))}", err=True)
             raise typer.Exit(2) from None
         finally:
             _HELD_WARNINGS.pop()
@@ -182,7 +201,20 @@ def synth(
 
     t0 = time.perf_counter()
     cfg = load_synth_config(config, warn=_warn)
+    if Path(config).exists():  # a config over the limits is named by its file, not its name alone
+        from studio.core.errors import ConfigError
+        from studio.core.option_values import check_option
+        from studio.synth import check_resources
+
+        check_option("max_memory_gb", max_memory_gb, allow_zero=False)
+        check_option("max_output_gb", max_output_gb, allow_zero=False)
+        try:
+            check_resources(cfg, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
+        except ConfigError as err:
+            raise ConfigError(f"{config}: {str(err).removeprefix(cfg.name + ': ')}", option=err.option) from None
     options: dict[str, Any] = {
+        # the config file is an input: an output being replaced may not hold it
+        "inputs": [Path(config)] if Path(config).exists() else [],
         "force": force,
         "multi_records": multi_records.value,
         "single_records": single_records.value,
@@ -444,8 +476,6 @@ def convert(
     config: Path = typer.Option(
         None,
         "--config",
-        exists=True,
-        dir_okay=False,
         help="A convert.json: reproduce its dataset (options given here win).",
     ),
     force: bool = typer.Option(False, "--force", help="Replace an existing dataset folder."),
@@ -461,6 +491,7 @@ def convert(
     studio convert bag run.bag --agent alpha=/alpha/odom --agent bob=/tf:odom:bob/base_link -o out/ds ;
     studio convert --config out/ds/convert.json -o out/ds2
     """
+    _output_not_cwd(out)
     _tune_allocator()
     from studio.convert import convert_with_options
 
@@ -598,6 +629,7 @@ def export(
 
     Example: studio export out/multi3500x8 --format symbols -o out/multi3500x8_symbols
     """
+    _output_not_cwd(out)
     from studio.core.errors import ConfigError
     from studio.export import EXPORT_FORMATS, export_dataset
 
@@ -682,6 +714,7 @@ def solve(
     Example: studio solve out/multi3500x8 -o out/multi3500x8-solved ; then
     studio evaluate out/multi3500x8 --estimate out/multi3500x8-solved/estimate --align se3
     """
+    _output_not_cwd(out)
     from studio.io.strict_json import dumps_strict
     from studio.solve import solve as run_solve
 
@@ -769,6 +802,7 @@ def replay(
 
     Example: studio replay out/multi3500x8 --comms range:20 -o out/replay-range20
     """
+    _output_not_cwd(out)
     from studio.core.option_values import check_count
     from studio.replay import DEFAULT_BACKENDS
     from studio.replay import replay as run_replay
@@ -869,6 +903,7 @@ def bench(
 
     Cells already finished in OUT are not run again. Example: studio bench paper -o out/bench
     """
+    _output_not_cwd(out)
     from studio.bench import bench as run_bench
     from studio.bench import format_paper_table, load_bench_spec
 
@@ -902,6 +937,7 @@ def sweep(
 
     Finished cells are not run again. Example: studio sweep radius.toml -o out/sweep --workers 2
     """
+    _output_not_cwd(out)
     from studio.sweep import load_sweep_spec
     from studio.sweep import sweep as run_sweep
 

@@ -37,7 +37,7 @@ from studio.core.alignment import Alignment
 from studio.core.errors import ConfigError, EvaluationError, OutputError
 from studio.core.model import PoseGraph
 from studio.core.types import PathLike
-from studio.core.units import NS_PER_S
+from studio.core.units import MAX_MAGNITUDE, NS_PER_S
 from studio.runtime.progress import Progress, report
 
 if TYPE_CHECKING:
@@ -210,6 +210,11 @@ def _matched(
             src = graph.metadata.get("source")
             hint = f" ({Path(src) / agent.name / (agent.name + '_GT.tum')} is missing)" if src else ""
             raise EvaluationError(f"{agent.name}: no ground truth{hint}")
+        far = np.flatnonzero(~(np.abs(agent.ground_truth[:, :3]) <= MAX_MAGNITUDE).all(axis=1))
+        if far.size:  # else the estimate was blamed for the error it made not finite
+            src = graph.metadata.get("source")
+            where = f"{Path(src) / agent.name / (agent.name + '_GT.tum')}" if src else f"{agent.name}'s ground truth"
+            raise EvaluationError(f"{where}: pose {int(far[0])} lies beyond {MAX_MAGNITUDE:g} m")
         if estimate is None:
             out.append((agent.ground_truth, agent.initial, agent.stamps_ns, np.arange(agent.num_poses)))
             continue

@@ -191,7 +191,9 @@ def parse_range(arg: str | None, spec: str) -> RangeLimited:
         if key == "period":
             period_ns = round(_positive(value, "period [s]", spec) * NS_PER_S)
             if period_ns <= 0:
-                raise ConfigError(f"comms: period in {spec!r} must be > 0")
+                raise ConfigError(
+                    f"comms: period in {spec!r} is below the replay's 1 ns clock (at least 1e-9 s), got {value.strip()}"
+                )
         elif key == "p":
             p = _positive(value, "the success probability p", spec, allow_zero=True)
             if p > 1:

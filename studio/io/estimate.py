@@ -127,7 +127,7 @@ def _read_multi_g2o(folder: Path, graph: PoseGraph) -> tuple[Trajectory, ...]:
 
 def _tum_files(folder: Path, graph: PoseGraph) -> dict[str, Path]:
     files = [p for p in folder.iterdir() if p.is_file() and p.suffix == ".tum" and not p.name.endswith("_GT.tum")]
-    found = {}
+    found: dict[str, Path] = {}
     for agent in graph.agents:
         # the agent's own file (as ``studio solve`` writes it: its name made safe) wins; else one
         # ``<agent>_*.tum``, as a converter's inputs are often named
@@ -138,6 +138,11 @@ def _tum_files(folder: Path, graph: PoseGraph) -> dict[str, Path]:
         if len(mine) > 1:
             raise EvaluationError(
                 f"{folder}: several TUM files for agent {agent.name}: {', '.join(p.name for p in mine)}"
+            )
+        other = next((name for name, path in found.items() if path == mine[0]), None)
+        if other is not None:  # one trajectory would be scored as two agents'
+            raise EvaluationError(
+                f"{folder}: {mine[0].name} is the TUM file of both agent {other} and agent {agent.name}"
             )
         found[agent.name] = mine[0]
     return found

@@ -550,8 +550,9 @@ def _times(graph: PoseGraph, dataset: PathLike, period_s: float | None) -> Measu
 
 def _refuse_existing(targets: list[Path], *, force: bool, inputs: list[PathLike]) -> None:
     """Refuse a bad output before any work."""
-    from studio.io.atomic import check_outputs
+    from studio.io.atomic import check_distinct_outputs, check_outputs
 
+    check_distinct_outputs(targets)
     for target in targets:
         absolute = Path(os.path.abspath(target))  # "-o ." is the current folder, named as such
         check_outputs(absolute.parent, [absolute.name], force=force, inputs=inputs)
