@@ -219,3 +219,24 @@ def test_two_robots_with_no_shared_edge_are_each_held_at_their_first_pose(tmp_pa
     # a method that holds one anchor alone still refuses it, in one line
     r = runner.invoke(app, ["solve", str(tmp_path / "ds"), "-o", str(tmp_path / "g"), "-m", "g2o"])
     assert r.exit_code == 2 and "the graph is not connected" in r.output
+
+
+def test_check_scores_the_priors_at_the_ground_truth(cosmo_apart, tmp_path):
+    """studio check reads the priors as measurements of the first poses from the origin: one class."""
+    import shutil
+
+    from studio.check import check
+
+    root, _ = cosmo_apart
+    ds = tmp_path / "ds"
+    shutil.copytree(root / "apart", ds)
+    report = check(ds)
+    assert report.summary("priors").edges == 2 and report.summary("priors").total.chi2 < 1e-12
+    lines = (ds / "priors.txt").read_text().splitlines()
+    fields = lines[-1].split()
+    fields[2] = repr(float(fields[2]) + 1e-3)  # robot b's prior 1 mm off in x: chi2 (1e-3)^2 * 1e8 = 100
+    (ds / "priors.txt").write_text("\n".join(lines[:-1] + [" ".join(fields)]) + "\n")
+    priors = check(ds).summary("priors")
+    assert priors.total.dof == 12 and priors.translation.dof == 6
+    assert priors.total.chi2 == pytest.approx(100.0, rel=1e-6)
+    assert priors.translation.chi2 == pytest.approx(100.0, rel=1e-6) and priors.rotation.chi2 < 1e-12
