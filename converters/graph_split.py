@@ -28,12 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
-from studio.converters.options import GROUND_TRUTH_CHOICES, PARTITIONS
+from studio.converters.options import GROUND_TRUTH_CHOICES, PARTITIONS, GraphImportOptions
 from studio.converters.transforms import time_windows
 from studio.core.errors import ConfigError, FormatError
 from studio.core.model import PoseGraph, PoseKind, Priors, RangeBearing
-from studio.core.option_values import check_option
-from studio.core.units import MAX_SPLIT_ROBOTS
 from studio.io.dpgo import contiguous_split
 from studio.io.graph_table import AgentPoses, EdgeTable, assemble_graph
 
@@ -207,37 +205,6 @@ def split_graph(graph: SingleGraph, verts: Sequence[np.ndarray], names: Sequence
         )
     table = EdgeTable(graph.kind, fa, fi, ta, ti, graph.measurements[src], graph.information_upper[src])
     return assemble_graph(agents, table, where=graph.where, metadata={"source": graph.where})
-
-
-@dataclass(frozen=True)
-class GraphImportOptions:
-    """How a graph source's graph becomes the dataset's (``studio convert g2o`` options)."""
-
-    split: int = 0
-    """Split a single-robot graph into this many robots (0: keep its robots)."""
-    partition: str = "contiguous"
-    """contiguous (DPGO's split), metis (balanced, fewest cut edges) or time (equal time windows)."""
-    overlap_s: float = 0.0
-    """Overlap [s] of consecutive time windows (``partition="time"``)."""
-    ground_truth: str = "auto"
-    """Single g2o files: ``auto`` reads ``<stem>_GT.tum`` beside the file where there is one;
-    ``vertices`` takes the file's vertices as the ground truth (synthetic graphs) and composes the
-    initial estimate along the odometry; ``none``."""
-
-    def __post_init__(self) -> None:
-        if self.split != 0 and not (
-            not isinstance(self.split, bool) and isinstance(self.split, int) and 2 <= self.split <= MAX_SPLIT_ROBOTS
-        ):
-            raise ConfigError(
-                f"split: expected 0 (off) or an integer in 2..{MAX_SPLIT_ROBOTS}, got {self.split!r}", option="split"
-            )
-        if self.partition not in PARTITIONS:
-            raise ConfigError(f"partition: expected one of {', '.join(PARTITIONS)}, got {self.partition!r}")
-        if self.ground_truth not in GROUND_TRUTH_CHOICES:
-            raise ConfigError(
-                f"ground_truth: expected one of {', '.join(GROUND_TRUTH_CHOICES)}, got {self.ground_truth!r}"
-            )
-        check_option("overlap_s", self.overlap_s)
 
 
 def graph_trajectories(graph: PoseGraph, where: str) -> list:

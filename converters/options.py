@@ -15,16 +15,29 @@ from typing import Any
 
 from studio.core.errors import ConfigError
 from studio.core.option_values import check_option
+from studio.core.units import MAX_SPLIT_ROBOTS
 
-__all__ = ["GraphOptions", "option_help", "HEADING_METHODS", "PARTITIONS", "GROUND_TRUTH_CHOICES"]
+__all__ = [
+    "GraphOptions",
+    "GraphImportOptions",
+    "option_help",
+    "HEADING_METHODS",
+    "PARTITIONS",
+    "GROUND_TRUTH_CHOICES",
+    "OPTION_NEEDS",
+]
 
-#: ``derive_orientation`` methods: ``smoothed`` (the default), ``turns`` (``smoothed`` with turns on
-#: the spot decoded from the tracked point's motion in stops) and ``chord`` (the first one).
-HEADING_METHODS = ("smoothed", "turns", "chord")
+#: ``derive_orientation`` methods: ``auto`` (the default: one of the others and its window chosen from
+#: the path, :mod:`studio.converters.heading_choice`), ``smoothed``, ``turns`` (``smoothed`` with turns
+#: on the spot decoded from the tracked point's motion in stops) and ``chord``.
+HEADING_METHODS = ("auto", "smoothed", "turns", "chord")
 #: How ``studio convert g2o --split N`` cuts a single-robot graph into robots.
 PARTITIONS = ("contiguous", "metis", "time")
 #: Where a single g2o file's ground truth comes from (``--ground-truth``).
 GROUND_TRUTH_CHOICES = ("auto", "vertices", "none")
+#: Options that mean something only with another one set: a partition or an overlap cuts robots
+#: only when there is a split into robots (``studio convert`` refuses one given without the other).
+OPTION_NEEDS: dict[str, str] = {"partition": "split", "overlap_s": "split"}
 
 
 def _opt(default: Any, help: str, unit: str = "") -> Any:
@@ -108,3 +121,52 @@ class GraphOptions:
             raise ConfigError("outlier_fraction: must be < 1", option="outlier_fraction")
         if self.lc_max_heading > 180:
             raise ConfigError("lc_max_heading: must be <= 180 degrees", option="lc_max_heading")
+
+
+def _import(default: Any, help: str, *, choices: tuple[str, ...] = ()) -> Any:
+    """A :class:`GraphImportOptions` field: its default, help and choices, declared once (the CLI
+    builds its flags from them)."""
+    return field(default=default, metadata={"help": help, "choices": choices})
+
+
+@dataclass(frozen=True)
+class GraphImportOptions:
+    """How a graph source's graph becomes the dataset's (``studio convert g2o`` options). A source
+    reads the fields its registry entry names (``Source.graph_options``)."""
+
+    split: int = _import(0, "Split a single-robot graph into this many robots (0: keep its robots).")
+    """Split a single-robot graph into this many robots (0: keep its robots)."""
+    partition: str = _import(
+        "contiguous",
+        "With --split: contiguous (DPGO's split), metis (balanced, fewest cut edges) or time.",
+        choices=PARTITIONS,
+    )
+    """contiguous (DPGO's split), metis (balanced, fewest cut edges) or time (equal time windows)."""
+    overlap_s: float = _import(0.0, "Overlap of consecutive --split windows, in seconds.")
+    """Overlap [s] of consecutive time windows (``partition="time"``)."""
+    ground_truth: str = _import(
+        "auto",
+        "auto (<stem>_GT.tum beside the file), vertices (the file's vertices; initial estimate from the "
+        "odometry) or none.",
+        choices=GROUND_TRUTH_CHOICES,
+    )
+    """Single g2o files: ``auto`` reads ``<stem>_GT.tum`` beside the file where there is one;
+    ``vertices`` takes the file's vertices as the ground truth (synthetic graphs) and composes the
+    initial estimate along the odometry; ``none``."""
+
+    def __post_init__(self) -> None:
+        if self.split != 0 and not (
+            not isinstance(self.split, bool) and isinstance(self.split, int) and 2 <= self.split <= MAX_SPLIT_ROBOTS
+        ):
+            raise ConfigError(
+                f"split: expected 0 (off) or an integer in 2..{MAX_SPLIT_ROBOTS}, got {self.split!r}", option="split"
+            )
+        if self.partition not in PARTITIONS:
+            raise ConfigError(f"partition: expected one of {', '.join(PARTITIONS)}, got {self.partition!r}")
+        if self.ground_truth not in GROUND_TRUTH_CHOICES:
+            raise ConfigError(
+                f"ground_truth: expected one of {', '.join(GROUND_TRUTH_CHOICES)}, got {self.ground_truth!r}"
+            )
+        check_option("overlap_s", self.overlap_s)
+        if self.partition != PARTITIONS[0] and not self.split:
+            raise ConfigError(f"partition: {self.partition} needs a split into robots (split)", option="partition")

@@ -4,7 +4,7 @@ Every reader follows the :class:`SourceReader` seam: ``reader(inputs, *, agents=
 progress=None) -> list[Trajectory]``, where ``inputs`` are the paths given on the command line and
 ``agents`` the ``NAME=SPEC`` strings of ``--agent``. A source's facts (does it take ``--agent``, how
 many inputs, what its agents are named after, its help line, how its paths are recognised, its
-agents' default body frames) are declared once in its entry, and :func:`check_inputs` checks them
+agents' default body frames, the options a graph source reads) are declared once in its entry, and :func:`check_inputs` checks them
 before any reader runs; ``studio convert``'s help and source list are built from the entries.
 Each entry names its reader, detection and other code by module and attribute
 (:class:`~studio.core.lazy.Lazy`): a module is imported when its source is used, so a command pays
@@ -97,6 +97,10 @@ class Source:
     {agent: dead-reckoned Trajectory}`` (:func:`studio.converters.mrclam.read_mrclam_odometry`)."""
     sightings: Any = None
     """The source's agent-to-agent range-bearing sightings: ``(inputs, *, warn) -> Sightings``."""
+    graph_options: tuple[str, ...] = ()
+    """Graph sources: the :class:`~studio.converters.options.GraphImportOptions` fields its graph
+    reader reads (g2o: the split into robots, where the ground truth comes from); ``studio convert``
+    refuses the others (:func:`studio.convert_config.check_source_options`)."""
 
 
 def _read_bag(
@@ -258,6 +262,7 @@ SOURCES: dict[str, Source] = {
         one_input=True,
         read_graph=Lazy("studio.converters.g2o", "read_g2o_graph"),
         detect=_is_g2o,
+        graph_options=("split", "partition", "overlap_s", "ground_truth"),
     ),
     "mrclam": Source(
         Lazy("studio.converters.mrclam", "read_mrclam"),

@@ -78,6 +78,16 @@ def _box_mean(stamps_ns: np.ndarray, xy: np.ndarray, half_ns: int) -> np.ndarray
     return (c[hi] - c[lo]) / (hi - lo)[:, None]
 
 
+def _centred_box_mean(stamps_ns: np.ndarray, xy: np.ndarray, half_ns: int) -> np.ndarray:
+    """:func:`_box_mean` with each window narrowed to what both sides hold, so that it stays centred
+    on its stamp: near the ends a one-sided mean would lead or lag."""
+    half = np.minimum(np.minimum(half_ns, stamps_ns - stamps_ns[0]), stamps_ns[-1] - stamps_ns)
+    lo = np.searchsorted(stamps_ns, stamps_ns - half, side="left")
+    hi = np.searchsorted(stamps_ns, stamps_ns + half, side="right")
+    c = np.vstack([np.zeros((1, xy.shape[1])), np.cumsum(xy, axis=0)])
+    return (c[hi] - c[lo]) / (hi - lo)[:, None]
+
+
 def _central_velocity(stamps_ns: np.ndarray, xy: np.ndarray, half_s: float) -> np.ndarray:
     """Velocity [m/s] of the central differences of ``xy`` smoothed by a box filter of half-width
     ``half_s`` applied twice (a triangle of ``2 half_s``)."""
@@ -104,7 +114,9 @@ def _smoothed_headings(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
     return np.arctan2(v[:, 1], v[:, 0]), moving
 
 
-def derive_orientation(traj: Trajectory, window_m: float, method: str = "smoothed") -> Trajectory:
+def derive_orientation(
+    traj: Trajectory, window_m: float, method: str = "smoothed", *, smooth_s: float = 0.0
+) -> Trajectory:
     """Headings from the motion; roll and pitch are zero. Positions cannot show a turn on the spot.
 
     ``smoothed``: the yaw of the central differences of lightly smoothed positions
@@ -115,11 +127,19 @@ def derive_orientation(traj: Trajectory, window_m: float, method: str = "smoothe
     from the tracked point's motion where it shows them (:mod:`studio.converters.spot_turns`).
     ``chord``: the yaw of the chord from ``window_m / 2`` of path behind
     each pose to ``window_m / 2`` ahead (clipped at the ends), held while the robot moves less than a
-    quarter of the window."""
+    quarter of the window; with ``smooth_s`` > 0, those headings' unit vectors are then averaged by a
+    box filter of half-width ``smooth_s`` applied twice, narrowed near the ends to stay centred. ``auto``: the
+    method and window :func:`studio.converters.heading_choice.choose_heading_method` chooses for
+    ``traj`` (``window_m`` its longest chord)."""
     if not window_m > 0:
         raise ConfigError(f"heading_window_m: expected a positive length, got {window_m!r}")
     if method not in HEADING_METHODS:
         raise ConfigError(f"heading_method: expected {' or '.join(HEADING_METHODS)}, got {method!r}")
+    if method == "auto":
+        from studio.converters.heading_choice import choose_heading_method
+
+        choice = choose_heading_method(traj, window_m)
+        return derive_orientation(traj, choice.window_m, choice.method, smooth_s=choice.smooth_s)
     p = traj.positions_xyz
     if method in ("smoothed", "turns"):
         yaw, moving = _smoothed_headings(traj)
@@ -134,18 +154,25 @@ def derive_orientation(traj: Trajectory, window_m: float, method: str = "smoothe
             if decoded:  # (where no stop was decoded, the smoothed headings as they are, bit for bit)
                 yaw = np.arctan2(np.sin(turned), np.cos(turned))
         return _with_yaw(traj, yaw)
-    step = np.linalg.norm(np.diff(p[:, 0:2], axis=0), axis=1)
+    xy = p[:, 0:2]
+    step = np.linalg.norm(np.diff(xy, axis=0), axis=1)
     s = np.concatenate([[0.0], np.cumsum(step)])
     ahead = np.minimum(np.searchsorted(s, s + window_m / 2, side="left"), len(s) - 1)
     behind = np.maximum(np.searchsorted(s, s - window_m / 2, side="right") - 1, 0)
-    chord = p[ahead, 0:2] - p[behind, 0:2]
+    chord = xy[ahead] - xy[behind]
     moving = np.linalg.norm(chord, axis=1) >= window_m / 4
     if not moving.any():
         raise FormatError(
             f"{traj.source or traj.name}: the trajectory moves less than {window_m / 4:g} m: "
             "no heading can be derived from its motion"
         )
-    return _with_yaw(traj, _held_yaw(traj, np.arctan2(chord[:, 1], chord[:, 0]), moving))
+    yaw = _held_yaw(traj, np.arctan2(chord[:, 1], chord[:, 0]), moving)
+    if smooth_s > 0:  # the headings' unit vectors averaged: no lag, no pull towards a curve's centre
+        half = int(round(smooth_s * NS_PER_S))
+        u = np.column_stack([np.cos(yaw), np.sin(yaw)])
+        u = _centred_box_mean(traj.stamps_ns, _centred_box_mean(traj.stamps_ns, u, half), half)
+        yaw = np.arctan2(u[:, 1], u[:, 0])
+    return _with_yaw(traj, yaw)
 
 
 def _held_yaw(traj: Trajectory, yaw: np.ndarray, moving: np.ndarray, *, spread_stops: bool = False) -> np.ndarray:

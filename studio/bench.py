@@ -26,6 +26,7 @@ from __future__ import annotations
 import concurrent.futures
 import dataclasses
 import hashlib
+import inspect
 import json
 import math
 import multiprocessing
@@ -258,7 +259,10 @@ def _run_cell(cell: Cell, spec: BenchSpec, dataset: str, single: str | None, run
 
     source = single if (spec.input == "single-g2o" and single is not None) else dataset
     t0 = time.perf_counter()
-    res = solve(source, run_dir, method=cell.method, force=True, **spec.options.get(cell.method, {}))
+    given = dict(spec.options.get(cell.method, {}))
+    # solve()'s own keywords as such; the method's other options (dgs's tolerances ...) by name
+    keywords = {k: given.pop(k) for k in list(given) if k in inspect.signature(solve).parameters}
+    res = solve(source, run_dir, method=cell.method, force=True, **keywords, method_options=given)
     info = {"estimate": str(res.estimate_path), "planar": res.planar}
     wall = time.perf_counter() - t0
     row: dict[str, Any] = {

@@ -18,15 +18,16 @@ from typing import Any, get_args
 
 import typer
 
-from studio.converters.options import GROUND_TRUTH_CHOICES, PARTITIONS
 from studio.converters.registry import SOURCES
 from studio.core.alignment import Alignment
+from studio.core.comms_registry import DEFAULT_COMMS, comms_help
 from studio.core.conventions import DEFAULT_CONVENTION, Convention
 from studio.core.errors import StudioError
 from studio.core.preset_names import PRESET_NAMES
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.runtime.progress import terminal_progress
 from studio.solvers import DEFAULT_METHOD, METHODS
+from studio.solvers.isam_settings import IsamSettings
 from studio.solvers.options import Init, Optimizer, SolveOptions
 
 app = typer.Typer(
@@ -82,8 +83,10 @@ def _as_flags(err: StudioError) -> str:
     option = getattr(err, "option", None)
     if not option:
         return text
-    flag = "--" + _FLAGS.get(option, option).replace("_", "-")
-    return re.sub(rf"(?<![\w.-]){re.escape(option)}(?![\w-])", flag, text)
+    for name in (option, *getattr(err, "also", ())):
+        flag = "--" + _FLAGS.get(name, name).replace("_", "-")
+        text = re.sub(rf"(?<![\w.-]){re.escape(name)}(?![\w-])", flag, text)
+    return text
 
 
 #: The warnings of the running command, held until it ends (a stack: one list per command).
@@ -253,7 +256,8 @@ def evaluate(
         None,
         "--estimate",
         "-e",
-        help="An optimizer's output: the folder studio solve wrote (or its solve.json), a single g2o file "
+        help="An optimizer's output: the folder studio solve wrote (or its solve.json), a JRL results file "
+        "FILE.jrr (scored with jrl's metrics into FILE.jrm: docs/evaluation.md), a single g2o file "
         "(ids as in the dataset's single g2o), a multi-g2o folder, or a folder of <agent>.tum / "
         "<agent>_*.tum files. Default: the dataset's initial estimate.",
     ),
@@ -274,7 +278,18 @@ def evaluate(
     rrd: Path | None = typer.Option(
         None, "--rrd", help="Also write the per-node APE series into this new Rerun recording (.rrd)."
     ),
-    force: bool = typer.Option(False, "--force", help="Replace an existing --rrd file."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing --rrd or .jrm file."),
+    jrm: Path | None = typer.Option(
+        None,
+        "--jrm",
+        help="With a .jrr estimate: where to write JRL's metrics (default: beside the .jrr, FILE.jrm).",
+    ),
+    partial: bool = typer.Option(
+        False,
+        "--partial",
+        help="With a .jrr estimate: score each robot's ATE over the ground-truth poses its solution holds "
+        "(jrl's partial results; a replay's robots hold copies only of the poses they were sent).",
+    ),
 ) -> None:
     """Score an estimate against the ground truth with evo: APE and RPE per agent and over all agents.
 
@@ -288,6 +303,22 @@ def evaluate(
 
     if as_json and markdown:
         raise ConfigError("--json and --markdown exclude each other")
+    if estimate is not None and estimate.suffix == ".jrr":
+        from studio.jrl_evaluate import evaluate_jrr, format_summary
+
+        scored = evaluate_jrr(dataset, estimate, jrm=jrm, force=force, partial=partial)
+        if scored.skipped:
+            kinds = ", ".join(f"{n} {t}" for t, n in sorted(scored.skipped.items()))
+            _warn(f"{dataset}: the mean residual leaves out factors the studio does not evaluate: {kinds}")
+        if as_json:
+            import json
+
+            from studio.io.jrm import jrm_document
+
+            typer.echo(json.dumps(jrm_document(scored.summary), indent=2))
+        else:
+            typer.echo(format_summary(scored.summary) + f"wrote {scored.jrm_path}")
+        return
     with terminal_progress() as progress:
         ev = evaluate_dataset(
             dataset,
@@ -410,9 +441,6 @@ def convert(
         help="Per source: " + "; ".join(f"{name}: {src.inputs}" for name, src in SOURCES.items()) + ".",
     ),
     out: Path = typer.Option(..., "-o", "--out", help="The dataset folder to write."),
-    agent: list[str] = typer.Option(
-        [], "--agent", metavar="NAME=SPEC", help="Bag agents: NAME=/odom, NAME=/fix+/heading or NAME=/tf:PARENT:CHILD."
-    ),
     config: Path = typer.Option(
         None,
         "--config",
@@ -422,26 +450,11 @@ def convert(
     ),
     force: bool = typer.Option(False, "--force", help="Replace an existing dataset folder."),
     rrd: bool = typer.Option(True, "--rrd/--no-rrd", help="Also write the Rerun recording OUT/<name>.rrd."),
-    max_memory_gb: float = typer.Option(
-        DEFAULT_MAX_MEMORY_GB, "--max-memory-gb", help="Refuse a loop-closure search estimated to need more memory."
-    ),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
-    partition: str = typer.Option(
-        "contiguous",
-        "--partition",
-        metavar=_choice_metavar(PARTITIONS),
-        help="g2o with --split: contiguous (DPGO's split), metis (balanced, fewest cut edges) or time.",
-    ),
-    ground_truth: str = typer.Option(
-        "auto",
-        "--ground-truth",
-        metavar=_choice_metavar(GROUND_TRUTH_CHOICES),
-        help="g2o: auto (<stem>_GT.tum beside the file), vertices (the file's vertices; initial "
-        "estimate from the odometry) or none.",
-    ),
     **options: Any,
 ) -> None:
-    """Turn real trajectories into a multi-g2o dataset with synthetic odometry and loop closures.
+    """Turn real trajectories into a multi-g2o dataset with synthetic odometry and loop closures, or
+    write a graph source's graph as it is. A source refuses an option it would not use.
 
     Examples: studio convert tum alpha.txt bob.txt -o out/ds ;
     studio convert s3e S3E_Square_1/ -o out/s3e ;
@@ -449,219 +462,107 @@ def convert(
     studio convert --config out/ds/convert.json -o out/ds2
     """
     _tune_allocator()
-    import dataclasses
+    from studio.convert import convert_with_options
 
-    from studio.convert import ConvertConfig, pipeline_flags, read_convert_config
-    from studio.convert import convert as run_convert
-    from studio.converters.build import GraphOptions
-
-    # options typed on the command line win over the --config file (compared by name: typer may
-    # vendor click, so its ParameterSource enum is not imported)
-    from studio.converters.registry import guess_source, source_names
-    from studio.core.errors import ConfigError
-
-    given = {
-        name
-        for name in ctx.params
-        if getattr(ctx.get_parameter_source(name), "name", "") in ("COMMANDLINE", "ENVIRONMENT")
-    }
-    option_names = [f.name for f in dataclasses.fields(GraphOptions)]
-    # the pipeline's own options (ConvertConfig's fields with a flag), typed as the dataclass says
-    pipeline: dict[str, Any] = {
-        k: tuple(options[k]) if isinstance(options[k], list) else options[k] for k in pipeline_flags()
-    }
-    graph_options = {k: options[k] for k in option_names}
-    if source is not None and source not in source_names():
-        inputs = [Path(source), *(inputs or [])]  # no FORMAT given: the first input
-        source = guess_source(inputs)
-    from studio.graph_import import graph_source_names
-
-    if source in graph_source_names() and config is None:
-        _convert_graph(
-            ctx,
-            source,
-            inputs or [],
-            out,
-            force,
-            rrd,
-            quiet,
-            options["split"],
-            options["overlap_s"],
-            partition,
-            ground_truth,
-        )
-        return
-    for flag, value in (("--partition", partition != "contiguous"), ("--ground-truth", ground_truth != "auto")):
-        if value:
-            raise ConfigError(f"{flag} is for graph sources ({', '.join(graph_source_names())})")
-    if config is not None:
-        base = read_convert_config(config)
-        overrides = {k: graph_options[k] for k in option_names if k in given}
-        merged: dict[str, Any] = {k: (pipeline[k] if k in given else getattr(base, k)) for k in pipeline}
-        cfg = ConvertConfig(
-            source or base.source,
-            tuple(str(p) for p in inputs) if inputs else base.inputs,
-            tuple(agent) if agent else base.agents,
-            dataclasses.replace(base.options, **overrides),
-            **merged,
-        )
-    else:
-        if not source:
-            raise ConfigError(
-                f"give a FORMAT ({', '.join(source_names())}), inputs whose format can be guessed, or --config"
-            )
-        cfg = ConvertConfig(
-            source,
-            tuple(str(p) for p in inputs or ()),
-            tuple(agent),
-            GraphOptions(**{k: graph_options[k] for k in option_names}),
-            **pipeline,
-        )
+    # options typed on the command line win over the --config file, and only they are checked
+    # against the source (compared by name: typer may vendor click, so its ParameterSource enum is
+    # not imported)
+    typed = ("COMMANDLINE", "ENVIRONMENT")
+    given = {k: v for k, v in options.items() if getattr(ctx.get_parameter_source(k), "name", "") in typed}
     t0 = time.perf_counter()
     with terminal_progress(not quiet) as progress:
-        res = run_convert(cfg, out, force=force, warn=_warn, progress=progress, rrd=rrd, max_memory_gb=max_memory_gb)
-    if not quiet:
-        g = res.build.graph
-        counts = g.edge_counts()
-        typer.echo(
-            f"{res.dataset_dir.name}: {len(g.agents)} agents, {g.num_poses} keyframes, "
-            f"{counts['odometry']} odometry edges, {counts['intra_loop_closures']} intra-agent and "
-            f"{counts['inter_loop_closures']} inter-agent loop closures ({res.build.candidates['outliers']} "
-            f"outliers), {len(res.build.gaps)} gaps, in {time.perf_counter() - t0:.2f} s\n  {res.dataset_dir}"
+        res = convert_with_options(
+            source, inputs or [], out, given=given, config=config, force=force, rrd=rrd, warn=_warn, progress=progress
         )
-        if res.orientation:
-            typer.echo(
-                f"  headings derived from motion (the orientation carried no information): "
-                f"{', '.join(sorted(res.orientation))}"
-            )
-        for gap in res.build.gaps:
-            typer.echo(f"  gap: {gap.agent} vertex {gap.vertex}: {gap.seconds:.3f} s, {gap.metres:.2f} m bridged")
-        for fit in res.odometry_fits:
-            typer.echo(
-                f"  real odometry {fit.agent}: drift {fit.drift_m_per_m:.3g} m/m; sigma {fit.sigma_min_m:.3g} m "
-                f"+ {fit.sigma_m_per_m:.3g} m/m, {fit.sigma_min_rad:.3g} rad + {fit.sigma_rad_per_m:.3g} rad/m "
-                f"+ {fit.sigma_rad_per_rad:.3g} rad/rad (fitted on {fit.edges} edges)"
-            )
-        if res.sightings_fit is not None:
-            sf = res.sightings_fit
-            typer.echo(
-                f"  range-bearing sightings: {sf.sightings} (sigma {sf.sigma_range_m:.3g} m, "
-                f"{sf.sigma_bearing_rad:.3g} rad; {sf.dropped_outside_time_span} outside the ground truth dropped)"
-                + (" and as many inter-agent loop closures" if res.config.sightings_as_closures else "")
-            )
-
-
-def _convert_graph(
-    ctx: typer.Context,
-    source: str,
-    inputs: list[Path],
-    out: Path,
-    force: bool,
-    rrd: bool,
-    quiet: bool,
-    split: int,
-    overlap: float,
-    partition: str,
-    ground_truth: str,
-) -> None:
-    """``studio convert`` of a graph source: its graph written as it is (studio.graph_import)."""
-    import dataclasses
-
-    from studio.converters.build import GraphOptions
-    from studio.converters.graph_split import GraphImportOptions
-    from studio.core.errors import ConfigError
-    from studio.graph_import import import_graph
-
-    given = {
-        name
-        for name in ctx.params
-        if getattr(ctx.get_parameter_source(name), "name", "") in ("COMMANDLINE", "ENVIRONMENT")
-    }
-    synthetic = {f.name for f in dataclasses.fields(GraphOptions)} | {
-        "agent",
-        "orientation",
-        "heading_window_m",
-        "body_frame",
-        "folder_names",
-        "max_memory_gb",
-    }
-    if given & synthetic:
-        flag = "--" + sorted(given & synthetic)[0].replace("_", "-")
-        raise ConfigError(f"{flag}: {source} inputs hold their own measurements; the option is for trajectory sources")
-    options = GraphImportOptions(split=split, partition=partition, overlap_s=overlap, ground_truth=ground_truth)
-    t0 = time.perf_counter()
-    with terminal_progress(not quiet) as progress:
-        res = import_graph(source, inputs, out, options=options, force=force, rrd=rrd, warn=_warn, progress=progress)
     if not quiet:
+        _print_converted(res, time.perf_counter() - t0)
+
+
+def _print_converted(res: Any, seconds: float) -> None:
+    """What ``studio convert`` made: a graph source's graph, or a synthesized dataset."""
+    if not hasattr(res, "build"):
         g = res.graph
         counts = g.edge_counts()
         sightings = f", {len(res.range_bearing)} range-bearing sightings" if res.range_bearing is not None else ""
         typer.echo(
             f"{res.dataset_dir.name}: {len(g.agents)} agents, {g.num_poses} poses, {counts['odometry']} odometry "
             f"edges, {counts['intra_loop_closures']} intra-agent and {counts['inter_loop_closures']} inter-agent "
-            f"loop closures ({len(res.outliers)} labelled outliers){sightings} from {source}, in "
-            f"{time.perf_counter() - t0:.2f} s\n  {res.dataset_dir}"
+            f"loop closures ({len(res.outliers)} labelled outliers){sightings} from {res.source}, in "
+            f"{seconds:.2f} s\n  {res.dataset_dir}"
+        )
+        return
+    g = res.build.graph
+    counts = g.edge_counts()
+    typer.echo(
+        f"{res.dataset_dir.name}: {len(g.agents)} agents, {g.num_poses} keyframes, "
+        f"{counts['odometry']} odometry edges, {counts['intra_loop_closures']} intra-agent and "
+        f"{counts['inter_loop_closures']} inter-agent loop closures ({res.build.candidates['outliers']} "
+        f"outliers), {len(res.build.gaps)} gaps, in {seconds:.2f} s\n  {res.dataset_dir}"
+    )
+    if res.orientation:
+        typer.echo(
+            f"  headings derived from motion (the orientation carried no information): "
+            f"{', '.join(sorted(res.orientation))}"
+        )
+    for name, choice in sorted(res.heading_choices.items()):
+        window = f" over {choice.window_m:.3g} m" if choice.method == "chord" else ""
+        typer.echo(f"  heading method for {name}: auto chose {choice.method}{window}: {choice.reason}")
+    for gap in res.build.gaps:
+        typer.echo(f"  gap: {gap.agent} vertex {gap.vertex}: {gap.seconds:.3f} s, {gap.metres:.2f} m bridged")
+    for fit in res.odometry_fits:
+        typer.echo(
+            f"  real odometry {fit.agent}: drift {fit.drift_m_per_m:.3g} m/m; sigma {fit.sigma_min_m:.3g} m "
+            f"+ {fit.sigma_m_per_m:.3g} m/m, {fit.sigma_min_rad:.3g} rad + {fit.sigma_rad_per_m:.3g} rad/m "
+            f"+ {fit.sigma_rad_per_rad:.3g} rad/rad (fitted on {fit.edges} edges)"
+        )
+    if res.sightings_fit is not None:
+        sf = res.sightings_fit
+        typer.echo(
+            f"  range-bearing sightings: {sf.sightings} (sigma {sf.sigma_range_m:.3g} m, "
+            f"{sf.sigma_bearing_rad:.3g} rad; {sf.dropped_outside_time_span} outside the ground truth dropped)"
+            + (" and as many inter-agent loop closures" if res.config.sightings_as_closures else "")
         )
 
 
-def _with_graph_options(command: Any) -> Any:
-    """Give ``command`` one typer option per :class:`GraphOptions` field, its default, help text and
-    unit taken from the field (declared once, in ``converters/build.py``)."""
-    import dataclasses
-    import inspect
+def _convert_option_help(option: Any) -> str:
+    """An option's help, with the sources that take it where not every trajectory source does."""
+    from studio.convert_config import accepted_options
 
-    from studio.converters.options import GraphOptions, option_help
-
-    sig = inspect.signature(command)
-    params = [p for p in sig.parameters.values() if p.kind is not inspect.Parameter.VAR_KEYWORD]
-    hints = dict(getattr(command, "__annotations__", {}))
-    for f in dataclasses.fields(GraphOptions):
-        flag = "--" + f.name.replace("_", "-")
-        annotation = {"int": int, "float": float, "bool": bool}[f.type if isinstance(f.type, str) else f.type.__name__]
-        option = typer.Option(f.default, flag, help=option_help(f.name))
-        params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=annotation))
-        hints[f.name] = annotation
-    command.__signature__ = sig.replace(parameters=params)
-    command.__annotations__ = hints
-    return command
+    takers = [name for name in SOURCES if option.name in accepted_options(name, synthesize=False)]
+    trajectory = [name for name, src in SOURCES.items() if src.read_graph is None]
+    return option.help if set(trajectory) <= set(takers) else f"{option.help} (sources: {', '.join(takers)})"
 
 
 def _with_convert_options(command: Any) -> Any:
-    """Give ``command`` one typer option per pipeline field of :class:`ConvertConfig` (its flag,
-    default, help and metavar declared once, in ``studio/convert.py``); the parameter is the field's
-    name, so an error naming the field (``ConfigError.option``) is shown as its flag."""
-    import dataclasses
+    """Give ``command`` one typer option per option of ``studio convert``
+    (:func:`studio.convert_config.convert_options`: flag, default, help and choices declared once,
+    with the dataclass field they set); the parameter is the library's name, so an error naming it
+    (``ConfigError.option``) is shown as its flag."""
     import inspect
 
-    from studio.convert_config import ConvertConfig
+    from studio.convert_config import convert_options
 
     sig = inspect.signature(command)
     params = [p for p in sig.parameters.values() if p.kind is not inspect.Parameter.VAR_KEYWORD]
     hints = dict(getattr(command, "__annotations__", {}))
-    for f in dataclasses.fields(ConvertConfig):
-        if "help" not in f.metadata:
-            continue
-        flag = f.metadata["flag"] or f.name
-        _FLAGS[f.name] = flag
-        default: Any = f.default
-        many = isinstance(default, tuple)
-        annotation: Any = list[str] if many else type(default)
+    for o in convert_options():
+        _FLAGS[o.name] = o.flag
+        many = isinstance(o.default, tuple)
+        annotation: Any = list[str] if many else type(o.default)
         option = typer.Option(
-            list(default) if many else default,
-            "--" + flag.replace("_", "-"),
-            help=f.metadata["help"],
-            metavar=f.metadata["metavar"]
-            or (_choice_metavar(f.metadata["choices"]) if f.metadata["choices"] else None),
+            list(o.default) if many else o.default,
+            "--" + o.flag.replace("_", "-"),
+            help=_convert_option_help(o),
+            metavar=o.metavar or (_choice_metavar(o.choices) if o.choices else None),
         )
-        params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=annotation))
-        hints[f.name] = annotation
+        params.append(inspect.Parameter(o.name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=annotation))
+        hints[o.name] = annotation
     command.__signature__ = sig.replace(parameters=params)
     command.__annotations__ = hints
     return command
 
 
 _with_convert_options(convert)
-_with_graph_options(convert)
 
 
 # --- studio export ------------------------------------------------------------------------------
@@ -838,6 +739,10 @@ def _replay_backend_help() -> str:
     return f"Comma-separated back-ends ({', '.join(backend_names())}); default {','.join(DEFAULT_BACKENDS)}."
 
 
+#: ISAM2's defaults (``--relinearize-skip`` ...), declared once on :class:`IsamSettings`.
+_ISAM = IsamSettings()
+
+
 @app.command()
 @cli_errors
 def replay(
@@ -845,9 +750,7 @@ def replay(
         ..., metavar="DATASET", help="A multi-g2o folder with ground truth, or a .g2o file with NAME_GT.tum beside it."
     ),
     out: Path = typer.Option(..., "-o", "--out", help="Folder to write: schedule, metrics, summary, report, plot."),
-    comms: str = typer.Option(
-        "always", "--comms", help="always | never | range:R[,period=T,p=P] | rendezvous:FILE (Swarm-SLAM's format)."
-    ),
+    comms: str = typer.Option(DEFAULT_COMMS, "--comms", metavar="<model>", help=comms_help()),
     backend: str = typer.Option("", "--backend", "-b", help=_replay_backend_help()),
     bandwidth: str | None = typer.Option(
         None, "--bandwidth", help="Per link: N/s closures or NB/s bytes; the rest waits for the next contact."
@@ -858,10 +761,14 @@ def replay(
         None, "--period", help="Clock: pose index x this period [s] instead of the dataset's stamps."
     ),
     comms_seed: int = typer.Option(0, "--comms-seed", help="Seed of the contacts' success draws (range with p)."),
-    relinearize_skip: int = typer.Option(10, "--relinearize-skip", help="ISAM2: relinearize every N updates."),
-    relinearize_threshold: float = typer.Option(0.1, "--relinearize-threshold", help="ISAM2: delta threshold."),
+    relinearize_skip: int = typer.Option(
+        _ISAM.relinearize_skip, "--relinearize-skip", help="ISAM2: relinearize every N updates."
+    ),
+    relinearize_threshold: float = typer.Option(
+        _ISAM.relinearize_threshold, "--relinearize-threshold", help="ISAM2: delta threshold."
+    ),
     polish: bool = typer.Option(
-        True, "--polish/--no-polish", help="End with Gauss-Newton to convergence on what each solver holds."
+        _ISAM.polish, "--polish/--no-polish", help="End with Gauss-Newton to convergence on what each solver holds."
     ),
     rrd: Path | None = typer.Option(None, "--rrd", help="Also write the replay as a Rerun recording (.rrd)."),
     parquet: bool = typer.Option(False, "--parquet", help="Also write each CSV table as Parquet (needs pyarrow)."),
@@ -1002,6 +909,25 @@ def sweep(
             f"{parsed.name}: {len(res.rows)} cells ({res.computed} run now, {res.failed} failed)\n"
             f"  {res.table_path}\n  {res.markdown_path}" + "".join(f"\n  {p}" for p in res.plot_paths)
         )
+
+
+@app.command()
+@cli_errors
+def samples(
+    folder: Path = typer.Argument(..., metavar="DIR", help="The folder to write (new; replaced only with --force)."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing DIR."),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing on success."),
+) -> None:
+    """Write a small simulated sample in every source's layout (TUM, S3E, AirMuseum, bags, EuRoC,
+    KITTI, Kimera-Multi, MR.CLAM), a single g2o graph and a kollagen config, to try the commands on.
+
+    Example: studio samples samples/ ; cd samples ; studio convert mrclam MRCLAM_Dataset1 --planar -o out/mrclam
+    """
+    from studio.samples import write_samples
+
+    names = write_samples(folder, force=force)
+    if not quiet:
+        typer.echo(f"{folder}: {len(names)} samples\n" + "\n".join(f"  {name}" for name in names))
 
 
 def _tune_allocator() -> None:

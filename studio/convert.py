@@ -33,15 +33,17 @@ from typing import Any
 import numpy as np
 
 from studio._callable import make_callable
-from studio.convert_config import ConvertConfig
+from studio.convert_config import ConvertConfig, check_source_options
 from studio.converters.build import OUTLIER_KIND, BuildResult, GraphOptions, build_graph
+from studio.converters.heading_choice import HeadingChoice, choose_heading_method
 from studio.converters.odometry_source import (
     OdometryFit,
     apply_odometry_sources,
     parse_odometry_spec,
     read_odometry_sources,
 )
-from studio.converters.registry import check_inputs, get_reader, get_source
+from studio.converters.options import GraphImportOptions
+from studio.converters.registry import check_inputs, get_reader, get_source, guess_source, source_names
 from studio.converters.sightings import (
     Sightings,
     SightingsFit,
@@ -62,6 +64,7 @@ from studio.core.option_values import check_option
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB
+from studio.graph_import import ImportResult, import_graph
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
 from studio.io.outliers_txt import write_outliers_txt
@@ -74,6 +77,7 @@ __all__ = [
     "ConvertConfig",
     "ConvertResult",
     "convert",
+    "convert_with_options",
     "read_convert_config",
     "convert_config_to_json",
     "pipeline_flags",
@@ -101,6 +105,8 @@ class ConvertResult:
     range_bearing: RangeBearing | None = None
     """Agent-to-agent sightings (``range_bearing.txt``), where the source has them."""
     sightings_fit: SightingsFit | None = None
+    heading_choices: dict[str, HeadingChoice] = field(default_factory=dict)
+    """Per trajectory whose headings ``heading_method="auto"`` derived, the method it chose and why."""
 
 
 #: The pipeline's own keys of convert.json (besides the source, inputs, agents and graph options).
@@ -119,7 +125,7 @@ _TUPLE_FIELDS = ("body_frames", "odometry_from")
 _OMITTED_AT_DEFAULT: dict[str, Any] = {
     "odometry": "synthetic",
     "odometry_from": (),
-    "heading_method": "smoothed",
+    "heading_method": "auto",
     "sightings_as_closures": False,
     "keyframes_at_sightings": False,
 }
@@ -250,13 +256,17 @@ HEADING_METHOD_TEXT = {
     "turns": "turns: smoothed, and in stops of 1.5 s or more turns on the spot decoded from the tracked "
     "point's motion (its signatures learned from the path; stops without one turn evenly)",
     "chord": "chord: yaw of the chord over {w:g} m of path, held while moving less than a quarter of it",
+    "auto": "auto: turns or chord and its window chosen per agent from its positions (heading_choice)",
 }
 
 
-def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tuple[list[Trajectory], dict[str, str]]:
+def prepare_trajectories(
+    cfg: ConvertConfig, trajs: Sequence[Trajectory]
+) -> tuple[list[Trajectory], dict[str, str], dict[str, HeadingChoice]]:
     """Body frames, derived headings and the split, in that order (see the module docstring).
 
-    Returns the trajectories to build and, per agent whose headings were derived, ``DERIVED``."""
+    Returns the trajectories to build, per agent whose headings were derived ``DERIVED``, and per
+    trajectory whose headings ``auto`` derived (before the split) what it chose."""
     defaults = get_source(cfg.source).body_frames  # the source's own (AirMuseum's robots)
     frames = {t.name: defaults[t.name.lower()] for t in trajs if t.name.lower() in defaults}
     if cfg.options.planar:  # body frames the datasets state (EuRoC's IMU), for the yaw of the heading
@@ -273,10 +283,15 @@ def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tup
         frames[name] = code
     out = [apply_body_frame(t, frames[t.name]) if t.name in frames and frames[t.name] != "flu" else t for t in trajs]
     orientation = {}
+    choices = {}
     derived = []
     for t in out:
         if cfg.orientation == "derive" or (cfg.orientation == "auto" and orientation_is_uninformative(t)):
-            t = derive_orientation(t, cfg.heading_window_m, cfg.heading_method)
+            method, window_m, smooth_s = cfg.heading_method, cfg.heading_window_m, 0.0
+            if method == "auto":
+                choice = choices[t.name] = choose_heading_method(t, cfg.heading_window_m)
+                method, window_m, smooth_s = choice.method, choice.window_m, choice.smooth_s
+            t = derive_orientation(t, window_m, method, smooth_s=smooth_s)
             orientation[t.name] = DERIVED
         derived.append(t)
     if cfg.split:
@@ -287,7 +302,7 @@ def prepare_trajectories(cfg: ConvertConfig, trajs: Sequence[Trajectory]) -> tup
             if t.name in orientation:
                 orientation.update({p.name: DERIVED for p in parts})
         derived = split
-    return derived, orientation
+    return derived, orientation, choices
 
 
 def convert(
@@ -347,6 +362,7 @@ def convert(
         tuple(built.fits),
         built.range_bearing,
         built.sightings_fit,
+        heading_choices=built.heading_choices,
     )
 
 
@@ -360,6 +376,7 @@ class _Built:
     fits: list[OdometryFit]
     range_bearing: RangeBearing | None
     sightings_fit: SightingsFit | None
+    heading_choices: dict[str, HeadingChoice]
 
 
 def _read_and_build(
@@ -373,7 +390,7 @@ def _read_and_build(
     try:
         with np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
             read = reader(cfg.inputs, agents=cfg.agents, warn=warn, progress=progress)
-            trajs, orientation = prepare_trajectories(cfg, read)
+            trajs, orientation, choices = prepare_trajectories(cfg, read)
             if cfg.options.planar:
                 from studio.converters.planar_checks import planar_warnings
 
@@ -397,7 +414,7 @@ def _read_and_build(
             f"{', '.join(Path(p).name for p in cfg.inputs)}: numbers out of the finite range "
             f"while reading or building ({err}): a value in the input is absurd"
         ) from None
-    return _Built(trajs, orientation, build, fits, rb, sight_fit)
+    return _Built(trajs, orientation, build, fits, rb, sight_fit, choices)
 
 
 def _write_dataset(
@@ -425,6 +442,8 @@ def _write_dataset(
     report = _report(build, trajs, warnings, orientation)
     if orientation:
         report["heading_method"] = HEADING_METHOD_TEXT[cfg.heading_method].format(w=cfg.heading_window_m)
+    if built.heading_choices:
+        report["heading_choice"] = {name: c.to_dict() for name, c in built.heading_choices.items()}
     fits = built.fits
     report["odometry"] = {
         "kind": "real" if fits else "synthetic",
@@ -498,6 +517,66 @@ def _real_measurements(
             )
             build = dataclasses.replace(build, graph=with_sighting_closures(build.graph, closures))
     return build, fits, rb, sight_fit
+
+
+def _merged_config(
+    source: str | None, inputs: Sequence[PathLike], given: Mapping[str, Any], base: ConvertConfig | None
+) -> ConvertConfig:
+    """``base`` (a config read from a file, or the defaults of ``source``) with the options given
+    winning: source, inputs and agents where given, each graph and pipeline option by name."""
+    if base is None:
+        if not source:
+            raise ConfigError(
+                f"give a FORMAT ({', '.join(source_names())}), inputs whose format can be guessed, or --config"
+            )
+        base = ConvertConfig(source, ())
+    graph = {k: v for k, v in given.items() if k in _OPTION_FIELDS}
+    pipeline = {k: v for k, v in given.items() if k in _PIPELINE_FIELDS}
+    return dataclasses.replace(
+        base,
+        source=source or base.source,
+        inputs=tuple(str(p) for p in inputs) if inputs else base.inputs,
+        agents=tuple(given["agents"]) if "agents" in given else base.agents,
+        options=dataclasses.replace(base.options, **graph),
+        **pipeline,
+    )
+
+
+def convert_with_options(
+    source: str | None,
+    inputs: Sequence[PathLike],
+    out: PathLike,
+    *,
+    given: Mapping[str, Any] | None = None,
+    config: PathLike | None = None,
+    force: bool = False,
+    rrd: bool = True,
+    warn: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
+) -> ConvertResult | ImportResult:
+    """``studio convert`` as one call. ``source``: a source's name, or None to guess it from the
+    inputs (or take it from ``config``); a name that is no source is the first input. ``given``: the
+    options the user set, by the names of :func:`studio.convert_config.convert_options` (each refused
+    where the source would ignore it, or without the option it needs); ``config``: a convert.json they
+    win over. A graph source without a config writes its graph as it is
+    (:func:`studio.graph_import.import_graph`); anything else is synthesized (:func:`convert`)."""
+    inputs = list(inputs)
+    if source is not None and source not in source_names():
+        inputs = [source, *inputs]
+        source = guess_source(inputs)
+    options: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in (given or {}).items()}
+    if config is None and source and get_source(source).read_graph is not None:
+        check_source_options(source, options, synthesize=False)
+        imported = GraphImportOptions(**options)
+        return import_graph(source, inputs, out, options=imported, force=force, rrd=rrd, warn=warn, progress=progress)
+    base = None if config is None else read_convert_config(config)
+    name = source or (base.source if base is not None else None)
+    if name:
+        values = {} if base is None else {**vars(base), **dataclasses.asdict(base.options)}
+        check_source_options(name, options, synthesize=True, base=values)
+    memory = options.pop("max_memory_gb", DEFAULT_MAX_MEMORY_GB)
+    cfg = _merged_config(source, inputs, options, base)
+    return convert(cfg, out, force=force, warn=warn, progress=progress, rrd=rrd, max_memory_gb=memory)
 
 
 make_callable(__name__)  # studio.convert(...) is studio.convert.convert(...) (studio/_callable.py)

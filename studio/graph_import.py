@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from studio.convert_config import check_source_options
 from studio.converters.graph_split import GraphImportOptions, ImportedGraph
 from studio.converters.registry import check_inputs, get_source
 from studio.core.errors import ConfigError, FormatError, OutputError
@@ -83,6 +84,10 @@ def import_graph(
     src = get_source(source)
     if src.read_graph is None:
         raise ConfigError(f"{source} is not a graph source (graph sources: {', '.join(graph_source_names())})")
+    # an option set away from its default that this source's reader would ignore is refused
+    unset = GraphImportOptions()
+    changed = {k: v for k, v in asdict(options).items() if v != getattr(unset, k)}
+    check_source_options(source, changed, synthesize=False)
     out = Path(out).absolute()
     if out.name in ("", ".", ".."):
         raise OutputError(f"{out}: -o must name the dataset folder itself")

@@ -30,7 +30,7 @@ import contextlib
 import dataclasses
 import os
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, get_args
@@ -47,6 +47,7 @@ from studio.core.geometry import (
     se3_poses_to_planar,
 )
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
+from studio.core.option_values import check_option
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE as MAX_COORDINATE_M  # the one bound of every number
@@ -368,6 +369,7 @@ def solve(
     robots: int = 0,
     coarse_size: int | None = None,
     warn: Callable[[str], None] | None = None,
+    method_options: Mapping[str, Any] | None = None,
 ) -> SolveResult:
     """Optimize ``dataset`` with ``method`` and write the estimate and ``solve.json`` into the folder
     ``out`` (staged, renamed into place; an existing ``out`` is replaced only with ``force``).
@@ -378,7 +380,9 @@ def solve(
     ``robots``: ``dgs`` on a single g2o file, that many robots of contiguous vertex ids (a multi-g2o
     folder's robots are its agents); with ground truth, ``dgs`` also scores every round (APE).
     ``coarse_size``: ``dgs``'s two-level correction, poses per run moved rigidly (0: plain DGS;
-    None: :class:`SolveOptions`'s default). ``warn`` gets the reader's warnings (one line each)."""
+    None: :class:`SolveOptions`'s default). ``method_options``: any other option the method's registry
+    entry reads, by its :class:`SolveOptions` name (dgs: ``rotation_tol``, ``schedule`` ...); one it
+    does not read is refused. ``warn`` gets the reader's warnings (one line each)."""
     entry = method_entry(method)
     options = _solve_options(entry, optimizer, init, max_iterations, relative_tolerance, command, robots)
     if coarse_size is not None:
@@ -387,6 +391,7 @@ def solve(
                 f"coarse_size: expected 0 (plain DGS) or a count of poses, got {coarse_size!r}", option="coarse_size"
             )
         options = dataclasses.replace(options, coarse_size=coarse_size)
+    options = _with_method_options(entry, options, method_options or {})
     out = Path(out)
     rrd_path = None if rrd is None else Path(rrd)
     if rrd_path is not None and rrd_path.suffix != ".rrd":
@@ -454,6 +459,19 @@ def _solve_options(
             option="robots",
         )
     return SolveOptions(optimizer, init, max_iterations, float(relative_tolerance), command, robots)  # type: ignore[arg-type]
+
+
+def _with_method_options(entry: SolveMethod, options: SolveOptions, given: Mapping[str, Any]) -> SolveOptions:
+    """``options`` with the method's own options ``given`` by name: each one the entry reads, a
+    number finite and not negative (the method checks its own ranges and words)."""
+    for key, value in given.items():
+        if key not in entry.options:
+            raise ConfigError(
+                f"{key}: method {entry.name} does not read it (it reads {', '.join(entry.options)})", option=key
+            )
+        if isinstance(value, (bool, int, float)):
+            check_option(key, value)
+    return dataclasses.replace(options, **given)
 
 
 def _run_solver(
@@ -595,12 +613,67 @@ def _write_solve_outputs(
         folder = staging / out.name
         folder.mkdir()
         name = _write_estimate(loaded, solution.poses, folder, stem, tum_names)
+        _write_jrr(loaded, result, folder / f"{stem}.jrr", dataset_name=Path(dataset).name)
         result = dataclasses.replace(result, estimate_path=out / name)
         (folder / SOLVE_JSON).write_text(
             dumps_strict(result.to_dict(), str(out / SOLVE_JSON), indent=2, default=_json_default) + "\n",
             encoding="utf-8",
         )
     return result
+
+
+def _write_jrr(loaded: Loaded, result: SolveResult, path: Path, *, dataset_name: str) -> None:
+    """The estimate as JRL results (:mod:`studio.io.jrr`): one robot per agent (a single g2o file:
+    one robot), its own poses in the dataset's pose kind; a central solve keeps no copies of other
+    robots' poses. A robust method's rejected closures are its ``outliers``, by their FactorIds in
+    the studio's JRL export of the dataset (``studio export --format jrl``)."""
+    from studio.io.jrr import write_jrr
+    from studio.io.symbol_g2o import robot_prefix
+    from studio.jrl_evaluate import graph_results
+
+    poses, source = result.solution.poses, loaded.source_kind
+    if loaded.problem.kind is PoseKind.SE2 and source is PoseKind.SE3:
+        poses = planar_poses_to_se3(poses)
+    parts = [poses[loaded.offsets[k] : loaded.offsets[k + 1]] for k in range(len(loaded.offsets) - 1)]
+    robots = [robot_prefix(k) for k in range(len(parts))]
+    outliers, shared = None, None
+    if loaded.graph is not None:
+        shared = _shared_copies(loaded.graph, parts, robots)
+        if result.rejected is not None:
+            outliers = _rejected_factor_ids(loaded.graph, result.rejected, robots, dataset_name)
+    results = graph_results(source, robots, parts, dataset_name=dataset_name, method_name=result.method, shared=shared)
+    write_jrr(path, dataclasses.replace(results, outliers=outliers))
+
+
+def _shared_copies(graph: PoseGraph, parts: list[np.ndarray], robots: list[str]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per robot, ``(keys, poses)`` of the other robots' poses its measurements name (an
+    inter-robot closure is its ``from`` robot's measurement, as in the JRL export), at the one
+    estimate a central solve has: jrl's results hold every value a robot's factors touch."""
+    inter = graph.inter
+    base = np.array([ord(c) << 56 for c in robots], dtype=np.int64)
+    out = []
+    for k in range(len(robots)):
+        mine = inter.from_agent == k
+        keys, first = np.unique(base[inter.to_agent[mine]] + inter.to_index[mine], return_index=True)
+        agents, index = inter.to_agent[mine][first], inter.to_index[mine][first]
+        width = parts[k].shape[1]
+        poses = np.array([parts[a][i] for a, i in zip(agents.tolist(), index.tolist())]).reshape(len(keys), width)
+        out.append((keys, poses))
+    return out
+
+
+def _rejected_factor_ids(
+    graph: PoseGraph, rejected: np.ndarray, robots: list[str], name: str
+) -> tuple[np.ndarray, ...]:
+    """Per robot, the FactorIds of the ``rejected`` rows (``from_agent from_vertex to_agent
+    to_vertex``) in the studio's JRL export of ``graph``."""
+    from studio.io.jrl import jrl_document
+    from studio.jrl_evaluate import factor_ids_of_edges
+
+    base = np.array([ord(c) << 56 for c in robots], dtype=np.int64)
+    keys = np.column_stack([base[rejected[:, 0]] + rejected[:, 1], base[rejected[:, 2]] + rejected[:, 3]])
+    found = factor_ids_of_edges(jrl_document(graph, name=name), keys)
+    return tuple(found.get(c, np.zeros((0, 2), np.int64)) for c in robots)
 
 
 @dataclass(eq=False)

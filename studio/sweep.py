@@ -183,7 +183,11 @@ def _base(spec: SweepSpec) -> tuple[str, dict[str, Any]]:
     """``(kind, JSON)`` of the base: a kollagen config (presets written out) or a convert.json."""
     from studio.generator.presets import PRESETS, preset
     from studio.io.synth_config import synth_config_to_json
+    from studio.synth import shadowed_preset
 
+    shadowed = shadowed_preset(spec.base)
+    if shadowed is not None:
+        warnings.warn(f"{spec.source}: base: {shadowed}", stacklevel=2)
     if spec.base.lower() in PRESETS and not Path(spec.base).exists():
         return "synth", synth_config_to_json(preset(spec.base))
     path = Path(spec.base)

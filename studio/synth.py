@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import json
+import warnings
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +37,7 @@ __all__ = [
     "seed_folder_name",
     "synthesize_seeds",
     "load_synth_config",
+    "shadowed_preset",
     "synthesize",
     "write_outputs",
     "generate",
@@ -59,9 +61,28 @@ class SynthResult:
     """The planted outliers (``OUT/<name>/outliers.txt``), when the config's studio block asks for them."""
 
 
+def shadowed_preset(name: PathLike) -> str | None:
+    """When ``name`` is both a preset's name and a file or folder here, the warning saying which is
+    used (the file: a path is what the user typed); else None."""
+    text = str(name)
+    if text.lower() not in PRESETS or not Path(text).exists():
+        return None
+    return (
+        f"{text}: using the file {Path(text).absolute()}, not the preset of that name "
+        "(run from another folder, or rename the file, to get the preset)"
+    )
+
+
 def load_synth_config(source: PathLike, *, warn: Callable[[str], None] | None = None) -> SynthConfig:
-    """A preset name (``multi3500x8``, ``multi10000x5``) or the path of a kollagen JSON file."""
+    """A preset name (``multi3500x8``, ``multi10000x5``) or the path of a kollagen JSON file. A file
+    named like a preset is read, never silently: ``warn`` (else Python's warnings) says so."""
     text = str(source)
+    shadowed = shadowed_preset(text)
+    if shadowed is not None:
+        if warn is not None:
+            warn(shadowed)
+        else:
+            warnings.warn(shadowed, stacklevel=2)
     if text.lower() in PRESETS and not Path(text).exists():
         return preset(text)
     path = Path(text)

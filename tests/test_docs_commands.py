@@ -4,8 +4,8 @@ Every fenced ``studio ...`` line of README.md and docs/*.md (continuation lines 
 prompts and ``# comments`` dropped) runs, in document order, as ``python -m studio.cli ...`` in one
 work folder shared by the documents (README first). That folder holds small stand-ins for the inputs
 the docs name (the kollagen presets are replaced by small3x100, a 3-agent x 100-step config with the
-same parameters; ``alpha.txt`` and friends are the test trajectories; S3E, AirMuseum and bag inputs
-are made by the converter tests' own writers) and the outputs several docs start from
+same parameters; ``alpha.txt`` and friends are the test trajectories; the S3E, AirMuseum, bag,
+EuRoC, KITTI, Kimera-Multi and MR.CLAM inputs are ``studio samples``' layouts, :mod:`studio.samples`) and the outputs several docs start from
 (``out/multi3500x8`` from ``studio synth multi3500x8 -o out/``, ``out/three_loops`` from
 ``recordings/three_loops.command``). Docs repeat ``studio synth ... -o out/``: a command refused
 only because its output already exists is run again with ``--force``. A command that fails
@@ -68,55 +68,11 @@ def _tum(work: Path) -> None:
         shutil.copyfile(DATA / "trajectories" / f"{src}.tum", work / dst)
 
 
-def _s3e(work: Path) -> None:
-    from tests.converters.test_layouts import s3e_folder
+def _sample(name: str) -> Callable[[Path], None]:
+    """The writer of one of ``studio samples``' layouts (:data:`studio.samples.SAMPLES`)."""
+    from studio.samples import SAMPLES
 
-    s3e_folder(work / "S3E_Square_1")
-
-
-def _airmuseum(work: Path) -> None:
-    from tests.converters.test_layouts import airmuseum_folder
-
-    for name in ("AirMuseum_seq", "AirMuseum_seq_1"):
-        airmuseum_folder(work / name)
-
-
-def _bags(work: Path) -> None:
-    from tests.converters.bags import Msgs, typestore, utm31_to_latlon, write_bag
-    from tests.converters.synthetic import UTM_EAST, UTM_NORTH, loop_trajectory
-
-    m = Msgs(typestore("ros1"))
-    s, p, q = loop_trajectory(400)
-    s2, p2, q2 = loop_trajectory(400, centre=(3.0, 0.0, 0.0), phase=1.0)
-    write_bag(
-        work / "run",
-        "ros1",
-        {
-            "/alpha/odom": [(int(t), m.Odometry(int(t), pp, qq)) for t, pp, qq in zip(s, p, q)],
-            "/tf": [
-                (int(t), m.TFMessage(int(t), pp, qq, parent="odom", child="bob/base_link"))
-                for t, pp, qq in zip(s2, p2, q2)
-            ],
-        },
-    )
-    m2 = Msgs(typestore("sqlite3"))
-    s, p, q = loop_trajectory(400, centre=(UTM_EAST, UTM_NORTH, 80.0), t0_s=1_700_000_000.0)
-    lat, lon = utm31_to_latlon(p[:, 0], p[:, 1])
-    write_bag(
-        work / "s3e_bag",
-        "sqlite3",
-        {
-            "/alpha/fix": [(int(t), m2.NavSatFix(int(t), la, lo, pp[2])) for t, la, lo, pp in zip(s, lat, lon, p)],
-            "/alpha/heading": [(int(t), m2.QuaternionStamped(int(t), qq)) for t, qq in zip(s, q)],
-        },
-    )
-
-
-def _euroc(work: Path) -> None:
-    from tests.converters.test_real_layouts import _euroc_sequence
-
-    for k, name in enumerate(("MH_01_easy", "MH_02_easy", "MH_03_medium")):
-        _euroc_sequence(work, name, k)
+    return SAMPLES[name][1]
 
 
 def _single_g2o(work: Path) -> None:
@@ -127,44 +83,6 @@ def _single_g2o(work: Path) -> None:
     single = res.dataset_dir.parent / f"{res.dataset_dir.name}_singleg2o" / f"{res.dataset_dir.name}.g2o"
     for name in ("M3500.g2o", "kitti_00.g2o"):
         shutil.copyfile(single, work / name)
-
-
-def _kitti(work: Path) -> None:
-    import numpy as np
-
-    (work / "poses").mkdir()
-    n = 600
-    yaw = np.linspace(0, 2.0, n)
-    rows = []
-    for i in range(n):
-        c, s = np.cos(yaw[i]), np.sin(yaw[i])
-        rows.append(
-            " ".join(
-                f"{v:.9e}"
-                for v in (c, 0, s, 5 * np.sin(yaw[i]), 0, 1, 0, 0, -s, 0, c, 5 * (1 - np.cos(yaw[i])) + 0.5 * i)
-            )
-        )
-    (work / "poses" / "00.txt").write_text("\n".join(rows) + "\n")
-
-
-def _kimera(work: Path) -> None:
-    from tests.converters.synthetic import loop_trajectory
-
-    folder = work / "ground_truth" / "1014"
-    folder.mkdir(parents=True)
-    for k, robot in enumerate(("acl_jackal", "acl_jackal2")):
-        s, p, q = loop_trajectory(400, radius=5.0, phase=k)
-        lines = ["#timestamp_kf,x,y,z,qw,qx,qy,qz"] + [
-            ",".join([str(t), *map(repr, pp), repr(qq[3]), repr(qq[0]), repr(qq[1]), repr(qq[2])])
-            for t, pp, qq in zip(s.tolist(), p.tolist(), q.tolist())
-        ]
-        (folder / f"{robot}_gt_odom.csv").write_text("\n".join(lines) + "\n")
-
-
-def _mrclam(work: Path) -> None:
-    from tests.converters.mrclam_files import write_mrclam_dataset
-
-    write_mrclam_dataset(work / "MRCLAM_Dataset1", padded=True, lag_s=0.17)  # the real files' layout and lag
 
 
 def _vio(work: Path) -> None:
@@ -206,13 +124,13 @@ INPUTS: dict[str, Callable[[Path], None]] = {
     "multi10000x5": lambda w: _preset_standin(w, "multi10000x5"),
     "my_config.json": lambda w: shutil.copyfile(DATA / "configs" / "tiny_three.json", w / "my_config.json"),
     "alpha.txt": _tum,
-    "S3E_Square_1": _s3e,
-    "AirMuseum_seq": _airmuseum,
-    "run.bag": _bags,
-    "MH_01_easy": _euroc,
-    "poses/00.txt": _kitti,
-    "ground_truth/1014": _kimera,
-    "MRCLAM_Dataset1": _mrclam,
+    "S3E_Square_1": _sample("s3e"),
+    "AirMuseum_seq": _sample("airmuseum"),
+    "run.bag": _sample("bag"),
+    "MH_01_easy": _sample("euroc"),
+    "poses/00.txt": _sample("kitti"),
+    "ground_truth/1014": _sample("kimera-multi"),
+    "MRCLAM_Dataset1": _sample("mrclam"),
     "bob_vio.txt": _vio,
     "M3500.g2o": _single_g2o,
     "kth_r3_00_wifi.jrl": _cosmo,

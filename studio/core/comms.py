@@ -7,18 +7,12 @@ at which its two robots are in contact and the link has room for it (a bandwidth
 queues the rest, oldest first, for the next ticks of contact). Both robots of a closure learn it at
 that tick (they are in contact); a closure whose robots never meet again is never delivered (-1).
 
-Models (``studio replay --comms``):
-
-* ``always``: every pair at every tick (the centralized upper bound).
-* ``never``: no pair ever (the independent lower bound).
-* ``range:R[,period=T][,p=P]``: robots whose ground-truth positions at the same time are within
-  ``R`` metres (MESA's ``comm_range``); with ``period`` only at the first tick of every ``T``
-  seconds (MESA's ``comm_freq`` is ``1/T``); with ``p`` each contact succeeds with probability
-  ``P``, drawn from the seed.
-* ``rendezvous:FILE``: Swarm-SLAM's simulated rendezvous, one line per robot
-  ``ROBOT_ID,start,end,start,end,...`` (robot ids 0-based in the dataset's agent order, times in
-  whole seconds from the replay's start, windows inclusive); two robots talk when both are inside
-  one of their windows (:mod:`studio.io.rendezvous_txt` reads and writes the file).
+The models are declared in :data:`studio.core.comms_registry.COMMS_MODELS` (name, grammar, help
+and parser: ``studio replay --comms`` and its messages are built from it); their classes and parsers
+are here. ``rendezvous:FILE`` reads Swarm-SLAM's simulated rendezvous, one line per robot
+``ROBOT_ID,start,end,start,end,...`` (robot ids 0-based in the dataset's agent order, times in whole
+seconds from the replay's start, windows inclusive; :mod:`studio.io.rendezvous_txt`). ``recorded``
+takes the schedule from the dataset itself: a pair is in contact at the tick of each of its closures.
 
 Positions between ground-truth stamps are interpolated linearly; a robot is present from its first
 stamp and stays at its last position after its last one (it still talks).
@@ -40,11 +34,17 @@ __all__ = [
     "Never",
     "RangeLimited",
     "Rendezvous",
+    "Recorded",
     "CommsModel",
     "Bandwidth",
     "Schedule",
     "CommsReport",
     "parse_comms",
+    "parse_always",
+    "parse_never",
+    "parse_range",
+    "parse_rendezvous",
+    "parse_recorded",
     "parse_bandwidth",
     "robot_pairs",
     "tick_grid",
@@ -96,7 +96,16 @@ class Rendezvous:
         return f"rendezvous:{self.source}"
 
 
-CommsModel = Always | Never | RangeLimited | Rendezvous
+@dataclass(frozen=True)
+class Recorded:
+    """Each inter-robot closure delivered at the tick of its recorded time (when the dataset has it
+    measured); its two robots are in contact at that tick only."""
+
+    def spec(self) -> str:
+        return "recorded"
+
+
+CommsModel = Always | Never | RangeLimited | Rendezvous | Recorded
 
 
 @dataclass(frozen=True)
@@ -131,37 +140,65 @@ def _positive(text: str, what: str, spec: str, *, allow_zero: bool = False) -> f
 
 
 def parse_comms(spec: str) -> CommsModel | str:
-    """A model from its text (module doc); ``rendezvous:FILE`` gives back the FILE to read."""
+    """A model from its text, by the parser its registry entry names
+    (:data:`studio.core.comms_registry.COMMS_MODELS`); ``rendezvous:FILE`` gives back the FILE to read."""
+    from studio.core.comms_registry import get_comms_model
+
     text = spec.strip()
-    if text == "always":
-        return Always()
-    if text == "never":
-        return Never()
-    if text.startswith("rendezvous:"):
-        path = text[len("rendezvous:") :]
-        if not path:
-            raise ConfigError("comms: rendezvous needs a file: rendezvous:FILE")
-        return path
-    if text.startswith("range:"):
-        parts = text[len("range:") :].split(",")
-        range_m = _positive(parts[0], "the range [m]", spec)
-        period_ns: int | None = None
-        p = 1.0
-        for part in parts[1:]:
-            key, _, value = part.partition("=")
-            key = key.strip()
-            if key == "period":
-                period_ns = round(_positive(value, "period [s]", spec) * NS_PER_S)
-                if period_ns <= 0:
-                    raise ConfigError(f"comms: period in {spec!r} must be > 0")
-            elif key == "p":
-                p = _positive(value, "the success probability p", spec, allow_zero=True)
-                if p > 1:
-                    raise ConfigError(f"comms: the success probability p in {spec!r} must be in [0, 1], got {value}")
-            else:
-                raise ConfigError(f"comms: unknown option {key!r} in {spec!r} (known: period, p)")
-        return RangeLimited(range_m, period_ns, p)
-    raise ConfigError(f"comms: unknown model {spec!r} (known: always, never, range:R[,period=T,p=P], rendezvous:FILE)")
+    name, sep, arg = text.partition(":")
+    parsed: CommsModel | str = get_comms_model(name, spec).parse(arg if sep else None, spec)
+    return parsed
+
+
+def _no_argument(name: str, arg: str | None, spec: str) -> None:
+    if arg is not None:
+        raise ConfigError(f"comms: {name} takes no argument, got {spec!r}")
+
+
+def parse_always(arg: str | None, spec: str) -> Always:
+    _no_argument("always", arg, spec)
+    return Always()
+
+
+def parse_never(arg: str | None, spec: str) -> Never:
+    _no_argument("never", arg, spec)
+    return Never()
+
+
+def parse_recorded(arg: str | None, spec: str) -> Recorded:
+    _no_argument("recorded", arg, spec)
+    return Recorded()
+
+
+def parse_rendezvous(arg: str | None, spec: str) -> str:
+    """The FILE of ``rendezvous:FILE`` (read by the replay, which knows the number of robots)."""
+    if not arg:
+        raise ConfigError("comms: rendezvous needs a file: rendezvous:FILE")
+    return arg
+
+
+def parse_range(arg: str | None, spec: str) -> RangeLimited:
+    """``range:R[,period=T][,p=P]``."""
+    if arg is None:
+        raise ConfigError(f"comms: range needs a distance in metres: range:R, got {spec!r}")
+    parts = arg.split(",")
+    range_m = _positive(parts[0], "the range [m]", spec)
+    period_ns: int | None = None
+    p = 1.0
+    for part in parts[1:]:
+        key, _, value = part.partition("=")
+        key = key.strip()
+        if key == "period":
+            period_ns = round(_positive(value, "period [s]", spec) * NS_PER_S)
+            if period_ns <= 0:
+                raise ConfigError(f"comms: period in {spec!r} must be > 0")
+        elif key == "p":
+            p = _positive(value, "the success probability p", spec, allow_zero=True)
+            if p > 1:
+                raise ConfigError(f"comms: the success probability p in {spec!r} must be in [0, 1], got {value}")
+        else:
+            raise ConfigError(f"comms: unknown option {key!r} in {spec!r} (known: period, p)")
+    return RangeLimited(range_m, period_ns, p)
 
 
 def parse_bandwidth(spec: str) -> Bandwidth:
@@ -217,6 +254,18 @@ def _positions_at(stamps_ns: np.ndarray, positions_xyz: np.ndarray, ticks_ns: np
     return np.column_stack([np.interp(q, t, positions_xyz[:, c]) for c in range(positions_xyz.shape[1])])
 
 
+def _recorded_contacts(
+    ticks_ns: np.ndarray, num_pairs: int, closure_pair: np.ndarray, measured_ns: np.ndarray
+) -> np.ndarray:
+    """``recorded``: each pair in contact at the first tick at or after each of its closures' times
+    (a closure after the last tick is never delivered, as under ``always``)."""
+    out = np.zeros((len(ticks_ns), num_pairs), dtype=bool)
+    tick = np.searchsorted(ticks_ns, measured_ns, side="left")
+    keep = (closure_pair >= 0) & (tick < len(ticks_ns))
+    out[tick[keep], closure_pair[keep]] = True
+    return out
+
+
 def contacts(
     model: CommsModel,
     *,
@@ -224,10 +273,14 @@ def contacts(
     pose_ns: tuple[np.ndarray, ...],
     positions_xyz: tuple[np.ndarray, ...] | None,
     seed: int = 0,
+    closure_pair: np.ndarray | None = None,
+    measured_ns: np.ndarray | None = None,
 ) -> np.ndarray:
     """``(ticks, P)`` bool: which pairs (:func:`robot_pairs` order) can talk at each tick.
 
-    ``positions_xyz`` (per robot, ground truth at ``pose_ns``) is needed by ``range``."""
+    ``positions_xyz`` (per robot, ground truth at ``pose_ns``) is needed by ``range``; the
+    inter-agent closures (``closure_pair`` as :func:`deliver` takes it, ``measured_ns``) by
+    ``recorded``."""
     n = len(pose_ns)
     pairs = robot_pairs(n)
     m = len(ticks_ns)
@@ -251,6 +304,10 @@ def contacts(
             draws = np.random.default_rng(seed).random(ok.shape)
             ok &= draws < model.success_probability
         return np.asarray(ok)
+    if isinstance(model, Recorded):
+        if closure_pair is None or measured_ns is None:
+            raise ConfigError("comms: recorded needs the dataset's inter-agent closures")
+        return _recorded_contacts(ticks_ns, len(pairs), closure_pair, measured_ns)
     if isinstance(model, Rendezvous):
         if len(model.windows_s) != n:
             raise ConfigError(f"comms: {model.source} has windows for {len(model.windows_s)} robots, dataset {n}")

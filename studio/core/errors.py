@@ -25,11 +25,13 @@ class ConfigError(StudioError):
     """A configuration (JSON file, preset name, option value) is invalid.
 
     ``option`` names the library option at fault (``lc_radius``), so the command line can name its
-    flag (``--lc-radius``) while a config file's reader names the key."""
+    flag (``--lc-radius``) while a config file's reader names the key; ``also`` names other library
+    options the message mentions (``partition`` needs ``split``), written as flags the same way."""
 
-    def __init__(self, message: str, *, option: str | None = None) -> None:
+    def __init__(self, message: str, *, option: str | None = None, also: tuple[str, ...] = ()) -> None:
         super().__init__(message)
         self.option = option
+        self.also = also
 
 
 class FormatError(StudioError):

@@ -51,6 +51,7 @@ __all__ = [
     "REPLAY_LINKS",
     "REPLAY_CLOSURES",
     "REPLAY_APE",
+    "REPLAY_SVE",
     "REPLAY_IN_CONTACT",
     "REPLAY_DELIVERED",
 ]
@@ -156,6 +157,9 @@ REPLAY_LINKS = "replay/world/links"
 REPLAY_CLOSURES = "replay/world/delivered_closures"
 #: Scalar per checkpoint: the team's APE (se3) of a back-end [m].
 REPLAY_APE = "replay/metrics/ape_se3_m/{backend}"
+#: Scalar per checkpoint: jrl's Shared Variable Error, translation [m], of a back-end whose robots
+#: keep each other's poses (swarm, dgs), once some pose is shared.
+REPLAY_SVE = "replay/metrics/sve_t_m/{backend}"
 #: Scalar per tick: robots with at least one neighbour.
 REPLAY_IN_CONTACT = "replay/metrics/robots_in_contact"
 #: Scalar per tick: inter-agent closures delivered so far.

@@ -4,7 +4,8 @@ At each checkpoint: every back-end's belief of each robot's own trajectory so fa
 in the frame the robot holds it, decimated to at most :data:`MAX_POINTS_PER_SNAPSHOT` points per
 back-end and checkpoint so a paper-size replay stays small), the links between robots in contact
 (segments between their ground-truth positions), the inter-agent closures delivered so far
-(ground-truth ends, at most :data:`MAX_CLOSURE_SEGMENTS`), and the team's APE per back-end; per tick
+(ground-truth ends, at most :data:`MAX_CLOSURE_SEGMENTS`), the team's APE per back-end and, for a
+back-end whose robots keep each other's poses, jrl's Shared Variable Error (translation); per tick
 the number of robots in contact and of closures delivered. Scrubbing the timeline shows the maps
 snapping together when robots meet; the blueprint gives each back-end a 3D view of its own. No wall clock is logged and blueprint ids are fixed, so the
 same replay gives the same fingerprint.
@@ -39,6 +40,7 @@ from studio.recording.entities import (
     REPLAY_GROUND_TRUTH,
     REPLAY_IN_CONTACT,
     REPLAY_LINKS,
+    REPLAY_SVE,
     REPLAY_WORLD,
     TIMELINE_REPLAY,
     TIMELINE_REPLAY_TICK,
@@ -54,10 +56,13 @@ MAX_POINTS_PER_SNAPSHOT = 4000
 MAX_CLOSURE_SEGMENTS = 1500
 
 
-def replay_blueprint(backends: Sequence[str], truth_xyz: np.ndarray | None = None, *, planar: bool = False) -> Any:
-    """One view per back-end beside the APE and communication plots, the time panel following
-    (a viewer opens at the end). With ``truth_xyz`` (the ground-truth positions) every view looks
-    at the whole team; planar data is seen from straight above with no ground grid."""
+def replay_blueprint(
+    backends: Sequence[str], truth_xyz: np.ndarray | None = None, *, planar: bool = False, sve: bool = False
+) -> Any:
+    """One view per back-end beside the APE and communication plots (and, with ``sve``, the shared
+    variable error's), the time panel following (a viewer opens at the end). With ``truth_xyz``
+    (the ground-truth positions) every view looks at the whole team; planar data is seen from
+    straight above with no ground grid."""
     import rerun.blueprint as rrb
 
     from studio.recording.dataset import eye_over, fixed_id
@@ -100,6 +105,18 @@ def replay_blueprint(backends: Sequence[str], truth_xyz: np.ndarray | None = Non
                 fixed(
                     rrb.Vertical(
                         fixed(rrb.TimeSeriesView(name="team APE se3 [m]", origin=f"{REPLAY}/metrics/ape_se3_m"), "ape"),
+                        *(
+                            [
+                                fixed(
+                                    rrb.TimeSeriesView(
+                                        name="shared variable error [m]", origin=f"{REPLAY}/metrics/sve_t_m"
+                                    ),
+                                    "sve",
+                                )
+                            ]
+                            if sve
+                            else []
+                        ),
                         fixed(rrb.TimeSeriesView(name="robots in contact", origin=REPLAY_IN_CONTACT), "contact"),
                         fixed(rrb.TimeSeriesView(name="closures delivered", origin=REPLAY_DELIVERED), "delivered"),
                     ),
@@ -208,9 +225,12 @@ def log_replay(
     robots_in_contact: np.ndarray,
     runs: Sequence[tuple[str, np.ndarray, np.ndarray, Sequence[np.ndarray]]],
     vertex_ns: np.ndarray,
+    sve: Sequence[tuple[str, np.ndarray]] = (),
 ) -> None:
     """``runs``: per back-end, its name, checkpoint ticks, team APE per checkpoint and the beliefs
-    (``(num_vertices, 7)`` SE(3) rows, global ids) at each checkpoint."""
+    (``(num_vertices, 7)`` SE(3) rows, global ids) at each checkpoint. ``sve``: per back-end whose
+    robots keep each other's poses, its name and SVE translation [m] per checkpoint (NaN: none
+    shared yet, nothing logged)."""
     import rerun as rr
 
     g3 = graph.to_se3()
@@ -229,6 +249,10 @@ def log_replay(
         rec.log(
             REPLAY_APE.format(backend=rr.escape_entity_path_part(name_b)), rr.SeriesLines(names=name_b), static=True
         )
+    for name_b, _ in sve:
+        rec.log(
+            REPLAY_SVE.format(backend=rr.escape_entity_path_part(name_b)), rr.SeriesLines(names=name_b), static=True
+        )
     for c, tick in enumerate(checkpoints.tolist()):
         rec.set_time(TIMELINE_REPLAY, duration=(int(ticks_ns[tick]) - t0) / NS_PER_S)
         rec.set_time(TIMELINE_REPLAY_TICK, sequence=int(tick))
@@ -246,6 +270,9 @@ def log_replay(
             b = rr.escape_entity_path_part(name_b)
             _log_beliefs(rec, b, beliefs[c], names=names, offsets=offsets, seen=seen, stride=stride, colours=colours)
             rec.log(REPLAY_APE.format(backend=b), rr.Scalars(float(ape[c])))
+        for name_b, series in sve:
+            if np.isfinite(series[c]):
+                rec.log(REPLAY_SVE.format(backend=rr.escape_entity_path_part(name_b)), rr.Scalars(float(series[c])))
 
 
 def write_replay_recording(
@@ -274,7 +301,9 @@ def write_replay_recording(
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=rid, send_properties=False)
         rec.set_log_time_enabled(False)
         with closing(rec, target, shown=path):
-            rec.save(target, default_blueprint=replay_blueprint(backends, truth, planar=planar))
+            rec.save(
+                target, default_blueprint=replay_blueprint(backends, truth, planar=planar, sve=bool(columns.get("sve")))
+            )
             rec.send_recording_name(name)
             log_replay(rec, graph, **columns)
 

@@ -34,7 +34,7 @@ from studio.core.comms import robot_pairs
 from studio.solvers.incremental import FixedEnds, IncrementalSolver, IsamSettings
 from studio.solvers.problem import Problem
 
-__all__ = ["World", "Backend", "BackendFactory", "Step", "make_dgs"]
+__all__ = ["World", "Backend", "BackendFactory", "KeptPoses", "Step", "make_dgs"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,6 +84,16 @@ class World:
 
 
 @dataclass(frozen=True, eq=False)
+class KeptPoses:
+    """The estimates robots keep of other robots' poses: per row the robot keeping it, the vertex
+    (global id) and the pose it holds."""
+
+    robot: np.ndarray
+    vertex: np.ndarray
+    poses: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
 class Step:
     """What a back-end believes at one checkpoint."""
 
@@ -91,6 +101,9 @@ class Step:
     """``(num_vertices, w)``: each vertex's estimate by its own robot."""
     solver_seconds: float
     """Wall time in the solver since the last checkpoint."""
+    kept: KeptPoses | None = None
+    """The robots' own estimates of other robots' poses (swarm, dgs: :class:`Memory`); None for a
+    back-end whose robots keep none (centralized holds one estimate, independent shares nothing)."""
 
 
 class Backend(Protocol):
@@ -187,6 +200,11 @@ class Memory:
         self.tick[robots, others] = tick
         counts = np.bincount(robots, minlength=self.world.num_robots)
         return {r: int(counts[r]) for r in group}
+
+    def kept(self) -> KeptPoses:
+        """Every pose of another robot some robot keeps, with the estimate it keeps."""
+        robot, vertex = np.nonzero(self.tick >= 0)
+        return KeptPoses(robot, vertex, self.poses[robot, vertex].copy())
 
     def fixed(self, tick: int, group: tuple[int, ...], information_scale: float) -> FixedEnds:
         """The delivered closures between a member of ``group`` and a non-member whose pose the
@@ -335,7 +353,7 @@ class Swarm(_Base):
                 self._count(lead_robot, m, 2, n_edges * w.edge_bytes + n_poses * w.pose_bytes)
         self.groups = kept
         self.fixed_edges = {g: self.fixed_edges[g] for g in kept}
-        return Step(self.own.copy(), seconds)
+        return Step(self.own.copy(), seconds, self.memory.kept())
 
     def finish(self) -> Step:
         seconds = 0.0
@@ -343,7 +361,7 @@ class Swarm(_Base):
             before = solver.seconds
             self.own = _finish(solver, self.own, self.world.settings)
             seconds += solver.seconds - before
-        return Step(self.own.copy(), seconds)
+        return Step(self.own.copy(), seconds, self.memory.kept())
 
 
 def make_dgs(world: World) -> Backend:

@@ -181,7 +181,7 @@ class Dgs(_Base):
                 seconds += self._solve(team, tick, budget)
                 teams.add(team)
         self.teams = teams
-        return Step(self.own.copy(), seconds)
+        return Step(self.own.copy(), seconds, self.memory.kept())
 
     def advance(self, tick: int, groups: list[tuple[int, ...]]) -> Step:
         self.last_tick, self.last_groups = tick, groups

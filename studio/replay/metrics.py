@@ -4,7 +4,9 @@
   its ground truth so far, its first estimated pose put on its first true pose (``first-pose``);
 * the team: the same over all robots' poses (each robot aligned by its first pose), and the team's
   map as one piece: one rigid Umeyama transform over all robots' positions (``se3``), which is what
-  snaps down when robots meet.
+  snaps down when robots meet;
+* the team's consensus: jrl's Shared Variable Error (:func:`studio.core.jrl_metrics.sve`) over the
+  poses robots keep of each other (swarm, dgs) against their owners' estimates and each other's.
 """
 
 from __future__ import annotations
@@ -12,10 +14,11 @@ from __future__ import annotations
 import numpy as np
 
 from studio.core.geometry import planar_poses_to_se3
+from studio.core.jrl_metrics import RobotValues
 from studio.core.model import PoseKind
 from studio.solvers.incremental import compose, inverse
 
-__all__ = ["as_se3", "first_pose_errors", "se3_errors"]
+__all__ = ["as_se3", "first_pose_errors", "se3_errors", "robot_values"]
 
 
 def as_se3(poses: np.ndarray, kind: PoseKind) -> np.ndarray:
@@ -44,3 +47,25 @@ def se3_errors(estimate_xyz: np.ndarray, truth_xyz: np.ndarray) -> np.ndarray:
     r = u @ s @ vt
     moved = (estimate_xyz - mu_e) @ r.T + mu_t
     return np.linalg.norm(moved - truth_xyz, axis=1)
+
+
+def robot_values(
+    own: np.ndarray,
+    visited: np.ndarray,
+    agent_of_vertex: np.ndarray,
+    kept_robot: np.ndarray,
+    kept_vertex: np.ndarray,
+    kept_poses: np.ndarray,
+    num_robots: int,
+) -> list[RobotValues]:
+    """Per robot, what it estimates (keys: global vertex ids): its own visited poses (``own`` rows
+    where ``visited``) and the poses of other robots it keeps."""
+    out = []
+    for r in range(num_robots):
+        mine = np.flatnonzero(visited & (agent_of_vertex == r))
+        k = kept_robot == r
+        keys = np.concatenate([mine, kept_vertex[k]]).astype(np.int64)
+        poses = np.concatenate([own[mine], kept_poses[k]])
+        order = np.argsort(keys, kind="stable")
+        out.append(RobotValues(keys[order], poses[order]))
+    return out

@@ -45,24 +45,25 @@ from studio.core.comms import (
     robot_pairs,
     tick_grid,
 )
+from studio.core.comms_registry import DEFAULT_COMMS
 from studio.core.errors import ConfigError, FormatError, GraphError
-from studio.core.model import PoseGraph
+from studio.core.model import PoseGraph, PoseKind
 from studio.core.option_values import check_count, check_option
 from studio.core.timing import MeasurementTimes, measurement_times
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.io.strict_json import dumps_strict
-from studio.replay.backends import World
-from studio.replay.metrics import as_se3, first_pose_errors, se3_errors
+from studio.replay.backends import KeptPoses, Step, World
+from studio.replay.metrics import as_se3, first_pose_errors, robot_values, se3_errors
 from studio.replay.registry import DEFAULT_BACKENDS, get_backend
 from studio.runtime.progress import Progress, report
-from studio.solvers.incremental import IsamSettings
+from studio.solvers.isam_settings import IsamSettings
 from studio.solvers.problem import graph_chi2
 
 __all__ = ["replay", "ReplayResult", "BackendRun", "build_schedule", "DEFAULT_BACKENDS", "REPLAY_JSON"]
 
 REPLAY_JSON = "replay.json"
-METRICS_HEADER = "backend,tick,time_s,robot,poses,ape_first_pose_m,ape_se3_m"
+METRICS_HEADER = "backend,tick,time_s,robot,poses,ape_first_pose_m,ape_se3_m,sve_t_m,sve_r_rad"
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,6 +92,11 @@ class BackendRun:
     final_poses: np.ndarray
     beliefs: tuple[np.ndarray, ...] = ()
     """With a recording: per checkpoint, the ``(num_vertices, 3)`` float32 positions believed."""
+    sve: np.ndarray | None = None
+    """``(checkpoints, 2)`` jrl's Shared Variable Error (translation [m], rotation [rad]) of the
+    poses robots keep of each other, NaN before any is shared; None for a back-end that keeps none."""
+    final_kept: KeptPoses | None = None
+    """The poses of other robots each robot keeps at the end (swarm, dgs)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -159,12 +165,20 @@ def build_schedule(
     """The schedule of ``model`` for ``graph`` on ticks of ``step_ns`` (see :mod:`studio.core.comms`)."""
     ticks = tick_grid(times.start_ns, times.end_ns, step_ns)
     positions = tuple(np.asarray(a.se3_poses(ground_truth=True))[:, 0:3] for a in graph.agents)
-    contact = contacts(model, ticks_ns=ticks, pose_ns=times.pose_ns, positions_xyz=positions, seed=seed)
     n = len(graph.agents)
     index = {(int(a), int(b)): k for k, (a, b) in enumerate(robot_pairs(n).tolist())}
     fa, ta = graph.inter.from_agent, graph.inter.to_agent
     pair = np.array(
         [-1 if a == b else index[(min(a, b), max(a, b))] for a, b in zip(fa.tolist(), ta.tolist())], dtype=np.int64
+    )
+    contact = contacts(
+        model,
+        ticks_ns=ticks,
+        pose_ns=times.pose_ns,
+        positions_xyz=positions,
+        seed=seed,
+        closure_pair=pair,
+        measured_ns=times.inter_ns,
     )
     kind = graph.kind
     closure_bytes = 8 * (4 + kind.pose_width + kind.information_width)
@@ -250,6 +264,7 @@ def _run(
     previous = -1
     step = None
     beliefs: list[np.ndarray] = []
+    sve = np.full((len(checkpoints), 2), np.nan)
     for c, tick in enumerate(checkpoints.tolist()):
         report(progress, f"replay {name}", c, len(checkpoints), "checkpoints")
         linked = np.asarray(schedule.contact[previous + 1 : tick + 1].any(axis=0))
@@ -279,6 +294,8 @@ def _run(
         team_fp[c] = float(fp.mean()) if len(fp) else 0.0
         se3 = se3_errors(np.concatenate(est_all), np.concatenate(gt_all))
         team_se3[c] = float(se3.mean()) if len(se3) else 0.0
+        if step.kept is not None:
+            sve[c] = _sve(step, world, t)
         previous = tick
     assert step is not None
     final = step.own
@@ -297,7 +314,22 @@ def _run(
         time.perf_counter() - t0,
         final,
         tuple(beliefs),
+        None if step.kept is None else sve,
+        step.kept,
     )
+
+
+def _sve(step: Step, world: World, t: int) -> tuple[float, float]:
+    """jrl's SVE of the robots' own poses visited by ``t`` and the poses they keep of each other."""
+    from studio.core.jrl_metrics import sve
+
+    kept = step.kept
+    assert kept is not None
+    visited = world.vertex_ns <= t
+    values = robot_values(
+        step.own, visited, world.agent_of_vertex, kept.robot, kept.vertex, kept.poses, world.num_robots
+    )
+    return sve(values)
 
 
 def _g(x: float) -> str:
@@ -312,10 +344,12 @@ def _metrics_text(runs: tuple[BackendRun, ...], schedule: Schedule) -> str:
             ts = _g((int(schedule.ticks_ns[tick]) - t0) / NS_PER_S)
             for r, robot in enumerate(schedule.robots):
                 seen = int(run.poses_seen[c, r])
-                lines.append(f"{run.name},{tick},{ts},{robot},{seen},{_g(run.ape_robot_m[c, r])},")
+                lines.append(f"{run.name},{tick},{ts},{robot},{seen},{_g(run.ape_robot_m[c, r])},,,")
             total = int(run.poses_seen[c].sum())
+            sve = "," if run.sve is None or np.isnan(run.sve[c, 0]) else f"{_g(run.sve[c, 0])},{_g(run.sve[c, 1])}"
             lines.append(
-                f"{run.name},{tick},{ts},all,{total},{_g(run.ape_team_first_pose_m[c])},{_g(run.ape_team_se3_m[c])}"
+                f"{run.name},{tick},{ts},all,{total},{_g(run.ape_team_first_pose_m[c])},{_g(run.ape_team_se3_m[c])},"
+                + sve
             )
     return "\n".join(lines) + "\n"
 
@@ -587,6 +621,7 @@ def _write_folder(
         "\n".join([",".join(SUMMARY_COLUMNS)] + [",".join(r) for r in summary]) + "\n", encoding="utf-8"
     )
     (folder / "summary.md").write_text(_markdown(list(SUMMARY_COLUMNS), summary), encoding="utf-8")
+    _write_results(folder, graph, runs, dataset_name=Path(dataset).name)
     (folder / "links.csv").write_text(_links_text(runs, schedule), encoding="utf-8")
     (folder / "timings.csv").write_text(_timings_text(runs), encoding="utf-8")
     (folder / "report.md").write_text(_report_text(schedule, report, runs), encoding="utf-8")
@@ -599,6 +634,38 @@ def _write_folder(
 
         for table in sorted(folder.rglob("*.csv")):
             write_parquet_from_csv(table.with_suffix(".parquet"), table.read_text(encoding="utf-8"))
+
+
+def _write_results(folder: Path, graph: PoseGraph, runs: tuple[BackendRun, ...], *, dataset_name: str) -> None:
+    """``<backend>.jrr`` per back-end (:mod:`studio.io.jrr`): each robot's final estimate of its own
+    poses and, for swarm and dgs, of the other robots' poses it keeps, as Symbols of their owners."""
+    from studio.core.geometry import planar_poses_to_se3
+    from studio.io.jrr import write_jrr
+    from studio.io.symbol_g2o import robot_prefix
+    from studio.jrl_evaluate import graph_results
+
+    def in_graph_kind(poses: np.ndarray) -> np.ndarray:
+        lift = graph.kind is PoseKind.SE3 and poses.shape[1] == 3
+        return planar_poses_to_se3(poses) if lift else poses
+
+    sizes = [a.num_poses for a in graph.agents]
+    offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    robots = [robot_prefix(k) for k in range(len(sizes))]
+    base = np.array([ord(c) << 56 for c in robots], dtype=np.int64)
+    for run in runs:
+        final = in_graph_kind(run.final_poses)
+        own = [final[offsets[k] : offsets[k + 1]] for k in range(len(sizes))]
+        shared = None
+        if run.final_kept is not None:
+            kept = run.final_kept
+            owner = np.searchsorted(offsets, kept.vertex, side="right") - 1
+            keys = base[owner] + kept.vertex - offsets[owner]
+            poses = in_graph_kind(kept.poses)
+            shared = [(keys[kept.robot == k], poses[kept.robot == k]) for k in range(len(sizes))]
+        results = graph_results(
+            graph.kind, robots, own, dataset_name=dataset_name, method_name=f"replay {run.name}", shared=shared
+        )
+        write_jrr(folder / f"{run.name}.jrr", results)
 
 
 def _write_recording(
@@ -632,24 +699,29 @@ def _write_recording(
         robots_in_contact=report.robots_in_contact,
         runs=[(r.name, r.checkpoint_ticks, r.ape_team_se3_m, r.beliefs) for r in runs],
         vertex_ns=vertex_ns,
+        sve=[(r.name, r.sve[:, 0]) for r in runs if r.sve is not None],
     )
+
+
+#: ISAM2's defaults, declared once on :class:`IsamSettings`.
+_ISAM = IsamSettings()
 
 
 def replay(
     dataset: PathLike,
     out: PathLike,
     *,
-    comms: str = "always",
+    comms: str = DEFAULT_COMMS,
     backends: tuple[str, ...] | list[str] = DEFAULT_BACKENDS,
     step_s: float = 1.0,
     every: int = 50,
     period_s: float | None = None,
     seed: int = 0,
     bandwidth: str | None = None,
-    relinearize_skip: int = 10,
-    relinearize_threshold: float = 0.1,
-    final_updates: int = 3,
-    polish: bool = True,
+    relinearize_skip: int = _ISAM.relinearize_skip,
+    relinearize_threshold: float = _ISAM.relinearize_threshold,
+    final_updates: int = _ISAM.final_updates,
+    polish: bool = _ISAM.polish,
     force: bool = False,
     rrd: PathLike | None = None,
     parquet: bool = False,

@@ -26,6 +26,7 @@ import numpy as np
 from studio.core.errors import ConfigError
 from studio.core.geometry import normalize_angle, quat_conj, quat_mul, quat_rotate, upper_to_matrix
 from studio.core.model import PoseKind
+from studio.solvers.isam_settings import IsamSettings
 from studio.solvers.problem import Problem
 
 __all__ = [
@@ -43,24 +44,6 @@ LOOSE_PRIOR_SIGMA = 10.0
 #: Sigma of the prior holding the gauge (the first agent's first pose).
 TIGHT_PRIOR_SIGMA = 1e-4
 _PERMUTE_SE3 = np.array([3, 4, 5, 0, 1, 2])
-
-
-@dataclass(frozen=True)
-class IsamSettings:
-    """How ISAM2 is driven (``studio replay --relinearize-skip/--relinearize-threshold``)."""
-
-    relinearize_threshold: float = 0.1
-    """Relinearize a variable whose delta exceeds this (GTSAM's default)."""
-    relinearize_skip: int = 10
-    """Check for relinearization every this many updates (GTSAM's default 10)."""
-    extra_updates: int = 0
-    """Further ``update()`` calls after each batch (more Gauss-Newton steps)."""
-    final_updates: int = 3
-    """Further ``update()`` calls at the end of the replay."""
-    polish: bool = True
-    """At the end, Gauss-Newton to convergence (at most 10 iterations) on the factors ISAM2 holds
-    but the loose priors (kept where the graph needs them to be determinate), from its estimate: ISAM2 relinearizes only where a delta exceeds the threshold, which leaves
-    a big graph short of its optimum (Multi3500x8: chi2 0.2 % high, APE up to 40 % higher)."""
 
 
 def _gtsam() -> Any:

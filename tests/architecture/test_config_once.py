@@ -103,7 +103,7 @@ def test_convert_pipeline_options_come_from_convert_config(tmp_path):
     f = tmp_path / "a.tum"
     f.write_text("1 0 0 0 0 0 0 1\n2 1 0 0 0 0 0 1\n")
     for args, message in (
-        (["--overlap", "-1"], "error: --overlap: expected a finite number >= 0, got -1.0"),
+        (["--split", "2", "--overlap", "-1"], "error: --overlap: expected a finite number >= 0, got -1.0"),
         (["--split", "1"], "error: --split: expected 0 (off) or an integer in 2..10000, got 1"),
         (["--body-frame", "x"], "error: --body-frame: 'x': expected NAME=CODE (e.g. robotA=ufl)"),
     ):

@@ -26,7 +26,7 @@ REPO = Path(__file__).resolve().parents[2]
 OUTPUTS: dict[str, set[str]] = {
     "synth": {"--out"},
     "record": {"--out"},
-    "evaluate": {"--rrd"},
+    "evaluate": {"--rrd", "--jrm"},
     "snapshot": {"--out"},
     "convert": {"--out"},
     "solve": {"--out", "--rrd"},
@@ -41,6 +41,7 @@ INPUT_OPTIONS: dict[str, set[str]] = {"evaluate": {"--estimate"}, "convert": {"-
 CASES = {
     ("record", "--out"): "record",
     ("evaluate", "--rrd"): "evaluate --rrd",
+    ("evaluate", "--jrm"): "evaluate --jrm",
     ("snapshot", "--out"): "snapshot",
     ("convert", "--out"): "convert",
     ("solve", "--out"): "solve",

@@ -6,6 +6,7 @@ else changed; a dummy generator mode reaches the config parser and ``studio synt
 
 from __future__ import annotations
 
+import ast
 import contextlib
 import importlib
 import json
@@ -21,8 +22,12 @@ from typer.testing import CliRunner
 
 import studio.cli
 from studio.bench import bench_spec_from_dict
+from studio.convert_config import accepted_options, convert_options
+from studio.converters.options import OPTION_NEEDS
 from studio.converters.registry import SOURCES, Source, guess_source
 from studio.converters.tum import read_tum_sources
+from studio.core.comms import Always, parse_comms
+from studio.core.comms_registry import COMMS_MODELS, CommsModelEntry
 from studio.core.errors import ConfigError
 from studio.generator.extended import WALK_MODES, WalkMode
 from studio.io.synth_config import parse_synth_config
@@ -93,6 +98,81 @@ def test_the_cli_and_pipelines_name_no_method_or_source():
         text = (REPO / "studio" / module).read_text(encoding="utf-8")
         for name in (*METHODS, *SOURCES):
             assert not re.search(rf'[=!]= *"{re.escape(name)}"', text), (module, name)
+
+
+def _strings(node: ast.AST) -> set[str]:
+    """The string constants under ``node``, but for subscripts (``counts['odometry']`` reads a
+    result's key, it declares nothing)."""
+    keys = {id(n) for sub in ast.walk(node) if isinstance(sub, ast.Subscript) for n in ast.walk(sub.slice)}
+    return {
+        n.value
+        for n in ast.walk(node)
+        if isinstance(n, ast.Constant) and isinstance(n.value, str) and id(n) not in keys
+    }
+
+
+def test_the_cli_copies_no_comms_model_or_convert_option_name():
+    """The CLI names no communication model (its help, choices and default come from COMMS_MODELS)
+    and the convert command names none of its options: their flags, help and which source takes
+    them come from convert_options() and the source registry (the hand-written list of options a
+    graph source refused had drifted: it named `body_frame`, the parameter is `body_frames`)."""
+    tree = ast.parse((REPO / "studio" / "cli.py").read_text(encoding="utf-8"))
+    models = set(COMMS_MODELS) | {e.grammar for e in COMMS_MODELS.values()}
+    assert not models & _strings(tree)
+    options = set()
+    for o in convert_options():
+        options |= {o.name, o.flag, "--" + o.flag.replace("_", "-")}
+    convert = [n for n in tree.body if isinstance(n, ast.FunctionDef) and "convert" in n.name]
+    assert {n.name for n in convert} >= {"convert", "_with_convert_options"}
+    for node in convert:
+        assert not options & _strings(node), node.name
+    text = _help(studio.cli.app, "convert")
+    for o in convert_options():
+        assert "--" + o.flag.replace("_", "-") in text
+
+
+def test_replay_help_and_errors_are_the_comms_registry():
+    text = _help(studio.cli.app, "replay")
+    for entry in COMMS_MODELS.values():
+        assert _bare(f"{entry.grammar}: {entry.help}") in text
+    entry = CommsModelEntry("radio:P", "the test's radio, always up", lambda arg, spec: Always())
+    with _registered(COMMS_MODELS, "radio", entry) as app:
+        assert _bare("radio:P: the test's radio, always up") in _help(app, "replay")
+        assert parse_comms("radio:1") == Always()
+    with pytest.raises(ConfigError, match=r"unknown model 'radio:1' \(known: always \| never"):
+        parse_comms("radio:1")
+
+
+def _table(doc: str, header: str) -> list[str]:
+    """The lines of the markdown table of ``doc`` that starts with ``header``."""
+    lines = (REPO / "docs" / doc).read_text(encoding="utf-8").splitlines()
+    start = lines.index(header)
+    end = next((k for k in range(start, len(lines)) if not lines[k].startswith("|")), len(lines))
+    return lines[start:end]
+
+
+def test_the_docs_tables_are_the_registries():
+    """docs/replay.md's table of communication models and docs/converters.md's table of which source
+    takes which option say what the registries declare."""
+    models = ["| `--comms` | who can talk |", "| --- | --- |"]
+    models += [f"| `{e.grammar}` | {e.help} |" for e in COMMS_MODELS.values()]
+    assert _table("replay.md", models[0]) == models
+    trajectory = [n for n, s in SOURCES.items() if s.read_graph is None]
+    flag = {o.name: "`--" + o.flag.replace("_", "-") + "`" for o in convert_options()}
+    groups: dict[tuple[str, ...], list[str]] = {}
+    for o in convert_options():
+        takers = tuple(n for n in SOURCES if o.name in accepted_options(n, synthesize=False))
+        needs = f" (with {flag[OPTION_NEEDS[o.name]]})" if o.name in OPTION_NEEDS else ""
+        groups.setdefault(takers, []).append(flag[o.name] + needs)
+    rows = ["| option | sources that take it |", "| --- | --- |"]
+    for takers, flags in groups.items():
+        rest = [n for n in takers if n not in trajectory]
+        if set(trajectory) <= set(takers):
+            who = "every trajectory source" + (f" and {', '.join(rest)}" if rest else "")
+        else:
+            who = ", ".join(takers)
+        rows.append(f"| {', '.join(flags)} | {who} |")
+    assert _table("converters.md", rows[0]) == rows
 
 
 def test_an_entry_may_only_name_solve_options():

@@ -11,21 +11,10 @@ from studio.converters.airmuseum import read_airmuseum
 from studio.converters.s3e import read_s3e
 from studio.core.errors import ConfigError, FormatError
 from studio.io.multig2o import read_multi_g2o
-from tests.converters.synthetic import UTM_EAST, UTM_NORTH, loop_trajectory, write_tum_file
+from studio.samples import airmuseum_folder, s3e_folder
+from tests.converters.synthetic import UTM_NORTH
 
 runner = CliRunner()
-
-
-def s3e_folder(root, names=("Alpha_gt.txt", "BOB_GT.TXT", "carol_gt.txt")):
-    root.mkdir(parents=True)
-    for k, fname in enumerate(names):
-        s, p, q = loop_trajectory(
-            500, centre=(UTM_EAST + 3 * k, UTM_NORTH + 1, 30.0), phase=0.7 * k, t0_s=1_681_000_000.0 + 0.5 * k
-        )
-        keep = np.ones(500, bool)
-        keep[100 + 50 * k : 130 + 50 * k] = False  # RTK lost its fix: 3 s without ground truth
-        write_tum_file(root / fname, s[keep], p[keep], q[keep], header=None)
-    return root
 
 
 def test_s3e_finds_alpha_bob_carol_in_any_case_and_reports_gaps(tmp_path):
@@ -59,18 +48,6 @@ def test_s3e_bad_layouts(tmp_path):
 
     with pytest.raises(ConfigError, match="takes one sequence folder, got 2 inputs"):  # checked by the registry
         check_inputs("s3e", [tmp_path, tmp_path], [])
-
-
-def airmuseum_folder(root):
-    root.mkdir()
-    for k, robot in enumerate(["robot_1", "robot_2", "robot_3"]):
-        (root / robot).mkdir()
-        s, p, q = loop_trajectory(400, centre=(2.0 * k, 0.0, 0.0), phase=k, t0_s=1_560_000_000.0)
-        write_tum_file(root / robot / "groundtruth.txt", s, p, q)
-    s, p, q = loop_trajectory(400, centre=(1.0, 1.0, 0.0), climb=4.0, t0_s=1_560_000_000.0)
-    write_tum_file(root / "drone_gt.txt", s, p, q)
-    (root / "notes.txt").write_text("not a trajectory\n")
-    return root
 
 
 def test_airmuseum_one_file_per_robot(tmp_path):

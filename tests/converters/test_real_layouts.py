@@ -18,6 +18,7 @@ from studio.converters.kitti import CAMERA_TO_Z_UP
 from studio.converters.transforms import body_frame_rotation
 from studio.core.geometry import normalize_angle, se3_poses_to_planar
 from studio.io.multig2o import read_multi_g2o
+from studio.samples import euroc_sequence as _euroc_sequence
 from tests.converters.synthetic import UTM_EAST, UTM_NORTH, loop_trajectory, write_tum_file
 
 runner = CliRunner()
@@ -137,24 +138,6 @@ def test_airmuseum_scenario_folder_and_body_frames(tmp_path):
 
 
 # ------------------------------------------------------------------------------------------- EuRoC, KITTI, Kimera
-
-
-def _euroc_sequence(root: Path, name: str, k: int):
-    folder = root / name / "mav0" / "state_groundtruth_estimate0"
-    folder.mkdir(parents=True)
-    s, p, q = loop_trajectory(400, rate_hz=200.0, radius=3.0, phase=k, climb=1.0)
-    q = (Rotation.from_quat(q) * Rotation.from_euler("x", 0.3)).as_quat()  # roll: w x y z order matters
-    rows = [
-        "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z [], "
-        "v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad s^-1], "
-        "b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]"
-    ]
-    for t, pp, qq in zip(s.tolist(), p.tolist(), q.tolist()):
-        rows.append(
-            ",".join([str(t), *map(repr, pp), repr(qq[3]), repr(qq[0]), repr(qq[1]), repr(qq[2])] + ["0.1"] * 9)
-        )
-    (folder / "data.csv").write_text("\n".join(rows) + "\n")
-    return s, p, q
 
 
 def test_euroc_sequences_are_agents_with_their_quaternions_in_w_x_y_z_order(tmp_path):

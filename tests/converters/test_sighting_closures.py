@@ -80,7 +80,11 @@ def test_closures_are_refused_for_a_source_without_sightings(tmp_path):
     with pytest.raises(ConfigError, match="sightings_as_closures: tum has no robot-to-robot sightings"):
         ConvertConfig("tum", ("a.txt",), sightings_as_closures=True)
     res = run("tum", tmp_path / "a.txt", "-o", tmp_path / "o", "--sightings-as-closures")
-    assert res.exit_code == 2 and "--sightings-as-closures: tum has no robot-to-robot sightings" in res.output
+    assert res.exit_code == 2
+    assert res.output == (
+        "error: --sightings-as-closures: studio convert tum does not take it "
+        "(only mrclam takes --sightings-as-closures)\n"
+    )
 
 
 def test_sighting_closures_draw_the_heading_from_its_own_seed_stream(with_closures):

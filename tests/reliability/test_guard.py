@@ -73,8 +73,22 @@ def world(made, tmp_path, monkeypatch) -> Path:
         shutil.copy(DATA / "trajectories" / f"{name}.tum", tmp_path / f"{name}.tum")
     (tmp_path / "bench.toml").write_text(f'datasets = ["{tmp_path / "ds"}"]\nmethods = ["gtsam"]\n')
     (tmp_path / "s.toml").write_text(f'base = "{tmp_path / "tiny_three.json"}"\n[grid]\nseed = [0, 1]\n')
+    _initial_jrr(tmp_path / "ds", tmp_path / "run.jrr")
     monkeypatch.chdir(tmp_path)
     return tmp_path
+
+
+def _initial_jrr(dataset: Path, path: Path) -> None:
+    """JRL results of ``dataset``'s initial estimate (one robot per agent, its own poses: partial
+    results where the dataset's JRL gives robots copies of shared poses)."""
+    from studio.io.jrr import write_jrr
+    from studio.io.multig2o import read_multi_g2o
+    from studio.io.symbol_g2o import robot_prefix
+    from studio.jrl_evaluate import graph_results
+
+    g = read_multi_g2o(dataset)
+    robots = [robot_prefix(k) for k in range(len(g.agents))]
+    write_jrr(path, graph_results(g.kind, robots, [a.initial for a in g.agents], dataset_name="ds", method_name="x"))
 
 
 # --------------------------------------------------------------------------- one set of output cases
@@ -88,6 +102,10 @@ COMMANDS: dict[str, Callable[[Path], tuple[list, Path]]] = {
     ),
     "record": lambda w: (["record", w / "ds", "-o", "OUT.rrd"], w / "ds"),
     "evaluate --rrd": lambda w: (["evaluate", w / "ds", "--rrd", "OUT.rrd"], w / "ds"),
+    "evaluate --jrm": lambda w: (
+        ["evaluate", w / "ds", "--estimate", w / "run.jrr", "--partial", "--jrm", "OUT.jrm"],
+        w / "ds",
+    ),
     "convert": lambda w: (["convert", "tum", w / "alpha.tum", w / "bob.tum", "-o", "OUT", "--no-rrd"], w / "bob.tum"),
     "snapshot": lambda w: (["snapshot", w / "ds.rrd", "-o", "OUT.png"], w / "ds.rrd"),
     "bench": lambda w: (["bench", w / "bench.toml", "-o", "OUT", "-q"], w / "ds"),

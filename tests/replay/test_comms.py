@@ -12,6 +12,7 @@ from studio.core.comms import (
     Bandwidth,
     Never,
     RangeLimited,
+    Recorded,
     Rendezvous,
     Schedule,
     comms_report,
@@ -22,6 +23,7 @@ from studio.core.comms import (
     robot_pairs,
     tick_grid,
 )
+from studio.core.comms_registry import COMMS_MODELS, comms_grammar
 from studio.core.errors import ConfigError, FormatError, GraphError
 from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseGraph, PoseKind
 from studio.core.timing import measurement_times
@@ -84,6 +86,9 @@ def test_the_comms_specs_parse_and_bad_ones_name_the_problem():
         ("range:5,q=1", "unknown option 'q'"),
         ("radio", "unknown model"),
         ("rendezvous:", "needs a file"),
+        ("range", "range needs a distance"),
+        ("always:3", "always takes no argument"),
+        ("recorded:x", "recorded takes no argument"),
     ]:
         with pytest.raises(ConfigError, match=match):
             parse_comms(bad)
@@ -91,6 +96,42 @@ def test_the_comms_specs_parse_and_bad_ones_name_the_problem():
     assert parse_bandwidth("1000B/s") == Bandwidth(1000.0, "bytes")
     with pytest.raises(ConfigError, match="bandwidth"):
         parse_bandwidth("-3/s")
+
+
+def test_every_registered_model_parses_by_its_entry_and_an_unknown_one_lists_them_all():
+    """The registry is the one list: each entry's grammar (with its placeholders filled in) parses
+    to a model whose spec names the entry, and the error for an unknown model lists every grammar."""
+    examples = {"always": "always", "never": "never", "range": "range:3", "recorded": "recorded"}
+    assert set(examples) | {"rendezvous"} == set(COMMS_MODELS)  # a new model gets an example here
+    for spec in examples.values():
+        assert parse_comms(spec).spec() == spec
+    assert parse_comms("rendezvous:f.txt") == "f.txt"  # the file, read by the replay
+    assert parse_comms(" recorded ") == Recorded()
+    with pytest.raises(ConfigError) as err:
+        parse_comms("radio")
+    assert str(err.value) == f"comms: unknown model 'radio' (known: {comms_grammar()})"
+    for entry in COMMS_MODELS.values():
+        assert entry.grammar in str(err.value)
+
+
+def test_recorded_contacts_are_the_closures_own_ticks_and_deliver_each_then():
+    # robots 0,1,2: closures 0-1 at 2 s and 6.5 s, 1-2 at 3 s, one within robot 2 (pair -1) at 4 s,
+    # and 0-1 after the last tick (never delivered, as under always)
+    ticks = tick_grid(0, 10 * NS_PER_S, NS_PER_S)
+    pose_ns = tuple(np.array([0, 10 * NS_PER_S]) for _ in range(3))
+    pair = np.array([0, 2, -1, 0, 0])
+    measured = np.array([2 * NS_PER_S, 3 * NS_PER_S, 4 * NS_PER_S, 6_500_000_000, 11 * NS_PER_S])
+    c = contacts(
+        Recorded(), ticks_ns=ticks, pose_ns=pose_ns, positions_xyz=None, closure_pair=pair, measured_ns=measured
+    )
+    assert [np.flatnonzero(c[:, p]).tolist() for p in range(3)] == [[2, 7], [], [3]]
+    got = deliver(c, ticks_ns=ticks, closure_pair=pair, measured_ns=measured)
+    assert got.tolist() == [2, 3, 4, 7, -1]
+    # the same ticks as always-on links: only the contacts differ
+    on = contacts(Always(), ticks_ns=ticks, pose_ns=pose_ns, positions_xyz=None)
+    assert np.array_equal(got, deliver(on, ticks_ns=ticks, closure_pair=pair, measured_ns=measured))
+    with pytest.raises(ConfigError, match="recorded needs the dataset's inter-agent closures"):
+        contacts(Recorded(), ticks_ns=ticks, pose_ns=pose_ns, positions_xyz=None)
 
 
 def test_range_contacts_follow_the_ground_truth_distance_period_and_seeded_draws():

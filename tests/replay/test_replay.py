@@ -86,8 +86,27 @@ def test_never_connected_leaves_every_back_end_on_its_own(tiny, tmp_path):
     assert runs["swarm"].messages.sum() == 0
 
 
+def test_recorded_delivers_every_closure_when_measured_and_links_only_then(tiny, tmp_path):
+    names = ["centralized", "swarm"]
+    on = replay(tiny.dataset_dir, tmp_path / "always", comms="always", every=25, backends=names)
+    rec = replay(tiny.dataset_dir, tmp_path / "recorded", comms="recorded", every=25, backends=names)
+    assert (rec.schedule.delivered_tick >= 0).all()
+    assert np.array_equal(rec.schedule.delivered_tick, on.schedule.delivered_tick)
+    # contact exactly at the ticks where closures arrive, nowhere else
+    pair_of = {tuple(p): k for k, p in enumerate(rec.schedule.pairs.tolist())}
+    expected = np.zeros_like(rec.schedule.contact)
+    for a, b, t in zip(rec.schedule.closure_from, rec.schedule.closure_to, rec.schedule.delivered_tick):
+        expected[t, pair_of[(min(a, b), max(a, b))]] = True
+    assert np.array_equal(rec.schedule.contact, expected) and expected.sum() < on.schedule.contact.sum()
+    # the centralized solver sees the same closures at the same ticks; swarm talks less
+    assert rec.runs[0].chi2_final == pytest.approx(on.runs[0].chi2_final, rel=1e-9)
+    assert 0 < rec.runs[1].messages.sum() < on.runs[1].messages.sum()
+    assert json.loads((rec.out_dir / "replay.json").read_text())["comms"] == "recorded"
+
+
 def test_the_same_dataset_model_and_seed_give_the_same_bytes(tiny, tmp_path):
     files = ["schedule/contacts.csv", "schedule/closures.csv", "metrics.csv", "summary.csv", "links.csv"]
+    files += ["centralized.jrr", "independent.jrr", "swarm.jrr", "dgs.jrr"]
     spec = "range:10,period=3,p=0.5"
     every = ["centralized", "independent", "swarm", "dgs"]
     a = replay(tiny.dataset_dir, tmp_path / "a", comms=spec, seed=4, every=10, backends=every)
@@ -99,7 +118,7 @@ def test_the_same_dataset_model_and_seed_give_the_same_bytes(tiny, tmp_path):
     info = json.loads((a.out_dir / "replay.json").read_text())
     assert info["comms"] == spec and info["seed"] == 4 and info["clock"] == "dataset stamps"
     header = (a.out_dir / "metrics.csv").read_text().splitlines()[0]
-    assert header == "backend,tick,time_s,robot,poses,ape_first_pose_m,ape_se3_m"
+    assert header == "backend,tick,time_s,robot,poses,ape_first_pose_m,ape_se3_m,sve_t_m,sve_r_rad"
 
 
 def test_a_bandwidth_limit_delays_deliveries(tiny, tmp_path):
@@ -205,6 +224,9 @@ def test_the_recording_shows_beliefs_links_and_closures_and_has_a_stable_fingerp
     text = repr(fa)
     for entity in ["replay/world/centralized/agent1", "replay/world/links", "replay/world/delivered_closures"]:
         assert entity in text, entity
+    swarm = next(r for r in a.runs if r.name == "swarm")
+    assert swarm.sve is not None and np.isfinite(swarm.sve[:, 0]).any()
+    assert "replay/metrics/sve_t_m/swarm" in text
     # an existing recording is refused before anything is written
     with pytest.raises(Exception, match="already exists"):
         replay(tiny.dataset_dir, tmp_path / "c", comms="never", rrd=tmp_path / "a.rrd")
@@ -300,3 +322,31 @@ def test_never_connected_swarm_is_independent_exactly(small, tmp_path):
     assert np.array_equal(swarm.final_poses, independent.final_poses)
     assert np.array_equal(swarm.ape_team_se3_m, independent.ape_team_se3_m)
     assert swarm.bytes.sum() == 0
+
+
+def test_swarm_and_dgs_report_the_shared_variable_error_and_write_jrl_results(small, tmp_path):
+    from studio.core.jrl_metrics import sve
+    from studio.io.jrr import read_jrr
+    from studio.jrl_evaluate import evaluate_jrr
+
+    res = replay(small.dataset_dir, tmp_path / "r", comms="range:5", every=30, backends=["centralized", "swarm", "dgs"])
+    runs = {r.name: r for r in res.runs}
+    assert runs["centralized"].sve is None  # one estimate: nothing to disagree on
+    for name in ("swarm", "dgs"):
+        run = runs[name]
+        assert run.sve is not None and run.sve.shape == (len(run.checkpoint_ticks), 2)
+        assert np.isnan(run.sve[0]).all()  # nothing shared at the first pose
+        assert np.isfinite(run.sve[-1]).all() and run.sve[-1, 0] > 0  # stale copies disagree
+        jrr = read_jrr(res.out_dir / f"{name}.jrr")
+        own_keys = sum(int(((s.keys >> 56) == ord(c)).sum()) for c, s in zip(jrr.robots, jrr.solutions))
+        assert own_keys == 3 * 401 and sum(len(s.keys) for s in jrr.solutions) > own_keys
+        # the .jrr holds the final beliefs: jrl's SVE of it is the last checkpoint's
+        assert sve(list(jrr.solutions)) == pytest.approx(tuple(run.sve[-1]), rel=1e-9)
+        # partial: a robot holds copies only of the closures delivered to it
+        scored = evaluate_jrr(small.dataset_dir, res.out_dir / f"{name}.jrr", partial=True).summary
+        assert scored.sve == pytest.approx(tuple(run.sve[-1]), rel=1e-9)
+    rows = [ln.split(",") for ln in (res.out_dir / "metrics.csv").read_text().splitlines()[1:]]
+    last = [r for r in rows if r[0] == "swarm" and r[3] == "all"][-1]
+    assert float(last[7]) == pytest.approx(runs["swarm"].sve[-1, 0], rel=1e-8)
+    assert [r[7:] for r in rows if r[0] == "centralized"][-1] == ["", ""]
+    assert read_jrr(res.out_dir / "centralized.jrr").solutions[0].keys.size == 401

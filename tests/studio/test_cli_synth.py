@@ -248,3 +248,27 @@ def test_resource_guard_counts_the_loop_closure_circle(tmp_path):
     assert res.stderr.startswith("error: wide: 723 poses and their loop-closure radii would need about ")
     assert res.stderr.rstrip().endswith("GB limit (raise it with --max-memory-gb)")
     assert not (tmp_path / "out").exists()
+
+
+def test_a_file_named_like_a_preset_is_used_but_never_silently(tmp_path, monkeypatch):
+    """A folder of samples or stand-ins holding a file `multi3500x8` used to turn `studio synth
+    multi3500x8` into that file's 3-agent toy without a word; now the warning says which was used."""
+    from studio.synth import load_synth_config, shadowed_preset
+
+    monkeypatch.chdir(tmp_path)
+    assert shadowed_preset("multi3500x8") is None  # no such file here: the preset, nothing to say
+    assert load_synth_config("multi3500x8").number_of_agents == 8
+    (tmp_path / "multi3500x8").write_text(json.dumps(_config()))
+    res = CliRunner().invoke(app, ["synth", "multi3500x8", "-o", "out", "--no-rrd"])
+    assert res.exit_code == 0, res.output
+    assert "multi3500x8: 3 agents" in res.output
+    assert res.stderr == (
+        f"warning: multi3500x8: using the file {tmp_path / 'multi3500x8'}, not the preset of that name "
+        "(run from another folder, or rename the file, to get the preset)\n"
+    )
+    # the library says it too: through its warn callback, else Python's warnings
+    said: list[str] = []
+    assert load_synth_config("multi3500x8", warn=said.append).number_of_agents == 3
+    assert said == [shadowed_preset("multi3500x8")]
+    with pytest.warns(UserWarning, match="using the file .*multi3500x8, not the preset"):
+        load_synth_config("multi3500x8")

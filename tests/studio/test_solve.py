@@ -221,3 +221,22 @@ def test_absurd_or_unsolvable_graphs_are_one_line(small, tmp_path):
         )
         gauge = json.loads((tmp_path / method / "solve.json").read_text())["gauge"]
         assert gauge["pieces"] == 3 and gauge["anchored"] == ["agent1 vertex 0", "agent2 vertex 0", "agent3 vertex 0"]
+
+
+def test_a_methods_own_options_reach_it_by_name_and_other_methods_refuse_them(small, tmp_path):
+    """dgs's tolerances are options its registry entry reads; `solve` takes them by name (a bench
+    spec's `[options.dgs] rotation_tol = ...` used to end in a TypeError traceback), and a method
+    that does not read one refuses it."""
+    from studio.bench import bench_spec_from_dict
+    from studio.core.errors import ConfigError
+
+    res = solve(small.dataset_dir, tmp_path / "dgs", method="dgs", method_options={"rotation_tol": 0.05})
+    notes = json.loads((tmp_path / "dgs" / "solve.json").read_text())["notes"]
+    assert res.options.rotation_tol == 0.05 and notes["rotation_tol"] == 0.05
+    with pytest.raises(ConfigError, match=r"^rotation_tol: method gtsam does not read it \(it reads optimizer"):
+        solve(small.dataset_dir, tmp_path / "g", method="gtsam", method_options={"rotation_tol": 0.05})
+    with pytest.raises(ConfigError, match=r"^pose_tol: expected a finite number >= 0, got -1"):
+        solve(small.dataset_dir, tmp_path / "g", method="dgs", method_options={"pose_tol": -1})
+    assert not (tmp_path / "g").exists()
+    spec = {"datasets": ["x"], "methods": ["dgs"], "options": {"dgs": {"rotation_tol": 0.05, "robots": 2}}}
+    assert bench_spec_from_dict(spec, "spec.toml").options == {"dgs": {"rotation_tol": 0.05, "robots": 2}}
