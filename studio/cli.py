@@ -838,14 +838,28 @@ def check(
     ),
     per_agent: bool = typer.Option(False, "--per-agent", help="One row per agent and class."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON (every class, agent and candidate)."),
+    certify: Path | None = typer.Option(
+        None,
+        "--certify",
+        metavar="ESTIMATE",
+        help="Instead: verify ESTIMATE of DATASET with SE-Sync's certificate (certified globally optimal, "
+        "or how far above the optimum it is at most). ESTIMATE: studio solve's output, a multi-g2o or TUM "
+        "folder, or a g2o file of the vertices of a single-g2o DATASET.",
+    ),
 ) -> None:
     """Check a dataset's noise model at its ground truth: chi2 per degree of freedom per edge class.
 
-    Example: studio check out/multi3500x8
+    Example: studio check out/multi3500x8; studio check graph.g2o --certify out/solved
     """
     from studio.check import check as run_check
     from studio.check import format_check
 
+    if certify is not None:
+        from studio.certify import certify as run_certify
+
+        cert = run_certify(dataset, certify)
+        typer.echo(cert.to_json() if as_json else cert.format())
+        return
     report = run_check(dataset, convention=convention.value, warn=_warn)  # type: ignore[attr-defined]
     typer.echo(report.to_json() if as_json else format_check(report, per_agent=per_agent), nl=not as_json or True)
 

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from studio.core.errors import ConfigError
 from studio.core.lazy import Lazy
-from studio.solvers.options import DEFAULT_MAX_ROUNDS, G2O_DEFAULT_ITERATIONS, SolveOptions
+from studio.solvers.options import DEFAULT_MAX_ROUNDS, G2O_DEFAULT_ITERATIONS, SESYNC_MAX_ITERATIONS, SolveOptions
 
 if TYPE_CHECKING:  # the back-ends' protocol: numpy types, not loaded to declare the registry
     from studio.solvers.problem import Method
@@ -119,6 +119,13 @@ METHODS: dict[str, SolveMethod] = {
             ),
             {"max_iterations": DEFAULT_MAX_ROUNDS},
             scores_rounds=True,
+        ),
+        SolveMethod(
+            "sesync",
+            Lazy("studio.solvers.sesync", "solve_sesync"),
+            "SE-Sync: Riemannian staircase on SE-Sync's objective, certified or a suboptimality bound",
+            ("max_iterations",),
+            {"max_iterations": SESYNC_MAX_ITERATIONS},
         ),
     )
 }

@@ -220,6 +220,14 @@ def solve_gtsam(problem: Problem, options: SolveOptions, on_iteration: Iteration
         if abs(error - new_error) <= options.relative_tolerance * max(error, 1e-300) or new_error > error:
             break
         error = new_error
+    certified_start = _from_certified(gtsam, problem, options, graph, history[-1])
+    if certified_start["poses"] is not None:
+        poses = certified_start.pop("poses")
+        history.append(graph_chi2(problem, poses))
+        iterations += 1  # the answer from the certified start counts as the last iteration
+        if on_iteration is not None:
+            on_iteration(iterations, poses)
+    certified_start.pop("poses", None)
     return Solution(
         poses,
         iterations,
@@ -229,8 +237,46 @@ def solve_gtsam(problem: Problem, options: SolveOptions, on_iteration: Iteration
             "init_s": t_init,
             "init": options.init,
             "optimizer": options.optimizer + (" then lm (a gn step raised the cost or failed)" if switched else ""),
+            "certified_start": certified_start,
         },
     )
+
+
+def _from_certified(gtsam: Any, problem: Problem, options: SolveOptions, graph: Any, chi2: float) -> dict[str, Any]:
+    """Gauss-Newton (or ``options``' Levenberg-Marquardt) from SE-Sync's certified solution
+    (:mod:`studio.solvers.sesync`): a local
+    method's answer may lie in a worse basin of chi2 than the one around the global optimum of
+    SE-Sync's (isotropic) objective. ``poses`` holds the better answer when it is lower than
+    ``chi2``, else None; the rest says what was compared and which was chosen."""
+    from studio.solvers.sesync import solve_sesync
+
+    t0 = time.perf_counter()
+    try:
+        start = solve_sesync(problem, dataclasses.replace(options, max_iterations=1000)).poses
+    except ConfigError as err:  # pymanopt missing: the local answer stands, and the notes say so
+        return {"poses": None, "chosen": "local", "skipped": str(err)}
+    lm = options.optimizer == "lm"
+    params = gtsam.LevenbergMarquardtParams() if lm else gtsam.GaussNewtonParams()
+    params.setMaxIterations(max(options.max_iterations, 50))
+    params.setRelativeErrorTol(options.relative_tolerance)
+    optimizer = gtsam.LevenbergMarquardtOptimizer if lm else gtsam.GaussNewtonOptimizer
+    try:
+        result = optimizer(graph, _values(gtsam, problem.kind, start), params).optimize()
+    except RuntimeError:  # Gauss-Newton's system indeterminate (see solve_gtsam): Levenberg-Marquardt
+        lm_params = gtsam.LevenbergMarquardtParams()
+        lm_params.setMaxIterations(max(options.max_iterations, 50))
+        lm_params.setRelativeErrorTol(options.relative_tolerance)
+        result = gtsam.LevenbergMarquardtOptimizer(graph, _values(gtsam, problem.kind, start), lm_params).optimize()
+    poses = _poses(gtsam, problem.kind, result)
+    refined = graph_chi2(problem, poses)
+    better = bool(np.isfinite(refined) and refined < chi2)
+    return {
+        "poses": poses if better else None,
+        "chosen": "certified start" if better else "local",
+        "chi2_local": chi2,
+        "chi2_certified_start": refined,
+        "seconds": time.perf_counter() - t0,
+    }
 
 
 def solve_gnc(problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution:

@@ -9,13 +9,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-__all__ = ["SolveOptions", "Optimizer", "Init", "G2O_DEFAULT_ITERATIONS", "DEFAULT_MAX_ROUNDS"]
+__all__ = ["SolveOptions", "Optimizer", "Init", "G2O_DEFAULT_ITERATIONS", "DEFAULT_MAX_ROUNDS", "SESYNC_MAX_ITERATIONS"]
 
 Optimizer = Literal["gn", "lm"]
 Init = Literal["chordal", "spanning-tree", "odometry"]
 
 #: g2o's default iterations: the paper's setup, 10 Gauss-Newton iterations.
 G2O_DEFAULT_ITERATIONS = 10
+#: sesync's trust-region iterations at most per rank of the staircase (SE-Sync's ``max_iterations``).
+SESYNC_MAX_ITERATIONS = 1000
 #: DGS's default rounds at most, both stages together.
 DEFAULT_MAX_ROUNDS = 100
 

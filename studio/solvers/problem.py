@@ -94,6 +94,9 @@ class Solution:
     """Robust methods: per edge, True where the edge was rejected as an outlier."""
     notes: dict[str, object] = field(default_factory=dict)
     """Facts about the run worth saving (initialisation time, library versions...)."""
+    minimizes_chi2: bool = True
+    """False for a method whose objective is not chi2 (``sesync``: SE-Sync's isotropic objective),
+    which the check that chi2 did not rise leaves alone."""
 
 
 class Method(Protocol):

@@ -36,7 +36,7 @@ OUTPUTS: dict[str, set[str]] = {
     "replay": {"--out", "--rrd"},
 }
 #: Path options that are inputs.
-INPUT_OPTIONS: dict[str, set[str]] = {"evaluate": {"--estimate"}, "convert": {"--config"}}
+INPUT_OPTIONS: dict[str, set[str]] = {"evaluate": {"--estimate"}, "convert": {"--config"}, "check": {"--certify"}}
 #: The shared output cases' entries (tests/reliability/test_guard.py) for each output option.
 CASES = {
     ("record", "--out"): "record",

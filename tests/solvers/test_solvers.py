@@ -156,7 +156,7 @@ def test_a_missing_library_names_the_extra_to_install(method, module, monkeypatc
 def test_unknown_method_lists_the_known_ones():
     with pytest.raises(ConfigError, match="unknown method 'ceres' .known: gtsam, g2o, gnc, command"):
         get_method("ceres")
-    assert set(METHODS) == {"gtsam", "g2o", "gnc", "command", "dgs"}
+    assert set(METHODS) == {"gtsam", "g2o", "gnc", "command", "dgs", "sesync"}
 
 
 def test_command_method_runs_an_external_program_and_maps_ids_back(tmp_path):
