@@ -292,10 +292,12 @@ def check(
         raise ConfigError(f"convention: expected g2o or rotvec, got {convention!r}")
     folder = Path(dataset)
     notes: list[str] = []
+    graph = None
     if folder.is_file():
         kind, truth, edge_sets, names, notes = _single_g2o(folder, warn)
     else:
-        kind, truth, edge_sets, names = _multi_g2o(read_multi_g2o(folder), folder, notes)
+        graph = read_multi_g2o(folder)
+        kind, truth, edge_sets, names = _multi_g2o(graph, folder, notes)
     edge_sets = _weighable(edge_sets, kind, notes)
     listed = _read_listed_outliers(folder, [len(t) for t in truth]) if folder.is_dir() else None
     planar = (
@@ -312,6 +314,8 @@ def check(
     order = np.argsort(-edges.total[flagged], kind="stable")
     candidates = np.column_stack([edges.rows[flagged][order].astype(np.float64), edges.total[flagged][order]])
     classes = _class_checks(edges, flagged, names, d=d, dt=2 if checked is PoseKind.SE2 else 3)
+    if graph is not None:
+        classes += _prior_check(folder, graph, truth, planar=planar, convention=convention)
     listed_n = listed_flagged = None
     if listed is not None:
         listed_n = len(listed)
@@ -391,6 +395,41 @@ def _edge_chi2(
         np.concatenate(ttrans),
         np.concatenate(trot),
     )
+
+
+def _prior_check(
+    folder: Path, graph: Any, truth: list[np.ndarray], *, planar: bool, convention: Convention
+) -> list[ClassCheck]:
+    """The dataset's pose priors (``priors.txt``, COSMO-Bench's ``PriorFactorPose3``) at the ground
+    truth, as one class ``priors``: each prior is a measurement of its pose from the origin."""
+    from studio.core.geometry import se3_poses_to_planar
+    from studio.io.priors_txt import PRIORS_NAME, read_priors_txt
+
+    if not (folder / PRIORS_NAME).is_file():
+        return []
+    priors = read_priors_txt(folder / PRIORS_NAME, graph)
+    if not len(priors):
+        return []
+    poses = np.array([truth[a][v] for a, v in zip(priors.agent.tolist(), priors.index.tolist())])
+    values, upper = priors.poses, priors.information_upper
+    if planar:
+        poses, values, upper = se3_poses_to_planar(poses), se3_poses_to_planar(values), se3_information_to_se2(upper)
+    origin = np.zeros_like(poses)
+    origin[:, -1] = 1.0 if not planar and graph.kind is PoseKind.SE3 else 0.0  # the identity (qw = 1)
+    e = edge_errors(origin, poses, values, convention=convention)
+    t, r = chi2_parts(e, upper)
+    n, d = len(priors), e.shape[1]
+    dt = 2 if d == 3 else 3
+    return [
+        ClassCheck(
+            "priors",
+            "all",
+            n,
+            Component(float(chi2_terms(e, upper).sum()), n * d),
+            Component(float(t.sum()), n * dt),
+            Component(float(r.sum()), n * (d - dt)),
+        )
+    ]
 
 
 def _outlier_candidates(edges: _EdgeChi2, d: int) -> np.ndarray:

@@ -742,6 +742,16 @@ def solve(
         f"{res.chi2_final:.6g} (dead reckoning {res.chi2_dataset:.6g}){rejected}, {res.seconds:.2f} s\n"
         f"  {res.estimate_path}" + ("" if res.rrd_path is None else f"\n  {res.rrd_path}")
     )
+    if res.gauge is not None:
+        typer.echo(f"  gauge: {res.gauge['note']}")
+    if res.outliers is not None:
+        o = res.outliers
+        typer.echo(
+            f"  labelled outliers: {o['rejected_labelled']} of {o['labelled']} rejected; precision "
+            + ("-" if o["precision"] is None else f"{o['precision']:.3f}")
+            + ", recall "
+            + ("-" if o["recall"] is None else f"{o['recall']:.3f}")
+        )
     if "rounds" in res.solution.notes:  # a method that works in rounds (dgs) says how they went
         notes = res.solution.notes
         typer.echo(

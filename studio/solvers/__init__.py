@@ -55,6 +55,9 @@ class SolveMethod:
     """The method's own defaults for some of :attr:`options` (``SolveOptions``' defaults otherwise)."""
     scores_rounds: bool = False
     """A method that works in rounds (dgs): with ground truth, ``solve`` scores the APE after each."""
+    gauges: bool = False
+    """The method takes pose priors and one held vertex per piece (:mod:`studio.solvers.gauge`);
+    the others hold the anchor alone and are given connected graphs only."""
 
     def __post_init__(self) -> None:
         for key in (*self.options, *self.defaults):
@@ -76,7 +79,13 @@ _GTSAM_OPTIONS = ("optimizer", "init", "max_iterations", "relative_tolerance")
 METHODS: dict[str, SolveMethod] = {
     entry.name: entry
     for entry in (
-        SolveMethod("gtsam", Lazy("studio.solvers.gtsam_method", "solve_gtsam"), "chordal guess + GN", _GTSAM_OPTIONS),
+        SolveMethod(
+            "gtsam",
+            Lazy("studio.solvers.gtsam_method", "solve_gtsam"),
+            "chordal guess + GN",
+            _GTSAM_OPTIONS,
+            gauges=True,
+        ),
         SolveMethod(
             "g2o",
             Lazy("studio.solvers.g2o_method", "solve_g2o"),
@@ -89,6 +98,7 @@ METHODS: dict[str, SolveMethod] = {
             Lazy("studio.solvers.gtsam_method", "solve_gnc"),
             "robust: rejects outlier loop closures",
             _GTSAM_OPTIONS,
+            gauges=True,
         ),
         SolveMethod("command", Lazy("studio.solvers.command", "solve_command"), "an external program", ("command",)),
         SolveMethod(
