@@ -331,7 +331,7 @@ class _HitLayout:
         ranges are laid end to end), which also fill places ``h0 .. h1 - 1`` of the visiting order."""
         qf = self.query_first
         starts = np.searchsorted(qf, np.arange(0, self.total, max_hits), side="right") - 1  # sorted
-        # its distinct values (np.unique would import numpy.ma, 8 ms, in every process of a team)
+        # its distinct values (np.unique would import numpy.ma in every process of a team)
         cut = starts[np.r_[True, starts[1:] != starts[:-1]]].tolist() if len(starts) else []
         bounds = cut + [len(qf)]
         for q0, q1 in zip(bounds[:-1], bounds[1:]):

@@ -32,8 +32,8 @@ _BLOCK_WORDS = 1 << 12
 
 _FREE_STATES: list[np.random.RandomState] = []
 """Generators handed back by :meth:`MT19937Stream.release`, for the next streams of this process:
-re-seeding one takes about 1.5 us, making one about 110 us (numpy gathers entropy for it first,
-then seeds it again), four times per small dataset."""
+re-seeding one is much cheaper than making one (numpy gathers entropy for a new one first, then
+seeds it again), and a small dataset needs four."""
 
 
 def canonical_doubles(words: np.ndarray, *, every_offset: bool = False) -> np.ndarray:

@@ -1,22 +1,21 @@
 """The ``studio`` console script: loads the command line, so that Ctrl-C while it loads ends quietly.
 
-The script generated for ``studio.cli:main`` would import the command line (numpy, typer, ...: a tenth
-of a second) before any handler is in place, and Ctrl-C then printed Python's traceback. Here the
+The script generated for ``studio.cli:main`` would import the command line (numpy, typer, ...)
+before any handler is in place, and Ctrl-C then printed Python's traceback. Here the
 import runs under a handler; once the command line runs, typer turns Ctrl-C into exit code 130; once it
 has finished, Ctrl-C is ignored while the interpreter exits.
 
 ``studio --version`` alone is answered here, before the command line (typer, numpy and the
-commands' option declarations: about 0.3 s of CPU on this VM) is loaded.
+commands' option declarations) is loaded.
 
 It also keeps numpy's BLAS to one thread (``OPENBLAS_NUM_THREADS=1`` unless the caller set it), before
 numpy loads: the studio spreads work over processes, never over BLAS threads (its matrices are 3x3 to
-7x7), and OpenBLAS's idle thread spins for about 0.1 s of CPU after start-up. On two cores that took a
-core from the command's own work: measured on ``studio synth multi10000x5``, 0.2-0.3 s less CPU and
-about 0.1 s less wall time with one thread.
+7x7), and OpenBLAS's idle thread spins after start-up, taking a core from the command's own work
+on a small machine (docs/performance.md).
 
 A command whose outputs are all durable and closed (``studio synth``) may have the process end with
 ``os._exit(0)`` once it has returned successfully, skipping the interpreter's teardown
-(:mod:`studio.runtime.fast_exit`: 50-65 ms of a Multi10000x5 run).
+(:mod:`studio.runtime.fast_exit`).
 
 And it turns off the log lines of Rerun's SDK writer (:func:`studio.runtime.library_logs.quiet_rerun_writers`):
 on a failed write (a full disk) its file sink printed three ERROR/WARN lines with ANSI colours before

@@ -64,8 +64,8 @@ PAPER_SPEC: dict[str, Any] = {
     "alignments": ["first-pose", "se3", "none"],
 }
 
-#: The kollagen paper's published figures (APE translation mean [m]; g2o: spanning tree +
-#: Gauss-Newton, 10 iterations) as quoted in issue 15 of this project. The dead-reckoning figures are
+#: The kollagen paper's published figures (its Table I: APE translation mean [m]; g2o: spanning tree +
+#: Gauss-Newton, 10 iterations). The dead-reckoning figures are
 #: unaligned evo on the single files (first-pose alignment changes nothing there: every agent starts
 #: on its ground truth); the g2o figures are reproduced by first-pose alignment, so they are shown
 #: beside those tables only (:data:`PAPER_ALIGNMENTS`).

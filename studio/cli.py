@@ -451,7 +451,8 @@ def snapshot(
 
 
 # --- studio convert -----------------------------------------------------------------------------
-# Every GraphOptions field is a kebab-case flag; defaults and help come from converters.build.
+# Every option of studio.convert_config.convert_options() is a kebab-case flag, with its default,
+# help and the sources that take it declared there (GraphOptions in converters/options.py).
 
 
 @app.command()
@@ -982,7 +983,7 @@ def samples(
 
 def _tune_allocator() -> None:
     """glibc tuning for the commands that make many short-lived arrays (synth, convert); it keeps
-    freed memory for reuse, so the other commands (solve: +80 MB peak) do without it."""
+    freed memory for reuse, which raises the peak memory, so the other commands do without it."""
     from studio.runtime.parallel import tune_allocator
 
     tune_allocator()
@@ -997,8 +998,8 @@ def main() -> None:
 
 def _for_the_command(argv: list[str]) -> typer.Typer:
     """The app with only the command named first on the command line (when one is): typer builds
-    the options of every registered command before it parses, 11-16 ms for all twelve, 2 ms for
-    one. The app itself stays whole (``--help``, an unknown name, a test's ``CliRunner``)."""
+    the options of every registered command before it parses, and a command needs only its own.
+    The app itself stays whole (``--help``, an unknown name, a test's ``CliRunner``)."""
     chosen = [c for c in app.registered_commands if argv and (c.name or getattr(c.callback, "__name__", "")) == argv[0]]
     if len(chosen) != 1:
         return app

@@ -15,8 +15,8 @@ Conventions (those of the kollagen paper, Tables I and II, unless an option says
   rotation angle in degrees. Pairs never span two agents; ``all`` pools every agent's pairs.
 * Statistics are evo's (``rmse, mean, median, std, min, max, sse``, std with ``ddof=0``).
 
-evo computes APE rotation and RPE in Python loops over 4x4 matrices (about 15 s for the 50,005 poses
-of Multi10000x5). Here the same formulas are evaluated on whole columns with scipy's ``Rotation``
+evo computes APE rotation and RPE in Python loops over 4x4 matrices, one pose at a time
+(docs/performance.md). Here the same formulas are evaluated on whole columns with scipy's ``Rotation``
 (which evo's ``so3_log`` uses too); ``tests/studio/test_evaluate.py`` checks them against evo's metric objects.
 The translation APE is evo's own ``APE.process_data``.
 """
@@ -251,7 +251,7 @@ def _matched(
 
 def _umeyama(est_xyz: np.ndarray, gt_xyz: np.ndarray, with_scale: bool, what: str):
     """evo's ``umeyama_alignment`` (Umeyama, PAMI 1991, eqs. 34-43) with its per-point loop over
-    outer products written as one matrix product (on 50,000 poses 0.7 s became a few ms)."""
+    outer products written as one matrix product."""
     x, y = np.asarray(est_xyz, dtype=np.float64).T, np.asarray(gt_xyz, dtype=np.float64).T
     if x.shape != y.shape:
         raise EvaluationError(f"{what}: cannot align (data matrices must have the same shape)")

@@ -181,8 +181,7 @@ def check_resources(
 
 SMALL_POSES = 2_000
 """A config of fewer poses runs in this process when the caller does not say how many to use:
-forking a team and its fresh heap costs more than such a dataset's work (a 723-pose dataset
-takes 20-50 ms of CPU time in all)."""
+forking a team and its fresh heap costs more than such a dataset's work."""
 
 
 def _small_jobs(config: SynthConfig, jobs: int | None) -> int | None:

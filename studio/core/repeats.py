@@ -19,7 +19,7 @@ def distinct_if_repeated(values: np.ndarray) -> tuple[np.ndarray, np.ndarray | N
     bits = values.view(np.int64)
     if len(values) < 64:
         return values, None
-    head = np.sort(bits[:256])  # its distinct values counted (np.unique would import numpy.ma: 8 ms)
+    head = np.sort(bits[:256])  # its distinct values counted (np.unique would import numpy.ma)
     if 1 + np.count_nonzero(head[1:] != head[:-1]) >= 128:
         return values, None
     uniq, spread = np.unique(bits, return_inverse=True)

@@ -40,7 +40,7 @@ def report(progress: Progress | None, step: str, done: int, total: int, unit: st
 
 def _may_be_terminal() -> bool:
     """Whether rich could take stderr for a terminal: it is one, or the environment tells rich to
-    act as if (``FORCE_COLOR``, ``TTY_COMPATIBLE=1``). Asked before rich loads (about 25 ms), so a
+    act as if (``FORCE_COLOR``, ``TTY_COMPATIBLE=1``). Asked before rich loads, so a
     command in a pipe or a file does not pay for it."""
     isatty = getattr(sys.stderr, "isatty", None)
     if isatty is not None and isatty():
