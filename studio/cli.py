@@ -30,6 +30,9 @@ from studio.solvers import DEFAULT_METHOD, METHODS
 from studio.solvers.isam_settings import IsamSettings
 from studio.solvers.options import Init, Optimizer, SolveOptions
 
+#: Widest help text: click's own cap is 80 columns, whatever the terminal's width.
+HELP_MAX_WIDTH = 10_000
+
 app = typer.Typer(
     name="studio",
     rich_markup_mode=None,  # help text is plain: units such as [m] and [rad] stay as written
@@ -37,6 +40,9 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    # click caps help at 80 columns by default; it measures the terminal (or $COLUMNS) when it
+    # formats, so a cap no terminal reaches lets --help use the whole width of the one it is in
+    context_settings={"max_content_width": HELP_MAX_WIDTH},
 )
 
 

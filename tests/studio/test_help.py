@@ -3,7 +3,10 @@ registry (or the library's tuple) that checks it; only free-form text is ``<str>
 
 from __future__ import annotations
 
+import os
 import re
+import subprocess
+import sys
 from typing import get_args
 
 import pytest
@@ -84,3 +87,16 @@ def test_a_word_option_outside_its_choices_is_refused_in_one_line(tmp_path):
         app, ["convert", "tum", str(tmp_path / "a.tum"), "-o", str(tmp_path / "o"), "--orientation", "x"]
     )
     assert res.exit_code == 2 and "--orientation: expected auto, keep or derive, got 'x'" in res.stderr
+
+
+@pytest.mark.parametrize("columns", [60, 150])
+def test_help_follows_the_terminal_width(columns):
+    """click's own cap (80 columns) no longer wraps help in a wide terminal, and a narrow one is kept.
+    Run as a process: ``CliRunner`` forces its own width on click's formatter."""
+    env = {**os.environ, "COLUMNS": str(columns)}
+    res = subprocess.run(
+        [sys.executable, "-m", "studio.cli", "convert", "--help"], env=env, capture_output=True, text=True, check=True
+    )
+    widths = [len(line) for line in res.stdout.splitlines()]
+    assert max(widths) <= columns
+    assert max(widths) > columns - 10  # the long option help fills the width it was given
