@@ -84,13 +84,15 @@ _FLAGS: dict[str, str] = {"max_iterations": "iterations"}
 
 def _as_flags(err: StudioError) -> str:
     """The error's text, with the library option it names (``lc_radius: ...``, ``raise it with
-    max_memory_gb``) written as the flag the user typed (``--lc-radius: ...``, ``--max-memory-gb``)."""
+    max_memory_gb``, ``pass force=True``) written as the flag the user typed (``--lc-radius: ...``,
+    ``--max-memory-gb``, ``use --force``)."""
     text = str(err)
     option = getattr(err, "option", None)
     if not option:
         return text
     for name in (option, *getattr(err, "also", ())):
         flag = "--" + _FLAGS.get(name, name).replace("_", "-")
+        text = text.replace(f"pass {name}=True", f"use {flag}")  # a switch: the flag alone
         text = re.sub(rf"(?<![\w.-]){re.escape(name)}(?![\w-])", flag, text)
     return text
 

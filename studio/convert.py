@@ -58,7 +58,7 @@ from studio.converters.transforms import (
     orientation_is_uninformative,
     split_trajectory,
 )
-from studio.core.errors import ConfigError, FormatError, OutputError
+from studio.core.errors import ConfigError, FormatError, OutputError, already_exists
 from studio.core.model import PoseGraph, RangeBearing
 from studio.core.option_values import check_option
 from studio.core.trajectory import Trajectory
@@ -336,7 +336,7 @@ def convert(
     if out.name in ("", ".", ".."):
         raise OutputError(f"{out}: -o must name the dataset folder itself")
     if (out.exists() or out.is_symlink()) and not force:
-        raise OutputError(f"{out} already exists (use --force to overwrite)")
+        raise already_exists(out)
     check_option("max_memory_gb", max_memory_gb, allow_zero=False)
     cfg = _resolve_inputs(cfg)
     odometry_inputs = [parse_odometry_spec(spec)[1] for spec in cfg.odometry_from]

@@ -33,7 +33,7 @@ import numpy as np
 from studio.convert_config import check_source_options
 from studio.converters.graph_split import GraphImportOptions, ImportedGraph
 from studio.converters.registry import check_inputs, get_source
-from studio.core.errors import ConfigError, FormatError, OutputError
+from studio.core.errors import ConfigError, FormatError, OutputError, already_exists
 from studio.core.model import PoseGraph, PoseKind, RangeBearing
 from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE
@@ -118,7 +118,7 @@ def import_graph(
     if out.name in ("", ".", ".."):
         raise OutputError(f"{out}: -o must name the dataset folder itself")
     if (out.exists() or out.is_symlink()) and not force:
-        raise OutputError(f"{out} already exists (use --force to overwrite)")
+        raise already_exists(out)
     paths = []
     for p in inputs:
         if not Path(p).exists():

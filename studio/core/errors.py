@@ -14,6 +14,7 @@ __all__ = [
     "GraphError",
     "OutputError",
     "EvaluationError",
+    "already_exists",
 ]
 
 
@@ -43,7 +44,19 @@ class GraphError(StudioError):
 
 
 class OutputError(StudioError):
-    """An output cannot be written (it exists and --force was not given, or the folder is unusable)."""
+    """An output cannot be written (it exists and ``force`` was not given, or the folder is unusable).
+
+    ``option`` names the library option that would allow it (``force``): the message says
+    ``force=True`` to a script, and the command line writes it as its flag (``--force``)."""
+
+    def __init__(self, message: str, *, option: str | None = None) -> None:
+        super().__init__(message)
+        self.option = option
+
+
+def already_exists(path: object) -> OutputError:
+    """The error for an existing output written without ``force``, in the library's words."""
+    return OutputError(f"{path} already exists (pass force=True to overwrite)", option="force")
 
 
 class EvaluationError(StudioError):

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
-from studio.core.errors import ConfigError, FormatError, OutputError
+from studio.core.errors import ConfigError, FormatError, OutputError, already_exists
 from studio.core.types import PathLike
 from studio.recording.colours import LIGHT_BACKGROUND_RGB
 from studio.recording.entities import TIMELINE_CELL, TIMELINE_ITERATION, TIMELINE_NODE, TIMELINE_REPLAY_TICK
@@ -279,7 +279,7 @@ def snapshot(
     if png.is_dir():
         raise OutputError(f"{png}: is a folder")
     if (png.exists() or png.is_symlink()) and not force:
-        raise OutputError(f"{png} already exists (use --force to overwrite)")
+        raise already_exists(png)
     size = _parse_size(window_size)
     if theme not in THEMES:
         raise ConfigError(f"--theme {theme!r}: expected one of {', '.join(THEMES)}")
