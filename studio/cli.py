@@ -101,6 +101,13 @@ def _as_flags(err: StudioError) -> str:
 _HELD_WARNINGS: list[list[str]] = []
 
 
+def _n(count: int, phrase: str) -> str:
+    """``_n(3, "{n} agents")`` is ``3 agents``, ``_n(1, "{n} agents")`` is ``1 agent``: a count in
+    its phrase, the phrase's last word singular for one."""
+    text = phrase.format(n=count)
+    return text[:-1] if count == 1 and text.endswith("s") else text
+
+
 def _one_line(text: str) -> str:
     """``text`` with its line breaks, NUL and other control characters escaped (``\\n``): a
     message quoting a value the user gave (an option, a name from data) stays one line."""
@@ -236,7 +243,7 @@ def synth(
             batch = synthesize_seeds(cfg, out, parse_seeds(seeds), progress=progress, **options)
         if not quiet:
             typer.echo(
-                f"{cfg.name}: {len(batch.written)} seeds written, {len(batch.kept)} kept (finished before) "
+                f"{cfg.name}: {_n(len(batch.written), '{n} seeds')} written, {len(batch.kept)} kept (finished before) "
                 f"in {time.perf_counter() - t0:.2f} s\n  {batch.out_dir}/seed<k>"
             )
         outputs_final()  # every seed folder synced and in place: the process may end at once
@@ -246,8 +253,8 @@ def synth(
     if not quiet:
         counts = res.output.graph.edge_counts()
         typer.echo(
-            f"{cfg.name}: {cfg.number_of_agents} agents, {res.output.graph.num_poses} poses, "
-            f"{sum(counts.values())} constraints ({counts['odometry']} odometry, "
+            f"{cfg.name}: {_n(cfg.number_of_agents, '{n} agents')}, {_n(res.output.graph.num_poses, '{n} poses')}, "
+            f"{_n(sum(counts.values()), '{n} constraints')} ({counts['odometry']} odometry, "
             f"{counts['intra_loop_closures']} intra-agent and {counts['inter_loop_closures']} inter-agent "
             f"loop closures"
             + (f", {len(res.outliers.rows)} of them outliers" if res.outliers is not None else "")
@@ -277,7 +284,7 @@ def record(
     if not quiet:
         counts = res.edge_counts
         typer.echo(
-            f"{res.path}: {res.num_poses} poses, {counts['odometry']} odometry, "
+            f"{res.path}: {_n(res.num_poses, '{n} poses')}, {counts['odometry']} odometry, "
             f"{counts['intra_loop_closures']} intra-agent and {counts['inter_loop_closures']} inter-agent "
             f"loop closures in {time.perf_counter() - t0:.2f} s"
         )
@@ -525,19 +532,20 @@ def _print_converted(res: Any, seconds: float) -> None:
         counts = g.edge_counts()
         sightings = f", {len(res.range_bearing)} range-bearing sightings" if res.range_bearing is not None else ""
         typer.echo(
-            f"{res.dataset_dir.name}: {len(g.agents)} agents, {g.num_poses} poses, {counts['odometry']} odometry "
-            f"edges, {counts['intra_loop_closures']} intra-agent and {counts['inter_loop_closures']} inter-agent "
+            f"{res.dataset_dir.name}: {_n(len(g.agents), '{n} agents')}, {_n(g.num_poses, '{n} poses')}, "
+            f"{_n(counts['odometry'], '{n} odometry edges')}, {counts['intra_loop_closures']} intra-agent and {counts['inter_loop_closures']} inter-agent "
             f"loop closures ({len(res.outliers)} labelled outliers){sightings} from {res.source}, in "
-            f"{seconds:.2f} s\n  {res.dataset_dir}"
+            f"{seconds:.2f} s\n  {res.dataset_dir}" + (f"\n  {res.rrd_path}" if res.rrd_path else "")
         )
         return
     g = res.build.graph
     counts = g.edge_counts()
     typer.echo(
-        f"{res.dataset_dir.name}: {len(g.agents)} agents, {g.num_poses} keyframes, "
-        f"{counts['odometry']} odometry edges, {counts['intra_loop_closures']} intra-agent and "
+        f"{res.dataset_dir.name}: {_n(len(g.agents), '{n} agents')}, {_n(g.num_poses, '{n} keyframes')}, "
+        f"{_n(counts['odometry'], '{n} odometry edges')}, {counts['intra_loop_closures']} intra-agent and "
         f"{counts['inter_loop_closures']} inter-agent loop closures ({res.build.candidates['outliers']} "
-        f"outliers), {len(res.build.gaps)} gaps, in {seconds:.2f} s\n  {res.dataset_dir}"
+        f"outliers), {_n(len(res.build.gaps), '{n} gaps')}, in {seconds:.2f} s\n  {res.dataset_dir}"
+        + (f"\n  {res.rrd_path}" if res.rrd_path else "")
     )
     if res.orientation:
         typer.echo(
@@ -647,7 +655,7 @@ def export(
     t0 = time.perf_counter()
     res = export_dataset(dataset, out, format=format, force=force, name=name, warn=_warn)
     if not quiet:
-        typer.echo(f"{res.path}: {format}, {len(res.files)} files in {time.perf_counter() - t0:.2f} s")
+        typer.echo(f"{res.path}: {format}, {_n(len(res.files), '{n} files')} in {time.perf_counter() - t0:.2f} s")
 
 
 # --- studio solve -------------------------------------------------------------------------------
@@ -747,7 +755,7 @@ def solve(
         return
     rejected = "" if res.rejected is None else f", {len(res.rejected)} loop closures rejected"
     typer.echo(
-        f"{dataset.name}: {res.method}, {res.iterations} iterations, chi2 {res.chi2_initial:.6g} -> "
+        f"{dataset.name}: {res.method}, {_n(res.iterations, '{n} iterations')}, chi2 {res.chi2_initial:.6g} -> "
         f"{res.chi2_final:.6g} (dead reckoning {res.chi2_dataset:.6g}){rejected}, {res.seconds:.2f} s\n"
         f"  {res.estimate_path}" + ("" if res.rrd_path is None else f"\n  {res.rrd_path}")
     )
@@ -936,7 +944,7 @@ def bench(
         )
         typer.echo(format_paper_table(res.rows, parsed, align), nl=False)
         typer.echo(
-            f"{res.computed} cells run, {len([r for r in res.rows if r['method'] != 'odometry']) - res.computed} "
+            f"{_n(res.computed, '{n} cells')} run, {len([r for r in res.rows if r['method'] != 'odometry']) - res.computed} "
             f"reused\n  {res.markdown_path}\n  {res.csv_path}" + (f"\n  {res.plot_path}" if res.plot_path else "")
         )
 
@@ -965,7 +973,7 @@ def sweep(
         res = run_sweep(parsed, out, scheduler=scheduler, workers=workers, progress=progress)
     if not quiet:
         typer.echo(
-            f"{parsed.name}: {len(res.rows)} cells ({res.computed} run now, {res.failed} failed)\n"
+            f"{parsed.name}: {_n(len(res.rows), '{n} cells')} ({res.computed} run now, {res.failed} failed)\n"
             f"  {res.table_path}\n  {res.markdown_path}" + "".join(f"\n  {p}" for p in res.plot_paths)
         )
 
@@ -986,7 +994,7 @@ def samples(
 
     names = write_samples(folder, force=force)
     if not quiet:
-        typer.echo(f"{folder}: {len(names)} samples\n" + "\n".join(f"  {name}" for name in names))
+        typer.echo(f"{folder}: {_n(len(names), '{n} samples')}\n" + "\n".join(f"  {name}" for name in names))
 
 
 def _tune_allocator() -> None:
