@@ -360,3 +360,38 @@ def test_plots_leave_out_the_seed_and_constant_series():
     params, metrics = _plotted(df)
     assert params == ["param:inter_agent_loop_closure_parameters.loop_closure_radius"]
     assert metrics == ["inter_loop_closures", "ape_initial_none_m"]
+
+
+def test_default_plots_show_metrics_with_units_not_timings(tmp_path, monkeypatch):
+    """Timings vary with the machine's load, not the parameter: they stay in the table, not the plots."""
+    import types
+
+    import matplotlib.pyplot as plt
+    import pandas as pd
+
+    from studio.sweep import PLOTTED, _plots, _plotted
+
+    df = pd.DataFrame(
+        {
+            "param:inter_agent_loop_closure_parameters.loop_closure_radius": [2.0, 4.0, 8.0],
+            "cell_s": [1.2, 0.9, 1.5],
+            "make_s": [0.4, 0.3, 0.6],
+            "solve_s": [0.2, 0.1, 0.3],
+            "inter_loop_closures": [10, 30, 90],
+            "ape_solved_se3_m": [0.5, 0.4, 0.3],
+        }
+    )
+    assert _plotted(df)[1] == ["inter_loop_closures", "ape_solved_se3_m"]
+    assert not any(c.endswith("_s") for c in PLOTTED)
+    assert PLOTTED["ape_solved_se3_m"][1] == "m"
+    seen = []
+    real_close = plt.close
+
+    def close(fig):
+        seen.append([(a.get_title(), a.get_ylabel()) for a in fig.axes if a.get_visible()])
+        real_close(fig)
+
+    monkeypatch.setattr(plt, "close", close)
+    paths = _plots(types.SimpleNamespace(name="radius"), tmp_path, df)
+    assert [p.name for p in paths] == ["inter_agent_loop_closure_parameters_loop_closure_radius.png"]
+    assert seen == [[("inter-agent loop closures", "count"), ("mean APE, solved, SE(3)-aligned", "[m]")]]
