@@ -76,7 +76,7 @@ def solve_blueprint(names: Sequence[str], positions_xyz: np.ndarray | None = Non
                         fixed(rrb.TimeSeriesView(name="chi2 (g2o convention)", origin=SOLVE_CHI2), "chi2"),
                         fixed(rrb.TimeSeriesView(name="mean position error [m]", origin=SOLVE_ERROR), "error"),
                         fixed(rrb.TextDocumentView(name="colours", origin=SOLVE_SCALE), "scale"),
-                        row_shares=[3, 3, 1],
+                        row_shares=[2, 2, 1],  # the colour key's text whole at 1200x760
                     ),
                     "plots",
                 ),
@@ -121,9 +121,9 @@ def log_solve(
         rec.log(
             SOLVE_SCALE,
             rr.TextDocument(
-                f"Estimate points coloured by position error against the ground truth: viridis from "
-                f"dark blue (0 m) through teal to green ({scale:.4g} m, the 95th percentile of the final "
-                f"estimate's error; larger errors stay green). Paths in each agent's colour, ground truth grey.",
+                f"Points: position error against the ground truth, viridis from dark blue (0 m) to green "
+                f"({scale:.4g} m, the final estimate's 95th percentile; larger errors stay green). "
+                f"Paths: each agent's colour; ground truth grey.",
                 media_type="text/markdown",
             ),
             static=True,
