@@ -53,17 +53,72 @@ from studio.core.timing import MeasurementTimes, measurement_times
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.io.strict_json import dumps_strict
-from studio.replay.backends import KeptPoses, Step, World
 from studio.replay.metrics import as_se3, first_pose_errors, robot_values, se3_errors
+from studio.replay.protocol import Checkpoint, KeptPoses, Setup, Step
 from studio.replay.registry import DEFAULT_BACKENDS, get_backend
 from studio.runtime.progress import Progress, report
 from studio.solvers.isam_settings import IsamSettings
-from studio.solvers.problem import graph_chi2
+from studio.solvers.problem import Problem, graph_chi2
 
 __all__ = ["replay", "ReplayResult", "BackendRun", "build_schedule", "DEFAULT_BACKENDS", "REPLAY_JSON"]
 
 REPLAY_JSON = "replay.json"
 METRICS_HEADER = "backend,tick,time_s,robot,poses,ape_first_pose_m,ape_se3_m,sve_t_m,sve_r_rad"
+
+
+@dataclass(frozen=True, eq=False)
+class World:
+    """What the simulation knows about the dataset and the schedule, as columns over global ids: the
+    source of each checkpoint's news (:meth:`news`); the back-ends see only the :class:`Setup` and
+    the news."""
+
+    problem: Problem
+    agent_of_vertex: np.ndarray
+    vertex_ns: np.ndarray
+    """When each vertex is visited."""
+    edge_ns: np.ndarray
+    """When each edge is measured."""
+    edge_closure: np.ndarray
+    """Per edge, its inter-agent closure index, -1 for a robot's own edge."""
+    delivered_tick: np.ndarray
+    """Per inter-agent closure, the tick its robots learn it, -1 for never."""
+    ticks_ns: np.ndarray
+    num_robots: int
+    settings: IsamSettings
+
+    def setup(self) -> Setup:
+        return Setup(self.problem, self.agent_of_vertex, self.num_robots, self.settings)
+
+    def edges_known(self) -> np.ndarray:
+        """Per edge: known to some robot by the end (its own edges, the closures delivered): the
+        edges the centralized back-end optimizes over."""
+        inter = self.edge_closure >= 0
+        out = ~inter
+        out[inter] = self.delivered_tick[self.edge_closure[inter]] >= 0
+        return out
+
+    def news(self, previous: int, tick: int, groups: list[tuple[int, ...]], contacts: np.ndarray) -> Checkpoint:
+        """What happened after tick ``previous`` (-1: the start) up to ``tick``: poses visited and
+        own edges measured in that time, the closures delivered in it."""
+        t = int(self.ticks_ns[tick])
+        before = int(self.ticks_ns[previous]) if previous >= 0 else np.iinfo(np.int64).min
+        vertices = np.flatnonzero((self.vertex_ns > before) & (self.vertex_ns <= t))
+        own = self.edge_closure < 0
+        edges = np.flatnonzero(own & (self.edge_ns > before) & (self.edge_ns <= t))
+        closure_tick = np.where(own, -1, self.delivered_tick[np.maximum(self.edge_closure, 0)])
+        closures = np.flatnonzero(~own & (closure_tick > previous) & (closure_tick <= tick))
+        return Checkpoint(
+            tick,
+            t,
+            vertices,
+            self.vertex_ns[vertices],
+            edges,
+            self.edge_ns[edges],
+            closures,
+            self.edge_ns[closures],
+            groups,
+            contacts,
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -223,8 +278,6 @@ def _world(loaded: Any, graph: PoseGraph, times: MeasurementTimes, schedule: Sch
         np.concatenate(times.pose_ns),
         edge_ns,
         np.concatenate(closure),
-        schedule.closure_from,
-        schedule.closure_to,
         schedule.delivered_tick,
         schedule.ticks_ns,
         len(graph.agents),
@@ -250,7 +303,7 @@ def _run(
     progress: Progress | None = None,
 ) -> BackendRun:
     t0 = time.perf_counter()
-    backend = get_backend(name)(world)
+    backend = get_backend(name)(world.setup())
     kind = world.problem.kind
     truth = [np.asarray(a.se3_poses(ground_truth=True)) for a in graph.agents]
     offsets = np.concatenate([[0], np.cumsum([a.num_poses for a in graph.agents])])
@@ -270,7 +323,7 @@ def _run(
         linked = np.asarray(schedule.contact[previous + 1 : tick + 1].any(axis=0))
         present = np.array([world.vertex_ns[offsets[r]] <= world.ticks_ns[tick] for r in range(n)])
         groups = _components(n, pairs, linked, present)
-        step = backend.advance(tick, groups)
+        step = backend.advance(world.news(previous, tick, groups, pairs[linked]))
         if c == len(checkpoints) - 1:
             last = backend.finish()
             step = dataclasses.replace(last, solver_seconds=step.solver_seconds + last.solver_seconds)
@@ -308,8 +361,8 @@ def _run(
         seen_count,
         graph_chi2(world.problem, final),
         graph_chi2(world.problem, final, world.edges_known()),
-        backend.messages.copy(),
-        backend.bytes.copy(),
+        step.messages.copy(),
+        step.bytes.copy(),
         solver_s,
         time.perf_counter() - t0,
         final,

@@ -1,7 +1,8 @@
 """The back-ends of ``studio replay``, by name: the one place a back-end is declared
-(:mod:`studio.replay.backends` holds their code). Each entry names its factory ``factory(world) ->
-Backend`` by module and attribute (:class:`~studio.core.lazy.Lazy`), imported when the back-end is
-used, so the command line lists the back-ends without loading a solver or numpy.
+(:mod:`studio.replay.backends` holds their code). Each entry names its factory ``factory(setup) ->
+ReplayBackend`` (:mod:`studio.replay.protocol`) by module and attribute
+(:class:`~studio.core.lazy.Lazy`), imported when the back-end is used, so the command line lists
+the back-ends without loading a solver or numpy.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from studio.core.errors import ConfigError
 from studio.core.lazy import Lazy
 
 if TYPE_CHECKING:
-    from studio.replay.backends import BackendFactory
+    from studio.replay.protocol import BackendFactory
 
 __all__ = ["BACKENDS", "DEFAULT_BACKENDS", "backend_names", "get_backend"]
 
