@@ -768,6 +768,9 @@ def replay(
     rrd: Path | None = typer.Option(None, "--rrd", help="Also write the replay as a Rerun recording (.rrd)."),
     parquet: bool = typer.Option(False, "--parquet", help="Also write each CSV table as Parquet (needs pyarrow)."),
     force: bool = typer.Option(False, "--force", help="Replace an existing OUT (and --rrd file)."),
+    time_limit: float | None = typer.Option(
+        None, "--time-limit", help="Seconds a command: back-end may take per checkpoint [s] (default 60)."
+    ),
 ) -> None:
     """Replay a dataset in time: each robot's measurements at their times, inter-agent closures when
     the communication model delivers them, through incremental and distributed back-ends.
@@ -797,6 +800,7 @@ def replay(
             force=force,
             rrd=rrd,
             parquet=parquet,
+            time_limit_s=time_limit,
             progress=progress,
             warn=_warn,
         )

@@ -55,7 +55,7 @@ from studio.core.units import NS_PER_S
 from studio.io.strict_json import dumps_strict
 from studio.replay.metrics import as_se3, first_pose_errors, robot_values, se3_errors
 from studio.replay.protocol import Checkpoint, KeptPoses, Setup, Step
-from studio.replay.registry import DEFAULT_BACKENDS, get_backend
+from studio.replay.registry import DEFAULT_BACKENDS, get_backend, output_name
 from studio.runtime.progress import Progress, report
 from studio.solvers.isam_settings import IsamSettings
 from studio.solvers.problem import Problem, graph_chi2
@@ -301,9 +301,10 @@ def _run(
     *,
     keep_beliefs: bool,
     progress: Progress | None = None,
+    time_limit_s: float | None = None,
 ) -> BackendRun:
     t0 = time.perf_counter()
-    backend = get_backend(name)(world.setup())
+    backend = get_backend(name, time_limit_s=time_limit_s)(world.setup())
     kind = world.problem.kind
     truth = [np.asarray(a.se3_poses(ground_truth=True)) for a in graph.agents]
     offsets = np.concatenate([[0], np.cumsum([a.num_poses for a in graph.agents])])
@@ -319,7 +320,7 @@ def _run(
     beliefs: list[np.ndarray] = []
     sve = np.full((len(checkpoints), 2), np.nan)
     for c, tick in enumerate(checkpoints.tolist()):
-        report(progress, f"replay {name}", c, len(checkpoints), "checkpoints")
+        report(progress, f"replay {output_name(name)}", c, len(checkpoints), "checkpoints")
         linked = np.asarray(schedule.contact[previous + 1 : tick + 1].any(axis=0))
         present = np.array([world.vertex_ns[offsets[r]] <= world.ticks_ns[tick] for r in range(n)])
         groups = _components(n, pairs, linked, present)
@@ -353,7 +354,7 @@ def _run(
     assert step is not None
     final = step.own
     return BackendRun(
-        name,
+        output_name(name),
         checkpoints,
         ape,
         team_fp,
@@ -544,6 +545,9 @@ def _check_backends(backends: tuple[str, ...] | list[str]) -> list[str]:
         get_backend(name)
     if len(set(names)) != len(names):
         raise ConfigError(f"backend: {names} names one back-end twice")
+    outputs = [output_name(n) for n in names]
+    if len(set(outputs)) != len(outputs):
+        raise ConfigError(f"backend: {names}: two back-ends would write the same outputs {outputs}")
     return names
 
 
@@ -556,8 +560,11 @@ def _check_numbers(
     relinearize_skip: int,
     relinearize_threshold: float,
     final_updates: int,
+    time_limit_s: float | None = None,
 ) -> None:
     """Refuse a bad number among the options (ConfigError naming the option)."""
+    if time_limit_s is not None:
+        check_option("time_limit", time_limit_s, allow_zero=False)
     check_option("step", step_s, allow_zero=False)
     check_count("every", every)
     if period_s is not None:
@@ -723,7 +730,6 @@ def _write_results(folder: Path, graph: PoseGraph, runs: tuple[BackendRun, ...],
 
 def _write_recording(
     rrd_path: Path,
-    *,
     dataset: PathLike,
     graph: PoseGraph,
     schedule: Schedule,
@@ -731,6 +737,7 @@ def _write_recording(
     runs: tuple[BackendRun, ...],
     vertex_ns: np.ndarray,
     inputs: list[PathLike],
+    *,
     force: bool,
 ) -> None:
     from studio.recording.replay import write_replay_recording
@@ -778,6 +785,7 @@ def replay(
     force: bool = False,
     rrd: PathLike | None = None,
     parquet: bool = False,
+    time_limit_s: float | None = None,
     progress: Progress | None = None,
     warn: Callable[[str], None] | None = None,
 ) -> ReplayResult:
@@ -787,7 +795,8 @@ def replay(
     ``step_s``: the tick [s] contacts are evaluated on; ``every``: ticks between checkpoints (the
     metrics' interval and the back-ends' batch of updates); ``period_s``: replace the dataset's
     stamps by pose index x this period (None: the dataset's stamps; kollagen's are 1 s apart);
-    ``parquet``: each CSV table as Parquet too (pyarrow; ConfigError before any work without it)."""
+    ``parquet``: each CSV table as Parquet too (pyarrow; ConfigError before any work without it);
+    ``time_limit_s``: the seconds a ``command:`` back-end may take per checkpoint (None: 60)."""
     from studio.io.atomic import staged_outputs
 
     out, names = Path(out), _check_backends(backends)
@@ -799,6 +808,7 @@ def replay(
         relinearize_skip=relinearize_skip,
         relinearize_threshold=relinearize_threshold,
         final_updates=final_updates,
+        time_limit_s=time_limit_s,
     )
     rrd_path = _rrd_target(rrd, parquet=parquet)
     parsed, band = parse_comms(comms), None if bandwidth is None else parse_bandwidth(bandwidth)
@@ -813,8 +823,11 @@ def replay(
     world = _world(loaded, graph, times, schedule, settings)
     checkpoints = _checkpoints(len(schedule.ticks_ns), every)
     keep = rrd_path is not None
-    runs = tuple(_run(n, world, graph, schedule, checkpoints, keep_beliefs=keep, progress=progress) for n in names)
-    options = _options(dataset, schedule, names, settings, loaded.problem.kind.value, step_s, every, period_s)
+    limit = {"time_limit_s": time_limit_s} if time_limit_s is not None else {}
+    runs = tuple(
+        _run(n, world, graph, schedule, checkpoints, keep_beliefs=keep, progress=progress, **limit) for n in names
+    )
+    options = _options(dataset, schedule, names, settings, loaded.problem.kind.value, step_s, every, period_s) | limit
     with staged_outputs(out.parent, [out.name], force=force, inputs=inputs) as staging:
         _write_folder(
             staging / out.name,
@@ -828,15 +841,5 @@ def replay(
             parquet=parquet,
         )
     if rrd_path is not None:
-        _write_recording(
-            rrd_path,
-            dataset=dataset,
-            graph=graph,
-            schedule=schedule,
-            report=report,
-            runs=runs,
-            vertex_ns=world.vertex_ns,
-            inputs=inputs,
-            force=force,
-        )
+        _write_recording(rrd_path, dataset, graph, schedule, report, runs, world.vertex_ns, inputs, force=force)
     return ReplayResult(out, schedule, report, runs, options, rrd_path)

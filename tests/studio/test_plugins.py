@@ -111,4 +111,4 @@ def test_a_plugin_that_fails_to_import_is_one_line(tmp_path, tiny):
 def test_an_unknown_backend_names_the_plugins_and_command(example_site, tiny, tmp_path):
     res = _studio(example_site, "replay", str(tiny), "-b", "nope", "-o", str(tmp_path / "r"))
     assert res.returncode == 2
-    assert "known: centralized, independent, swarm, dgs, example-odometry)" in res.stderr
+    assert "known: centralized, independent, swarm, dgs, example-odometry, command:PROGRAM)" in res.stderr
