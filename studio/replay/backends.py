@@ -27,10 +27,12 @@ unused), the poses of other robots kept, and what it sent on each link. The regi
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from studio.core.comms import robot_pairs
-from studio.replay.protocol import Checkpoint, KeptPoses, ReplayBackend, Setup, Step
+from studio.replay.protocol import BackendFactory, Checkpoint, KeptPoses, ReplayBackend, Setup, Step
 from studio.solvers.incremental import FixedEnds, IncrementalSolver, IsamSettings
 
 __all__ = ["Centralized", "Independent", "Swarm", "Memory", "make_dgs"]
@@ -302,3 +304,7 @@ def make_dgs(world: Setup) -> ReplayBackend:
     from studio.replay.dgs_backend import Dgs
 
     return Dgs(world)
+
+
+if TYPE_CHECKING:  # the built-in back-ends are factories of the public protocol: mypy checks each
+    _FACTORIES: tuple[BackendFactory, ...] = (Centralized, Independent, Swarm, make_dgs)
