@@ -35,6 +35,7 @@ from studio.core.comms import (
     Bandwidth,
     CommsModel,
     CommsReport,
+    PartnerCap,
     Rendezvous,
     Schedule,
     comms_report,
@@ -590,8 +591,10 @@ def _rrd_target(rrd: PathLike | None, *, parquet: bool) -> Path | None:
 def _model(
     parsed: CommsModel | str, num_robots: int, inputs: list[PathLike], warn: Callable[[str], None] | None = None
 ) -> CommsModel:
-    """The parsed ``--comms``; a rendezvous file (a path) is read and added to ``inputs``; its lines
-    for robots the dataset does not have are one warning."""
+    """The parsed ``--comms``; a rendezvous file (a path, alone or under iMESA's partner cap) is read
+    and added to ``inputs``; its lines for robots the dataset does not have are one warning."""
+    if isinstance(parsed, PartnerCap) and isinstance(parsed.base, str):
+        return dataclasses.replace(parsed, base=_model(parsed.base, num_robots, inputs, warn))
     if not isinstance(parsed, str):
         return parsed
     from studio.io.rendezvous_txt import read_rendezvous
@@ -672,10 +675,11 @@ def _write_folder(
     sched = folder / "schedule"
     sched.mkdir()
     write_schedule(sched, schedule, graph.inter.from_index, graph.inter.to_index)
-    if isinstance(model, Rendezvous):
+    windows = model.base if isinstance(model, PartnerCap) else model
+    if isinstance(windows, Rendezvous):
         from studio.io.rendezvous_txt import write_rendezvous
 
-        write_rendezvous(sched / "rendezvous.txt", model.windows_s)
+        write_rendezvous(sched / "rendezvous.txt", windows.windows_s)
     (folder / "metrics.csv").write_text(_metrics_text(runs, schedule), encoding="utf-8")
     summary = _summary_rows(runs)
     (folder / "summary.csv").write_text(
