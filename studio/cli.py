@@ -23,6 +23,7 @@ from studio.core.alignment import Alignment
 from studio.core.comms_registry import DEFAULT_COMMS, comms_help
 from studio.core.conventions import DEFAULT_CONVENTION, Convention
 from studio.core.errors import StudioError
+from studio.core.plugins import SOLVE_METHODS, plugin_names
 from studio.core.preset_names import PRESET_NAMES
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.runtime.progress import terminal_progress
@@ -661,7 +662,9 @@ def export(
 # --- studio solve -------------------------------------------------------------------------------
 # The methods, their help, defaults and the options each reads come from studio.solvers' registry.
 
-MethodChoice = _choices("MethodChoice", METHODS)
+#: Solve methods of installed plug-ins (entry-point names; imported only when used).
+_SOLVE_PLUGINS = [name for name in plugin_names(SOLVE_METHODS) if name not in METHODS]
+MethodChoice = _choices("MethodChoice", [*METHODS, *_SOLVE_PLUGINS])
 OptimizerChoice = _choices("OptimizerChoice", get_args(Optimizer))
 InitChoice = _choices("InitChoice", get_args(Init))
 
@@ -696,7 +699,9 @@ def solve(
         DEFAULT_METHOD,
         "--method",
         "-m",
-        help=", ".join(f"{name} ({entry.help})" for name, entry in METHODS.items()) + ".",
+        help=", ".join(f"{name} ({entry.help})" for name, entry in METHODS.items())
+        + "".join(f", {name} (plug-in)" for name in _SOLVE_PLUGINS)
+        + ".",
     ),
     optimizer: OptimizerChoice = typer.Option(  # type: ignore[valid-type]
         SolveOptions().optimizer,
@@ -823,6 +828,9 @@ def replay(
     rrd: Path | None = typer.Option(None, "--rrd", help="Also write the replay as a Rerun recording (.rrd)."),
     parquet: bool = typer.Option(False, "--parquet", help="Also write each CSV table as Parquet (needs pyarrow)."),
     force: bool = typer.Option(False, "--force", help="Replace an existing OUT (and --rrd file)."),
+    time_limit: float | None = typer.Option(
+        None, "--time-limit", help="Seconds a command: back-end may take per checkpoint [s] (default 60)."
+    ),
 ) -> None:
     """Replay a dataset in time: each robot's measurements at their times, inter-agent closures when
     the communication model delivers them, through incremental and distributed back-ends.
@@ -853,6 +861,7 @@ def replay(
             force=force,
             rrd=rrd,
             parquet=parquet,
+            time_limit_s=time_limit,
             progress=progress,
             warn=_warn,
         )
@@ -871,6 +880,28 @@ def replay(
 
 
 ConventionChoice = _choices("ConventionChoice", get_args(Convention))
+
+
+@app.command()
+@cli_errors
+def plugins() -> None:
+    """List the replay back-ends and solve methods that installed packages declare as entry points
+    (groups studio.replay_backends, studio.solve_methods), without importing them.
+
+    Example: studio plugins ; then studio replay DATASET -b NAME -o out/replay-NAME
+    """
+    from studio.core.plugins import GROUPS
+    from studio.core.plugins import plugins as declared
+    from studio.replay.registry import BACKENDS
+    from studio.solvers import METHODS as BUILT_IN
+
+    built_in = {group: BACKENDS if kind == "replay back-end" else BUILT_IN for group, kind in GROUPS.items()}
+    for group in GROUPS:
+        found = declared(group)
+        typer.echo(f"{group}: {len(found)} plug-in{'s' * (len(found) != 1)}")
+        for p in found:
+            shadowed = " (shadowed by the built-in of that name)" if p.name in built_in[group] else ""
+            typer.echo(f"  {p.name}  {p.value}  from {p.package}{shadowed}")
 
 
 @app.command()

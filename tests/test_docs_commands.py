@@ -118,6 +118,12 @@ def _kimera_rpgo(work: Path) -> None:
         (folder / f"robot_{robot}.g2o").write_text("\n".join(lines) + "\n")
 
 
+def _toml_block(doc: Path, first_line: str) -> str:
+    """The fenced TOML block of ``doc`` that starts with ``first_line``."""
+    blocks = re.findall(r"```toml\n(.*?)```", doc.read_text(encoding="utf-8"), flags=re.S)
+    return next(b for b in blocks if b.startswith(first_line))
+
+
 #: What a command may name as an input, and how the stand-in is made in the work folder.
 INPUTS: dict[str, Callable[[Path], None]] = {
     "multi3500x8": lambda w: _preset_standin(w, "multi3500x8"),
@@ -143,6 +149,10 @@ INPUTS: dict[str, Callable[[Path], None]] = {
     "radius.toml": lambda w: (w / "radius.toml").write_text(
         'name = "radius"\nbase = "multi3500x8"\nsteps = ["evaluate"]\n[grid]\n'
         '"inter_agent_loop_closure_parameters.loop_closure_radius" = [1.0, 2.0]\n'
+    ),
+    # docs/sweep.md's replay spec, as the doc writes it (its TOML block)
+    "replays.toml": lambda w: (w / "replays.toml").write_text(
+        _toml_block(REPO / "docs" / "sweep.md", 'name = "replays"')
     ),
 }
 

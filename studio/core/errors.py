@@ -59,5 +59,10 @@ def already_exists(path: object) -> OutputError:
     return OutputError(f"{path} already exists (pass force=True to overwrite)", option="force")
 
 
+class BackendError(StudioError):
+    """A replay back-end outside the studio (``command:PROGRAM``) ended, hung or answered outside the
+    protocol; the message names the back-end and the checkpoint."""
+
+
 class EvaluationError(StudioError):
     """An estimate cannot be scored against its dataset (vertices or timestamps do not match, no ground truth)."""

@@ -250,6 +250,10 @@ def read_g2o(
         dup = int(uniq[np.argmax(counts > 1)])
         where = [ln for ln, v in zip(vlines, vids.tolist()) if v == dup][1]
         raise FormatError(f"{name}:{where}: vertex {dup} is defined twice")
+    loops = np.flatnonzero(eids[:, 0] == eids[:, 1]) if len(eids) else eids[:0, 0]
+    if len(loops):  # a pose related to itself constrains nothing but contradicts any non-identity measurement
+        r = int(loops[0])
+        raise FormatError(f"{name}:{elines[r]}: edge from vertex {int(eids[r, 0])} to itself (a self-loop)")
     if len(eids) and not dangling:
         known = np.isin(eids, vids)
         if not known.all():

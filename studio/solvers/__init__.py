@@ -136,10 +136,19 @@ def method_names() -> list[str]:
 
 
 def method_entry(name: str) -> SolveMethod:
-    try:
+    """The entry of method ``name``: the registry's, else an installed plug-in's (entry point group
+    ``studio.solve_methods``, a :class:`SolveMethod`, imported now; :mod:`studio.core.plugins`)."""
+    if name in METHODS:
         return METHODS[name]
-    except KeyError:
-        raise ConfigError(f"method: unknown method {name!r} (known: {', '.join(METHODS)})") from None
+    from studio.core.plugins import SOLVE_METHODS, load_plugin, plugin_names
+
+    if name not in plugin_names(SOLVE_METHODS):
+        known = ", ".join([*METHODS, *plugin_names(SOLVE_METHODS)])
+        raise ConfigError(f"method: unknown method {name!r} (known: {known})")
+    entry = load_plugin(SOLVE_METHODS, name)
+    if not isinstance(entry, SolveMethod):
+        raise ConfigError(f"solve method plug-in {name!r}: names {type(entry).__name__}, not a SolveMethod")
+    return dataclasses.replace(entry, name=name)
 
 
 def get_method(name: str) -> Method:

@@ -743,3 +743,39 @@ def test_agent_names_in_a_jrl_file_stay_inside_the_output(jrl_world, hostile):
     assert res.exit_code == 0, res.stderr
     assert all(p.parent == jrl_world / "est" / "estimate" / "tum" for p in (jrl_world / "est").rglob("*.tum"))
     assert not Path("/tmp/studio-escaped.tum").exists()
+
+
+# --------------------------------------------------------------------------- leftovers named
+SELF_LOOP_G2O = (
+    "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_SE2 2 2 0 0\n"
+    "EDGE_SE2 0 1 1 0 0 100 0 0 100 0 100\nEDGE_SE2 1 2 1 0 0 100 0 0 100 0 100\n"
+    "EDGE_SE2 2 2 0.5 0 0 100 0 0 100 0 100\n"
+)
+
+
+@pytest.mark.parametrize("command", [["check"], ["convert", "g2o"], ["solve"]])
+def test_a_self_loop_is_refused_with_its_line(world, command):
+    (world / "loop.g2o").write_text(SELF_LOOP_G2O)
+    out = ["-o", world / "out"] if command[0] != "check" else []
+    refused_intact([*command, world / "loop.g2o", *out], world, "loop.g2o:6: edge from vertex 2 to itself")
+
+
+def test_a_command_solution_far_away_names_the_program_and_its_file(world):
+    (world / "far.py").write_text(
+        "import sys\n"
+        "with open(sys.argv[1]) as f, open(sys.argv[2], 'w') as g:\n"
+        "    for line in f:\n"
+        "        p = line.split()\n"
+        "        if p and p[0] == 'VERTEX_SE2':\n"
+        "            g.write(f'VERTEX_SE2 {p[1]} 1e300 0 0\\n')\n"
+    )
+    (world / "line.g2o").write_text(SELF_LOOP_G2O.rsplit("EDGE_SE2 2 2", 1)[0])
+    import sys
+
+    cmd = f"{sys.executable} {world / 'far.py'} {{input}} {{output}}"
+    err = refused_intact(
+        ["solve", world / "line.g2o", "-o", world / "out", "--method", "command", "--command", cmd],
+        world,
+        "solution.g2o written by",
+    )
+    assert "vertex 0 is not finite or lies beyond" in err and "(3 such vertices)" in err
