@@ -9,9 +9,9 @@ An installed package declares them in its ``pyproject.toml``::
 
 The command line lists them by their entry-point names, read from the installed packages'
 ``entry_points.txt`` files (:func:`plugin_names`: a listing of each folder of ``sys.path`` and a read
-of those files, a few milliseconds; ``importlib.metadata.entry_points()`` parses every package's
-metadata, 0.1 s on this VM, too much for every start of the command line), nothing imported; a plug-in is imported only when it is used, and one that fails to import is a
-one-line :class:`~studio.core.errors.ConfigError` naming it, never a traceback. A built-in name wins
+of those files; ``importlib.metadata.entry_points()`` parses every installed package's metadata,
+too slow for every start of the command line), nothing imported; a plug-in is imported only when it
+is used, and one that fails to import is a one-line :class:`~studio.core.errors.ConfigError` naming it, never a traceback. A built-in name wins
 over a plug-in of the same name (``studio plugins`` says so).
 """
 
