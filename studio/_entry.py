@@ -13,10 +13,6 @@ numpy loads: the studio spreads work over processes, never over BLAS threads (it
 7x7), and OpenBLAS's idle thread spins after start-up, taking a core from the command's own work
 on a small machine (docs/performance.md).
 
-A command whose outputs are all durable and closed (``studio synth``) may have the process end with
-``os._exit(0)`` once it has returned successfully, skipping the interpreter's teardown
-(:mod:`studio.runtime.fast_exit`).
-
 And it turns off the log lines of Rerun's SDK writer (:func:`studio.runtime.library_logs.quiet_rerun_writers`):
 on a failed write (a full disk) its file sink printed three ERROR/WARN lines with ANSI colours before
 the studio's own one line, which already says what went wrong.
@@ -30,7 +26,6 @@ import signal
 import sys
 from typing import NoReturn
 
-from studio.runtime import fast_exit
 from studio.runtime.library_logs import quiet_rerun_writers
 
 __all__ = ["main", "limit_blas_threads"]
@@ -79,7 +74,6 @@ def main() -> None:
         return
     limit_blas_threads()
     quiet_rerun_writers()
-    fast_exit.clear()
     try:
         from studio.cli import main as cli_main
     except KeyboardInterrupt:
@@ -87,15 +81,10 @@ def main() -> None:
     try:
         try:
             cli_main()
-        except SystemExit as end:
-            if end.code in (0, None):
-                fast_exit.leave_if_final()
-            raise
         except OSError as err:
             if not _stdout_broken(err):
                 raise
             _report_stdout(err)
-        fast_exit.leave_if_final()
     finally:
         # The command has finished (its outputs in place, or its error reported): a Ctrl-C now would
         # only interrupt the interpreter's exit handlers, which print "Exception ignored ..." for it.

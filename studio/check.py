@@ -40,7 +40,6 @@ from typing import Any
 
 import numpy as np
 
-from studio._callable import make_callable
 from studio.check_sightings import RangeBearingCheck, check_range_bearing, format_range_bearing_check
 from studio.core.errors import FormatError
 from studio.core.geometry import block_diagonal_where_indefinite, is_planar_se3, se3_information_to_se2
@@ -529,6 +528,3 @@ def format_check(report: CheckReport, *, per_agent: bool = False) -> str:
         lines.append(f"  ... {n - 10} more (--json lists all)")
     lines += format_range_bearing_check(report.range_bearing)
     return "\n".join(lines) + "\n"
-
-
-make_callable(__name__)  # studio.check(...) is studio.check.check(...) (studio/_callable.py)

@@ -212,7 +212,6 @@ def synth(
     Example: studio synth multi3500x8 -o out/
     """
     _tune_allocator()
-    from studio.runtime.fast_exit import outputs_final
     from studio.synth import load_synth_config, parse_seeds, synthesize, synthesize_seeds
 
     t0 = time.perf_counter()
@@ -247,7 +246,6 @@ def synth(
                 f"{cfg.name}: {_n(len(batch.written), '{n} seeds')} written, {len(batch.kept)} kept (finished before) "
                 f"in {time.perf_counter() - t0:.2f} s\n  {batch.out_dir}/seed<k>"
             )
-        outputs_final()  # every seed folder synced and in place: the process may end at once
         return
     with terminal_progress(not quiet) as progress:
         res = synthesize(cfg, out, progress=progress, **options)
@@ -262,7 +260,6 @@ def synth(
             + f") in {time.perf_counter() - t0:.2f} s\n"
             f"  {res.dataset_dir}" + "".join(f"\n  {p}" for p in (res.single_dir, res.rrd_path) if p)
         )
-    outputs_final()  # fsynced, closed and renamed into place: the process may end at once
 
 
 @app.command()

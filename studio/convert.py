@@ -32,7 +32,6 @@ from typing import Any
 
 import numpy as np
 
-from studio._callable import make_callable
 from studio.convert_config import ConvertConfig, check_source_options
 from studio.converters.build import OUTLIER_KIND, BuildResult, GraphOptions, build_graph
 from studio.converters.heading_choice import HeadingChoice, choose_heading_method
@@ -590,6 +589,3 @@ def convert_with_options(
     # the convert.json read is an input too: an output being replaced may not hold it
     read = [config] if config is not None else []
     return convert(cfg, out, force=force, warn=warn, progress=progress, rrd=rrd, max_memory_gb=memory, inputs=read)
-
-
-make_callable(__name__)  # studio.convert(...) is studio.convert.convert(...) (studio/_callable.py)

@@ -32,7 +32,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from studio._callable import make_callable
 from studio.core.alignment import Alignment
 from studio.core.errors import ConfigError, EvaluationError, OutputError
 from studio.core.model import PoseGraph
@@ -817,6 +816,3 @@ def write_evaluation_recording(
         save_evaluation_recording(staging / path.name, format_panel(ev), series, recording_id=recording_id)
     report(progress, "evaluation recording", 1, 1, "files")
     return path
-
-
-make_callable(__name__)  # studio.evaluate(...) is studio.evaluate.evaluate(...) (studio/_callable.py)

@@ -37,7 +37,6 @@ from typing import Any, Literal, get_args
 
 import numpy as np
 
-from studio._callable import make_callable
 from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.geometry import (
     block_diagonal_where_indefinite,
@@ -774,6 +773,3 @@ def _json_default(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     raise TypeError(f"not JSON: {type(value).__name__}")
-
-
-make_callable(__name__)  # studio.solve(...) is studio.solve.solve(...) (studio/_callable.py)

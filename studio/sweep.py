@@ -52,7 +52,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from studio._callable import make_callable
 from studio.core.errors import ConfigError, StudioError
 from studio.core.types import PathLike
 from studio.io.atomic import check_workspace, output_workspace, write_replacing
@@ -1020,6 +1019,3 @@ def _plots(spec: SweepSpec, out: Path, df: Any) -> list[Path]:
         plt.close(fig)
         paths.append(path)
     return paths
-
-
-make_callable(__name__)  # studio.sweep(...) is studio.sweep.sweep(...) (studio/_callable.py)

@@ -30,8 +30,8 @@ import errno
 import json
 import os
 import shutil
-import threading
 from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import IO
 
@@ -198,36 +198,22 @@ def _fsync_trees(roots: list[Path], *, sync: bool = True) -> None:
     if not sync:
         return
     todo = [(p, False) for p in files] + [(d, True) for d in dirs]
-    errors: dict[int, OSError] = {}
+    with ThreadPoolExecutor(max_workers=_SYNC_THREADS) as pool:
+        for _ in pool.map(_fsync_path, todo):  # raises a file's first error in path order
+            pass
 
-    def work() -> None:
-        while True:
-            try:
-                k = claimed.pop()
-            except IndexError:
-                return
-            path, folder = todo[k]
-            if folder:
-                _fsync_dir(path)
-                continue
-            try:
-                fd = os.open(path, os.O_RDONLY)
-                try:
-                    os.fsync(fd)
-                finally:
-                    os.close(fd)
-            except OSError as err:
-                errors[k] = err
 
-    claimed = list(range(len(todo)))[::-1]  # popped from the end: in path order
-    threads = [threading.Thread(target=work, daemon=True) for _ in range(min(_SYNC_THREADS, len(todo)) - 1)]
-    for t in threads:
-        t.start()
-    work()  # this thread takes part
-    for t in threads:
-        t.join()
-    if errors:
-        raise errors[min(errors)]
+def _fsync_path(item: tuple[Path, bool]) -> None:
+    """fsync one file (its error raised) or folder (:func:`_fsync_dir`: errors ignored)."""
+    path, folder = item
+    if folder:
+        _fsync_dir(path)
+        return
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def sync_file_system(path: PathLike) -> None:
