@@ -106,7 +106,8 @@ class World:
         vertices = np.flatnonzero((self.vertex_ns > before) & (self.vertex_ns <= t))
         own = self.edge_closure < 0
         edges = np.flatnonzero(own & (self.edge_ns > before) & (self.edge_ns <= t))
-        closure_tick = np.where(own, -1, self.delivered_tick[np.maximum(self.edge_closure, 0)])
+        closure_tick = np.full(len(own), -1, dtype=np.int64)  # a team without closures delivers none
+        closure_tick[~own] = self.delivered_tick[self.edge_closure[~own]]
         closures = np.flatnonzero(~own & (closure_tick > previous) & (closure_tick <= tick))
         return Checkpoint(
             tick,

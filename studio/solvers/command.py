@@ -80,6 +80,6 @@ def _check_coordinates(doc: G2oDocument, where: str) -> None:
     bad = np.flatnonzero(~(np.isfinite(doc.vertex_poses).all(axis=1) & (np.abs(coords) <= MAX_SOLUTION_M).all(axis=1)))
     if len(bad):
         raise FormatError(
-            f"command: {where}: vertex {int(doc.vertex_ids[bad[0]])} is not finite or lies beyond "
-            f"{MAX_SOLUTION_M:g} m ({len(bad)} such vertices)"
+            f"command: {where}: {len(bad)} vertices, from vertex {int(doc.vertex_ids[bad[0]])}, are not finite "
+            f"or lie beyond {MAX_SOLUTION_M:g} m"
         )
