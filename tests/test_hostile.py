@@ -21,6 +21,7 @@ from typer.testing import CliRunner
 
 from studio.cli import app
 from tests.conftest import DATA
+from tests.machine import bound_s
 
 HOSTILE = DATA / "hostile"
 runner = CliRunner()
@@ -148,7 +149,7 @@ def test_g2o_2gb_sparse_file_is_refused_before_reading(tmp_path):
         ds,
         f"error: {ds}/agent1/posegraph.g2o: {size} bytes is over the 1073741824 byte (1 GiB) limit of text inputs",
     )
-    assert time.perf_counter() - t0 < 5.0
+    assert time.perf_counter() - t0 < bound_s(5.0)
 
 
 # -------------------------------------------------------------- ground truth and inter-agent closures
@@ -227,7 +228,7 @@ def test_tum_2gb_sparse_file_is_refused_before_reading(tmp_path):
     convert_tum(
         tmp_path, src, f"error: {src}: 2000000000 bytes is over the 1073741824 byte (1 GiB) limit of text inputs"
     )
-    assert time.perf_counter() - t0 < 5.0
+    assert time.perf_counter() - t0 < bound_s(5.0)
 
 
 # ---------------------------------------------------------------------------------- studio synth
@@ -254,7 +255,7 @@ def test_synth_huge_json(tmp_path):
         f.truncate(2 * 10**9)  # sparse: refused from its size, never read
     t0 = time.perf_counter()
     synth(tmp_path, cfg, f"error: {cfg}: 2000000000 bytes is too large for a config (limit 16777216)")
-    assert time.perf_counter() - t0 < 5.0
+    assert time.perf_counter() - t0 < bound_s(5.0)
 
 
 def test_synth_utf16_json(tmp_path):
@@ -281,7 +282,7 @@ def test_synth_too_many_agents(tmp_path):
     cfg = copy(tmp_path, "synth_too_many_agents.json")
     t0 = time.perf_counter()
     synth(tmp_path, cfg, f"error: {cfg}: number_of_agents: 2147483647 is over the limit of 10000 agents")
-    assert time.perf_counter() - t0 < 5.0
+    assert time.perf_counter() - t0 < bound_s(5.0)
 
 
 # ------------------------------------------------------------------------------ studio convert bag
@@ -388,7 +389,7 @@ def test_ros1_bag_header_claiming_2gb(tmp_path):
     convert_bag(
         tmp_path, bag, f"error: {bag}: cannot read the bag, corrupt or truncated? (Header could not be read from file.)"
     )
-    assert time.perf_counter() - t0 < 5.0
+    assert time.perf_counter() - t0 < bound_s(5.0)
 
 
 def test_ros1_bag_connection_type_differs_from_data(tmp_path):
