@@ -20,6 +20,7 @@ when the certificate holds.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -37,7 +38,16 @@ from studio.solvers.sesync_problem import (
     rotation_matrices,
 )
 
-__all__ = ["solve_sesync", "chordal_rotations", "round_rotations", "staircase", "MAX_RANK_EXTRA"]
+__all__ = [
+    "solve_sesync",
+    "chordal_rotations",
+    "round_rotations",
+    "staircase",
+    "MAX_RANK_EXTRA",
+    "Optimum",
+    "certified_optimum",
+    "sesync_objective",
+]
 
 #: The staircase stops at rank ``d + MAX_RANK_EXTRA`` (SE-Sync's ``rmax`` is 10 for ``r0 = 5``).
 MAX_RANK_EXTRA = 7
@@ -277,3 +287,43 @@ def certificate_notes(cert: Certificate) -> dict[str, object]:
         "suboptimality_bound": cert.gap_bound,
         "verdict": cert.verdict(),
     }
+
+
+@dataclass(frozen=True)
+class Optimum:
+    """A graph's optimum of SE-Sync's objective, as the certified solve found it: ``f_star`` is the
+    global optimum when ``certified``, else only an upper bound on it."""
+
+    f_star: float
+    certified: bool
+
+    def gap(self, f: float) -> float | None:
+        """``(f - f*) / f*``, the relative distance of an estimate's ``f`` above the certified optimum;
+        None where there is no certified optimum to measure from (or ``f*`` is 0: exact data)."""
+        if not self.certified or not (self.f_star > 0.0) or not np.isfinite(f):
+            return None
+        return (f - self.f_star) / self.f_star
+
+
+def sesync_objective(problem: Problem, poses: np.ndarray) -> float:
+    """SE-Sync's ``f`` (:mod:`studio.solvers.sesync_problem`) of ``poses``, rows in ``problem``'s pose
+    kind: the objective in which a back-end's answer is compared with the certified optimum."""
+    sync = build(
+        problem.kind,
+        problem.num_vertices,
+        problem.edge_from,
+        problem.edge_to,
+        problem.measurements,
+        problem.information_upper,
+    )
+    rot, trans = rotation_matrices(problem.kind, poses)
+    return sync.full_objective(rot, trans)
+
+
+def certified_optimum(problem: Problem) -> Optimum:
+    """The certified solve's ``f`` of ``problem`` and whether it is certified (the reference a
+    benchmark's results are measured from)."""
+    notes = solve_sesync(problem, SolveOptions(max_iterations=1000)).notes
+    f_star = notes["sesync_f"]
+    assert isinstance(f_star, float)
+    return Optimum(f_star, bool(notes["certified"]))
