@@ -238,6 +238,14 @@ def _reanchor(kind: PoseKind, rot: np.ndarray, trans: np.ndarray, target: np.nda
     return out
 
 
+def _same_up_to_rotation(rows: np.ndarray, y: np.ndarray, n: int) -> bool:
+    """Whether the rounded rotations are ``O Y`` for one orthogonal ``O`` (``Y``'s ``n`` blocks are in
+    O(d) at rank d, so ``Y Y^T = n I`` and ``O = rows Y^T / n``): the certificate matrix depends on
+    ``Y^T Y`` only, so ``Y``'s certificate is then the rounded estimate's."""
+    o = rows @ y.T / n
+    return bool(np.allclose(rows, o @ y, atol=1e-10))
+
+
 def solve_sesync(problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution:
     """SE-Sync's certified solve of ``problem`` (see the module doc)."""
     try:
@@ -262,8 +270,8 @@ def solve_sesync(problem: Problem, options: SolveOptions, on_iteration: Iteratio
     y, steps, final = staircase(sync, y0, max_iterations=options.max_iterations)
     rot = round_rotations(y, sync.n, sync.d)
     rows = rot.transpose(1, 0, 2).reshape(sync.d, -1)
-    if final.certified and steps[-1]["rank"] == sync.d and np.allclose(rows, y, atol=1e-12):
-        cert = final  # rounding at rank d left Y as it was: its certificate stands
+    if final.certified and steps[-1]["rank"] == sync.d and _same_up_to_rotation(rows, y, sync.n):
+        cert = final  # rounding at rank d moved Y rigidly: S and f, hence the certificate, are Y's
     else:
         cert, _ = certify_rotations(sync, rows)  # the rounded estimate is what is certified
     poses = _reanchor(problem.kind, rot, -sync.translations(rows), problem.initial[problem.anchor], problem.anchor)
