@@ -81,9 +81,14 @@ def gaps_to_optimum(
 ) -> tuple[float | None, list[tuple[float, float | None]]]:
     """The certified optimum ``f*`` of ``problem`` (SE-Sync's objective; None when the certified solve
     is unavailable, pymanopt missing, or does not certify) and, per final estimate (rows in
-    ``problem``'s pose kind), its ``f`` and ``(f - f*) / f*`` (None without a certified ``f*``)."""
+    ``problem``'s pose kind), its ``f`` and ``(f - f*) / f*`` (None without a certified ``f*``). A
+    team whose robots never close a loop between them has no one optimum (each robot's map may move
+    rigidly against the others'): ``f`` is NaN and no gap is given."""
     from studio.solvers.sesync import certified_optimum, sesync_objective
+    from studio.solvers.validate import unreached_vertices
 
+    if len(unreached_vertices(problem)):
+        return None, [(float("nan"), None) for _ in finals]
     try:
         optimum = certified_optimum(problem)
     except ConfigError:

@@ -368,3 +368,17 @@ def test_each_back_end_reports_its_gap_to_the_certified_optimum(always, small):
     header, *rows = (always.out_dir / "summary.csv").read_text().splitlines()
     assert header.split(",")[5:7] == ["sesync_f", "gap_to_optimum"]
     assert all(float(r.split(",")[6]) == pytest.approx(runs[r.split(",")[0]].gap_to_optimum, rel=1e-8) for r in rows)
+
+
+def test_a_graph_in_pieces_has_no_gap_to_report():
+    from studio.core.model import PoseKind
+    from studio.replay.metrics import gaps_to_optimum
+    from studio.solvers.problem import Problem
+
+    # two robots that never met: two chains with no edge between them
+    poses = np.array([[0.0, 0, 0], [1, 0, 0], [5, 0, 0], [6, 0, 0]])
+    upper = np.tile([1.0, 0, 0, 1, 0, 1], (2, 1))
+    edges = np.array([[1.0, 0, 0]] * 2)
+    problem = Problem(PoseKind.SE2, poses, np.array([0, 2]), np.array([1, 3]), edges, upper, np.zeros(2, bool))
+    f_star, scored = gaps_to_optimum(problem, [poses])
+    assert f_star is None and scored[0][1] is None and np.isnan(scored[0][0])
