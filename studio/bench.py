@@ -297,13 +297,17 @@ def _sesync_f(source: str, estimate: Path) -> float:
 
 
 def _optimum_row(source: str) -> dict[str, Any]:
-    """The certified optimum of ``source``'s graph (``f_star`` None without pymanopt)."""
+    """The certified optimum of ``source``'s graph (``f_star`` None without pymanopt, or for a graph
+    no back-end can answer, whose cells then fail with the reason)."""
     from studio.solve import load_problem
     from studio.solvers.sesync import certified_optimum
+    from studio.solvers.validate import check_problem
 
     try:
-        optimum = certified_optimum(load_problem(source).problem)
-    except ConfigError as err:
+        problem = load_problem(source).problem
+        check_problem(problem, source)
+        optimum = certified_optimum(problem)
+    except StudioError as err:
         return {"f_star": None, "certified": False, "skipped": str(err)}
     return {"f_star": optimum.f_star, "certified": optimum.certified}
 

@@ -115,3 +115,13 @@ def test_each_result_reports_its_gap_to_the_certified_optimum(tmp_path):
     assert df.loc["gtsam", "gap_to_optimum"] == pytest.approx(gap, rel=1e-12)
     assert "gap_to_optimum" in res.markdown_path.read_text()
     assert len(list((tmp_path / "out" / "runs").glob("*-optimum-*.json"))) == 1
+
+
+def test_a_graph_no_back_end_can_answer_fails_its_cells_not_the_bench(tmp_path):
+    from studio.bench import _optimum_row
+
+    # two poses and no edge between them: not connected, refused before any certified solve
+    g2o = tmp_path / "apart.g2o"
+    g2o.write_text("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_SE2 2 5 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n")
+    row = _optimum_row(str(g2o))
+    assert row["f_star"] is None and "not connected" in row["skipped"]
