@@ -77,8 +77,6 @@ def dump():
         with open(os.environ["STARTUP_NOTES"], "w") as f:
             f.write(json.dumps(NOTES))
 atexit.register(dump)
-_exit = os._exit  # a successful synth leaves through os._exit (studio.runtime.fast_exit)
-os._exit = lambda code: (dump(), _exit(code))
 sys.argv = ["studio", *sys.argv[1:]]
 from studio._entry import main
 main()

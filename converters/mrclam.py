@@ -120,11 +120,14 @@ def _data_line(path: Path, row: int) -> int:
     return 0
 
 
-def _stamps_ns(seconds: np.ndarray, path: Path) -> np.ndarray:
+def _stamps_ns(seconds: np.ndarray, path: Path, rows: np.ndarray | None = None) -> np.ndarray:
+    """``seconds`` in ns; ``rows``: each value's data row in ``path`` (default: its position), so
+    the error names the file's line (a stamp on line 6 was once reported as "row 1")."""
     far = np.flatnonzero(~(np.abs(seconds) <= MAX_STAMP_S))
     if far.size:
+        row = int(far[0]) if rows is None else int(rows[far[0]])
         raise FormatError(
-            f"{path}: row {int(far[0]) + 1}: time {seconds[far[0]]:g} s is beyond the int64 nanosecond range"
+            f"{path}:{_data_line(path, row)}: time {seconds[far[0]]:g} s is beyond the int64 nanosecond range"
         )
     return np.round(seconds * 1e6).astype(np.int64) * _US
 
@@ -249,9 +252,12 @@ def read_mrclam_sightings(inputs: Sequence[PathLike], *, warn: Warn | None = Non
     table = _read_dat(bpath, 2, "MR.CLAM barcodes: subject #, barcode #")
     robot_of: dict[int, int] = {}
     landmarks: set[int] = set()
-    for lineno, (subject, barcode) in enumerate(table.tolist()):
-        if subject != int(subject) or barcode != int(barcode):
-            raise FormatError(f"{bpath}: row {lineno + 1}: subject and barcode must be integers")
+    for row, (subject, barcode) in enumerate(table.tolist()):
+        where = f"{bpath}:{_data_line(bpath, row)}"
+        if not (abs(subject) < 2**31 and abs(barcode) < 2**31) or subject != int(subject) or barcode != int(barcode):
+            raise FormatError(f"{where}: subject and barcode must be integers, got {subject:g} {barcode:g}")
+        if int(barcode) in robot_of or int(barcode) in landmarks:  # two subjects, one barcode: one was lost
+            raise FormatError(f"{where}: barcode {int(barcode)} is given to a second subject ({int(subject)})")
         if 1 <= subject <= MRCLAM_ROBOTS:
             robot_of[int(barcode)] = int(subject) - 1
         else:
@@ -268,9 +274,12 @@ def read_mrclam_sightings(inputs: Sequence[PathLike], *, warn: Warn | None = Non
             if "no data rows" not in str(err):
                 raise
             continue
-        odd = np.flatnonzero(~(np.abs(rows[:, 1]) < 2**31))
+        # a fractional barcode (5.7) was truncated to another subject's (5)
+        odd = np.flatnonzero(~(np.abs(rows[:, 1]) < 2**31) | (rows[:, 1] != np.round(rows[:, 1])))
         if odd.size:
-            raise FormatError(f"{path}: measurement {int(odd[0]) + 1}: barcode {rows[odd[0], 1]:g} is not a barcode")
+            raise FormatError(
+                f"{path}:{_data_line(path, int(odd[0]))}: barcode {rows[odd[0], 1]:g} is not a barcode (an integer)"
+            )
         codes = rows[:, 1].astype(np.int64)
         target = np.array([robot_of.get(int(c), -1) for c in codes], dtype=np.int64)
         counts["landmark_sightings"] += int(np.count_nonzero(np.isin(codes, list(landmarks))))
@@ -280,7 +289,7 @@ def read_mrclam_sightings(inputs: Sequence[PathLike], *, warn: Warn | None = Non
         if bad.size:
             raise FormatError(f"{path}:{_data_line(path, int(bad[0]))}: a negative range ({rows[bad[0], 2]:g} m)")
         sel = (target >= 0) & (target != k - 1)
-        stamps.append(_stamps_ns(rows[sel, 0], path))
+        stamps.append(_stamps_ns(rows[sel, 0], path, np.flatnonzero(sel)))
         observer.append(np.full(int(sel.sum()), k - 1, dtype=np.int64))
         observed.append(target[sel])
         rng.append(rows[sel, 2])

@@ -170,3 +170,5 @@ class GraphImportOptions:
         check_option("overlap_s", self.overlap_s)
         if self.partition != PARTITIONS[0] and not self.split:
             raise ConfigError(f"partition: {self.partition} needs a split into robots (split)", option="partition")
+        if self.overlap_s and not self.split:  # it would be silently ignored: nothing is cut
+            raise ConfigError("overlap_s: an overlap needs a split into robots (split)", option="overlap_s")

@@ -12,6 +12,7 @@ import numpy as np
 
 from studio.core.errors import FormatError
 from studio.core.types import PathLike
+from studio.io.input_files import read_input_bytes
 
 __all__ = ["read_table", "read_text_bounded"]
 
@@ -39,7 +40,7 @@ def read_text_bounded(path: Path) -> str:
     try:
         if path.stat().st_size > MAX_TABLE_BYTES:
             raise FormatError(f"{path}: larger than {MAX_TABLE_BYTES >> 30} GiB")
-        return path.read_bytes().decode("utf-8-sig")
+        return read_input_bytes(path).decode("utf-8-sig")  # a FIFO or device: refused, never waited on
     except UnicodeDecodeError as err:
         raise FormatError(f"{path}: not UTF-8 text (byte {err.start})") from None
     except OSError as err:

@@ -5,8 +5,12 @@ The main library calls, one per command (each also in its own module)::
     import studio
 
     result = studio.synthesize(studio.load_synth_config("multi3500x8"), "out/")
-    print(studio.evaluate(result.dataset_dir).overall.ape_translation_m.mean)
+    print(studio.evaluate.evaluate(result.dataset_dir).overall.ape_translation_m.mean)
     graph = studio.read_multi_g2o(result.dataset_dir)          # columns: studio.core.model.PoseGraph
+
+``studio.convert``, ``studio.evaluate``, ``studio.solve``, ``studio.check``, ``studio.bench`` and
+``studio.sweep`` are the pipeline modules of those names (as Python's import makes them once any of
+them is loaded); their functions are ``studio.evaluate.evaluate`` and so on.
 
 Names are loaded on first use, so ``import studio`` stays as light as the command line's start-up
 (numpy, evo, rerun and gtsam are imported by the calls that need them). docs/library.md lists them.
@@ -49,8 +53,8 @@ def __getattr__(name: str) -> object:
     if module is None:
         raise AttributeError(f"module 'studio' has no attribute {name!r}")
     loaded = importlib.import_module(module)
-    # a pipeline named like its function (studio.convert) is that callable module itself, which is
-    # what the name holds anyway once the module is imported (studio/_callable.py)
+    # a pipeline named like its function (studio.convert) is the module: importing a submodule
+    # binds its name in the package, so the function could not keep the name anyway
     value = loaded if module == f"studio.{name}" else getattr(loaded, name)
     globals()[name] = value
     return value

@@ -14,10 +14,6 @@ numpy loads: the studio spreads work over processes, never over BLAS threads (it
 core from the command's own work: measured on ``studio synth multi10000x5``, 0.2-0.3 s less CPU and
 about 0.1 s less wall time with one thread.
 
-A command whose outputs are all durable and closed (``studio synth``) may have the process end with
-``os._exit(0)`` once it has returned successfully, skipping the interpreter's teardown
-(:mod:`studio.runtime.fast_exit`: 50-65 ms of a Multi10000x5 run).
-
 And it turns off the log lines of Rerun's SDK writer (:func:`studio.runtime.library_logs.quiet_rerun_writers`):
 on a failed write (a full disk) its file sink printed three ERROR/WARN lines with ANSI colours before
 the studio's own one line, which already says what went wrong.
@@ -31,7 +27,6 @@ import signal
 import sys
 from typing import NoReturn
 
-from studio.runtime import fast_exit
 from studio.runtime.library_logs import quiet_rerun_writers
 
 __all__ = ["main", "limit_blas_threads"]
@@ -80,7 +75,6 @@ def main() -> None:
         return
     limit_blas_threads()
     quiet_rerun_writers()
-    fast_exit.clear()
     try:
         from studio.cli import main as cli_main
     except KeyboardInterrupt:
@@ -88,15 +82,10 @@ def main() -> None:
     try:
         try:
             cli_main()
-        except SystemExit as end:
-            if end.code in (0, None):
-                fast_exit.leave_if_final()
-            raise
         except OSError as err:
             if not _stdout_broken(err):
                 raise
             _report_stdout(err)
-        fast_exit.leave_if_final()
     finally:
         # The command has finished (its outputs in place, or its error reported): a Ctrl-C now would
         # only interrupt the interpreter's exit handlers, which print "Exception ignored ..." for it.

@@ -38,7 +38,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from studio._callable import make_callable
 from studio.core.errors import ConfigError, StudioError
 from studio.core.types import PathLike
 from studio.io.atomic import check_workspace, output_workspace, write_replacing
@@ -606,6 +605,3 @@ def _plot(spec: BenchSpec, out: Path, rows: list[dict[str, Any]]) -> Path | None
     write_replacing(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
     plt.close(fig)
     return path
-
-
-make_callable(__name__)  # studio.bench(...) is studio.bench.bench(...) (studio/_callable.py)

@@ -20,7 +20,6 @@ from typing import Any
 
 import numpy as np
 
-from studio._callable import make_callable
 from studio.core.errors import EvaluationError, FormatError
 from studio.core.geometry import se3_poses_to_planar
 from studio.core.model import PoseKind
@@ -156,6 +155,3 @@ def certify(dataset: PathLike, estimate: PathLike, *, dimension: str = "auto") -
         cert.certified,
         time.perf_counter() - t0,
     )
-
-
-make_callable(__name__)

@@ -40,7 +40,6 @@ from typing import Any
 
 import numpy as np
 
-from studio._callable import make_callable
 from studio.check_sightings import RangeBearingCheck, check_range_bearing, format_range_bearing_check
 from studio.core.errors import FormatError
 from studio.core.geometry import block_diagonal_where_indefinite, is_planar_se3, se3_information_to_se2
@@ -292,10 +291,12 @@ def check(
         raise ConfigError(f"convention: expected g2o or rotvec, got {convention!r}")
     folder = Path(dataset)
     notes: list[str] = []
+    graph = None
     if folder.is_file():
         kind, truth, edge_sets, names, notes = _single_g2o(folder, warn)
     else:
-        kind, truth, edge_sets, names = _multi_g2o(read_multi_g2o(folder), folder, notes)
+        graph = read_multi_g2o(folder)
+        kind, truth, edge_sets, names = _multi_g2o(graph, folder, notes)
     edge_sets = _weighable(edge_sets, kind, notes)
     listed = _read_listed_outliers(folder, [len(t) for t in truth]) if folder.is_dir() else None
     planar = (
@@ -312,6 +313,8 @@ def check(
     order = np.argsort(-edges.total[flagged], kind="stable")
     candidates = np.column_stack([edges.rows[flagged][order].astype(np.float64), edges.total[flagged][order]])
     classes = _class_checks(edges, flagged, names, d=d, dt=2 if checked is PoseKind.SE2 else 3)
+    if graph is not None:
+        classes += _prior_check(folder, graph, truth, planar=planar, convention=convention)
     listed_n = listed_flagged = None
     if listed is not None:
         listed_n = len(listed)
@@ -321,6 +324,18 @@ def check(
     return CheckReport(
         str(folder), checked, convention, tuple(classes), candidates, listed_n, listed_flagged, tuple(notes), sightings
     )
+
+
+def _edge_file(folder: Path, a_from: int, a_to: int) -> Path:
+    """The file holding an edge from agent ``a_from`` to ``a_to``: the agent's ``posegraph.g2o`` or
+    ``inter_agent_lc.dat`` of a multi-g2o folder; a single g2o file itself."""
+    if folder.is_file():
+        return folder
+    if a_from != a_to:
+        return folder / "inter_agent_lc.dat"
+    from studio.io.multig2o import agent_folders
+
+    return agent_folders(folder)[a_from][1] / "posegraph.g2o"
 
 
 def _edge_chi2(
@@ -354,7 +369,8 @@ def _edge_chi2(
         if len(bad):
             k = int(bad[0])
             raise FormatError(
-                f"{folder}: {name} edge {names[int(np.asarray(a_from)[k])]} vertex {int(v_from[k])} -> "
+                f"{_edge_file(folder, int(np.asarray(a_from)[k]), int(np.asarray(a_to)[k]))}: {name} edge "
+                f"{names[int(np.asarray(a_from)[k])]} vertex {int(v_from[k])} -> "
                 f"{names[int(np.asarray(a_to)[k])]} vertex {int(v_to[k])}: the information matrix is not positive "
                 f"definite ({len(bad)} such edges); chi2 cannot judge it"
             )
@@ -378,6 +394,41 @@ def _edge_chi2(
         np.concatenate(ttrans),
         np.concatenate(trot),
     )
+
+
+def _prior_check(
+    folder: Path, graph: Any, truth: list[np.ndarray], *, planar: bool, convention: Convention
+) -> list[ClassCheck]:
+    """The dataset's pose priors (``priors.txt``, COSMO-Bench's ``PriorFactorPose3``) at the ground
+    truth, as one class ``priors``: each prior is a measurement of its pose from the origin."""
+    from studio.core.geometry import se3_poses_to_planar
+    from studio.io.priors_txt import PRIORS_NAME, read_priors_txt
+
+    if not (folder / PRIORS_NAME).is_file():
+        return []
+    priors = read_priors_txt(folder / PRIORS_NAME, graph)
+    if not len(priors):
+        return []
+    poses = np.array([truth[a][v] for a, v in zip(priors.agent.tolist(), priors.index.tolist())])
+    values, upper = priors.poses, priors.information_upper
+    if planar:
+        poses, values, upper = se3_poses_to_planar(poses), se3_poses_to_planar(values), se3_information_to_se2(upper)
+    origin = np.zeros_like(poses)
+    origin[:, -1] = 1.0 if not planar and graph.kind is PoseKind.SE3 else 0.0  # the identity (qw = 1)
+    e = edge_errors(origin, poses, values, convention=convention)
+    t, r = chi2_parts(e, upper)
+    n, d = len(priors), e.shape[1]
+    dt = 2 if d == 3 else 3
+    return [
+        ClassCheck(
+            "priors",
+            "all",
+            n,
+            Component(float(chi2_terms(e, upper).sum()), n * d),
+            Component(float(t.sum()), n * dt),
+            Component(float(r.sum()), n * (d - dt)),
+        )
+    ]
 
 
 def _outlier_candidates(edges: _EdgeChi2, d: int) -> np.ndarray:
@@ -477,6 +528,3 @@ def format_check(report: CheckReport, *, per_agent: bool = False) -> str:
         lines.append(f"  ... {n - 10} more (--json lists all)")
     lines += format_range_bearing_check(report.range_bearing)
     return "\n".join(lines) + "\n"
-
-
-make_callable(__name__)  # studio.check(...) is studio.check.check(...) (studio/_callable.py)

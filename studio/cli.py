@@ -23,6 +23,7 @@ from studio.core.alignment import Alignment
 from studio.core.comms_registry import DEFAULT_COMMS, comms_help
 from studio.core.conventions import DEFAULT_CONVENTION, Convention
 from studio.core.errors import StudioError
+from studio.core.plugins import SOLVE_METHODS, plugin_names
 from studio.core.preset_names import PRESET_NAMES
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.runtime.progress import terminal_progress
@@ -93,6 +94,25 @@ def _as_flags(err: StudioError) -> str:
 _HELD_WARNINGS: list[list[str]] = []
 
 
+def _one_line(text: str) -> str:
+    """``text`` with its line breaks, NUL and other control characters escaped (``\\n``): a
+    message quoting a value the user gave (an option, a name from data) stays one line."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def _output_not_cwd(out: Path) -> None:
+    """Refuse ``-o`` naming the current folder or one of its parents (``-o .``) in one line that
+    names the option, before the command reads anything (the guard refuses it too, naming only
+    the resolved folder)."""
+    import os
+
+    from studio.core.errors import OutputError
+
+    here, target = Path(os.path.realpath(os.getcwd())), Path(os.path.realpath(os.path.abspath(out)))
+    if target == here or target in here.parents:
+        raise OutputError(f"-o {out}: is the current folder or one of its parents; name a new folder inside it")
+
+
 def cli_errors(func):
     """Turn a StudioError into one line on stderr and exit code 2 (no traceback). The command's
     warnings are held until it ends: printed after it succeeds, dropped when it fails on bad input,
@@ -107,7 +127,7 @@ def cli_errors(func):
             return func(*args, **kwargs)
         except StudioError as err:
             held.clear()
-            typer.echo(f"error: {_as_flags(err)}", err=True)
+            typer.echo(f"error: {_one_line(_as_flags(err))}", err=True)
             raise typer.Exit(2) from None
         finally:
             _HELD_WARNINGS.pop()
@@ -177,12 +197,24 @@ def synth(
     Example: studio synth multi3500x8 -o out/
     """
     _tune_allocator()
-    from studio.runtime.fast_exit import outputs_final
     from studio.synth import load_synth_config, parse_seeds, synthesize, synthesize_seeds
 
     t0 = time.perf_counter()
     cfg = load_synth_config(config, warn=_warn)
+    if Path(config).exists():  # a config over the limits is named by its file, not its name alone
+        from studio.core.errors import ConfigError
+        from studio.core.option_values import check_option
+        from studio.synth import check_resources
+
+        check_option("max_memory_gb", max_memory_gb, allow_zero=False)
+        check_option("max_output_gb", max_output_gb, allow_zero=False)
+        try:
+            check_resources(cfg, max_memory_gb=max_memory_gb, max_output_gb=max_output_gb)
+        except ConfigError as err:
+            raise ConfigError(f"{config}: {str(err).removeprefix(cfg.name + ': ')}", option=err.option) from None
     options: dict[str, Any] = {
+        # the config file is an input: an output being replaced may not hold it
+        "inputs": [Path(config)] if Path(config).exists() else [],
         "force": force,
         "multi_records": multi_records.value,
         "single_records": single_records.value,
@@ -199,7 +231,6 @@ def synth(
                 f"{cfg.name}: {len(batch.written)} seeds written, {len(batch.kept)} kept (finished before) "
                 f"in {time.perf_counter() - t0:.2f} s\n  {batch.out_dir}/seed<k>"
             )
-        outputs_final()  # every seed folder synced and in place: the process may end at once
         return
     with terminal_progress(not quiet) as progress:
         res = synthesize(cfg, out, progress=progress, **options)
@@ -214,7 +245,6 @@ def synth(
             + f") in {time.perf_counter() - t0:.2f} s\n"
             f"  {res.dataset_dir}" + "".join(f"\n  {p}" for p in (res.single_dir, res.rrd_path) if p)
         )
-    outputs_final()  # fsynced, closed and renamed into place: the process may end at once
 
 
 @app.command()
@@ -444,8 +474,6 @@ def convert(
     config: Path = typer.Option(
         None,
         "--config",
-        exists=True,
-        dir_okay=False,
         help="A convert.json: reproduce its dataset (options given here win).",
     ),
     force: bool = typer.Option(False, "--force", help="Replace an existing dataset folder."),
@@ -461,6 +489,7 @@ def convert(
     studio convert bag run.bag --agent alpha=/alpha/odom --agent bob=/tf:odom:bob/base_link -o out/ds ;
     studio convert --config out/ds/convert.json -o out/ds2
     """
+    _output_not_cwd(out)
     _tune_allocator()
     from studio.convert import convert_with_options
 
@@ -598,6 +627,7 @@ def export(
 
     Example: studio export out/multi3500x8 --format symbols -o out/multi3500x8_symbols
     """
+    _output_not_cwd(out)
     from studio.core.errors import ConfigError
     from studio.export import EXPORT_FORMATS, export_dataset
 
@@ -612,7 +642,9 @@ def export(
 # --- studio solve -------------------------------------------------------------------------------
 # The methods, their help, defaults and the options each reads come from studio.solvers' registry.
 
-MethodChoice = _choices("MethodChoice", METHODS)
+#: Solve methods of installed plug-ins (entry-point names; imported only when used).
+_SOLVE_PLUGINS = [name for name in plugin_names(SOLVE_METHODS) if name not in METHODS]
+MethodChoice = _choices("MethodChoice", [*METHODS, *_SOLVE_PLUGINS])
 OptimizerChoice = _choices("OptimizerChoice", get_args(Optimizer))
 InitChoice = _choices("InitChoice", get_args(Init))
 
@@ -647,7 +679,9 @@ def solve(
         DEFAULT_METHOD,
         "--method",
         "-m",
-        help=", ".join(f"{name} ({entry.help})" for name, entry in METHODS.items()) + ".",
+        help=", ".join(f"{name} ({entry.help})" for name, entry in METHODS.items())
+        + "".join(f", {name} (plug-in)" for name in _SOLVE_PLUGINS)
+        + ".",
     ),
     optimizer: OptimizerChoice = typer.Option(  # type: ignore[valid-type]
         SolveOptions().optimizer,
@@ -682,6 +716,7 @@ def solve(
     Example: studio solve out/multi3500x8 -o out/multi3500x8-solved ; then
     studio evaluate out/multi3500x8 --estimate out/multi3500x8-solved/estimate --align se3
     """
+    _output_not_cwd(out)
     from studio.io.strict_json import dumps_strict
     from studio.solve import solve as run_solve
 
@@ -709,6 +744,16 @@ def solve(
         f"{res.chi2_final:.6g} (dead reckoning {res.chi2_dataset:.6g}){rejected}, {res.seconds:.2f} s\n"
         f"  {res.estimate_path}" + ("" if res.rrd_path is None else f"\n  {res.rrd_path}")
     )
+    if res.gauge is not None:
+        typer.echo(f"  gauge: {res.gauge['note']}")
+    if res.outliers is not None:
+        o = res.outliers
+        typer.echo(
+            f"  labelled outliers: {o['rejected_labelled']} of {o['labelled']} rejected; precision "
+            + ("-" if o["precision"] is None else f"{o['precision']:.3f}")
+            + ", recall "
+            + ("-" if o["recall"] is None else f"{o['recall']:.3f}")
+        )
     if "rounds" in res.solution.notes:  # a method that works in rounds (dgs) says how they went
         notes = res.solution.notes
         typer.echo(
@@ -763,12 +808,16 @@ def replay(
     rrd: Path | None = typer.Option(None, "--rrd", help="Also write the replay as a Rerun recording (.rrd)."),
     parquet: bool = typer.Option(False, "--parquet", help="Also write each CSV table as Parquet (needs pyarrow)."),
     force: bool = typer.Option(False, "--force", help="Replace an existing OUT (and --rrd file)."),
+    time_limit: float | None = typer.Option(
+        None, "--time-limit", help="Seconds a command: back-end may take per checkpoint [s] (default 60)."
+    ),
 ) -> None:
     """Replay a dataset in time: each robot's measurements at their times, inter-agent closures when
     the communication model delivers them, through incremental and distributed back-ends.
 
     Example: studio replay out/multi3500x8 --comms range:20 -o out/replay-range20
     """
+    _output_not_cwd(out)
     from studio.core.option_values import check_count
     from studio.replay import DEFAULT_BACKENDS
     from studio.replay import replay as run_replay
@@ -792,6 +841,7 @@ def replay(
             force=force,
             rrd=rrd,
             parquet=parquet,
+            time_limit_s=time_limit,
             progress=progress,
             warn=_warn,
         )
@@ -810,6 +860,28 @@ def replay(
 
 
 ConventionChoice = _choices("ConventionChoice", get_args(Convention))
+
+
+@app.command()
+@cli_errors
+def plugins() -> None:
+    """List the replay back-ends and solve methods that installed packages declare as entry points
+    (groups studio.replay_backends, studio.solve_methods), without importing them.
+
+    Example: studio plugins ; then studio replay DATASET -b NAME -o out/replay-NAME
+    """
+    from studio.core.plugins import GROUPS
+    from studio.core.plugins import plugins as declared
+    from studio.replay.registry import BACKENDS
+    from studio.solvers import METHODS as BUILT_IN
+
+    built_in = {group: BACKENDS if kind == "replay back-end" else BUILT_IN for group, kind in GROUPS.items()}
+    for group in GROUPS:
+        found = declared(group)
+        typer.echo(f"{group}: {len(found)} plug-in{'s' * (len(found) != 1)}")
+        for p in found:
+            shadowed = " (shadowed by the built-in of that name)" if p.name in built_in[group] else ""
+            typer.echo(f"  {p.name}  {p.value}  from {p.package}{shadowed}")
 
 
 @app.command()
@@ -869,6 +941,7 @@ def bench(
 
     Cells already finished in OUT are not run again. Example: studio bench paper -o out/bench
     """
+    _output_not_cwd(out)
     from studio.bench import bench as run_bench
     from studio.bench import format_paper_table, load_bench_spec
 
@@ -902,6 +975,7 @@ def sweep(
 
     Finished cells are not run again. Example: studio sweep radius.toml -o out/sweep --workers 2
     """
+    _output_not_cwd(out)
     from studio.sweep import load_sweep_spec
     from studio.sweep import sweep as run_sweep
 

@@ -25,14 +25,13 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import json
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from studio._callable import make_callable
 from studio.convert_config import ConvertConfig, check_source_options
 from studio.converters.build import OUTLIER_KIND, BuildResult, GraphOptions, build_graph
 from studio.converters.heading_choice import HeadingChoice, choose_heading_method
@@ -66,10 +65,11 @@ from studio.core.types import PathLike
 from studio.core.units import DEFAULT_MAX_MEMORY_GB
 from studio.graph_import import ImportResult, import_graph
 from studio.io.atomic import check_not_overlapping, staged_outputs
+from studio.io.input_files import read_input_bytes
 from studio.io.multig2o import write_multi_g2o
 from studio.io.outliers_txt import write_outliers_txt
 from studio.io.range_bearing import RANGE_BEARING_NAME, write_range_bearing
-from studio.io.strict_json import dumps_strict
+from studio.io.strict_json import dumps_strict, unique_keys
 from studio.io.textfmt import write_text
 from studio.runtime.progress import Progress
 
@@ -180,15 +180,19 @@ def config_from_mapping(data: Mapping[str, Any], where: str = "config") -> Conve
 def read_convert_config(path: PathLike) -> ConvertConfig:
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_input_bytes(path).decode("utf-8")  # a FIFO or device: refused, never waited on
+    except FormatError as err:
+        raise ConfigError(str(err)) from None
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError) as err:
         raise ConfigError(f"{path}: cannot read ({err})") from None
     try:
-        data = json.loads(text)
+        data = json.loads(text, object_pairs_hook=unique_keys)
     except json.JSONDecodeError as err:
         raise ConfigError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
+    except ValueError as err:  # a key given twice: the decoder would keep the last silently
+        raise ConfigError(f"{path}: not valid JSON ({err})") from None
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a JSON object")
     return config_from_mapping(data, str(path))
@@ -315,6 +319,7 @@ def convert(
     recorder: Callable[[PoseGraph, Path], None] | None = None,
     rrd: bool = True,
     max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
+    inputs: Iterable[PathLike] = (),
 ) -> ConvertResult:
     """Read ``cfg``'s sources, build the graph and write the dataset folder ``out``.
 
@@ -323,7 +328,8 @@ def convert(
     dataset while it is still in the staging folder, so they appear atomically with the rest; the
     keyframes' real stamps are ``graph.agents[k].stamps_ns``. With ``rrd`` (the default) the Rerun
     recording ``OUT/<name>.rrd`` is written inside the dataset folder the same way. A loop-closure
-    search estimated to need more than ``max_memory_gb`` is refused before it starts.
+    search estimated to need more than ``max_memory_gb`` is refused before it starts. ``inputs``:
+    files read besides ``cfg``'s (the ``convert.json`` it came from), which ``out`` may not hold.
     """
     out = Path(out).absolute()
     if out.name in ("", ".", ".."):
@@ -333,7 +339,8 @@ def convert(
     check_option("max_memory_gb", max_memory_gb, allow_zero=False)
     cfg = _resolve_inputs(cfg)
     odometry_inputs = [parse_odometry_spec(spec)[1] for spec in cfg.odometry_from]
-    check_not_overlapping([out], [*cfg.inputs, *odometry_inputs])
+    read: list[PathLike] = [*cfg.inputs, *odometry_inputs, *inputs]
+    check_not_overlapping([out], read)
     warnings: list[str] = []
 
     def _warn(msg: str) -> None:
@@ -343,7 +350,7 @@ def convert(
 
     check_inputs(cfg.source, cfg.inputs, cfg.agents)
     built = _read_and_build(cfg, _warn, progress, max_memory_gb)
-    with staged_outputs(out.parent, [out.name], force=force, inputs=[*cfg.inputs, *odometry_inputs]) as staging:
+    with staged_outputs(out.parent, [out.name], force=force, inputs=read) as staging:
         ds = staging / out.name
         ds.mkdir()
         _write_dataset(cfg, built, ds, warnings, progress)
@@ -501,7 +508,10 @@ def _real_measurements(
         names = {t.name for t in read}
         for name in sources:
             if name not in names:
-                raise ConfigError(f"odometry_from: no agent {name!r} (agents: {', '.join(t.name for t in read)})")
+                raise ConfigError(
+                    f"odometry_from: no agent {name!r} (agents: {', '.join(t.name for t in read)})",
+                    option="odometry_from",
+                )
     fits: list[OdometryFit] = []
     if sources:
         graph, fits = apply_odometry_sources(build.graph, sources)
@@ -576,7 +586,6 @@ def convert_with_options(
         check_source_options(name, options, synthesize=True, base=values)
     memory = options.pop("max_memory_gb", DEFAULT_MAX_MEMORY_GB)
     cfg = _merged_config(source, inputs, options, base)
-    return convert(cfg, out, force=force, warn=warn, progress=progress, rrd=rrd, max_memory_gb=memory)
-
-
-make_callable(__name__)  # studio.convert(...) is studio.convert.convert(...) (studio/_callable.py)
+    # the convert.json read is an input too: an output being replaced may not hold it
+    read = [config] if config is not None else []
+    return convert(cfg, out, force=force, warn=warn, progress=progress, rrd=rrd, max_memory_gb=memory, inputs=read)

@@ -32,12 +32,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from studio._callable import make_callable
 from studio.core.alignment import Alignment
 from studio.core.errors import ConfigError, EvaluationError, OutputError
 from studio.core.model import PoseGraph
 from studio.core.types import PathLike
-from studio.core.units import NS_PER_S
+from studio.core.units import MAX_MAGNITUDE, NS_PER_S
 from studio.runtime.progress import Progress, report
 
 if TYPE_CHECKING:
@@ -210,6 +209,11 @@ def _matched(
             src = graph.metadata.get("source")
             hint = f" ({Path(src) / agent.name / (agent.name + '_GT.tum')} is missing)" if src else ""
             raise EvaluationError(f"{agent.name}: no ground truth{hint}")
+        far = np.flatnonzero(~(np.abs(agent.ground_truth[:, :3]) <= MAX_MAGNITUDE).all(axis=1))
+        if far.size:  # else the estimate was blamed for the error it made not finite
+            src = graph.metadata.get("source")
+            where = f"{Path(src) / agent.name / (agent.name + '_GT.tum')}" if src else f"{agent.name}'s ground truth"
+            raise EvaluationError(f"{where}: pose {int(far[0])} lies beyond {MAX_MAGNITUDE:g} m")
         if estimate is None:
             out.append((agent.ground_truth, agent.initial, agent.stamps_ns, np.arange(agent.num_poses)))
             continue
@@ -582,14 +586,17 @@ def evaluate(
     """
     from studio.io.estimate import read_estimate
     from studio.io.multig2o import read_multi_g2o
-    from studio.io.singleg2o import read_single_g2o_dataset
 
     check_alignment(align, align_per_agent)  # before any reading
     step = "evaluate"
     report(progress, step, 0, 3, "stages")
-    graph = read_single_g2o_dataset(dataset) if Path(dataset).is_file() else read_multi_g2o(dataset, edges=False)
+    vertex_ids = None
+    if Path(dataset).is_file():
+        graph, vertex_ids = _single_dataset(Path(dataset))
+    else:
+        graph = read_multi_g2o(dataset, edges=False)
     report(progress, step, 1, 3, "stages")
-    est = None if estimate is None else read_estimate(estimate, graph)
+    est = None if estimate is None else read_estimate(estimate, graph, vertex_ids=vertex_ids)
     report(progress, step, 2, 3, "stages")
     ev = score(
         graph,
@@ -606,6 +613,41 @@ def evaluate(
     )
     report(progress, step, 3, 3, "stages")
     return ev
+
+
+def _single_dataset(path: Path) -> tuple[PoseGraph, np.ndarray | None]:
+    """A single g2o file as every command reads it (:func:`studio.converters.g2o.read_single_g2o`:
+    its ids renumbered ``0..n-1`` in increasing order), one agent named ``<stem>`` scored against
+    ``<stem>_GT.tum`` beside it (one pose per vertex in id order; its stamps where they increase,
+    else the id in seconds). Returns the graph and the file's ids where they are not ``0..n-1``
+    (a g2o estimate of it is read by the same ids)."""
+    from studio.converters.g2o import read_single_g2o, truth_file
+    from studio.core.errors import FormatError
+    from studio.core.model import AgentGraph, Edges, InterAgentEdges, PoseKind
+    from studio.io.tum import read_tum
+
+    gt_path = truth_file(path)
+    if gt_path is None:
+        raise FormatError(f"{path}: no ground truth beside it ({path.stem}_GT.tum); a dataset is scored against it")
+    single = read_single_g2o(path)
+    n = len(single.initial)
+    ids = np.arange(n) if single.vertex_ids is None else single.vertex_ids
+    stamps = single.stamps_ns
+    if n > 1 and np.any(np.diff(stamps) <= 0):
+        stamps = np.arange(n, dtype=np.int64) * NS_PER_S
+    planar = single.kind is PoseKind.SE2
+    agent = AgentGraph(
+        path.stem,
+        single.kind,
+        stamps,
+        single.initial,
+        single.ground_truth,
+        Edges.empty(single.kind),
+        Edges.empty(single.kind),
+        ground_truth_se3=read_tum(gt_path).poses_xyz_quat_xyzw if planar else None,
+    )
+    graph = PoseGraph(single.kind, (agent,), InterAgentEdges.empty(single.kind), metadata={"source": str(path)})
+    return graph, None if np.array_equal(ids, np.arange(n)) else ids
 
 
 # ---------------------------------------------------------------------------------------------- output
@@ -774,6 +816,3 @@ def write_evaluation_recording(
         save_evaluation_recording(staging / path.name, format_panel(ev), series, recording_id=recording_id)
     report(progress, "evaluation recording", 1, 1, "files")
     return path
-
-
-make_callable(__name__)  # studio.evaluate(...) is studio.evaluate.evaluate(...) (studio/_callable.py)

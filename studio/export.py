@@ -35,6 +35,7 @@ from studio.io.dpgo import contiguous_split, write_dpgo_csv_folder, write_dpgo_g
 from studio.io.graph_table import graph_edge_table, information_matrix
 from studio.io.jrl import write_jrl
 from studio.io.multig2o import read_multi_g2o
+from studio.io.names import check_name_component
 from studio.io.outliers_txt import POTENTIAL_OUTLIERS_NAME, read_outlier_kinds, write_outliers_txt
 from studio.io.priors_txt import PRIORS_NAME, read_priors_txt
 from studio.io.range_bearing import RANGE_BEARING_NAME, read_range_bearing
@@ -223,6 +224,9 @@ def export_dataset(
     if format not in EXPORT_FORMATS:
         raise ConfigError(f"unknown export format {format!r} (known: {', '.join(EXPORT_FORMATS)})", option="format")
     spec = EXPORT_FORMATS[format]
+    if name is not None:
+        # the name becomes a file (``NAME.g2o``): ``../../DS/agent1/posegraph`` once replaced the input
+        check_name_component(name, what="--name", option="name")
     dataset = Path(dataset)
     out = Path(out).absolute()
     if out.name in ("", ".", ".."):

@@ -36,6 +36,7 @@ from studio.converters.registry import check_inputs, get_source
 from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.model import PoseGraph, PoseKind, RangeBearing
 from studio.core.types import PathLike
+from studio.core.units import MAX_MAGNITUDE
 from studio.io.atomic import check_not_overlapping, staged_outputs
 from studio.io.multig2o import write_multi_g2o
 from studio.io.outliers_txt import POTENTIAL_HEAD, POTENTIAL_OUTLIERS_NAME, write_outliers_txt
@@ -65,6 +66,31 @@ def graph_source_names() -> list[str]:
     from studio.converters.registry import SOURCES
 
     return [name for name, src in SOURCES.items() if src.read_graph is not None]
+
+
+def _check_magnitudes(graph: PoseGraph, where: str) -> None:
+    """Every pose and measurement translation within the documented bound (``MAX_MAGNITUDE``,
+    1e9 m), whichever reader made the graph: a measurement of 1e300 m was imported as data."""
+    from studio.io.graph_table import graph_edge_table
+
+    width = 2 if graph.kind is PoseKind.SE2 else 3
+    table = graph_edge_table(graph)
+    bad = np.flatnonzero((np.abs(table.measurements[:, :width]) > MAX_MAGNITUDE).any(axis=1))
+    if bad.size:
+        k = int(bad[0])
+        a, i = graph.agents[table.from_agent[k]].name, int(table.from_index[k])
+        b, j = graph.agents[table.to_agent[k]].name, int(table.to_index[k])
+        raise FormatError(
+            f"{where}: the measurement from {a} pose {i} to {b} pose {j} is beyond {MAX_MAGNITUDE:g} m "
+            f"({table.measurements[k, :width].tolist()})"
+        )
+    for agent in graph.agents:
+        for truth in (False, True):
+            poses = agent.se3_poses(ground_truth=truth)
+            far = np.zeros(0) if poses is None else np.flatnonzero((np.abs(poses[:, :3]) > MAX_MAGNITUDE).any(axis=1))
+            if far.size:
+                what = "ground-truth pose" if truth else "pose"
+                raise FormatError(f"{where}: {agent.name} {what} {int(far[0])} lies beyond {MAX_MAGNITUDE:g} m")
 
 
 def import_graph(
@@ -119,6 +145,7 @@ def import_graph(
         except np.linalg.LinAlgError as err:
             raise FormatError(f"{', '.join(Path(p).name for p in paths)}: a singular matrix ({err})") from None
     graph, outliers, sightings = imported.graph, imported.outliers, imported.range_bearing
+    _check_magnitudes(graph, ", ".join(Path(p).name for p in paths))
     meta = {
         "format": _FORMAT,
         "source": source,

@@ -37,7 +37,6 @@ from typing import Any, Literal, get_args
 
 import numpy as np
 
-from studio._callable import make_callable
 from studio.core.errors import ConfigError, FormatError, OutputError
 from studio.core.geometry import (
     block_diagonal_where_indefinite,
@@ -56,7 +55,16 @@ from studio.io.estimate import SOLVE_JSON
 from studio.io.names import safe_file_name, safe_file_names
 from studio.io.strict_json import dumps_strict
 from studio.solvers import DEFAULT_METHOD, SolveMethod, method_entry
-from studio.solvers.problem import Init, Iteration, Optimizer, Problem, Solution, SolveOptions, graph_chi2
+from studio.solvers.problem import (
+    Init,
+    Iteration,
+    Optimizer,
+    Problem,
+    Solution,
+    SolveOptions,
+    VertexPriors,
+    graph_chi2,
+)
 from studio.solvers.validate import check_problem, check_solution
 
 __all__ = ["SolveResult", "solve", "load_problem", "graph_problem", "Dimension", "SOLVE_JSON"]
@@ -102,9 +110,19 @@ class SolveResult:
     ape_per_round: dict[str, list[float]] | None = None
     """``dgs`` with ground truth: the round numbers and the translation APE [m] (mean and RMSE,
     ``first-pose`` and ``se3`` aligned) after each of them (round 0: the dataset's values)."""
+    gauge: dict[str, Any] | None = None
+    """A graph with priors or in several pieces: its pieces, priors and held vertices, and one note
+    line (:func:`_gauge`); None for a connected graph without priors (held by its anchor)."""
+    outliers: dict[str, Any] | None = None
+    """A robust method on a dataset with labelled outliers (``outliers.txt``): the rejected loop
+    closures' precision and recall against the labels (:func:`studio.core.outliers.outlier_scores`)."""
 
     def to_dict(self) -> dict[str, Any]:
-        extra = {} if self.ape_per_round is None else {"ape_per_round": self.ape_per_round}
+        extra: dict[str, Any] = {} if self.ape_per_round is None else {"ape_per_round": self.ape_per_round}
+        if self.gauge is not None:
+            extra["gauge"] = self.gauge
+        if self.outliers is not None:
+            extra["outliers"] = self.outliers
         return {
             "method": self.method,
             "options": dataclasses.asdict(self.options),
@@ -123,6 +141,11 @@ class SolveResult:
 
 
 def _planar_problem(p: Problem) -> Problem:
+    priors = p.priors
+    if priors is not None:
+        priors = VertexPriors(
+            priors.vertex, se3_poses_to_planar(priors.poses), se3_information_to_se2(priors.information_upper)
+        )
     return Problem(
         PoseKind.SE2,
         se3_poses_to_planar(p.initial),
@@ -133,7 +156,20 @@ def _planar_problem(p: Problem) -> Problem:
         p.robust,
         p.anchor,
         p.agent_of_vertex,
+        priors,
     )
+
+
+def _dataset_priors(path: Path, graph: PoseGraph, offsets: np.ndarray) -> VertexPriors | None:
+    """The dataset folder's pose priors (``priors.txt``, JRL's ``PriorFactorPose2/3``) on global ids."""
+    from studio.io.priors_txt import PRIORS_NAME, read_priors_txt
+
+    if not (path / PRIORS_NAME).is_file():
+        return None
+    priors = read_priors_txt(path / PRIORS_NAME, graph)
+    if not len(priors):
+        return None
+    return VertexPriors(offsets[priors.agent] + priors.index, priors.poses, priors.information_upper)
 
 
 def _flatten(graph: PoseGraph) -> tuple[Problem, np.ndarray]:
@@ -209,6 +245,8 @@ def graph_problem(
 ) -> Loaded:
     """A dataset's graph (read from ``path``) as a :class:`Problem` over global ids (see the module doc)."""
     problem, offsets = _flatten(graph)
+    if path.is_dir():
+        problem = dataclasses.replace(problem, priors=_dataset_priors(path, graph, offsets))
     return _loaded(problem, path, graph, offsets, None, dimension, warn)
 
 
@@ -360,7 +398,7 @@ def solve(
     inputs = dataset_inputs(dataset)
     _check_solve_outputs(out, rrd_path, inputs, force)  # every refusal before any work
     t0 = time.perf_counter()
-    loaded = load_problem(dataset, dimension=dimension, warn=warn)
+    loaded, gauge = _gauge(load_problem(dataset, dimension=dimension, warn=warn), entry, dataset, warn)
     tum_names = _tum_names(loaded, dataset)
     problem = loaded.problem
     iterates: list[tuple[int, np.ndarray]] = []
@@ -385,6 +423,8 @@ def solve(
         solution,
         rrd_path,
         None if scorer is None else scorer.rounds(solution),
+        gauge,
+        _outlier_scores(loaded, dataset, _rejected_rows(loaded, solution)),
     )
     return _write_solve_outputs(result, loaded, dataset, tum_names, iterates, inputs=inputs, force=force)
 
@@ -454,6 +494,17 @@ def _run_solver(
             if scorer is not None:
                 scorer.add(k, poses)
 
+    check_problem(problem, str(dataset), _vertex_namer(loaded))
+    try:
+        with native_stdout_silenced():  # GTSAM's notices (gnc's setMaxIterations) are not our output
+            return entry.solve(problem, options, on_iteration)
+    except RuntimeError as err:  # GTSAM's and g2o's own failures (e.g. an indeterminate system)
+        first = next((ln.strip() for ln in str(err).splitlines() if ln.strip()), type(err).__name__)
+        raise FormatError(f"{dataset}: method {method} failed: {first} (is the graph connected?)") from None
+
+
+def _vertex_namer(loaded: Loaded) -> Callable[[int], str]:
+    """A global id in the dataset's words: ``agent2 vertex 0``, or a single g2o file's own id."""
     names = [a.name for a in loaded.graph.agents] if loaded.graph is not None else None
 
     def vertex_name(v: int) -> str:
@@ -462,13 +513,55 @@ def _run_solver(
         k = int(np.searchsorted(loaded.offsets, v, side="right") - 1)
         return f"{names[k]} vertex {v - int(loaded.offsets[k])}"
 
-    check_problem(problem, str(dataset), vertex_name)
-    try:
-        with native_stdout_silenced():  # GTSAM's notices (gnc's setMaxIterations) are not our output
-            return entry.solve(problem, options, on_iteration)
-    except RuntimeError as err:  # GTSAM's and g2o's own failures (e.g. an indeterminate system)
-        first = next((ln.strip() for ln in str(err).splitlines() if ln.strip()), type(err).__name__)
-        raise FormatError(f"{dataset}: method {method} failed: {first} (is the graph connected?)") from None
+    return vertex_name
+
+
+def _gauge(
+    loaded: Loaded, entry: SolveMethod, dataset: PathLike, warn: Callable[[str], None] | None
+) -> tuple[Loaded, dict[str, Any] | None]:
+    """The problem with the gauge the method takes (:mod:`studio.solvers.gauge`: the dataset's priors
+    and one held vertex per piece without one) and what ``solve.json`` says of it (None for a
+    connected graph without priors, held by its anchor as always)."""
+    from studio.solvers.gauge import gauge_report, with_gauge
+
+    problem = loaded.problem
+    if not entry.gauges:
+        if problem.priors is not None and warn is not None:
+            warn(
+                f"{dataset}: method {entry.name} does not take pose priors; the {len(problem.priors)} priors of "
+                "priors.txt are left out and the first pose is held"
+            )
+        return dataclasses.replace(loaded, problem=dataclasses.replace(problem, priors=None)), None
+    problem = with_gauge(problem)
+    if problem.anchors is None:
+        return loaded, None
+    name = _vertex_namer(loaded)
+    report = gauge_report(problem, name)
+    held = [name(int(v)) for v in problem.held]
+    report["note"] = (
+        f"{report['pieces']} piece{'s' if report['pieces'] != 1 else ''}, {report['priors']} priors; "
+        + (f"held at their first pose (no prior reaches them): {', '.join(held[:5])}" if held else "no anchor")
+        + (f" and {len(held) - 5} more" if len(held) > 5 else "")
+        + (
+            f"; {report['isolated_vertices']} isolated vertices keep their initial values"
+            if report["isolated_vertices"]
+            else ""
+        )
+    )
+    return dataclasses.replace(loaded, problem=problem), report
+
+
+def _outlier_scores(loaded: Loaded, dataset: PathLike, rejected: np.ndarray | None) -> dict[str, Any] | None:
+    """The rejected loop closures' precision and recall against the dataset's labelled outliers
+    (``outliers.txt``), where a robust method ran on a dataset that has them."""
+    from studio.core.outliers import outlier_scores
+    from studio.io.outliers_txt import read_outliers_txt
+
+    path = Path(dataset) / "outliers.txt"
+    if rejected is None or loaded.graph is None or not path.is_file():
+        return None
+    labelled = read_outliers_txt(path, [a.num_poses for a in loaded.graph.agents])[0]
+    return outlier_scores(rejected, labelled)
 
 
 def _rejected_rows(loaded: Loaded, solution: Solution) -> np.ndarray | None:
@@ -680,6 +773,3 @@ def _json_default(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     raise TypeError(f"not JSON: {type(value).__name__}")
-
-
-make_callable(__name__)  # studio.solve(...) is studio.solve.solve(...) (studio/_callable.py)

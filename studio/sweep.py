@@ -13,9 +13,12 @@ A sweep spec (TOML or JSON) names
   ``(seed_in_base + 1000003 * seed) mod (2^31 - 1)``; for convert it is the ``seed`` option;
 * ``cells``: an optional list of parameter tables, run besides the grid's;
 * ``steps``: what to run on each dataset: ``evaluate`` (APE of the dead reckoning), ``solve`` (then
-  the APE of the estimate), ``check`` (chi2 factors), ``record`` (the ``.rrd``), or
-  ``module:function`` (a function ``(cell_dir, dataset, row) -> dict`` of extra columns);
-* ``options``: per step, keyword options (``[options.solve] method = "g2o"``).
+  the APE of the estimate), ``check`` (chi2 factors), ``record`` (the ``.rrd``), ``replay``
+  (``studio replay``: the final team APE and SVE), or ``module:function`` (a function
+  ``(cell_dir, dataset, row) -> dict`` of extra columns);
+* ``options``: per step, keyword options (``[options.solve] method = "g2o"``); a grid key
+  ``STEP.OPTION`` naming a built-in step of the spec (``replay.comms``) sets that option per cell
+  instead of a dataset parameter.
 
 Each cell gets a deterministic name (``<sweep>-<hash of its parameters>``) and its effective config
 in ``OUT/configs/<cell>.json``, so any cell can be made alone with the command the table lists
@@ -49,7 +52,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from studio._callable import make_callable
 from studio.core.errors import ConfigError, StudioError
 from studio.core.types import PathLike
 from studio.io.atomic import check_workspace, output_workspace, write_replacing
@@ -264,6 +266,32 @@ def cell_name(spec_name: str, params: Mapping[str, Any], identity: Mapping[str, 
     return f"{safe_file_name(spec_name, fallback='sweep')}-{hashlib.sha256(text.encode()).hexdigest()[:10]}"
 
 
+def _step_key(spec: SweepSpec, key: str) -> tuple[str, str] | None:
+    """``(step, option)`` of a grid key ``STEP.OPTION`` naming one of the spec's built-in steps
+    (``replay.comms``), None for a dataset parameter."""
+    step, dot, option = key.partition(".")
+    return (step, option) if dot and step in spec.steps and step in STEPS else None
+
+
+def _dataset_params(spec: SweepSpec, params: Mapping[str, Any]) -> dict[str, Any]:
+    """The parameters that make the cell's dataset (not a step's option)."""
+    return {k: v for k, v in params.items() if _step_key(spec, k) is None}
+
+
+def _cell_options(spec: SweepSpec, params: Mapping[str, Any], where: str) -> dict[str, dict[str, Any]]:
+    """Each step's options for one cell: the spec's ``[options.STEP]`` with the cell's ``STEP.OPTION``
+    parameters over them, checked by the step's checker (:data:`STEP_CHECKS`) before any work."""
+    options = {s: dict(o) for s, o in spec.options.items()}
+    for key, value in params.items():
+        got = _step_key(spec, key)
+        if got is not None:
+            options.setdefault(got[0], {})[got[1]] = value
+    for step, opts in options.items():
+        if step in STEP_CHECKS:
+            STEP_CHECKS[step](opts, f"{where}: options.{step}")
+    return options
+
+
 def expand(spec: SweepSpec, out: PathLike) -> list[CellTask]:
     """Every cell of the spec (grid combinations, then the explicit cells), validated."""
     kind, base = _base(spec)
@@ -275,8 +303,9 @@ def expand(spec: SweepSpec, out: PathLike) -> list[CellTask]:
     tasks, seen = [], set()
     for k, params in enumerate(combos):
         where = f"{spec.source}: cell {k + 1}"
-        doc = _apply(kind, base, params, where)
-        identity = {"kind": kind, "config": doc, "steps": list(spec.steps), "options": spec.options}
+        doc = _apply(kind, base, _dataset_params(spec, params), where)
+        options = _cell_options(spec, params, where)
+        identity = {"kind": kind, "config": doc, "steps": list(spec.steps), "options": options}
         name = cell_name(spec.name, params, identity)
         if name in seen:
             continue
@@ -290,9 +319,7 @@ def expand(spec: SweepSpec, out: PathLike) -> list[CellTask]:
             from studio.convert import config_from_mapping
 
             config_from_mapping(doc, where)
-        tasks.append(
-            CellTask(name, kind, doc, params, str(Path(out)), spec.steps, {s: dict(o) for s, o in spec.options.items()})
-        )
+        tasks.append(CellTask(name, kind, doc, params, str(Path(out)), spec.steps, options))
     return _seed_groups(spec, kind, base, tasks)
 
 
@@ -311,8 +338,9 @@ def _seed_groups(spec: SweepSpec, kind: str, base: dict[str, Any], tasks: list[C
         if len(indices) < 2:
             continue
         rest = json.loads(key)
-        doc = _apply(kind, base, rest, f"{spec.source}: seeds of {key}")
-        identity = {"seeds": {"kind": kind, "config": doc, "steps": list(spec.steps), "options": spec.options}}
+        doc = _apply(kind, base, _dataset_params(spec, rest), f"{spec.source}: seeds of {key}")
+        options = tasks[indices[0]].options
+        identity = {"seeds": {"kind": kind, "config": doc, "steps": list(spec.steps), "options": options}}
         group = cell_name(spec.name, rest, identity)
         for k in indices:
             out[k] = dataclasses.replace(tasks[k], group=group, group_config=doc)
@@ -360,13 +388,79 @@ def _step_record(task: CellTask, cell_dir: Path, dataset: Path, row: dict[str, A
     """The ``.rrd`` is written with the dataset (``rrd=True`` when this step is asked for)."""
 
 
+def _replay_backends(opts: dict[str, Any]) -> list[str] | None:
+    """``backends`` of the replay step's options: a list, or one name or ``a,b`` as a string."""
+    value = opts.get("backends")
+    if value is None:
+        return None
+    return [b.strip() for b in value.split(",")] if isinstance(value, str) else list(value)
+
+
+def _check_replay(opts: dict[str, Any], where: str) -> None:
+    """The replay step's options: names of :func:`studio.replay.replay`'s keywords, a comms model its
+    registry parses, back-ends its registry knows (a ConfigError naming ``where`` otherwise)."""
+    import inspect
+
+    from studio.core.comms import parse_comms
+    from studio.replay.pipeline import replay
+
+    known = sorted(set(inspect.signature(replay).parameters) - {"dataset", "out", "progress", "warn", "force", "rrd"})
+    for key in opts:
+        if key not in known:
+            raise ConfigError(f"{where}: {key}: not a replay option (known: {', '.join(known)})")
+    try:
+        if "comms" in opts:
+            parse_comms(str(opts["comms"]))
+        if _replay_backends(opts) is not None:
+            from studio.replay.registry import get_backend
+
+            for name in _replay_backends(opts) or []:
+                get_backend(name)
+    except StudioError as err:
+        raise ConfigError(f"{where}: {one_line_error(err)}") from None
+
+
+def _step_replay(task: CellTask, cell_dir: Path, dataset: Path, row: dict[str, Any], opts: dict[str, Any]) -> None:
+    """``studio replay`` of the cell's dataset into ``replay/``: per back-end the final team APE
+    (se3 and first-pose), SVE (None for a back-end that keeps no other robot's poses), messages,
+    bytes and seconds; with one back-end the columns are ``replay_*``, with several
+    ``replay_<backend>_*``."""
+    from studio.replay.pipeline import replay
+
+    kwargs: dict[str, Any] = dict(opts)
+    backends = _replay_backends(opts)
+    if backends is not None:
+        kwargs["backends"] = backends
+    res = replay(dataset, cell_dir / "replay", **kwargs)
+    got = res.schedule.delivered_tick >= 0
+    row.update(replay_comms=res.schedule.model, replay_delivered=float(got.mean()) if len(got) else None)
+    for run in res.runs:
+        prefix = "replay" if len(res.runs) == 1 else f"replay_{run.name}"
+        sve = run.sve[-1] if run.sve is not None and not math.isnan(run.sve[-1, 0]) else (None, None)
+        row.update(
+            {
+                f"{prefix}_ape_se3_m": float(run.ape_team_se3_m[-1]),
+                f"{prefix}_ape_first_pose_m": float(run.ape_team_first_pose_m[-1]),
+                f"{prefix}_sve_t_m": None if sve[0] is None else float(sve[0]),
+                f"{prefix}_sve_r_rad": None if sve[1] is None else float(sve[1]),
+                f"{prefix}_messages": int(run.messages.sum()),
+                f"{prefix}_bytes": int(run.bytes.sum()),
+                f"{prefix}_s": run.seconds,
+            }
+        )
+
+
 #: The step registry: a new per-dataset step is one entry here (its name is then valid in a spec).
 STEPS: dict[str, StepFn] = {
     "evaluate": _step_evaluate,
     "solve": _step_solve,
     "check": _step_check,
     "record": _step_record,
+    "replay": _step_replay,
 }
+
+#: Per step, a check of its options (the spec's and the cells' ``STEP.OPTION``) before any work.
+STEP_CHECKS: dict[str, Callable[[dict[str, Any], str], None]] = {"replay": _check_replay}
 
 
 def _step(step: str, task: CellTask, cell_dir: Path, dataset: Path, row: dict[str, Any]) -> None:
@@ -744,6 +838,18 @@ def _batches(todo: list[CellTask], slots: int) -> list[list[CellTask]]:
     return batches
 
 
+#: The replay step's options whose ``studio replay`` flag is not the option's name.
+_REPLAY_FLAGS = {"step_s": "--step", "period_s": "--period", "seed": "--comms-seed"}
+
+
+def _replay_flag(key: str, value: Any) -> list[str]:
+    """The ``studio replay`` words of one replay option (``polish=False``: ``--no-polish``)."""
+    flag = _REPLAY_FLAGS.get(key, f"--{key.replace('_', '-')}")
+    if isinstance(value, bool):
+        return [flag if value else flag.replace("--", "--no-", 1)] if key == "polish" else ([flag] if value else [])
+    return [flag, str(value)]
+
+
 def _command(task: CellTask, out: Path, spec: SweepSpec) -> str:
     """The shell line that remakes the cell alone (``DIR``: a folder of the user's choice); every
     word is quoted (:func:`shlex.join`), so a pasted line runs the cell's own values and no more."""
@@ -760,6 +866,13 @@ def _command(task: CellTask, out: Path, spec: SweepSpec) -> str:
         opts = task.options.get("solve", {})
         flags = [w for k, v in sorted(opts.items()) for w in (f"--{k.replace('_', '-')}", str(v))]
         cmd += " && " + shlex.join(["studio", "solve", dataset, "-o", "DIR/solved", *flags])
+    if "replay" in task.steps:
+        opts = dict(task.options.get("replay", {}))
+        backends = _replay_backends(opts)
+        opts.pop("backends", None)
+        flags = [w for k, v in sorted(opts.items()) for w in _replay_flag(k, v)]
+        flags += [] if backends is None else ["--backend", ",".join(backends)]
+        cmd += " && " + shlex.join(["studio", "replay", dataset, "-o", "DIR/replay", *flags])
     return cmd
 
 
@@ -822,6 +935,10 @@ PLOTTED = (
 )
 
 
+#: The replay step's columns plotted (``replay_<what>`` or ``replay_<backend>_<what>``): team APE, SVE.
+REPLAY_PLOTTED = ("_ape_se3_m", "_ape_first_pose_m", "_sve_t_m", "_sve_r_rad")
+
+
 def _save_png(fig: Any, tmp: Path) -> None:
     fig.savefig(tmp, dpi=90, format="png")
 
@@ -830,7 +947,12 @@ def _plotted(df: Any) -> tuple[list[str], list[str]]:
     """The swept parameters worth a plot (varying, not the replicate ``seed``) and the metrics worth
     a panel (present, numeric, not constant)."""
     params = [c for c in df.columns if c.startswith("param:") and c != "param:seed" and df[c].nunique() > 1]
-    metrics = [c for c in PLOTTED if c in df.columns and df[c].dtype.kind in "fiu" and df[c].dropna().nunique() > 1]
+    replayed = [c for c in df.columns if c.startswith("replay_") and c.endswith(REPLAY_PLOTTED)]
+    metrics = [
+        c
+        for c in [*PLOTTED, *replayed]
+        if c in df.columns and df[c].dtype.kind in "fiu" and df[c].dropna().nunique() > 1
+    ]
     return params, metrics
 
 
@@ -878,6 +1000,3 @@ def _plots(spec: SweepSpec, out: Path, df: Any) -> list[Path]:
         plt.close(fig)
         paths.append(path)
     return paths
-
-
-make_callable(__name__)  # studio.sweep(...) is studio.sweep.sweep(...) (studio/_callable.py)

@@ -25,7 +25,7 @@ from studio.io.multig2o import Records, multi_g2o_parts
 from studio.io.outliers_txt import write_outliers_txt
 from studio.io.singleg2o import write_single_g2o, write_single_tum
 from studio.io.strict_json import dumps_strict
-from studio.io.synth_config import read_synth_config, synth_config_to_json
+from studio.io.synth_config import parse_synth_config, read_synth_config, synth_config_to_json
 from studio.runtime.parallel import default_jobs, parallel_map, run_team
 from studio.runtime.progress import Progress, report
 
@@ -267,6 +267,7 @@ def synthesize(
     rrd: bool = True,
     generator: Generator[SynthConfig] = STUDIO,
     progress: Progress | None = None,
+    inputs: Iterable[PathLike] = (),
 ) -> SynthResult:
     """Generate ``config`` and write it as kollagen's ``generate CONFIG OUT`` does.
 
@@ -276,15 +277,17 @@ def synthesize(
     ``jobs`` caps the processes used (default: the idle cores, see
     :func:`~studio.runtime.parallel.default_jobs`); the bytes do not depend on it.
     Configs estimated to need more memory or disk than the limits are refused before any work.
-    ``progress`` hears of each agent, agent pair, written part and recorded agent.
+    ``progress`` hears of each agent, agent pair, written part and recorded agent. ``inputs``: the
+    files the config came from (its JSON), which no output may hold, even with ``force``.
     """
+    config = checked_config(config)  # what the JSON reader refuses, the library refuses too
     _check_request(config, jobs, max_memory_gb, max_output_gb, multi_records)
     out_dir = Path(out_dir)
     name = config.name
     extras = [f"{name}{suffix}" for suffix in generator.extra_suffixes(config)]
     config_name, rrd_name = f"{name}.config.json", f"{name}.rrd"
     names = [name, *extras, config_name] + ([rrd_name] if rrd else [])
-    with staged_outputs(out_dir, names, force=force, inputs=()) as staging:
+    with staged_outputs(out_dir, names, force=force, inputs=inputs) as staging:
         output = _write_dataset(
             config,
             staging,
@@ -308,19 +311,58 @@ def synthesize(
     )
 
 
+def checked_config(config: object) -> SynthConfig:
+    """``config`` as the JSON reader accepts it, so the library refuses what ``studio synth``
+    refuses, with the same one-line :class:`ConfigError` naming the field (``config:
+    agent_parameters.stepsize: must be positive, got 0.0``): a :class:`SynthConfig` is checked
+    field by field as its JSON document; a ``dict`` is read as one, a path as a config file."""
+    if isinstance(config, SynthConfig):
+        try:
+            doc = synth_config_to_json(config)
+        except (AttributeError, TypeError) as err:  # a field of the wrong kind, built by hand
+            raise ConfigError(f"config: not a valid SynthConfig ({err})") from None
+        return parse_synth_config(doc, source="config", name=config.name)
+    if isinstance(config, dict):
+        return parse_synth_config(config, source="config")
+    if isinstance(config, (str, Path)):
+        return load_synth_config(config)
+    raise ConfigError(
+        f"config: expected a SynthConfig, a kollagen JSON document (dict) or a config file's path, "
+        f"got {type(config).__name__}"
+    )
+
+
+def _check_jobs(jobs: object) -> None:
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or not 0 <= jobs <= 4096):
+        raise ConfigError(f"jobs: expected None or 0 (the idle cores) .. 4096, got {jobs!r}", option="jobs")
+
+
+def _check_seed(seed: object) -> int:
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 1 << 63:
+        raise ConfigError(f"seed: expected a non-negative integer, got {seed!r}", option="seed")
+    return seed
+
+
 def generate(config: SynthConfig, *, seed: int = 0, jobs: int | None = 1) -> PoseGraph:
     """The dataset of ``config`` as arrays (a :class:`~studio.core.model.PoseGraph`), nothing
     written: the graph ``synthesize`` would write, byte for byte once written. ``seed`` picks a
     replicate (0: the config's own seeds; others as ``studio sweep``'s ``seed``, see
     :func:`~studio.generator.config.replicate_config`). ``jobs=1`` (the default) keeps it in this
     process, which is fastest for small datasets."""
+    config = checked_config(config)
+    _check_jobs(jobs)
+    check_resources(config, max_output_gb=float("inf"))  # nothing is written; memory still counts
+    return _generate(config, _check_seed(seed), jobs)
+
+
+def _generate(config: SynthConfig, seed: int, jobs: int | None) -> PoseGraph:
     from studio.generator.config import replicate_config
 
     return STUDIO.generate(replicate_config(config, seed), jobs=jobs).graph
 
 
 def _generate_one(config: SynthConfig, seeds: list[int], k: int) -> PoseGraph:
-    return generate(config, seed=seeds[k])
+    return _generate(config, seeds[k], 1)
 
 
 def generate_many(config: SynthConfig, seeds: Iterable[int], *, jobs: int | None = None) -> Iterator[PoseGraph]:
@@ -328,13 +370,22 @@ def generate_many(config: SynthConfig, seeds: Iterable[int], *, jobs: int | None
     pipeline (docs/synth.md has a PyTorch-style ``IterableDataset`` over it). With ``jobs`` above 1
     (default: the idle cores) the replicates are made in blocks shared by forked processes; each
     graph does not depend on it."""
-    seeds = list(seeds)
+    config = checked_config(config)  # every argument checked at the call, not at the first next()
+    _check_jobs(jobs)
+    check_resources(config, max_output_gb=float("inf"))
+    if seeds is None or isinstance(seeds, (str, bytes)) or not hasattr(seeds, "__iter__"):
+        raise ConfigError(f"seeds: expected an iterable of non-negative integers, got {seeds!r}", option="seeds")
+    seeds = [_check_seed(s) for s in seeds]
+    return _generate_many(config, seeds, jobs)
+
+
+def _generate_many(config: SynthConfig, seeds: list[int], jobs: int | None) -> Iterator[PoseGraph]:
     workers = default_jobs() if jobs is None else jobs
     block = max(1, 4 * workers)
     for start in range(0, len(seeds), block):
         chunk = seeds[start : start + block]
         if workers <= 1 or len(chunk) == 1:
-            yield from (generate(config, seed=s) for s in chunk)
+            yield from (_generate(config, s, 1) for s in chunk)
         else:
             yield from parallel_map(functools.partial(_generate_one, config, chunk), len(chunk), workers)
 
@@ -400,6 +451,7 @@ def synthesize_seeds(
     rrd: bool = True,
     generator: Generator[SynthConfig] = STUDIO,
     progress: Progress | None = None,
+    inputs: Iterable[PathLike] = (),
 ) -> SeedsResult:
     """:func:`synthesize` of each replicate in ``seeds`` (see :func:`generate`), in this process,
     into ``OUT/seed<k>/`` (:func:`seed_folder_name`): the same files, byte for byte, as
@@ -410,22 +462,28 @@ def synthesize_seeds(
     the guard's marker) are kept, unless ``force``, which writes them again. A seed folder that is
     not a studio output is refused, as :func:`synthesize` refuses one. The seeds' files are made
     durable together (one sync of the file system every :data:`SYNC_EVERY` seeds and at the end)
-    instead of a dozen fsyncs per seed.
+    instead of a dozen fsyncs per seed. Every seed folder to write is checked before the first is
+    written (a folder of the user's, an input inside one), so a refusal leaves nothing behind.
     """
     from studio.generator.config import replicate_config
-    from studio.io.atomic import is_studio_output, sync_file_system
+    from studio.io.atomic import check_outputs, is_studio_output, sync_file_system
 
+    config = checked_config(config)
     _check_request(config, jobs, max_memory_gb, max_output_gb, multi_records)
     out_dir = Path(out_dir)
+    inputs = list(inputs)
+    todo = {seed for seed in seeds if force or not is_studio_output(out_dir / seed_folder_name(seed))}
+    if todo:
+        check_outputs(out_dir, [seed_folder_name(seed) for seed in sorted(todo)], force=force, inputs=inputs)
     written: list[int] = []
     kept: list[int] = []
     for done, seed in enumerate(seeds):
         folder = seed_folder_name(seed)
-        if not force and is_studio_output(out_dir / folder):
+        if seed not in todo:
             kept.append(seed)
         else:
             replicate = replicate_config(config, seed)
-            with staged_outputs(out_dir, [folder], force=force, inputs=(), durable=False) as staging:
+            with staged_outputs(out_dir, [folder], force=force, inputs=inputs, durable=False) as staging:
                 (staging / folder).mkdir()
                 _write_dataset(
                     replicate,

@@ -103,6 +103,27 @@ def _cosmo(work: Path) -> None:
     write_cosmo_jrl(work / "kth_r3_00_wifi.jrl", cosmo_team(poses=40)[0])
 
 
+def _kimera_rpgo(work: Path) -> None:
+    """``Kimera-RPGO/tests/data``: ``robot_a.g2o`` and ``robot_b.g2o`` with GTSAM Symbol keys and
+    six-decimal quaternions, as Kimera-RPGO ships them, sharing no edge."""
+    folder = work / "Kimera-RPGO" / "tests" / "data"
+    folder.mkdir(parents=True)
+    info = "100 0 0 0 0 0 100 0 0 0 0 100 0 0 0 400 0 0 400 0 400"
+    quat = "0.000000 0.000000 0.049979 0.998750"  # a yaw of 0.1 rad
+    for robot, n in (("a", 6), ("b", 5)):
+        keys = [ord(robot) << 56 | i for i in range(n)]
+        lines = [f"VERTEX_SE3:QUAT {k} {i:.6f} 0.000000 0.000000 {quat}" for i, k in enumerate(keys)]
+        lines += [f"EDGE_SE3:QUAT {a} {b} 1.000000 0.000000 0.000000 {quat} {info}" for a, b in zip(keys, keys[1:])]
+        lines.append(f"EDGE_SE3:QUAT {keys[-1]} {keys[1]} -3.000000 0.100000 0.000000 {quat} {info}")
+        (folder / f"robot_{robot}.g2o").write_text("\n".join(lines) + "\n")
+
+
+def _toml_block(doc: Path, first_line: str) -> str:
+    """The fenced TOML block of ``doc`` that starts with ``first_line``."""
+    blocks = re.findall(r"```toml\n(.*?)```", doc.read_text(encoding="utf-8"), flags=re.S)
+    return next(b for b in blocks if b.startswith(first_line))
+
+
 #: What a command may name as an input, and how the stand-in is made in the work folder.
 INPUTS: dict[str, Callable[[Path], None]] = {
     "multi3500x8": lambda w: _preset_standin(w, "multi3500x8"),
@@ -119,6 +140,7 @@ INPUTS: dict[str, Callable[[Path], None]] = {
     "bob_vio.txt": _vio,
     "M3500.g2o": _single_g2o,
     "kth_r3_00_wifi.jrl": _cosmo,
+    "Kimera-RPGO/tests/data": _kimera_rpgo,
     # docs/bench.md's small spec (the doc writes it with a heredoc, which this test does not run)
     "small.toml": lambda w: (w / "small.toml").write_text(
         f'datasets = ["{DATA / "configs" / "small3x100.json"}"]\ncases = ["diagonal"]\nmethods = ["gtsam"]\n'
@@ -127,6 +149,10 @@ INPUTS: dict[str, Callable[[Path], None]] = {
     "radius.toml": lambda w: (w / "radius.toml").write_text(
         'name = "radius"\nbase = "multi3500x8"\nsteps = ["evaluate"]\n[grid]\n'
         '"inter_agent_loop_closure_parameters.loop_closure_radius" = [1.0, 2.0]\n'
+    ),
+    # docs/sweep.md's replay spec, as the doc writes it (its TOML block)
+    "replays.toml": lambda w: (w / "replays.toml").write_text(
+        _toml_block(REPO / "docs" / "sweep.md", 'name = "replays"')
     ),
 }
 

@@ -35,6 +35,7 @@ __all__ = [
     "RangeLimited",
     "Rendezvous",
     "Recorded",
+    "PartnerCap",
     "CommsModel",
     "Bandwidth",
     "Schedule",
@@ -45,6 +46,7 @@ __all__ = [
     "parse_range",
     "parse_rendezvous",
     "parse_recorded",
+    "parse_cap_options",
     "parse_bandwidth",
     "robot_pairs",
     "tick_grid",
@@ -105,7 +107,44 @@ class Recorded:
         return "recorded"
 
 
-CommsModel = Always | Never | RangeLimited | Rendezvous | Recorded
+@dataclass(frozen=True, eq=False)
+class PartnerCap:
+    """iMESA's communication model on top of a base model (``range`` or ``rendezvous``): at each
+    tick the base says which pairs *could* talk; then, ``rounds`` times, the robots are put in a
+    random order, each possible pair is taken in that order (i before j, then i before later j)
+    while both robots have fewer than ``partners`` partners in this round, and each pair taken is
+    kept with probability ``success_probability`` (a pair taken and lost still used its places, as
+    in rpl-cmu/imesa-experiments' ``CommunicationModel::getStepCommunication``). The pairs kept in
+    any round are in contact at the tick. One generator seeded by the replay's seed draws, tick by
+    tick and round by round, the order and then one number per pair taken."""
+
+    base: Any
+    """The model saying who could talk (:class:`RangeLimited` without its own p, :class:`Rendezvous`,
+    or, before the replay reads it, a rendezvous file's path)."""
+    partners: int | None = None
+    """Most partners per robot in one round (None: no cap)."""
+    rounds: int = 1
+    """Communication rounds per tick, each drawn afresh."""
+    success_probability: float = 1.0
+
+    def spec(self) -> str:
+        out = f"rendezvous:{self.base}" if isinstance(self.base, str) else self.base.spec()
+        if self.partners is not None:
+            out += f",partners={self.partners}"
+        if self.rounds != 1:
+            out += f",rounds={self.rounds}"
+        if self.success_probability != 1.0:
+            out += f",p={self.success_probability:g}"
+        return out
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, PartnerCap) and self.spec() == other.spec()
+
+    def __hash__(self) -> int:
+        return hash(self.spec())
+
+
+CommsModel = Always | Never | RangeLimited | Rendezvous | Recorded | PartnerCap
 
 
 @dataclass(frozen=True)
@@ -170,35 +209,80 @@ def parse_recorded(arg: str | None, spec: str) -> Recorded:
     return Recorded()
 
 
-def parse_rendezvous(arg: str | None, spec: str) -> str:
-    """The FILE of ``rendezvous:FILE`` (read by the replay, which knows the number of robots)."""
-    if not arg:
+#: The options of iMESA's model (:class:`PartnerCap`), taken by ``range`` and ``rendezvous``.
+CAP_OPTIONS = ("partners", "rounds", "p")
+
+
+def _count(text: str, what: str, spec: str) -> int:
+    value = _positive(text, what, spec)
+    if value != int(value):
+        raise ConfigError(f"comms: {what} in {spec!r} must be a whole number, got {text}")
+    return int(value)
+
+
+def parse_cap_options(options: dict[str, str], spec: str) -> tuple[int | None, int, float]:
+    """``partners``, ``rounds`` and ``p`` of ``options`` (key -> text): ``(partners or None,
+    rounds, p)``; a bad value raises a ConfigError naming it and the spec."""
+    partners = None if "partners" not in options else _count(options["partners"], "partners", spec)
+    rounds = 1 if "rounds" not in options else _count(options["rounds"], "rounds", spec)
+    p = 1.0
+    if "p" in options:
+        p = _positive(options["p"], "the success probability p", spec, allow_zero=True)
+        if p > 1:
+            raise ConfigError(f"comms: the success probability p in {spec!r} must be in [0, 1], got {options['p']}")
+    return partners, rounds, p
+
+
+def _options(parts: list[str], known: tuple[str, ...], spec: str) -> dict[str, str]:
+    """``key=value`` parts as a dict; an unknown or repeated key raises, naming the known ones."""
+    out: dict[str, str] = {}
+    for part in parts:
+        key, _, value = part.partition("=")
+        key = key.strip()
+        if key not in known:
+            raise ConfigError(f"comms: unknown option {key!r} in {spec!r} (known: {', '.join(known)})")
+        if key in out:
+            raise ConfigError(f"comms: option {key!r} given twice in {spec!r}")
+        out[key] = value
+    return out
+
+
+def parse_rendezvous(arg: str | None, spec: str) -> str | PartnerCap:
+    """The FILE of ``rendezvous:FILE`` (read by the replay, which knows the number of robots); with
+    iMESA's options after it (``,partners=K,rounds=N,p=P``, taken from the end), a :class:`PartnerCap`
+    around that FILE."""
+    parts = (arg or "").split(",")
+    tail: list[str] = []
+    while len(parts) > 1 and parts[-1].partition("=")[0].strip() in CAP_OPTIONS and "=" in parts[-1]:
+        tail.insert(0, parts.pop())
+    path = ",".join(parts)
+    if not path:
         raise ConfigError("comms: rendezvous needs a file: rendezvous:FILE")
-    return arg
+    if not tail:
+        return path
+    partners, rounds, p = parse_cap_options(_options(tail, CAP_OPTIONS, spec), spec)
+    return PartnerCap(path, partners, rounds, p)
 
 
-def parse_range(arg: str | None, spec: str) -> RangeLimited:
-    """``range:R[,period=T][,p=P]``."""
+def parse_range(arg: str | None, spec: str) -> RangeLimited | PartnerCap:
+    """``range:R[,period=T][,p=P][,partners=K][,rounds=N]``: with partners or rounds, iMESA's model
+    (:class:`PartnerCap`, p drawn after the cap) around the range."""
     if arg is None:
         raise ConfigError(f"comms: range needs a distance in metres: range:R, got {spec!r}")
     parts = arg.split(",")
     range_m = _positive(parts[0], "the range [m]", spec)
+    options = _options(parts[1:], ("period",) + CAP_OPTIONS, spec)
     period_ns: int | None = None
-    p = 1.0
-    for part in parts[1:]:
-        key, _, value = part.partition("=")
-        key = key.strip()
-        if key == "period":
-            period_ns = round(_positive(value, "period [s]", spec) * NS_PER_S)
-            if period_ns <= 0:
-                raise ConfigError(f"comms: period in {spec!r} must be > 0")
-        elif key == "p":
-            p = _positive(value, "the success probability p", spec, allow_zero=True)
-            if p > 1:
-                raise ConfigError(f"comms: the success probability p in {spec!r} must be in [0, 1], got {value}")
-        else:
-            raise ConfigError(f"comms: unknown option {key!r} in {spec!r} (known: period, p)")
-    return RangeLimited(range_m, period_ns, p)
+    if "period" in options:
+        period_ns = round(_positive(options["period"], "period [s]", spec) * NS_PER_S)
+        if period_ns <= 0:
+            raise ConfigError(
+                f"comms: period in {spec!r} is below the replay's 1 ns clock (at least 1e-9 s), got {options['period']}"
+            )
+    partners, rounds, p = parse_cap_options(options, spec)
+    if partners is None and rounds == 1:
+        return RangeLimited(range_m, period_ns, p)
+    return PartnerCap(RangeLimited(range_m, period_ns), partners, rounds, p)
 
 
 def parse_bandwidth(spec: str) -> Bandwidth:
@@ -266,6 +350,34 @@ def _recorded_contacts(
     return out
 
 
+def _capped(possible: np.ndarray, n: int, model: PartnerCap, seed: int) -> np.ndarray:
+    """iMESA's choice of partners (:class:`PartnerCap`) among the ``possible`` pairs of each tick."""
+    out = np.zeros_like(possible)
+    if n < 2:
+        return out
+    column = np.full((n, n), -1, dtype=np.int64)
+    pairs = robot_pairs(n)
+    column[pairs[:, 0], pairs[:, 1]] = column[pairs[:, 1], pairs[:, 0]] = np.arange(len(pairs))
+    cap = n if model.partners is None else model.partners
+    rng = np.random.default_rng(seed)
+    for t in np.flatnonzero(possible.any(axis=1)).tolist():
+        row = possible[t]
+        for _ in range(model.rounds):
+            order = rng.permutation(n).tolist()
+            load = [0] * n
+            taken = []
+            for i, a in enumerate(order):
+                for b in order[i + 1 :]:
+                    p = int(column[a, b])
+                    if load[a] < cap and load[b] < cap and row[p]:
+                        taken.append(p)
+                        load[a] += 1
+                        load[b] += 1
+            kept = rng.random(len(taken)) < model.success_probability
+            out[t, np.asarray(taken, dtype=np.int64)[kept]] = True
+    return out
+
+
 def contacts(
     model: CommsModel,
     *,
@@ -304,6 +416,19 @@ def contacts(
             draws = np.random.default_rng(seed).random(ok.shape)
             ok &= draws < model.success_probability
         return np.asarray(ok)
+    if isinstance(model, PartnerCap):
+        if isinstance(model.base, str):
+            raise ConfigError(f"comms: {model.base}: the rendezvous file must be read first")
+        possible = contacts(
+            model.base,
+            ticks_ns=ticks_ns,
+            pose_ns=pose_ns,
+            positions_xyz=positions_xyz,
+            seed=seed,
+            closure_pair=closure_pair,
+            measured_ns=measured_ns,
+        )
+        return _capped(possible, n, model, seed)
     if isinstance(model, Recorded):
         if closure_pair is None or measured_ns is None:
             raise ConfigError("comms: recorded needs the dataset's inter-agent closures")

@@ -38,7 +38,7 @@ class CommsModelEntry:
     """One communication model as the registry declares it."""
 
     grammar: str
-    """How ``--comms`` writes it (``range:R[,period=T][,p=P]``)."""
+    """How ``--comms`` writes it (``range:R[,period=T][,p=P][,partners=K][,rounds=N]``)."""
     help: str
     """One line for ``studio replay --help`` and docs/replay.md: who can talk when."""
     parse: CommsParser
@@ -60,15 +60,18 @@ COMMS_MODELS: dict[str, CommsModelEntry] = {
         Lazy("studio.core.comms", "parse_never"),
     ),
     "range": CommsModelEntry(
-        "range:R[,period=T][,p=P]",
+        "range:R[,period=T][,p=P][,partners=K][,rounds=N]",
         "robots whose ground-truth positions at the same time are within R m (MESA's comm_range); "
         "with period only at the first tick of every T s (MESA's comm_freq = 1/T); with p each contact "
-        "succeeds with probability P, drawn from the seed",
+        "succeeds with probability P, drawn from the seed; with partners or rounds, iMESA's model: "
+        "N rounds per tick, each taking in-range pairs in a seeded random order of the robots while both "
+        "have fewer than K partners, then keeping each with probability P",
         Lazy("studio.core.comms", "parse_range"),
     ),
     "rendezvous": CommsModelEntry(
-        "rendezvous:FILE",
-        "Swarm-SLAM's simulated rendezvous file: two robots talk when both are inside one of their windows",
+        "rendezvous:FILE[,partners=K][,rounds=N][,p=P]",
+        "Swarm-SLAM's simulated rendezvous file: two robots talk when both are inside one of their windows; "
+        "with partners, rounds or p, iMESA's model (as for range) among those pairs",
         Lazy("studio.core.comms", "parse_rendezvous"),
     ),
     "recorded": CommsModelEntry(

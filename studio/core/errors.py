@@ -46,5 +46,10 @@ class OutputError(StudioError):
     """An output cannot be written (it exists and --force was not given, or the folder is unusable)."""
 
 
+class BackendError(StudioError):
+    """A replay back-end outside the studio (``command:PROGRAM``) ended, hung or answered outside the
+    protocol; the message names the back-end and the checkpoint."""
+
+
 class EvaluationError(StudioError):
     """An estimate cannot be scored against its dataset (vertices or timestamps do not match, no ground truth)."""

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["WrongVertexRule", "wrong_vertex", "plant_wrong_vertices"]
+__all__ = ["WrongVertexRule", "wrong_vertex", "plant_wrong_vertices", "outlier_scores"]
 
 
 @dataclass(frozen=True)
@@ -94,3 +94,26 @@ def plant_wrong_vertices(
                 want -= 1
         deficit = want
     return new_to, kind_of
+
+
+def outlier_scores(rejected: np.ndarray, labelled: np.ndarray) -> dict[str, float | int | None]:
+    """A robust method's rejections scored against a dataset's outlier labels, as COSMO-Bench and
+    riMESA score them. Both are rows ``a_from v_from a_to v_to``; a closure is the same whichever way
+    it is written. ``precision``: labelled closures among the rejected ones over the rejected ones;
+    ``recall``: rejected labelled closures over the labelled ones (None where the count is 0)."""
+
+    def closures(rows: np.ndarray) -> set[tuple[int, ...]]:
+        out: set[tuple[int, ...]] = set()
+        for a, v, b, w in np.asarray(rows, dtype=np.int64).reshape(-1, 4).tolist():
+            out.add(min((a, v, b, w), (b, w, a, v)))
+        return out
+
+    rej, lab = closures(rejected), closures(labelled)
+    hit = len(rej & lab)
+    return {
+        "rejected": len(rej),
+        "labelled": len(lab),
+        "rejected_labelled": hit,
+        "precision": hit / len(rej) if rej else None,
+        "recall": hit / len(lab) if lab else None,
+    }

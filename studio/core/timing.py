@@ -54,6 +54,12 @@ def measurement_times(graph: PoseGraph, *, period_ns: int | None = None) -> Meas
         if isinstance(period_ns, bool) or int(period_ns) != period_ns or period_ns <= 0:
             raise ConfigError(f"period: must be a positive duration, got {period_ns!r} ns")
         period_ns = int(period_ns)
+        longest = max((a.num_poses for a in graph.agents), default=1)
+        if (longest - 1) * period_ns > np.iinfo(np.int64).max:  # the stamps would wrap round
+            raise ConfigError(
+                f"period: {period_ns} ns x {longest - 1} poses is beyond the int64 nanosecond range (about 292 years)",
+                option="period",
+            )
     poses = []
     for a in graph.agents:
         if period_ns is not None:

@@ -30,8 +30,8 @@ import errno
 import json
 import os
 import shutil
-import threading
 from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import IO
 
@@ -47,6 +47,7 @@ __all__ = [
     "output_workspace",
     "write_replacing",
     "check_not_overlapping",
+    "check_distinct_outputs",
     "check_workspace",
     "verify_rrd",
     "os_error_message",
@@ -103,6 +104,20 @@ def check_not_overlapping(outputs: Iterable[PathLike], inputs: Iterable[PathLike
             if _inside(r, ri) or _inside(ri, r):
                 what = "is" if r == ri else ("contains" if _inside(ri, r) else "sits inside")
                 raise OutputError(f"{out}: the output {what} the input {given}; choose another output path")
+
+
+def check_distinct_outputs(outputs: Iterable[PathLike]) -> None:
+    """Refuse two outputs of one run that are the same path or one inside the other (resolved):
+    the second would replace or write into the first (``replay -o r.rrd --rrd r.rrd``). A command
+    with several output options calls it before any work, beside :func:`check_outputs`."""
+    seen: list[tuple[PathLike, Path]] = []
+    for out in outputs:
+        r = _resolve(out)
+        for given, other in seen:
+            if _inside(r, other) or _inside(other, r):
+                what = "is" if r == other else ("sits inside" if _inside(r, other) else "contains")
+                raise OutputError(f"{out}: the output {what} the other output {given}; give them distinct paths")
+        seen.append((out, r))
 
 
 def verify_rrd(path: PathLike) -> None:
@@ -183,36 +198,22 @@ def _fsync_trees(roots: list[Path], *, sync: bool = True) -> None:
     if not sync:
         return
     todo = [(p, False) for p in files] + [(d, True) for d in dirs]
-    errors: dict[int, OSError] = {}
+    with ThreadPoolExecutor(max_workers=_SYNC_THREADS) as pool:
+        for _ in pool.map(_fsync_path, todo):  # raises a file's first error in path order
+            pass
 
-    def work() -> None:
-        while True:
-            try:
-                k = claimed.pop()
-            except IndexError:
-                return
-            path, folder = todo[k]
-            if folder:
-                _fsync_dir(path)
-                continue
-            try:
-                fd = os.open(path, os.O_RDONLY)
-                try:
-                    os.fsync(fd)
-                finally:
-                    os.close(fd)
-            except OSError as err:
-                errors[k] = err
 
-    claimed = list(range(len(todo)))[::-1]  # popped from the end: in path order
-    threads = [threading.Thread(target=work, daemon=True) for _ in range(min(_SYNC_THREADS, len(todo)) - 1)]
-    for t in threads:
-        t.start()
-    work()  # this thread takes part
-    for t in threads:
-        t.join()
-    if errors:
-        raise errors[min(errors)]
+def _fsync_path(item: tuple[Path, bool]) -> None:
+    """fsync one file (its error raised) or folder (:func:`_fsync_dir`: errors ignored)."""
+    path, folder = item
+    if folder:
+        _fsync_dir(path)
+        return
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def sync_file_system(path: PathLike) -> None:
@@ -470,13 +471,21 @@ def output_workspace(folder: PathLike, *, kind: str, inputs: Iterable[PathLike] 
         raise OutputError(os_error_message(err, parent)) from None
     with _target_lock(parent, folder.name):
         check_workspace(folder, kind=kind, inputs=inputs)
+        created = False
         try:
             if not folder.exists():
                 folder.mkdir()
+                created = True
             if _marker(folder) != _WORKSPACE + kind:
                 _mark(folder, _WORKSPACE + kind)
             yield folder
-        except OSError as err:
+        except (OSError, OutputError) as err:
+            # a write that failed (a full or read-only disk) in a folder this run made leaves nothing
+            # half-written behind; a folder of earlier runs keeps their finished work to resume from
+            if created:
+                shutil.rmtree(folder, ignore_errors=True)
+            if isinstance(err, OutputError):
+                raise
             raise OutputError(os_error_message(err, folder)) from None
 
 
@@ -571,7 +580,9 @@ def staged_outputs(
             except (OSError, OutputError) as err:
                 # one line naming the real target, never the staging folder (a full disk, a recording
                 # Rerun could not finish)
-                msg = os_error_message(err) if isinstance(err, OSError) else str(err)
+                # a write's OSError often carries no file name: the output it was for is named then
+                target = parent / names[0] if len(names) == 1 else parent
+                msg = os_error_message(err, target) if isinstance(err, OSError) else str(err)
                 raise OutputError(
                     msg.replace(str(staging) + os.sep, str(parent) + os.sep).replace(str(staging), str(parent))
                 ) from None

@@ -25,6 +25,7 @@ for which DPGO's rule gives back ``kappa``).
 from __future__ import annotations
 
 import io
+import os
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -34,7 +35,7 @@ import numpy as np
 from studio.core.errors import FormatError
 from studio.core.model import PoseGraph, PoseKind
 from studio.core.types import PathLike
-from studio.core.units import NS_PER_S
+from studio.core.units import MAX_MAGNITUDE, NS_PER_S
 from studio.io.g2o import G2oDocument, _open_text, write_g2o
 from studio.io.graph_table import AgentPoses, EdgeTable, assemble_graph, graph_edge_table, information_matrix
 from studio.io.textfmt import float_columns, int_column, join_array, literal
@@ -189,6 +190,34 @@ def _check_csv_rows(table: np.ndarray, body: str, name: str) -> None:
     bad = np.flatnonzero((table[:, 11] <= 0) | (table[:, 12] <= 0))
     if bad.size:
         fail(int(bad[0]), "kappa and tau must be positive")
+    bad = np.flatnonzero((np.abs(table[:, 8:11]) > MAX_MAGNITUDE).any(axis=1))
+    if bad.size:  # the documented bound of every coordinate (studio.core.units)
+        fail(int(bad[0]), f"translation {table[bad[0], 8:11].tolist()} is beyond {MAX_MAGNITUDE:g} m")
+
+
+_ID_ROOM, _ID_SLACK = 16, 1024
+"""Poses (and robots) a table of ``n`` measurements may name: at most ``16 n + 1024``."""
+
+
+def _pose_counts(ra: np.ndarray, pa: np.ndarray, rb: np.ndarray, pb: np.ndarray, rows: int, where: str) -> np.ndarray:
+    """Each robot's pose count (its largest id + 1), the ids bounded before anything is allocated
+    from them (a pose id of 2,000,000,000 asked for 15 GiB). A whole dataset has a row per robot
+    and n-1 odometry rows per robot of n poses; the bound leaves room for one robot's file alone
+    (the others' poses seen only in its closures, refused later as not connected, saying so)."""
+    limit = _ID_ROOM * rows + _ID_SLACK
+    n_robots = int(max(ra.max(), rb.max())) + 1
+    if n_robots > limit:
+        raise FormatError(f"{where}: robot id {n_robots - 1} with only {rows} measurements (ids count from 0)")
+    sizes = np.zeros(n_robots, dtype=np.int64)
+    np.maximum.at(sizes, ra, pa + 1)
+    np.maximum.at(sizes, rb, pb + 1)
+    if int(sizes.sum()) > limit:
+        r = int(np.argmax(sizes))
+        raise FormatError(
+            f"{where}: robot {r} pose {int(sizes[r]) - 1}: ids far beyond the {rows} measurements read "
+            "(DPGO's pose ids count from 0, each pose joined to the next by odometry)"
+        )
+    return sizes
 
 
 def read_measurements_csv_files(paths: Sequence[PathLike]) -> PoseGraph:
@@ -198,7 +227,8 @@ def read_measurements_csv_files(paths: Sequence[PathLike]) -> PoseGraph:
     if not paths:
         raise FormatError("no measurements.csv files given")
     blocks = []
-    where = str(Path(paths[0]).parent) if len(paths) > 1 else str(paths[0])
+    # several robots' files: the folder holding them all (robotR/measurements.csv of one export)
+    where = os.path.commonpath([str(Path(p).parent) for p in paths]) if len(paths) > 1 else str(paths[0])
     for p in paths:
         text, name = _open_text(p)
         first, _, body = text.partition("\n")
@@ -221,7 +251,8 @@ def read_measurements_csv_files(paths: Sequence[PathLike]) -> PoseGraph:
         _check_csv_rows(parsed, body, name)
         blocks.append(parsed)
     if not blocks:
-        raise FormatError(f"{where}: no measurements")
+        many = f" in its {len(paths)} measurements.csv files" if len(paths) > 1 else ""
+        raise FormatError(f"{where}: no measurements{many} (only DPGO's header)")
     allrows = np.concatenate(blocks)
     ids = allrows[:, :4].astype(np.int64)
     # a loop closure between two robots is in both robots' files: keep its first row
@@ -238,10 +269,8 @@ def read_measurements_csv_files(paths: Sequence[PathLike]) -> PoseGraph:
     trans = allrows[:, 8:11]
     kappa = allrows[:, 11]
     tau = allrows[:, 12]
-    n_robots = int(max(ra.max(), rb.max())) + 1
-    sizes = np.zeros(n_robots, dtype=np.int64)
-    np.maximum.at(sizes, ra, pa + 1)
-    np.maximum.at(sizes, rb, pb + 1)
+    sizes = _pose_counts(ra, pa, rb, pb, len(ids), where)
+    n_robots = len(sizes)
     if np.any(sizes == 0):
         raise FormatError(f"{where}: robot {int(np.flatnonzero(sizes == 0)[0])} has no measurements")
     agents = [

@@ -79,11 +79,20 @@ def _check_ids(ids: np.ndarray, first: int, count: int, where: str, agent: str) 
     return np.argsort(ids, kind="stable")
 
 
-def _read_single_g2o(path: Path, graph: PoseGraph) -> tuple[Trajectory, ...]:
+def _read_single_g2o(path: Path, graph: PoseGraph, vertex_ids: np.ndarray | None = None) -> tuple[Trajectory, ...]:
     doc = read_g2o(path, edges=False)
     offsets = agent_offsets(graph)
     total = int(offsets[-1])
     ids = doc.vertex_ids
+    if vertex_ids is not None:  # the dataset file's own ids, renumbered 0..n-1 as it was read
+        at = np.minimum(np.searchsorted(vertex_ids, ids), len(vertex_ids) - 1)
+        unknown = vertex_ids[at] != ids
+        if unknown.any():
+            raise EvaluationError(
+                f"{path}: {int(unknown.sum())} vertices have ids the dataset's file does not have; "
+                f"the first is id {int(ids[unknown][0])}"
+            )
+        ids = at
     outside = (ids < 0) | (ids >= total)
     if outside.any():
         raise EvaluationError(
@@ -127,7 +136,7 @@ def _read_multi_g2o(folder: Path, graph: PoseGraph) -> tuple[Trajectory, ...]:
 
 def _tum_files(folder: Path, graph: PoseGraph) -> dict[str, Path]:
     files = [p for p in folder.iterdir() if p.is_file() and p.suffix == ".tum" and not p.name.endswith("_GT.tum")]
-    found = {}
+    found: dict[str, Path] = {}
     for agent in graph.agents:
         # the agent's own file (as ``studio solve`` writes it: its name made safe) wins; else one
         # ``<agent>_*.tum``, as a converter's inputs are often named
@@ -138,6 +147,11 @@ def _tum_files(folder: Path, graph: PoseGraph) -> dict[str, Path]:
         if len(mine) > 1:
             raise EvaluationError(
                 f"{folder}: several TUM files for agent {agent.name}: {', '.join(p.name for p in mine)}"
+            )
+        other = next((name for name, path in found.items() if path == mine[0]), None)
+        if other is not None:  # one trajectory would be scored as two agents'
+            raise EvaluationError(
+                f"{folder}: {mine[0].name} is the TUM file of both agent {other} and agent {agent.name}"
             )
         found[agent.name] = mine[0]
     return found
@@ -202,10 +216,14 @@ def estimate_layout(path: PathLike) -> EstimateLayout:
     )
 
 
-def read_estimate(path: PathLike, graph: PoseGraph) -> Estimate:
-    """Read an estimate of ``graph`` (layout guessed by :func:`estimate_layout`), split per agent."""
+def read_estimate(path: PathLike, graph: PoseGraph, *, vertex_ids: np.ndarray | None = None) -> Estimate:
+    """Read an estimate of ``graph`` (layout guessed by :func:`estimate_layout`), split per agent;
+    ``vertex_ids``: a single g2o estimate's ids are those (sorted) of the dataset's file, renumbered
+    ``0..n-1`` in their order (as ``studio solve`` keeps a file's ids), instead of ``0..n-1``."""
     path = Path(path)
     path = solve_output_estimate(path) or path
     layout = estimate_layout(path)
-    reader = {"single-g2o": _read_single_g2o, "multi-g2o": _read_multi_g2o, "tum": _read_tum_folder}[layout]
+    if layout == "single-g2o":
+        return Estimate(layout, str(path), _read_single_g2o(path, graph, vertex_ids))
+    reader = {"multi-g2o": _read_multi_g2o, "tum": _read_tum_folder}[layout]
     return Estimate(layout, str(path), reader(path, graph))

@@ -30,6 +30,7 @@ from studio.core.errors import FormatError
 from studio.core.model import PoseKind
 from studio.core.types import PathLike
 from studio.core.units import QUAT_NORM_TOLERANCE
+from studio.io.input_files import read_input_bytes
 from studio.io.textfmt import (
     Floats,
     Ints,
@@ -153,20 +154,7 @@ def _open_text(source: PathLike | IO[str]) -> tuple[str, str]:
     if hasattr(source, "read"):
         return source.read(), getattr(source, "name", "<stream>")
     path = Path(source)
-    try:
-        if path.is_dir():
-            raise FormatError(f"{path}: is a folder, not a file")
-        size = path.stat().st_size
-        if size > MAX_TEXT_BYTES:
-            raise FormatError(f"{path}: {size} bytes is over the {MAX_TEXT_BYTES} byte (1 GiB) limit of text inputs")
-        with open(path, "rb") as f:
-            data = f.read(MAX_TEXT_BYTES + 1)  # the size may grow after stat() (a device, a growing file)
-    except FileNotFoundError:
-        raise FormatError(f"{path}: no such file") from None
-    except OSError as err:
-        raise FormatError(f"{path}: cannot read ({err.strerror})") from None
-    if len(data) > MAX_TEXT_BYTES:
-        raise FormatError(f"{path}: over the {MAX_TEXT_BYTES} byte (1 GiB) limit of text inputs")
+    data = read_input_bytes(path, limit=MAX_TEXT_BYTES, what="text inputs")  # a FIFO or device: refused
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
     try:
@@ -262,6 +250,10 @@ def read_g2o(
         dup = int(uniq[np.argmax(counts > 1)])
         where = [ln for ln, v in zip(vlines, vids.tolist()) if v == dup][1]
         raise FormatError(f"{name}:{where}: vertex {dup} is defined twice")
+    loops = np.flatnonzero(eids[:, 0] == eids[:, 1]) if len(eids) else eids[:0, 0]
+    if len(loops):  # a pose related to itself constrains nothing but contradicts any non-identity measurement
+        r = int(loops[0])
+        raise FormatError(f"{name}:{elines[r]}: edge from vertex {int(eids[r, 0])} to itself (a self-loop)")
     if len(eids) and not dangling:
         known = np.isin(eids, vids)
         if not known.all():

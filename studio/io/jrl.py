@@ -62,7 +62,9 @@ and a covariance that is not positive definite are a :class:`FormatError` naming
 
 from __future__ import annotations
 
+import itertools
 import json
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -73,7 +75,7 @@ import numpy as np
 from studio.core.errors import FormatError, GraphError
 from studio.core.model import PoseGraph, PoseKind, Priors, RangeBearing
 from studio.core.types import PathLike
-from studio.core.units import NS_PER_S
+from studio.core.units import MAX_MAGNITUDE, NS_PER_S
 from studio.io.g2o import MAX_TEXT_BYTES
 from studio.io.graph_table import (
     AgentPoses,
@@ -83,7 +85,8 @@ from studio.io.graph_table import (
     information_matrix,
     matrix_to_upper,
 )
-from studio.io.strict_json import dumps_strict
+from studio.io.input_files import read_input_bytes
+from studio.io.strict_json import dumps_strict, unique_keys
 from studio.io.symbol_g2o import INDEX_BITS, robot_prefix
 
 __all__ = [
@@ -406,7 +409,7 @@ class _Reader:
             raise self.fail(path, f"missing key {key!r}")
         return obj[key]
 
-    def number(self, value: Any, path: str) -> float:
+    def number(self, value: Any, path: str, bound: float = sys.float_info.max) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.fail(path, f"expected a number, got {json.dumps(value)[:40]}")
         try:
@@ -415,12 +418,14 @@ class _Reader:
             raise self.fail(path, "a number beyond a double's range") from None
         if not np.isfinite(v):
             raise self.fail(path, "not a finite number")
+        if abs(v) > bound:  # translations: the documented bound of every coordinate
+            raise self.fail(path, f"{v:g} is beyond {bound:g} m")
         return v
 
-    def numbers(self, value: Any, n: int, path: str) -> list[float]:
+    def numbers(self, value: Any, n: int, path: str, bound: float = sys.float_info.max) -> list[float]:
         if not isinstance(value, list) or len(value) != n:
             raise self.fail(path, f"expected a list of {n} numbers")
-        return [self.number(v, f"{path}[{i}]") for i, v in enumerate(value)]
+        return [self.number(v, f"{path}[{i}]", bound) for i, v in enumerate(value)]
 
     def uint(self, value: Any, path: str) -> int:
         if isinstance(value, bool) or not isinstance(value, int) or value < 0 or value >= 1 << 64:
@@ -429,8 +434,8 @@ class _Reader:
 
     def pose(self, kind: PoseKind, obj: Any, path: str) -> list[float]:
         if kind is PoseKind.SE2:
-            return [self.number(self.get(obj, k, path), f"{path}.{k}") for k in ("x", "y", "theta")]
-        t = self.numbers(self.get(obj, "translation", path), 3, f"{path}.translation")
+            return [self.number(self.get(obj, k, path), f"{path}.{k}", MAX_MAGNITUDE) for k in ("x", "y", "theta")]
+        t = self.numbers(self.get(obj, "translation", path), 3, f"{path}.translation", MAX_MAGNITUDE)
         w, x, y, z = self.numbers(self.get(obj, "rotation", path), 4, f"{path}.rotation")
         norm = float(np.sqrt(w * w + x * x + y * y + z * z))
         if abs(norm - 1.0) > 1e-6:
@@ -450,7 +455,7 @@ def _load(source: PathLike) -> tuple[Any, str]:
             raise FormatError(f"{path}: is a folder, not a JRL file")
         if path.stat().st_size > MAX_TEXT_BYTES:
             raise FormatError(f"{path}: over the {MAX_TEXT_BYTES} byte (1 GiB) limit of text inputs")
-        text = path.read_text(encoding="utf-8")
+        text = read_input_bytes(path).decode("utf-8")  # a FIFO or device: refused, never waited on
     except FileNotFoundError:
         raise FormatError(f"{path}: no such file") from None
     except UnicodeDecodeError:
@@ -458,11 +463,21 @@ def _load(source: PathLike) -> tuple[Any, str]:
     except OSError as err:
         raise FormatError(f"{path}: cannot read ({err.strerror})") from None
     try:
-        return json.loads(text), str(path)
+        return json.loads(text, parse_int=_parse_int, object_pairs_hook=unique_keys), str(path)
     except json.JSONDecodeError as err:
         raise FormatError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
     except RecursionError:
         raise FormatError(f"{path}: JSON nested too deeply") from None
+    except ValueError as err:  # an integer of thousands of digits (_parse_int), a key given twice
+        raise FormatError(f"{path}: not valid JRL ({err})") from None
+
+
+def _parse_int(text: str) -> int:
+    """JSON integers of at most 4000 digits: Python's own limit, 4300 digits, raises a ValueError
+    about itself (a longer one than a double holds is refused where it is used, with its path)."""
+    if len(text) > 4000:
+        raise ValueError(f"an integer of {len(text.lstrip('-'))} digits, beyond any JRL key, stamp or value")
+    return int(text)
 
 
 def read_jrl(source: PathLike, *, warn: Callable[[str], None] | None = None) -> JrlGraph:
@@ -840,9 +855,12 @@ def _read_values(
             decoded.append(keys.decode(key, f"{vpath}.key"))
         poses = _pose_array(r, kind, items, vpaths).tolist()
         mine = keys.position[ord(c)]
-        for (a, i), pose in zip(decoded, poses):
+        for (a, i), pose, vpath in zip(decoded, poses, vpaths):
             if a == mine:
-                own.setdefault(a, {})[i] = pose
+                robot = own.setdefault(a, {})
+                if i in robot:  # its owner gives it twice: the second silently won
+                    raise r.fail(f"{vpath}.key", f"pose {i} of robot {c!r} is given twice in {section}.{c}")
+                robot[i] = pose
             else:
                 copies.setdefault(a, {}).setdefault(i, pose)
     differ = 0
@@ -929,6 +947,7 @@ def _labelled_rows(
     if not isinstance(labelled, dict):
         raise r.fail(section, "expected an object of robot -> [[entry, measurement], ...]")
     rows, elsewhere = [], 0
+    listed: dict[tuple[str, int, int], str] = {}
     for c, pairs in labelled.items():
         if not isinstance(pairs, list):
             raise r.fail(f"{section}.{c}", "expected a list of [entry, measurement] pairs")
@@ -944,6 +963,9 @@ def _labelled_rows(
                 raise r.fail(
                     path, f"FactorId {pair} is out of range: measurements.{c}[{e}] has {sizes[e]} measurements"
                 )
+            if (c, e, m) in listed:  # written (and counted) twice otherwise
+                raise r.fail(path, f"{pair} is listed already ({listed[(c, e, m)]})")
+            listed[(c, e, m)] = path
             row = factors.ids.get((c, e, m))
             if row is None:
                 elsewhere += 1
@@ -962,8 +984,10 @@ def _labelled_rows(
 def _number_array(r: _Reader, values: list[Any], width: int, paths: list[str]) -> np.ndarray:
     """``(n, width)`` floats of JSON number lists; a bad one is named by its path (slow path)."""
     try:
+        # numpy reads "0.5" and true as numbers; JRL's parser does not: only ints and floats pass
+        plain = set(map(type, itertools.chain.from_iterable(values))) <= {int, float}
         arr = np.array(values, dtype=np.float64)
-        if arr.shape == (len(values), width) and np.isfinite(arr).all():
+        if plain and arr.shape == (len(values), width) and np.isfinite(arr).all():
             return arr.reshape(len(values), width)
     except (TypeError, ValueError, OverflowError):
         pass
@@ -981,6 +1005,9 @@ def _pose_array(r: _Reader, kind: PoseKind, values: list[Any], paths: list[str])
         else:
             flat = [[*v["translation"], *v["rotation"]] for v in values]
             arr = _number_array(r, flat, 7, paths)[:, [0, 1, 2, 4, 5, 6, 3]]
+        if np.any(np.abs(arr[:, : 2 if kind is PoseKind.SE2 else 3]) > MAX_MAGNITUDE):
+            raise r.fail(paths[0], "beyond the bound")  # the slow path below names the value
+        if kind is not PoseKind.SE2:
             norms = np.linalg.norm(arr[:, 3:], axis=1)
             bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-6)
             if bad.size:

@@ -45,8 +45,10 @@ from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
+from studio.io.input_files import read_input_bytes
 from studio.io.inter_lc_dat import Precision, read_inter_lc_dat, write_inter_lc_dat
 from studio.io.names import safe_file_names
+from studio.io.strict_json import unique_keys
 from studio.io.tum import read_tum, write_tum
 
 __all__ = [
@@ -179,13 +181,15 @@ def _read_agents_file(folder: Path) -> list[tuple[str, str]] | None:
     if not path.is_file():
         return None
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        data = json.loads(read_input_bytes(path).decode("utf-8"), object_pairs_hook=unique_keys)
+    except (OSError, UnicodeDecodeError, ValueError) as err:
         raise FormatError(f"{path}: not a readable agents file ({err})") from None
-    entries = data.get("agents") if isinstance(data, dict) else None
+    if not isinstance(data, dict):  # [] or null once raised AttributeError in every dataset command
+        data = {}
+    entries = data.get("agents")
     if data.get("format") != _AGENTS_FORMAT or not isinstance(entries, list) or not entries:
         raise FormatError(f'{path}: expected {{"format": "{_AGENTS_FORMAT}", "agents": [...]}}')
-    out = []
+    out: list[tuple[str, str]] = []
     for k, e in enumerate(entries):
         if not (
             isinstance(e, dict)
@@ -196,6 +200,10 @@ def _read_agents_file(folder: Path) -> list[tuple[str, str]] | None:
             and e["folder"] not in ("", ".", "..")
         ):
             raise FormatError(f"{path}: agents[{k}]: expected a plain folder and a non-empty name")
+        for j, (folder_j, name_j) in enumerate(out):
+            if e["folder"] == folder_j or e["name"] == name_j:
+                same = f"folder {folder_j!r}" if e["folder"] == folder_j else f"name {name_j!r}"
+                raise FormatError(f"{path}: agents[{k}]: the {same} is already agents[{j}]'s")
         out.append((e["folder"], e["name"]))
     return out
 
@@ -240,6 +248,17 @@ def agent_folders(folder: PathLike) -> list[tuple[str, Path]]:
             if not (folder / sub / "posegraph.g2o").is_file():
                 raise FormatError(f"{folder / AGENTS_FILE}: agent {name}: no {sub}/posegraph.g2o")
             out.append((name, folder / sub))
+        listed = {sub for sub, _ in mapping}
+        unlisted = sorted(
+            (
+                p.name
+                for p in folder.iterdir()
+                if p.is_dir() and (p / "posegraph.g2o").is_file() and p.name not in listed
+            ),
+            key=_natural_key,
+        )
+        if unlisted:  # the agents' numbering would shift: inter_agent_lc.dat was blamed for it
+            raise FormatError(f"{folder / AGENTS_FILE}: the agent folder {unlisted[0]} is not listed")
         return out
     subs = [p for p in folder.iterdir() if p.is_dir() and (p / "posegraph.g2o").is_file()]
     if not subs:

@@ -10,9 +10,9 @@ from __future__ import annotations
 import re
 from collections.abc import Collection, Iterable
 
-from studio.core.errors import FormatError
+from studio.core.errors import ConfigError, FormatError
 
-__all__ = ["safe_file_name", "safe_file_names", "MAX_NAME_CHARS"]
+__all__ = ["safe_file_name", "safe_file_names", "check_name_component", "MAX_NAME_CHARS"]
 
 #: Longest name made (file systems allow 255 bytes; a suffix such as ``_GT.tum`` is added to it).
 MAX_NAME_CHARS = 100
@@ -50,3 +50,27 @@ def safe_file_names(raws: Iterable[str], *, where: str, fallback: str = "agent")
         seen[name] = raw
         names.append(name)
     return names
+
+
+def check_name_component(raw: object, *, what: str, option: str | None = None) -> str:
+    """``raw`` itself when it can name one file or folder inside an output: a non-empty string of at
+    most 255 bytes with no path separator, not ``.`` or ``..``, no NUL, no line break and no other
+    control character. Otherwise a one-line :class:`ConfigError` naming ``what`` (the option or the
+    data field): a name given by a user or found in data never decides where a file goes, and is
+    refused rather than silently changed when it is the name the user asked for."""
+    if not isinstance(raw, str):
+        raise ConfigError(f"{what}: expected a string, got {type(raw).__name__}", option=option)
+    rule = None
+    if raw in ("", ".", ".."):
+        rule = "is empty" if not raw else "is not a file or folder of its own"
+    elif "/" in raw or "\\" in raw:
+        rule = "holds a path separator" if not raw.startswith("/") else "is an absolute path"
+    elif any(ord(c) < 32 or ord(c) == 127 for c in raw):
+        rule = "holds a NUL, a line break or another control character"
+    elif len(raw.encode("utf-8", "surrogatepass")) > 255:
+        rule = "is longer than 255 bytes"
+    if rule is not None:
+        raise ConfigError(
+            f"{what}: {raw!r} {rule}; give one plain file or folder component (no '/', not '..')", option=option
+        )
+    return raw

@@ -21,6 +21,7 @@ import numpy as np
 from studio.core.errors import FormatError
 from studio.core.model import PoseGraph, RangeBearing
 from studio.core.types import PathLike
+from studio.io.input_files import read_input_bytes
 from studio.io.textfmt import float_columns, int_column, join_array, write_text
 
 __all__ = ["RANGE_BEARING_NAME", "range_bearing_text", "write_range_bearing", "read_range_bearing"]
@@ -66,8 +67,7 @@ def read_range_bearing(path: PathLike, graph: PoseGraph | None = None) -> RangeB
     floats: list[list[float]] = []
     sizes = [a.num_poses for a in graph.agents] if graph is not None else None
     try:
-        with open(path, encoding="utf-8") as f:
-            lines = f.read().splitlines()
+        lines = read_input_bytes(path).decode("utf-8").splitlines()  # a FIFO: refused, never waited on
     except (OSError, UnicodeDecodeError) as err:
         raise FormatError(f"{path}: cannot read ({err})") from None
     for lineno, raw in enumerate(lines, start=1):

@@ -16,6 +16,7 @@ windows in order and not overlapping, each robot once; empty lines are skipped. 
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from typing import IO
 
@@ -24,7 +25,11 @@ import numpy as np
 from studio.core.comms import check_windows
 from studio.core.errors import ConfigError, FormatError
 from studio.core.types import PathLike
+from studio.core.units import MAX_STAMP_S
 from studio.io.g2o import _open_text
+from studio.io.numbers import text_int
+
+_DIGITS = re.compile(r"[+-]?[0-9]+")
 
 __all__ = ["read_rendezvous", "write_rendezvous", "rendezvous_text"]
 
@@ -46,11 +51,15 @@ def read_rendezvous(
         fields = [f.strip() for f in line.split(",")]
         if fields and fields[-1] == "":
             fields = fields[:-1]
-        try:
-            values = [int(f) for f in fields]
-        except ValueError:
-            raise FormatError(f"{place}: expected ROBOT_ID,start,end,... as integers, got {line[:60]!r}") from None
-        robot = values[0]
+        # plain digits only: Swarm-SLAM's std::stoi reads "1_0" as 1, Python's int() as 10
+        if not all(_DIGITS.fullmatch(f) for f in fields):
+            raise FormatError(
+                f"{place}: expected ROBOT_ID,start,end,... as integers (decimal digits), got {line[:60]!r}"
+            )
+        robot = text_int(fields[0], place, what="robot id")
+        values = [robot] + [
+            text_int(f, place, lo=-int(MAX_STAMP_S), hi=int(MAX_STAMP_S), what="time [s]") for f in fields[1:]
+        ]
         if robot < 0:
             raise FormatError(f"{place}: robot id {robot} is negative (ids are 0-based)")
         if robot in windows or robot in others:

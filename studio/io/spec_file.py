@@ -9,8 +9,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from studio.core.errors import ConfigError
+from studio.core.errors import ConfigError, FormatError
 from studio.core.types import PathLike
+from studio.io.input_files import read_input_bytes
+from studio.io.strict_json import unique_keys
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -39,16 +41,19 @@ def _nesting_depth(text: str) -> int:
 
 def read_spec_file(path: PathLike, *, what: str = "spec") -> Any:
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise ConfigError(f"{path}: no such {what} file")
     try:
         if path.stat().st_size > MAX_SPEC_BYTES:
             raise ConfigError(f"{path}: larger than {MAX_SPEC_BYTES >> 20} MiB; not a {what}")
-        text = path.read_bytes().decode("utf-8")
+        try:
+            text = read_input_bytes(path).decode("utf-8")  # a FIFO or device: refused, never waited on
+        except FormatError as err:
+            raise ConfigError(str(err)) from None
         depth = _nesting_depth(text)
         if depth > MAX_SPEC_DEPTH:
             raise ConfigError(f"{path}: nested {depth} deep, over the limit of {MAX_SPEC_DEPTH}; not a {what}")
-        return json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
+        return json.loads(text, object_pairs_hook=unique_keys) if path.suffix == ".json" else tomllib.loads(text)
     except RecursionError:
         raise ConfigError(f"{path}: nested too deeply; not a {what}") from None
     except UnicodeDecodeError as err:
@@ -57,6 +62,8 @@ def read_spec_file(path: PathLike, *, what: str = "spec") -> Any:
         raise ConfigError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
     except tomllib.TOMLDecodeError as err:
         raise ConfigError(f"{path}: not valid TOML ({err})") from None
+    except ValueError as err:  # a key given twice (unique_keys)
+        raise ConfigError(f"{path}: not valid JSON ({err})") from None
     except OSError as err:
         raise ConfigError(f"{path}: cannot read ({err.strerror})") from None
 

@@ -10,7 +10,7 @@ from typing import Any
 
 from studio.core.errors import OutputError
 
-__all__ = ["dumps_strict", "non_finite_path"]
+__all__ = ["dumps_strict", "non_finite_path", "unique_keys"]
 
 
 def non_finite_path(obj: Any, path: str = "$") -> tuple[str, float] | None:
@@ -44,3 +44,14 @@ def dumps_strict(obj: Any, where: str, **kwargs: Any) -> str:
             raise OutputError(f"{where}: cannot write JSON ({err})") from None
         path, value = found
         raise OutputError(f"{where}: {path} is {value!r}, not a finite number (strict JSON); nothing written") from None
+
+
+def unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """``object_pairs_hook`` for ``json.loads``: an object whose key is given twice is a
+    ``ValueError`` (the decoder would keep the last value silently)."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"the key {key!r} is given twice in one object")
+        out[key] = value
+    return out

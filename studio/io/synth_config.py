@@ -19,10 +19,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NoReturn
 
-from studio.core.errors import ConfigError
+from studio.core.errors import ConfigError, FormatError
 from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE, MIN_MAGNITUDE
 from studio.generator.config import AgentConfig, InterLoopClosureConfig, SynthConfig
+from studio.io.input_files import read_input_bytes
+from studio.io.strict_json import unique_keys
 from studio.io.studio_block import studio_block_to_json
 
 __all__ = [
@@ -250,7 +252,9 @@ def read_synth_config(path: PathLike, *, warn: Callable[[str], None] | None = No
             raise ConfigError(f"{path}: is a folder, not a JSON file")
         if size > MAX_CONFIG_BYTES:
             raise ConfigError(f"{path}: {size} bytes is too large for a config (limit {MAX_CONFIG_BYTES})")
-        raw = path.read_bytes()
+        raw = read_input_bytes(path)  # a FIFO or device: refused, never waited on
+    except FormatError as err:
+        raise ConfigError(str(err)) from None
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
     except OSError as err:
@@ -261,17 +265,35 @@ def read_synth_config(path: PathLike, *, warn: Callable[[str], None] | None = No
         line = raw[: err.start].count(b"\n") + 1
         raise ConfigError(f"{path}:{line}: not UTF-8 text") from None
     try:
-        data = json.loads(text, parse_constant=_reject_constant, parse_int=_parse_int)
+        data = json.loads(text, parse_constant=_reject_constant, parse_int=_parse_int, object_pairs_hook=unique_keys)
     except json.JSONDecodeError as err:
         raise ConfigError(f"{path}:{err.lineno}:{err.colno}: invalid JSON: {err.msg}") from None
     except RecursionError:
         raise ConfigError(f"{path}: invalid JSON: nested too deeply") from None
     except ValueError as err:
-        raise ConfigError(f"{path}: invalid JSON: {err}") from None
+        raise ConfigError(f"{path}{_constant_place(text, str(err))}: invalid JSON: {err}") from None
     name = path.stem
     if name.endswith(".config") and len(name) > len(".config"):
         name = name[: -len(".config")]
+    if name in ("", ".", ".."):  # the outputs are named after it: ..json -> "."
+        raise ConfigError(
+            f"{path}: the dataset is named after the file's stem {name!r}, which names no folder; rename the file"
+        )
     return parse_synth_config(data, source=str(path), name=name, warn=warn)
+
+
+def _constant_place(text: str, message: str) -> str:
+    """``:LINE:COLUMN`` of the first ``NaN``/``Infinity`` literal outside strings, when ``message``
+    is about one (the decoder's hook is not told where it is), else ``""``."""
+    if "is not valid JSON" not in message:
+        return ""
+    import re
+
+    for m in re.finditer(r'"(?:[^"\\]|\\.)*"|-?Infinity|NaN', text):
+        if not m.group().startswith('"'):
+            line = text.count("\n", 0, m.start()) + 1
+            return f":{line}:{m.start() - (text.rfind(chr(10), 0, m.start()) + 1) + 1}"
+    return ""
 
 
 def _reject_constant(name: str) -> NoReturn:

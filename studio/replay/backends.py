@@ -1,10 +1,13 @@
-"""The back-ends of ``studio replay``: what each robot believes as measurements and closures arrive.
+"""The studio's own back-ends of ``studio replay``: what each robot believes as measurements and
+closures arrive.
 
-Every back-end sees the same :class:`World` and is advanced checkpoint by checkpoint (every
-``every`` ticks and at the end); at each it returns ``own`` (one row per vertex of the problem: the
-estimate the vertex's own robot holds of it; rows of poses not yet visited are unused) and counts
-what it sent on each link. The registry :data:`studio.replay.registry.BACKENDS` is the one place a
-back-end is declared.
+Each implements the public protocol of :mod:`studio.replay.protocol` and nothing more: made from a
+:class:`~studio.replay.protocol.Setup`, told each checkpoint's news (every ``every`` ticks and at the
+end) and then the end, it keeps what the news said (the poses visited, the edges known to their
+robots) and answers a :class:`~studio.replay.protocol.Step`: ``own`` (one row per vertex of the
+problem: the estimate the vertex's own robot holds of it; rows of poses not yet visited are
+unused), the poses of other robots kept, and what it sent on each link. The registry
+:data:`studio.replay.registry.BACKENDS` is the one place a back-end is declared.
 
 * ``centralized``: one ISAM2 (:class:`~studio.solvers.incremental.IncrementalSolver`) over
   everything anyone knows: every robot's odometry and intra-agent closures at their times and each
@@ -24,113 +27,36 @@ back-end is declared.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Protocol
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from studio.core.comms import robot_pairs
+from studio.replay.protocol import BackendFactory, Checkpoint, KeptPoses, ReplayBackend, Setup, Step
 from studio.solvers.incremental import FixedEnds, IncrementalSolver, IsamSettings
-from studio.solvers.problem import Problem
 
-__all__ = ["World", "Backend", "BackendFactory", "KeptPoses", "Step", "make_dgs"]
-
-
-@dataclass(frozen=True, eq=False)
-class World:
-    """What the simulation knows about the dataset and the schedule, as columns over global ids."""
-
-    problem: Problem
-    agent_of_vertex: np.ndarray
-    vertex_ns: np.ndarray
-    """When each vertex is visited."""
-    edge_ns: np.ndarray
-    """When each edge is measured."""
-    edge_closure: np.ndarray
-    """Per edge, its inter-agent closure index, -1 for a robot's own edge."""
-    closure_from: np.ndarray
-    closure_to: np.ndarray
-    delivered_tick: np.ndarray
-    """Per inter-agent closure, the tick its robots learn it, -1 for never."""
-    ticks_ns: np.ndarray
-    num_robots: int
-    settings: IsamSettings = field(default_factory=IsamSettings)
-
-    @property
-    def pose_bytes(self) -> int:
-        return 8 * (1 + self.problem.kind.pose_width)
-
-    @property
-    def edge_bytes(self) -> int:
-        return 8 * (2 + self.problem.kind.pose_width + self.problem.kind.information_width)
-
-    def edges_known(self) -> np.ndarray:
-        """Per edge: known to some robot by the end (its own edges, the closures delivered): the
-        edges the centralized back-end optimizes over."""
-        inter = self.edge_closure >= 0
-        out = ~inter
-        out[inter] = self.delivered_tick[self.edge_closure[inter]] >= 0
-        return out
-
-    def edge_delivered_tick(self) -> np.ndarray:
-        """Per edge: the tick from which it may be known (own edges: their measurement tick)."""
-        own = np.searchsorted(self.ticks_ns, self.edge_ns, side="left")
-        inter = self.edge_closure >= 0
-        out = own.astype(np.int64)
-        d = self.delivered_tick[self.edge_closure[inter]]
-        out[inter] = np.where(d >= 0, d, np.iinfo(np.int64).max)
-        return out
-
-
-@dataclass(frozen=True, eq=False)
-class KeptPoses:
-    """The estimates robots keep of other robots' poses: per row the robot keeping it, the vertex
-    (global id) and the pose it holds."""
-
-    robot: np.ndarray
-    vertex: np.ndarray
-    poses: np.ndarray
-
-
-@dataclass(frozen=True, eq=False)
-class Step:
-    """What a back-end believes at one checkpoint."""
-
-    own: np.ndarray
-    """``(num_vertices, w)``: each vertex's estimate by its own robot."""
-    solver_seconds: float
-    """Wall time in the solver since the last checkpoint."""
-    kept: KeptPoses | None = None
-    """The robots' own estimates of other robots' poses (swarm, dgs: :class:`Memory`); None for a
-    back-end whose robots keep none (centralized holds one estimate, independent shares nothing)."""
-
-
-class Backend(Protocol):
-    """A running back-end: :meth:`advance` to a tick (groups: robots that may have talked since the
-    last checkpoint), :meth:`finish` after the last; per-link counters in ``messages``/``bytes``."""
-
-    messages: np.ndarray
-    bytes: np.ndarray
-
-    def advance(self, tick: int, groups: list[tuple[int, ...]]) -> Step: ...
-
-    def finish(self) -> Step: ...
-
-
-BackendFactory = Callable[[World], Backend]
+__all__ = ["Centralized", "Independent", "Swarm", "Memory", "make_dgs"]
 
 
 class _Base:
-    def __init__(self, world: World) -> None:
+    """What every built-in back-end keeps of the news: the vertices visited and the edges known to
+    their robots so far, the per-link counters, the robots' own estimates."""
+
+    def __init__(self, world: Setup) -> None:
         self.world = world
         pairs = robot_pairs(world.num_robots)
         self._pair_index = {(int(a), int(b)): k for k, (a, b) in enumerate(pairs.tolist())}
         self.messages = np.zeros(len(pairs), dtype=np.int64)
         self.bytes = np.zeros(len(pairs), dtype=np.int64)
         self.own = world.problem.initial.copy()
-        self._edge_tick = world.edge_delivered_tick()
+        self.visited = np.zeros(world.problem.num_vertices, dtype=bool)
+        self.edges_known = np.zeros(world.problem.num_edges, dtype=bool)
         self._seconds = 0.0
+
+    def _receive(self, news: Checkpoint) -> None:
+        self.visited[news.vertices] = True
+        self.edges_known[news.edges] = True
+        self.edges_known[news.closures] = True
 
     def _count(self, a: int, b: int, messages: int, size: int) -> None:
         if a == b:
@@ -139,12 +65,11 @@ class _Base:
         self.messages[k] += messages
         self.bytes[k] += size
 
-    def _known(self, tick: int, robots: tuple[int, ...] | None) -> tuple[np.ndarray, np.ndarray]:
-        """Masks of the vertices and edges known at ``tick`` to a group of robots (None: anyone)."""
+    def _known(self, robots: tuple[int, ...] | None) -> tuple[np.ndarray, np.ndarray]:
+        """Masks of the vertices and edges known so far to a group of robots (None: anyone)."""
         w = self.world
-        t = w.ticks_ns[tick]
-        vertices = w.vertex_ns <= t
-        edges = self._edge_tick <= tick
+        vertices = self.visited.copy()
+        edges = self.edges_known.copy()
         if robots is not None:
             member = np.zeros(w.num_robots, dtype=bool)
             member[list(robots)] = True
@@ -155,9 +80,12 @@ class _Base:
 
     def _step(self, solvers: list[IncrementalSolver]) -> Step:
         total = sum(s.seconds for s in solvers)
-        out = Step(self.own.copy(), total - self._seconds)
+        out = self._answer(total - self._seconds)
         self._seconds = total
         return out
+
+    def _answer(self, seconds: float, kept: KeptPoses | None = None) -> Step:
+        return Step(self.own.copy(), seconds, self.messages.copy(), self.bytes.copy(), kept)
 
 
 class Memory:
@@ -169,26 +97,29 @@ class Memory:
     solving later enters each delivered closure between a member and a non-member as a unary factor
     on the member's pose, the closure composed with the non-member's pose the member keeps."""
 
-    def __init__(self, world: World) -> None:
+    def __init__(self, world: Setup) -> None:
         self.world = world
         p = world.problem
-        self.edges = np.flatnonzero(world.edge_closure >= 0)
+        self.edges = np.flatnonzero(world.inter_edges())
         self.robot_from = world.agent_of_vertex[p.edge_from[self.edges]]
         self.robot_to = world.agent_of_vertex[p.edge_to[self.edges]]
-        self.delivered_tick = world.delivered_tick[world.edge_closure[self.edges]]
+        self.delivered = np.zeros(len(self.edges), dtype=bool)
         self.poses = np.zeros((world.num_robots, p.num_vertices, p.kind.pose_width))
         self.tick = np.full((world.num_robots, p.num_vertices), -1, dtype=np.int64)
 
-    def _delivered(self, tick: int, group: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def deliver(self, closures: np.ndarray) -> None:
+        """The inter-agent closures (global edge ids) delivered to their robots at a checkpoint."""
+        self.delivered[np.searchsorted(self.edges, closures)] = True
+
+    def _delivered(self, group: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         member = np.zeros(self.world.num_robots, dtype=bool)
         member[list(group)] = True
-        known = (self.delivered_tick >= 0) & (self.delivered_tick <= tick)
-        return known, member[self.robot_from], member[self.robot_to]
+        return self.delivered.copy(), member[self.robot_from], member[self.robot_to]
 
     def learn(self, tick: int, group: tuple[int, ...], estimate: np.ndarray) -> dict[int, int]:
         """After ``group`` solved at ``tick`` (``estimate``: its poses, global rows): each member keeps
         the other ends of its delivered closures inside the group; per member, how many poses."""
-        known, from_in, to_in = self._delivered(tick, group)
+        known, from_in, to_in = self._delivered(group)
         inside = known & from_in & to_in
         p = self.world.problem
         e = self.edges[inside]
@@ -206,10 +137,10 @@ class Memory:
         robot, vertex = np.nonzero(self.tick >= 0)
         return KeptPoses(robot, vertex, self.poses[robot, vertex].copy())
 
-    def fixed(self, tick: int, group: tuple[int, ...], information_scale: float) -> FixedEnds:
+    def fixed(self, group: tuple[int, ...], information_scale: float) -> FixedEnds:
         """The delivered closures between a member of ``group`` and a non-member whose pose the
         member keeps, the non-member's end held there."""
-        known, from_in, to_in = self._delivered(tick, group)
+        known, from_in, to_in = self._delivered(group)
         p = self.world.problem
         held_is_from = ~from_in
         member = np.where(held_is_from, self.robot_to, self.robot_from)
@@ -240,12 +171,13 @@ def _finish(solver: IncrementalSolver, own: np.ndarray, settings: IsamSettings) 
 
 
 class Centralized(_Base):
-    def __init__(self, world: World) -> None:
+    def __init__(self, world: Setup) -> None:
         super().__init__(world)
         self.solver = IncrementalSolver(world.problem, world.agent_of_vertex, world.settings)
 
-    def advance(self, tick: int, groups: list[tuple[int, ...]]) -> Step:
-        vertices, edges = self._known(tick, None)
+    def advance(self, news: Checkpoint) -> Step:
+        self._receive(news)
+        vertices, edges = self._known(None)
         _add_known(self.solver, vertices, edges)
         ids = np.flatnonzero(self.solver.vertices)
         self.own[ids] = self.solver.solve()
@@ -257,15 +189,16 @@ class Centralized(_Base):
 
 
 class Independent(_Base):
-    def __init__(self, world: World) -> None:
+    def __init__(self, world: Setup) -> None:
         super().__init__(world)
         self.solvers = [
             IncrementalSolver(world.problem, world.agent_of_vertex, world.settings) for _ in range(world.num_robots)
         ]
 
-    def advance(self, tick: int, groups: list[tuple[int, ...]]) -> Step:
+    def advance(self, news: Checkpoint) -> Step:
+        self._receive(news)
         for r, solver in enumerate(self.solvers):
-            vertices, edges = self._known(tick, (r,))
+            vertices, edges = self._known((r,))
             _add_known(solver, vertices, edges)
             ids = np.flatnonzero(solver.vertices)
             if len(ids):
@@ -284,7 +217,7 @@ class Swarm(_Base):
     #: the information of a kept closure's unary factor: the closure's own (docs/replay.md)
     NEIGHBOUR_INFORMATION_SCALE = 1.0
 
-    def __init__(self, world: World) -> None:
+    def __init__(self, world: Setup) -> None:
         super().__init__(world)
         self.groups: dict[tuple[int, ...], IncrementalSolver] = {}
         self.fixed_edges: dict[tuple[int, ...], np.ndarray] = {}
@@ -309,10 +242,10 @@ class Swarm(_Base):
             self.rebuilds += 1
         return solver
 
-    def _solve(self, tick: int, group: tuple[int, ...], vertices: np.ndarray, edges: np.ndarray):
-        """The group's solver after its update at ``tick`` and the edges sent up to it."""
+    def _solve(self, group: tuple[int, ...], vertices: np.ndarray, edges: np.ndarray):
+        """The group's solver after its update and the edges sent up to it."""
         w = self.world
-        fixed = self.memory.fixed(tick, group, self.NEIGHBOUR_INFORMATION_SCALE)
+        fixed = self.memory.fixed(group, self.NEIGHBOUR_INFORMATION_SCALE)
         held = np.zeros(w.problem.num_edges, dtype=bool)
         held[fixed.edges] = True
         solver = self.groups.get(group)
@@ -328,17 +261,19 @@ class Swarm(_Base):
             solver.add(np.zeros(0, np.int64), np.zeros(0, np.int64), fixed=more)
         return solver, sent_edges
 
-    def advance(self, tick: int, groups: list[tuple[int, ...]]) -> Step:
-        w = self.world
+    def advance(self, news: Checkpoint) -> Step:
+        self._receive(news)
+        self.memory.deliver(news.closures)
+        w, tick = self.world, news.tick
         kept: dict[tuple[int, ...], IncrementalSolver] = {}
         seconds = 0.0
-        for group in groups:
-            vertices, edges = self._known(tick, group)
+        for group in news.groups:
+            vertices, edges = self._known(group)
             if not vertices.any():
                 continue
             old = self.groups.get(group)
             before = 0.0 if old is None else old.seconds
-            solver, sent_edges = self._solve(tick, group, vertices, edges)
+            solver, sent_edges = self._solve(group, vertices, edges)
             ids = np.flatnonzero(solver.vertices)
             self.own[ids] = solver.solve()
             self.believed[ids] = True
@@ -353,7 +288,7 @@ class Swarm(_Base):
                 self._count(lead_robot, m, 2, n_edges * w.edge_bytes + n_poses * w.pose_bytes)
         self.groups = kept
         self.fixed_edges = {g: self.fixed_edges[g] for g in kept}
-        return Step(self.own.copy(), seconds, self.memory.kept())
+        return self._answer(seconds, self.memory.kept())
 
     def finish(self) -> Step:
         seconds = 0.0
@@ -361,11 +296,15 @@ class Swarm(_Base):
             before = solver.seconds
             self.own = _finish(solver, self.own, self.world.settings)
             seconds += solver.seconds - before
-        return Step(self.own.copy(), seconds, self.memory.kept())
+        return self._answer(seconds, self.memory.kept())
 
 
-def make_dgs(world: World) -> Backend:
+def make_dgs(world: Setup) -> ReplayBackend:
     """Distributed Gauss-Seidel, a few rounds per checkpoint (:mod:`studio.replay.dgs_backend`)."""
     from studio.replay.dgs_backend import Dgs
 
     return Dgs(world)
+
+
+if TYPE_CHECKING:  # the built-in back-ends are factories of the public protocol: mypy checks each
+    _FACTORIES: tuple[BackendFactory, ...] = (Centralized, Independent, Swarm, make_dgs)

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from studio.replay.backends import Memory, Step, World, _Base
+from studio.replay.backends import Memory, _Base
+from studio.replay.protocol import Checkpoint, Setup, Step
 from studio.solvers.dgs import DEFAULT_POSE_TOL, dgs_rounds
 from studio.solvers.incremental import compose, inverse
 from studio.solvers.problem import Problem, graph_chi2
@@ -50,7 +51,7 @@ CHECKPOINT = Budget(10, DEFAULT_POSE_TOL, 1.0)
 FINAL = Budget(100, 1e-4, 1.6)
 
 
-def _teams(world: World, group: tuple[int, ...], edges: np.ndarray) -> list[tuple[int, ...]]:
+def _teams(world: Setup, group: tuple[int, ...], edges: np.ndarray) -> list[tuple[int, ...]]:
     """``group`` split into the robots tied together by the known edges ``edges`` (a mask)."""
     parent = {r: r for r in group}
 
@@ -76,7 +77,7 @@ class Dgs(_Base):
     #: the information of a kept closure to a held neighbour pose: the closure's own times this
     NEIGHBOUR_INFORMATION_SCALE = 1.0
 
-    def __init__(self, world: World) -> None:
+    def __init__(self, world: Setup) -> None:
         super().__init__(world)
         self.believed = np.zeros(world.problem.num_vertices, dtype=bool)
         self.last_groups: list[tuple[int, ...]] = []
@@ -102,15 +103,15 @@ class Dgs(_Base):
             out[rows] = compose(np.repeat(base, len(rows), axis=0), w.problem.initial[vertices[rows]], kind)
         return out
 
-    def _sub_problem(self, team: tuple[int, ...], tick: int) -> tuple[np.ndarray, Problem, np.ndarray, np.ndarray]:
+    def _sub_problem(self, team: tuple[int, ...]) -> tuple[np.ndarray, Problem, np.ndarray, np.ndarray]:
         """What ``team`` solves: its known vertices (global ids), the problem over them plus one held
         vertex per kept closure to a non-member (its pose as the member keeps it, in the member's
         block), each vertex's robot in the team and the held mask."""
         w, p = self.world, self.world.problem
-        vertices, edges = self._known(tick, team)
+        vertices, edges = self._known(team)
         ids = np.flatnonzero(vertices)
         edge_ids = np.flatnonzero(edges)
-        fixed = self.memory.fixed(tick, team, self.NEIGHBOUR_INFORMATION_SCALE)
+        fixed = self.memory.fixed(team, self.NEIGHBOUR_INFORMATION_SCALE)
         n, k = len(ids), len(fixed.edges)
         local = np.full(p.num_vertices, -1, dtype=np.int64)
         local[ids] = np.arange(n)
@@ -142,7 +143,7 @@ class Dgs(_Base):
         """DGS rounds of one team on what it knows and the neighbour poses its members keep; the
         seconds it took. A result whose chi2 is not below the start's (Gauss-Newton steps can
         diverge far from the optimum) is not taken."""
-        ids, sub, robot_local, held = self._sub_problem(team, tick)
+        ids, sub, robot_local, held = self._sub_problem(team)
         if not sub.num_edges:
             self.own[ids] = sub.initial[: len(ids)]
             self.believed[ids] = True
@@ -176,16 +177,18 @@ class Dgs(_Base):
         seconds = 0.0
         teams = set()
         for group in groups:
-            _, edges = self._known(tick, group)
+            _, edges = self._known(group)
             for team in _teams(self.world, group, edges):
                 seconds += self._solve(team, tick, budget)
                 teams.add(team)
         self.teams = teams
-        return Step(self.own.copy(), seconds, self.memory.kept())
+        return self._answer(seconds, self.memory.kept())
 
-    def advance(self, tick: int, groups: list[tuple[int, ...]]) -> Step:
-        self.last_tick, self.last_groups = tick, groups
-        return self._advance(tick, groups, CHECKPOINT)
+    def advance(self, news: Checkpoint) -> Step:
+        self._receive(news)
+        self.memory.deliver(news.closures)
+        self.last_tick, self.last_groups = news.tick, news.groups
+        return self._advance(news.tick, news.groups, CHECKPOINT)
 
     def finish(self) -> Step:
         return self._advance(self.last_tick, self.last_groups, FINAL)

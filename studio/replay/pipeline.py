@@ -35,6 +35,7 @@ from studio.core.comms import (
     Bandwidth,
     CommsModel,
     CommsReport,
+    PartnerCap,
     Rendezvous,
     Schedule,
     comms_report,
@@ -53,17 +54,72 @@ from studio.core.timing import MeasurementTimes, measurement_times
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.io.strict_json import dumps_strict
-from studio.replay.backends import KeptPoses, Step, World
 from studio.replay.metrics import as_se3, first_pose_errors, gaps_to_optimum, robot_values, se3_errors
-from studio.replay.registry import DEFAULT_BACKENDS, get_backend
+from studio.replay.protocol import Checkpoint, KeptPoses, Setup, Step
+from studio.replay.registry import DEFAULT_BACKENDS, get_backend, output_name
 from studio.runtime.progress import Progress, report
 from studio.solvers.isam_settings import IsamSettings
-from studio.solvers.problem import graph_chi2
+from studio.solvers.problem import Problem, graph_chi2
 
 __all__ = ["replay", "ReplayResult", "BackendRun", "build_schedule", "DEFAULT_BACKENDS", "REPLAY_JSON"]
 
 REPLAY_JSON = "replay.json"
 METRICS_HEADER = "backend,tick,time_s,robot,poses,ape_first_pose_m,ape_se3_m,sve_t_m,sve_r_rad"
+
+
+@dataclass(frozen=True, eq=False)
+class World:
+    """What the simulation knows about the dataset and the schedule, as columns over global ids: the
+    source of each checkpoint's news (:meth:`news`); the back-ends see only the :class:`Setup` and
+    the news."""
+
+    problem: Problem
+    agent_of_vertex: np.ndarray
+    vertex_ns: np.ndarray
+    """When each vertex is visited."""
+    edge_ns: np.ndarray
+    """When each edge is measured."""
+    edge_closure: np.ndarray
+    """Per edge, its inter-agent closure index, -1 for a robot's own edge."""
+    delivered_tick: np.ndarray
+    """Per inter-agent closure, the tick its robots learn it, -1 for never."""
+    ticks_ns: np.ndarray
+    num_robots: int
+    settings: IsamSettings
+
+    def setup(self) -> Setup:
+        return Setup(self.problem, self.agent_of_vertex, self.num_robots, self.settings)
+
+    def edges_known(self) -> np.ndarray:
+        """Per edge: known to some robot by the end (its own edges, the closures delivered): the
+        edges the centralized back-end optimizes over."""
+        inter = self.edge_closure >= 0
+        out = ~inter
+        out[inter] = self.delivered_tick[self.edge_closure[inter]] >= 0
+        return out
+
+    def news(self, previous: int, tick: int, groups: list[tuple[int, ...]], contacts: np.ndarray) -> Checkpoint:
+        """What happened after tick ``previous`` (-1: the start) up to ``tick``: poses visited and
+        own edges measured in that time, the closures delivered in it."""
+        t = int(self.ticks_ns[tick])
+        before = int(self.ticks_ns[previous]) if previous >= 0 else np.iinfo(np.int64).min
+        vertices = np.flatnonzero((self.vertex_ns > before) & (self.vertex_ns <= t))
+        own = self.edge_closure < 0
+        edges = np.flatnonzero(own & (self.edge_ns > before) & (self.edge_ns <= t))
+        closure_tick = np.where(own, -1, self.delivered_tick[np.maximum(self.edge_closure, 0)])
+        closures = np.flatnonzero(~own & (closure_tick > previous) & (closure_tick <= tick))
+        return Checkpoint(
+            tick,
+            t,
+            vertices,
+            self.vertex_ns[vertices],
+            edges,
+            self.edge_ns[edges],
+            closures,
+            self.edge_ns[closures],
+            groups,
+            contacts,
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -227,8 +283,6 @@ def _world(loaded: Any, graph: PoseGraph, times: MeasurementTimes, schedule: Sch
         np.concatenate(times.pose_ns),
         edge_ns,
         np.concatenate(closure),
-        schedule.closure_from,
-        schedule.closure_to,
         schedule.delivered_tick,
         schedule.ticks_ns,
         len(graph.agents),
@@ -252,9 +306,10 @@ def _run(
     *,
     keep_beliefs: bool,
     progress: Progress | None = None,
+    time_limit_s: float | None = None,
 ) -> BackendRun:
     t0 = time.perf_counter()
-    backend = get_backend(name)(world)
+    backend = get_backend(name, time_limit_s=time_limit_s)(world.setup())
     kind = world.problem.kind
     truth = [np.asarray(a.se3_poses(ground_truth=True)) for a in graph.agents]
     offsets = np.concatenate([[0], np.cumsum([a.num_poses for a in graph.agents])])
@@ -270,11 +325,11 @@ def _run(
     beliefs: list[np.ndarray] = []
     sve = np.full((len(checkpoints), 2), np.nan)
     for c, tick in enumerate(checkpoints.tolist()):
-        report(progress, f"replay {name}", c, len(checkpoints), "checkpoints")
+        report(progress, f"replay {output_name(name)}", c, len(checkpoints), "checkpoints")
         linked = np.asarray(schedule.contact[previous + 1 : tick + 1].any(axis=0))
         present = np.array([world.vertex_ns[offsets[r]] <= world.ticks_ns[tick] for r in range(n)])
         groups = _components(n, pairs, linked, present)
-        step = backend.advance(tick, groups)
+        step = backend.advance(world.news(previous, tick, groups, pairs[linked]))
         if c == len(checkpoints) - 1:
             last = backend.finish()
             step = dataclasses.replace(last, solver_seconds=step.solver_seconds + last.solver_seconds)
@@ -304,7 +359,7 @@ def _run(
     assert step is not None
     final = step.own
     return BackendRun(
-        name,
+        output_name(name),
         checkpoints,
         ape,
         team_fp,
@@ -312,8 +367,8 @@ def _run(
         seen_count,
         graph_chi2(world.problem, final),
         graph_chi2(world.problem, final, world.edges_known()),
-        backend.messages.copy(),
-        backend.bytes.copy(),
+        step.messages.copy(),
+        step.bytes.copy(),
         solver_s,
         time.perf_counter() - t0,
         final,
@@ -332,9 +387,14 @@ def _run_all(
     *,
     keep_beliefs: bool,
     progress: Progress | None,
+    limit: dict[str, float],
 ) -> tuple[BackendRun, ...]:
-    """Every back-end's run, its final beliefs scored against the certified optimum."""
-    runs = [_run(n, world, graph, schedule, checkpoints, keep_beliefs=keep_beliefs, progress=progress) for n in names]
+    """Every back-end's run (``limit``: ``_run``'s ``time_limit_s`` when given), its final beliefs
+    scored against the certified optimum."""
+    runs = [
+        _run(n, world, graph, schedule, checkpoints, keep_beliefs=keep_beliefs, progress=progress, **limit)
+        for n in names
+    ]
     _, scored = gaps_to_optimum(world.problem, [r.final_poses for r in runs])
     return tuple(dataclasses.replace(r, sesync_f=f, gap_to_optimum=g) for r, (f, g) in zip(runs, scored, strict=True))
 
@@ -523,6 +583,9 @@ def _check_backends(backends: tuple[str, ...] | list[str]) -> list[str]:
         get_backend(name)
     if len(set(names)) != len(names):
         raise ConfigError(f"backend: {names} names one back-end twice")
+    outputs = [output_name(n) for n in names]
+    if len(set(outputs)) != len(outputs):
+        raise ConfigError(f"backend: {names}: two back-ends would write the same outputs {outputs}")
     return names
 
 
@@ -535,8 +598,11 @@ def _check_numbers(
     relinearize_skip: int,
     relinearize_threshold: float,
     final_updates: int,
+    time_limit_s: float | None = None,
 ) -> None:
     """Refuse a bad number among the options (ConfigError naming the option)."""
+    if time_limit_s is not None:
+        check_option("time_limit", time_limit_s, allow_zero=False)
     check_option("step", step_s, allow_zero=False)
     check_count("every", every)
     if period_s is not None:
@@ -562,8 +628,10 @@ def _rrd_target(rrd: PathLike | None, *, parquet: bool) -> Path | None:
 def _model(
     parsed: CommsModel | str, num_robots: int, inputs: list[PathLike], warn: Callable[[str], None] | None = None
 ) -> CommsModel:
-    """The parsed ``--comms``; a rendezvous file (a path) is read and added to ``inputs``; its lines
-    for robots the dataset does not have are one warning."""
+    """The parsed ``--comms``; a rendezvous file (a path, alone or under iMESA's partner cap) is read
+    and added to ``inputs``; its lines for robots the dataset does not have are one warning."""
+    if isinstance(parsed, PartnerCap) and isinstance(parsed.base, str):
+        return dataclasses.replace(parsed, base=_model(parsed.base, num_robots, inputs, warn))
     if not isinstance(parsed, str):
         return parsed
     from studio.io.rendezvous_txt import read_rendezvous
@@ -582,8 +650,9 @@ def _times(graph: PoseGraph, dataset: PathLike, period_s: float | None) -> Measu
 
 def _refuse_existing(targets: list[Path], *, force: bool, inputs: list[PathLike]) -> None:
     """Refuse a bad output before any work."""
-    from studio.io.atomic import check_outputs
+    from studio.io.atomic import check_distinct_outputs, check_outputs
 
+    check_distinct_outputs(targets)
     for target in targets:
         absolute = Path(os.path.abspath(target))  # "-o ." is the current folder, named as such
         check_outputs(absolute.parent, [absolute.name], force=force, inputs=inputs)
@@ -643,10 +712,11 @@ def _write_folder(
     sched = folder / "schedule"
     sched.mkdir()
     write_schedule(sched, schedule, graph.inter.from_index, graph.inter.to_index)
-    if isinstance(model, Rendezvous):
+    windows = model.base if isinstance(model, PartnerCap) else model
+    if isinstance(windows, Rendezvous):
         from studio.io.rendezvous_txt import write_rendezvous
 
-        write_rendezvous(sched / "rendezvous.txt", model.windows_s)
+        write_rendezvous(sched / "rendezvous.txt", windows.windows_s)
     (folder / "metrics.csv").write_text(_metrics_text(runs, schedule), encoding="utf-8")
     summary = _summary_rows(runs)
     (folder / "summary.csv").write_text(
@@ -702,7 +772,6 @@ def _write_results(folder: Path, graph: PoseGraph, runs: tuple[BackendRun, ...],
 
 def _write_recording(
     rrd_path: Path,
-    *,
     dataset: PathLike,
     graph: PoseGraph,
     schedule: Schedule,
@@ -710,6 +779,7 @@ def _write_recording(
     runs: tuple[BackendRun, ...],
     vertex_ns: np.ndarray,
     inputs: list[PathLike],
+    *,
     force: bool,
 ) -> None:
     from studio.recording.replay import write_replay_recording
@@ -757,6 +827,7 @@ def replay(
     force: bool = False,
     rrd: PathLike | None = None,
     parquet: bool = False,
+    time_limit_s: float | None = None,
     progress: Progress | None = None,
     warn: Callable[[str], None] | None = None,
 ) -> ReplayResult:
@@ -766,7 +837,8 @@ def replay(
     ``step_s``: the tick [s] contacts are evaluated on; ``every``: ticks between checkpoints (the
     metrics' interval and the back-ends' batch of updates); ``period_s``: replace the dataset's
     stamps by pose index x this period (None: the dataset's stamps; kollagen's are 1 s apart);
-    ``parquet``: each CSV table as Parquet too (pyarrow; ConfigError before any work without it)."""
+    ``parquet``: each CSV table as Parquet too (pyarrow; ConfigError before any work without it);
+    ``time_limit_s``: the seconds a ``command:`` back-end may take per checkpoint (None: 60)."""
     from studio.io.atomic import staged_outputs
 
     out, names = Path(out), _check_backends(backends)
@@ -778,6 +850,7 @@ def replay(
         relinearize_skip=relinearize_skip,
         relinearize_threshold=relinearize_threshold,
         final_updates=final_updates,
+        time_limit_s=time_limit_s,
     )
     rrd_path = _rrd_target(rrd, parquet=parquet)
     parsed, band = parse_comms(comms), None if bandwidth is None else parse_bandwidth(bandwidth)
@@ -791,8 +864,11 @@ def replay(
     report = comms_report(schedule)
     world = _world(loaded, graph, times, schedule, settings)
     checkpoints = _checkpoints(len(schedule.ticks_ns), every)
-    runs = _run_all(names, world, graph, schedule, checkpoints, keep_beliefs=rrd_path is not None, progress=progress)
-    options = _options(dataset, schedule, names, settings, loaded.problem.kind.value, step_s, every, period_s)
+    limit = {"time_limit_s": time_limit_s} if time_limit_s is not None else {}
+    runs = _run_all(
+        names, world, graph, schedule, checkpoints, keep_beliefs=rrd_path is not None, progress=progress, limit=limit
+    )
+    options = _options(dataset, schedule, names, settings, loaded.problem.kind.value, step_s, every, period_s) | limit
     with staged_outputs(out.parent, [out.name], force=force, inputs=inputs) as staging:
         _write_folder(
             staging / out.name,
@@ -806,15 +882,5 @@ def replay(
             parquet=parquet,
         )
     if rrd_path is not None:
-        _write_recording(
-            rrd_path,
-            dataset=dataset,
-            graph=graph,
-            schedule=schedule,
-            report=report,
-            runs=runs,
-            vertex_ns=world.vertex_ns,
-            inputs=inputs,
-            force=force,
-        )
+        _write_recording(rrd_path, dataset, graph, schedule, report, runs, world.vertex_ns, inputs, force=force)
     return ReplayResult(out, schedule, report, runs, options, rrd_path)

@@ -1,7 +1,6 @@
 """Layer 0, beside the core: the runtime machinery the pipelines run on.
 
 Process teams and parallel maps (:mod:`.parallel`), progress reports (:mod:`.progress`) and
-deferred interrupts (:mod:`.interrupts`), and the console script's early exit after a command whose
-outputs are all durable (:mod:`.fast_exit`). Nothing here knows the domain: it imports only the core
+deferred interrupts (:mod:`.interrupts`). Nothing here knows the domain: it imports only the core
 (today not even that), reads or writes no dataset, and imports no heavy library.
 """

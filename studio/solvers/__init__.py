@@ -55,6 +55,9 @@ class SolveMethod:
     """The method's own defaults for some of :attr:`options` (``SolveOptions``' defaults otherwise)."""
     scores_rounds: bool = False
     """A method that works in rounds (dgs): with ground truth, ``solve`` scores the APE after each."""
+    gauges: bool = False
+    """The method takes pose priors and one held vertex per piece (:mod:`studio.solvers.gauge`);
+    the others hold the anchor alone and are given connected graphs only."""
 
     def __post_init__(self) -> None:
         for key in (*self.options, *self.defaults):
@@ -76,7 +79,13 @@ _GTSAM_OPTIONS = ("optimizer", "init", "max_iterations", "relative_tolerance")
 METHODS: dict[str, SolveMethod] = {
     entry.name: entry
     for entry in (
-        SolveMethod("gtsam", Lazy("studio.solvers.gtsam_method", "solve_gtsam"), "chordal guess + GN", _GTSAM_OPTIONS),
+        SolveMethod(
+            "gtsam",
+            Lazy("studio.solvers.gtsam_method", "solve_gtsam"),
+            "chordal guess + GN",
+            _GTSAM_OPTIONS,
+            gauges=True,
+        ),
         SolveMethod(
             "g2o",
             Lazy("studio.solvers.g2o_method", "solve_g2o"),
@@ -89,6 +98,7 @@ METHODS: dict[str, SolveMethod] = {
             Lazy("studio.solvers.gtsam_method", "solve_gnc"),
             "robust: rejects outlier loop closures",
             _GTSAM_OPTIONS,
+            gauges=True,
         ),
         SolveMethod("command", Lazy("studio.solvers.command", "solve_command"), "an external program", ("command",)),
         SolveMethod(
@@ -126,10 +136,19 @@ def method_names() -> list[str]:
 
 
 def method_entry(name: str) -> SolveMethod:
-    try:
+    """The entry of method ``name``: the registry's, else an installed plug-in's (entry point group
+    ``studio.solve_methods``, a :class:`SolveMethod`, imported now; :mod:`studio.core.plugins`)."""
+    if name in METHODS:
         return METHODS[name]
-    except KeyError:
-        raise ConfigError(f"method: unknown method {name!r} (known: {', '.join(METHODS)})") from None
+    from studio.core.plugins import SOLVE_METHODS, load_plugin, plugin_names
+
+    if name not in plugin_names(SOLVE_METHODS):
+        known = ", ".join([*METHODS, *plugin_names(SOLVE_METHODS)])
+        raise ConfigError(f"method: unknown method {name!r} (known: {known})")
+    entry = load_plugin(SOLVE_METHODS, name)
+    if not isinstance(entry, SolveMethod):
+        raise ConfigError(f"solve method plug-in {name!r}: names {type(entry).__name__}, not a SolveMethod")
+    return dataclasses.replace(entry, name=name)
 
 
 def get_method(name: str) -> Method:

@@ -15,6 +15,7 @@ import numpy as np
 from studio.core.errors import ConfigError, FormatError
 from studio.core.geometry import planar_poses_to_se3, se3_poses_to_planar
 from studio.core.model import PoseKind
+from studio.core.units import MAX_SOLUTION_M
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.runtime.capture import DEFAULT_CAP_BYTES, run_capped
 from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
@@ -56,6 +57,7 @@ def solve_command(problem: Problem, options: SolveOptions, on_iteration: Iterati
         if not dst.is_file():
             raise FormatError(f"command: {argv[0]} wrote no {dst.name}")
         doc = read_g2o(dst, edges=False)
+    _check_coordinates(doc, f"{dst.name} written by {argv[0]}")
     ids = doc.vertex_ids
     order = np.argsort(ids, kind="stable")
     if not np.array_equal(ids[order], np.arange(problem.num_vertices)):
@@ -69,3 +71,15 @@ def solve_command(problem: Problem, options: SolveOptions, on_iteration: Iterati
     return Solution(
         poses, 1, (graph_chi2(problem, problem.initial), graph_chi2(problem, poses)), notes={"command": template}
     )
+
+
+def _check_coordinates(doc: G2oDocument, where: str) -> None:
+    """Refuse a solution vertex that is not finite or lies beyond :data:`MAX_SOLUTION_M`, naming the
+    program's file and the vertex (the check after solving names only the dataset)."""
+    coords = doc.vertex_poses[:, 0 : 2 if doc.kind is PoseKind.SE2 else 3]
+    bad = np.flatnonzero(~(np.isfinite(doc.vertex_poses).all(axis=1) & (np.abs(coords) <= MAX_SOLUTION_M).all(axis=1)))
+    if len(bad):
+        raise FormatError(
+            f"command: {where}: vertex {int(doc.vertex_ids[bad[0]])} is not finite or lies beyond "
+            f"{MAX_SOLUTION_M:g} m ({len(bad)} such vertices)"
+        )

@@ -27,7 +27,7 @@ import numpy as np
 from studio.core.errors import ConfigError
 from studio.core.geometry import upper_to_matrix
 from studio.core.model import PoseKind
-from studio.solvers.init import chordal_se2, spanning_tree
+from studio.solvers.init import chordal_se2, roots_of, spanning_tree
 from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
 
 __all__ = ["solve_gtsam", "solve_gnc"]
@@ -71,30 +71,53 @@ def _poses(gtsam: Any, kind: PoseKind, values: Any) -> np.ndarray:
     return np.column_stack([m[:, 9:12], quat])
 
 
-def _graph(gtsam: Any, problem: Problem) -> tuple[Any, int]:
-    """The factor graph of the problem's edges (factor k is edge k), then the anchor's prior."""
-    kind = problem.kind
-    graph = gtsam.NonlinearFactorGraph()
+def _information(kind: PoseKind, information_upper: np.ndarray) -> np.ndarray:
+    """Information matrices of the studio's convention in GTSAM's (see the module doc)."""
     d = 3 if kind is PoseKind.SE2 else 6
-    omega = upper_to_matrix(problem.information_upper, d)
+    omega = upper_to_matrix(information_upper, d)
     if kind is PoseKind.SE3:
         half = np.array([1.0, 1.0, 1.0, 0.5, 0.5, 0.5])
         omega = (omega * half[None, :, None] * half[None, None, :])[:, _PERMUTE_SE3][:, :, _PERMUTE_SE3]
+    return omega
+
+
+def _graph(gtsam: Any, problem: Problem) -> tuple[Any, int]:
+    """The factor graph of the problem's edges (factor k is edge k), then its priors (weighed by
+    their information) and a hard prior on each held vertex (the anchor alone without a gauge)."""
+    kind = problem.kind
+    graph = gtsam.NonlinearFactorGraph()
+    d = 3 if kind is PoseKind.SE2 else 6
+    omega = _information(kind, problem.information_upper)
     factor = gtsam.BetweenFactorPose2 if kind is PoseKind.SE2 else gtsam.BetweenFactorPose3
     gaussian = gtsam.noiseModel.Gaussian.Information
     fr, to, z = problem.edge_from.tolist(), problem.edge_to.tolist(), problem.measurements
     for k in range(problem.num_edges):
         graph.add(factor(fr[k], to[k], _pose(gtsam, kind, z[k]), gaussian(omega[k])))
     prior = gtsam.PriorFactorPose2 if kind is PoseKind.SE2 else gtsam.PriorFactorPose3
-    graph.add(
-        prior(problem.anchor, _pose(gtsam, kind, problem.initial[problem.anchor]), gtsam.noiseModel.Constrained.All(d))
-    )
+    if problem.priors is not None:
+        p = problem.priors
+        p_omega = _information(kind, p.information_upper)
+        for k, v in enumerate(p.vertex.tolist()):
+            graph.add(prior(v, _pose(gtsam, kind, p.poses[k]), gaussian(p_omega[k])))
+    for v in problem.held.tolist():
+        graph.add(prior(v, _pose(gtsam, kind, problem.initial[v]), gtsam.noiseModel.Constrained.All(d)))
     return graph, problem.num_edges
 
 
 def _chordal_se3(gtsam: Any, problem: Problem, graph: Any) -> np.ndarray:
     """GTSAM's chordal relaxation (``InitializePose3``: rotations, then one Gauss-Newton step on full
-    poses; the graph's prior holds the gauge), moved so the anchor keeps its pose exactly."""
+    poses; the graph's hard priors hold the gauge), moved so each held vertex keeps its pose exactly.
+    ``InitializePose3`` finds a graph held by Gaussian priors alone indeterminate: where there are
+    priors it starts from the edges with each piece's first prior held hard at its value (the
+    spanning tree's roots), and the iterations then weigh the priors by their information."""
+    if problem.priors is not None and len(problem.priors):
+        start = gtsam.NonlinearFactorGraph()
+        for k in range(problem.num_edges):
+            start.add(graph.at(k))
+        roots, poses = roots_of(problem)
+        for v, pose in zip(roots.tolist(), poses):
+            start.add(gtsam.PriorFactorPose3(v, _pose(gtsam, PoseKind.SE3, pose), gtsam.noiseModel.Constrained.All(6)))
+        graph = start
     return _reanchor(problem, _poses(gtsam, PoseKind.SE3, gtsam.InitializePose3.initialize(graph)))
 
 
@@ -120,23 +143,38 @@ def _optimizer(gtsam: Any, graph: Any, values: Any, options: SolveOptions) -> An
     return gtsam.GaussNewtonOptimizer(graph, values, params)
 
 
-def _reanchor(problem: Problem, poses: np.ndarray) -> np.ndarray:
-    """``poses`` moved by the rigid transform that puts the anchor back on its initial pose."""
+def _moved(kind: PoseKind, poses: np.ndarray, a: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """``poses`` moved by the rigid transform that puts pose ``a`` on ``target``."""
     from studio.core.geometry import normalize_angle, quat_conj, quat_mul, quat_rotate
 
-    a, target = poses[problem.anchor], problem.initial[problem.anchor]
-    if problem.kind is PoseKind.SE2:
+    if kind is PoseKind.SE2:
         dth = target[2] - a[2]
         c, s = np.cos(dth), np.sin(dth)
         xy = (poses[:, 0:2] - a[0:2]) @ np.array([[c, s], [-s, c]]) + target[0:2]
-        out = np.column_stack([xy, normalize_angle(poses[:, 2] + dth)])
-    else:
-        dq = np.repeat(quat_mul(target[None, 3:7], quat_conj(a[None, 3:7])), len(poses), axis=0)
-        q = quat_mul(dq, poses[:, 3:7])
-        out = np.column_stack(
-            [quat_rotate(dq, poses[:, 0:3] - a[0:3]) + target[0:3], q / np.linalg.norm(q, axis=1, keepdims=True)]
-        )
-    out[problem.anchor] = target
+        return np.column_stack([xy, normalize_angle(poses[:, 2] + dth)])
+    dq = np.repeat(quat_mul(target[None, 3:7], quat_conj(a[None, 3:7])), len(poses), axis=0)
+    q = quat_mul(dq, poses[:, 3:7])
+    return np.column_stack(
+        [quat_rotate(dq, poses[:, 0:3] - a[0:3]) + target[0:3], q / np.linalg.norm(q, axis=1, keepdims=True)]
+    )
+
+
+def _reanchor(problem: Problem, poses: np.ndarray) -> np.ndarray:
+    """``poses`` with each held vertex's piece moved rigidly so the vertex is back on its initial
+    pose (the anchor alone: the whole graph); pieces held by priors stay where they are."""
+    if problem.anchors is None:
+        anchor = problem.anchor
+        moved = _moved(problem.kind, poses, poses[anchor], problem.initial[anchor])
+        moved[anchor] = problem.initial[anchor]
+        return moved
+    from studio.solvers.gauge import pieces
+
+    _, labels = pieces(problem)
+    out: np.ndarray = poses.copy()
+    for v in problem.anchors.tolist():
+        rows = np.flatnonzero(labels == labels[v])
+        out[rows] = _moved(problem.kind, poses[rows], poses[v], problem.initial[v])
+        out[v] = problem.initial[v]
     return out
 
 
@@ -241,6 +279,8 @@ def _from_certified(gtsam: Any, problem: Problem, options: SolveOptions, graph: 
     ``chi2``, else None; the rest says what was compared and which was chosen."""
     from studio.solvers.sesync import solve_sesync
 
+    if problem.anchors is not None:  # SE-Sync's problem is one connected graph held at one vertex
+        return {"poses": None, "chosen": "local", "skipped": "the graph is held by priors or is in pieces"}
     t0 = time.perf_counter()
     try:
         start = solve_sesync(problem, dataclasses.replace(options, max_iterations=1000)).poses
@@ -278,7 +318,8 @@ def solve_gnc(problem: Problem, options: SolveOptions, on_iteration: Iteration |
         on_iteration(0, guess)
     params = gtsam.GncLMParams()
     params.setMaxIterations(max(options.max_iterations, 100))
-    trusted = [int(k) for k in np.flatnonzero(~problem.robust)] + [n_edges]  # and the anchor's prior
+    gauge = list(range(n_edges, int(graph.size())))  # the priors and the held vertices' hard priors
+    trusted = [int(k) for k in np.flatnonzero(~problem.robust)] + gauge
     params.setKnownInliers(trusted)
     opt = gtsam.GncLMOptimizer(graph, _values(gtsam, problem.kind, guess), params)
     result = opt.optimize()
@@ -288,7 +329,7 @@ def solve_gnc(problem: Problem, options: SolveOptions, on_iteration: Iteration |
     rejected = problem.robust & (weights < 0.5)
     # GNC stops once the weights settle; finish with plain least squares on the inliers
     inliers = gtsam.NonlinearFactorGraph()
-    for k in np.flatnonzero(~rejected).tolist() + [n_edges]:
+    for k in np.flatnonzero(~rejected).tolist() + gauge:
         inliers.add(graph.at(k))
     refine = _optimizer(gtsam, inliers, _values(gtsam, problem.kind, poses), options)
     poses = _reanchor(problem, _poses(gtsam, problem.kind, refine.optimize()))

@@ -15,6 +15,7 @@ from studio.solvers.options import DEFAULT_MAX_ROUNDS, G2O_DEFAULT_ITERATIONS, I
 
 __all__ = [
     "Problem",
+    "VertexPriors",
     "Solution",
     "SolveOptions",
     "Iteration",
@@ -31,8 +32,23 @@ Iteration = Callable[[int, np.ndarray], None]
 
 
 @dataclass(frozen=True, eq=False)
+class VertexPriors:
+    """Pose priors on vertices (JRL's ``PriorFactorPose2/3``): per row the vertex, the prior's pose
+    and its information in the edges' convention (a measurement of the pose from the origin)."""
+
+    vertex: np.ndarray
+    poses: np.ndarray
+    information_upper: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.vertex)
+
+
+@dataclass(frozen=True, eq=False)
 class Problem:
-    """A pose graph over global vertex ids ``0..n-1``; vertex :attr:`anchor` is held fixed."""
+    """A pose graph over global vertex ids ``0..n-1``; vertex :attr:`anchor` is held fixed, or,
+    where :attr:`anchors` is given, those vertices and the :attr:`priors` hold the gauge
+    (:mod:`studio.solvers.gauge`)."""
 
     kind: PoseKind
     initial: np.ndarray
@@ -47,6 +63,16 @@ class Problem:
     agent_of_vertex: np.ndarray | None = None
     """Per vertex, the index of the robot (agent) that owns it, when known (a multi-g2o dataset);
     distributed methods (``dgs``) split the problem by it."""
+    priors: VertexPriors | None = None
+    """Pose priors (a dataset's ``priors.txt``), used as the gauge by the methods that take them."""
+    anchors: np.ndarray | None = None
+    """The vertices held fixed at their initial values, one per connected piece that holds no prior
+    (:func:`studio.solvers.gauge.with_gauge`); None: :attr:`anchor` alone."""
+
+    @property
+    def held(self) -> np.ndarray:
+        """The vertices held fixed: :attr:`anchors`, else :attr:`anchor` alone."""
+        return np.array([self.anchor], dtype=np.int64) if self.anchors is None else self.anchors
 
     @property
     def num_vertices(self) -> int:

@@ -46,14 +46,13 @@ def indefinite_information(information_upper: np.ndarray, dim: int) -> np.ndarra
 
 
 def unreached_vertices(problem: Problem) -> np.ndarray:
-    """Vertices with no path of edges to the anchor, in id order."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    """Vertices with no path of edges to a held vertex (the anchor, or every one of
+    :attr:`~Problem.anchors`) or a prior, in id order."""
+    from studio.solvers.gauge import pieces
 
-    n = problem.num_vertices
-    adj = coo_matrix((np.ones(problem.num_edges), (problem.edge_from, problem.edge_to)), shape=(n, n))
-    _, labels = connected_components(adj, directed=False)
-    return np.flatnonzero(labels != labels[problem.anchor]).astype(np.int64)
+    _, labels = pieces(problem)
+    holders = problem.held if problem.priors is None else np.concatenate([problem.held, problem.priors.vertex])
+    return np.flatnonzero(~np.isin(labels, labels[holders])).astype(np.int64)
 
 
 def check_problem(problem: Problem, where: str, vertex_name: Callable[[int], str] = lambda v: f"vertex {v}") -> None:

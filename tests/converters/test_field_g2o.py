@@ -229,11 +229,13 @@ def test_round_trip_keeps_every_edge(tmp_path):
     assert first == edges(tmp_path / "b") and sum(first.values()) == 10
 
 
-def test_a_vertex_without_edges_is_refused_by_its_file_id(tmp_path):
-    """Kimera-RPGO's ordered.g2o ends with three 'u' Symbol vertices no edge reaches: solve names one
-    by the file's id, not by its position."""
+def test_a_vertex_without_edges_keeps_its_value_named_by_its_file_id(tmp_path):
+    """Kimera-RPGO's ordered.g2o ends with three 'u' Symbol vertices no edge reaches: solve holds
+    each where the file puts it and names it by the file's id, not by its position."""
     key = ord("u") << 56
-    f = _write(tmp_path, "ordered.g2o", _se2_square(vertices=True) + f"VERTEX_SE2 {key} 0 0 0\n")
+    f = _write(tmp_path, "ordered.g2o", _se2_square(vertices=True) + f"VERTEX_SE2 {key} 0.5 -2 0.25\n")
     r = runner.invoke(app, ["solve", str(f), "-o", str(tmp_path / "sv")])
-    assert r.exit_code == 2 and f"from vertex {key}, have no path of edges to vertex 0" in r.output
-    assert not (tmp_path / "sv").exists()
+    assert r.exit_code == 0, r.output
+    assert f"held at their first pose (no prior reaches them): vertex 0, vertex {key}; 1 isolated" in r.output
+    doc = read_g2o(tmp_path / "sv" / "ordered.g2o", edges=False)
+    assert doc.vertex_poses[list(doc.vertex_ids).index(key)].tolist() == [0.5, -2.0, 0.25]

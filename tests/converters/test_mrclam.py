@@ -299,7 +299,7 @@ def test_odometry_from_a_tum_pair_gives_the_sources_relative_motions(tmp_path):
     res = run("tum", gt["bob"], "-o", tmp_path / "x", "--odometry-from", f"bob={tmp_path / 'short.txt'}")
     assert res.exit_code == 2 and "short.txt: the odometry source covers" in res.output
     res = run("tum", gt["bob"], "-o", tmp_path / "x", "--odometry-from", f"carol={tmp_path / 'short.txt'}")
-    assert res.exit_code == 2 and "odometry_from: no agent 'carol' (agents: bob)" in res.output
+    assert res.exit_code == 2 and "--odometry-from: no agent 'carol' (agents: bob)" in res.output
     assert not (tmp_path / "x").exists()
 
 

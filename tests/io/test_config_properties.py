@@ -157,6 +157,8 @@ def graphs(draw):
         odo = Edges(PoseKind.SE3, np.arange(n - 1), np.arange(1, n), poses(n - 1), info)
         m = draw(st.integers(0, 3))
         ends = np.array(draw(st.lists(st.integers(0, n - 1), min_size=2 * m, max_size=2 * m)), dtype=np.int64)
+        # a self-loop is refused by the g2o reader (it relates a pose to itself): none is drawn
+        ends[m:] = np.where(ends[:m] == ends[m:], (ends[m:] + 1) % n, ends[m:])
         lc = Edges(PoseKind.SE3, ends[:m], ends[m:], poses(m), np.ones((m, 21)))
         stamps = np.cumsum(np.array(draw(st.lists(st.integers(1, 10**10), min_size=n, max_size=n)), dtype=np.int64))
         agents.append(AgentGraph(f"robot{k}", PoseKind.SE3, stamps, poses(n), poses(n), odo, lc))
@@ -166,6 +168,8 @@ def graphs(draw):
     ta = np.array(draw(st.lists(st.integers(0, len(agents) - 1), min_size=m, max_size=m)), dtype=np.int64)
     fi = np.array([draw(st.integers(0, sizes[a] - 1)) for a in fa.tolist()], dtype=np.int64)
     ti = np.array([draw(st.integers(0, sizes[a] - 1)) for a in ta.tolist()], dtype=np.int64)
+    same = (fa == ta) & (fi == ti)
+    ti[same] = (ti[same] + 1) % np.asarray(sizes, dtype=np.int64)[ta[same]]
     inter = InterAgentEdges(PoseKind.SE3, fa, fi, ta, ti, poses(m), np.full((m, 21), 2.0))
     return PoseGraph(PoseKind.SE3, tuple(agents), inter)
 

@@ -178,3 +178,15 @@ def test_replay_prints_its_checkpoints_in_a_pipe(tmp_path):
     proc = _in_pipe(["replay", "out/tiny_three", "-o", "rp", "-b", "centralized"], tmp_path, interval_s=0.02)
     assert proc.returncode == 0, proc.stderr
     assert re.search(r"^progress: replay centralized \d/6 checkpoints, \d+s$", proc.stderr, re.M), proc.stderr
+
+
+def test_the_readme_states_the_rule_for_pipes_the_code_follows():
+    """The README once said nothing is printed in pipes while a plain line came every 5 s."""
+    from studio.runtime.progress import PLAIN_INTERVAL_S
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
+    text = " ".join(readme.split())
+    assert "nothing in pipes" not in text
+    said = re.search(r"in a pipe or a log, one plain line every (\d+) s", text)
+    assert said is not None and float(said.group(1)) == PLAIN_INTERVAL_S
+    assert "STUDIO_PROGRESS_INTERVAL_S" in text

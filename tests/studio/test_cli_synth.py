@@ -193,7 +193,7 @@ def test_missing_file(tmp_path):
             ":3:3: invalid JSON: Expecting property name enclosed in double quotes",
         ),
         ("", ":1:1: invalid JSON: Expecting value"),
-        ('{"a": NaN}', ": invalid JSON: NaN is not valid JSON"),
+        ('{"a": NaN}', ":1:7: invalid JSON: NaN is not valid JSON"),
         ("[" * 100000, ""),
     ],
 )
@@ -226,10 +226,11 @@ def test_exact_information_needs_positive_noise(tmp_path):
 
 def test_resource_guard_refuses_huge_configs_before_any_work(tmp_path):
     data = _mutate("number_of_steps", 2 * 10**9)
-    res = _run(_write(tmp_path, data, "huge"), "-o", tmp_path / "out")
+    cfg = _write(tmp_path, data, "huge")
+    res = _run(cfg, "-o", tmp_path / "out")
     assert res.exit_code == 2
-    assert res.stderr.strip() == (
-        "error: huge: 2.4e+10 poses and their loop-closure radii would need about 7.32e+05 GB of memory, "
+    assert res.stderr.strip() == (  # the config's file, not only its name (issue 41)
+        f"error: {cfg}: 2.4e+10 poses and their loop-closure radii would need about 7.32e+05 GB of memory, "
         "over the 8 GB limit (raise it with --max-memory-gb)"
     )
     assert not (tmp_path / "out").exists()
@@ -243,9 +244,10 @@ def test_resource_guard_refuses_huge_configs_before_any_work(tmp_path):
 def test_resource_guard_counts_the_loop_closure_circle(tmp_path):
     # 1e4 m at 4 cells per metre: a circle of 1.3e9 cells; refused at once instead of hanging
     data = _mutate("agent_parameters.agent_specific[1].intra_loop_closure_radius", 1e4)
-    res = _run(_write(tmp_path, data, "wide"), "-o", tmp_path / "out")
+    cfg = _write(tmp_path, data, "wide")
+    res = _run(cfg, "-o", tmp_path / "out")
     assert res.exit_code == 2
-    assert res.stderr.startswith("error: wide: 723 poses and their loop-closure radii would need about ")
+    assert res.stderr.startswith(f"error: {cfg}: 723 poses and their loop-closure radii would need about ")
     assert res.stderr.rstrip().endswith("GB limit (raise it with --max-memory-gb)")
     assert not (tmp_path / "out").exists()
 

@@ -15,18 +15,24 @@ def test_the_documented_names_are_the_calls_they_say():
 
     assert studio.synthesize is synthesize
     assert studio.read_multi_g2o is read_multi_g2o
-    assert callable(studio.evaluate) and studio.evaluate.evaluate is evaluate
+    assert studio.evaluate is sys.modules["studio.evaluate"] and studio.evaluate.evaluate is evaluate
     assert set(studio.__all__) <= set(dir(studio)) | {"__version__"}
 
 
-def test_a_pipeline_module_imported_first_is_still_callable(tmp_path):
-    """``from studio.evaluate import X`` loads the module, which then holds the name ``studio.evaluate``:
-    calling it must still run the function (in a fresh interpreter, so nothing was loaded before)."""
+def test_a_pipeline_name_is_its_module_whichever_was_loaded_first(tmp_path):
+    """``studio.evaluate`` is the module ``studio.evaluate`` whether it was reached through ``studio``
+    or imported first, and its function is ``studio.evaluate.evaluate`` (in a fresh interpreter, so
+    nothing was loaded before)."""
     code = (
-        "import studio.convert, studio.evaluate, studio.solve, studio.check, studio.bench, studio.sweep\n"
+        "import sys\n"
         "import studio\n"
+        "first = studio.evaluate, studio.solve\n"
+        "import studio.convert, studio.evaluate, studio.solve, studio.check, studio.bench, studio.sweep\n"
+        "assert first == (sys.modules['studio.evaluate'], sys.modules['studio.solve']), first\n"
+        "names = ('convert', 'evaluate', 'solve', 'check', 'bench', 'sweep')\n"
+        "assert all(callable(getattr(getattr(studio, n), n)) for n in names)\n"
         f"r = studio.synthesize(studio.load_synth_config({str(tmp_path / 'c.json')!r}), {str(tmp_path)!r}, rrd=False)\n"
-        "ev = studio.evaluate(r.dataset_dir)\n"
+        "ev = studio.evaluate.evaluate(r.dataset_dir)\n"
         "print(r.dataset_dir, round(ev.overall.ape_translation_m.mean, 9), studio.convert.ConvertConfig.__name__)\n"
     )
     from pathlib import Path

@@ -201,18 +201,26 @@ def test_absurd_or_unsolvable_graphs_are_one_line(small, tmp_path):
         res.output.strip() == f"error: {bad}: vertex 3 (global id order) lies beyond 1e+09 m: "
         "not a pose graph an optimizer can take"
     )
-    # an agent joined to no other (its inter-agent closures removed): refused before any back-end
-    # runs, whichever it is (g2o once drifted to a higher chi2 and called it a success)
+    # an agent joined to no other (its inter-agent closures removed): a method that holds one anchor
+    # alone refuses it before it runs (g2o once drifted to a higher chi2 and called it a success);
+    # gtsam and gnc hold each piece at its first pose and say so
     lone = tmp_path / "lone"
     shutil.copytree(small.dataset_dir, lone)
     (lone / "inter_agent_lc.dat").write_text("")
-    for method in ("gtsam", "g2o", "gnc"):
-        res = runner.invoke(app, ["solve", str(lone), "-o", str(tmp_path / "y"), "-m", method])
-        assert res.exit_code == 2, res.output
-        assert len(res.output.strip().splitlines()) == 1, res.output
-        assert "the graph is not connected" in res.output and "agent2 vertex 0" in res.output
+    res = runner.invoke(app, ["solve", str(lone), "-o", str(tmp_path / "y"), "-m", "g2o"])
+    assert res.exit_code == 2, res.output
+    assert len(res.output.strip().splitlines()) == 1, res.output
+    assert "the graph is not connected" in res.output and "agent2 vertex 0" in res.output
     assert not (tmp_path / "y").exists()
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
+    for method in ("gtsam", "gnc"):
+        res = runner.invoke(app, ["solve", str(lone), "-o", str(tmp_path / method), "-m", method])
+        assert res.exit_code == 0, res.output
+        assert "gauge: 3 pieces, 0 priors; held at their first pose (no prior reaches them): agent1 vertex 0, " in (
+            res.output
+        )
+        gauge = json.loads((tmp_path / method / "solve.json").read_text())["gauge"]
+        assert gauge["pieces"] == 3 and gauge["anchored"] == ["agent1 vertex 0", "agent2 vertex 0", "agent3 vertex 0"]
 
 
 def test_a_methods_own_options_reach_it_by_name_and_other_methods_refuse_them(small, tmp_path):

@@ -1,0 +1,37 @@
+"""A plug-in package for cslam-studio: one replay back-end and one solve method, both dead reckoning.
+
+``pip install examples/studio-plugin-example``, then ``studio plugins`` lists them and
+``studio replay DATASET -b example-odometry,centralized -o OUT`` or
+``studio solve DATASET --method example-odometry -o OUT`` runs them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from studio.core.comms import robot_pairs
+from studio.replay.protocol import Checkpoint, Setup, Step
+from studio.solvers import SolveMethod
+from studio.solvers.problem import Problem, Solution
+
+
+class OdometryBackend:
+    """Each robot believes its own dead reckoning (the dataset's initial guess) and talks to no one."""
+
+    def __init__(self, setup: Setup) -> None:
+        self.own = setup.problem.initial.copy()
+        self.silent = np.zeros(len(robot_pairs(setup.num_robots)), dtype=np.int64)
+
+    def advance(self, news: Checkpoint) -> Step:
+        return Step(self.own.copy(), 0.0, self.silent, self.silent)
+
+    def finish(self) -> Step:
+        return Step(self.own.copy(), 0.0, self.silent, self.silent)
+
+
+def solve_odometry(problem: Problem, options: object, on_iteration: object = None) -> Solution:
+    """The initial guess as the estimate: the baseline every optimizer should beat."""
+    return Solution(problem.initial.copy(), 0, notes={"plug-in": "studio-plugin-example"})
+
+
+METHOD = SolveMethod("example-odometry", solve_odometry, "dead reckoning, from a plug-in", ())
