@@ -279,8 +279,47 @@ def _run_cell(cell: Cell, spec: BenchSpec, dataset: str, single: str | None, run
     for align in spec.alignments:
         ev = evaluate(dataset, estimate=res.estimate_path, align=align)
         row[f"ape_{align}_m"] = ev.overall.ape_translation_m.mean
+    row["sesync_f"] = _sesync_f(source, res.estimate_path)
     row["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     return row
+
+
+def _sesync_f(source: str, estimate: Path) -> float:
+    """SE-Sync's objective of an estimate of ``source`` (any graph the solve took), the figure the
+    gap to the certified optimum is computed from."""
+    from studio.certify import read_estimate_poses
+    from studio.solve import load_problem
+    from studio.solvers.sesync import sesync_objective
+
+    loaded = load_problem(source)
+    return sesync_objective(loaded.problem, read_estimate_poses(estimate, loaded))
+
+
+def _optimum_row(source: str) -> dict[str, Any]:
+    """The certified optimum of ``source``'s graph (``f_star`` None without pymanopt, or for a graph
+    no back-end can answer, whose cells then fail with the reason)."""
+    from studio.solve import load_problem
+    from studio.solvers.sesync import certified_optimum
+    from studio.solvers.validate import check_problem
+
+    try:
+        problem = load_problem(source).problem
+        check_problem(problem, source)
+        optimum = certified_optimum(problem)
+    except StudioError as err:
+        return {"f_star": None, "certified": False, "skipped": str(err)}
+    return {"f_star": optimum.f_star, "certified": optimum.certified}
+
+
+def _with_gap(row: dict[str, Any], optimum: Mapping[str, Any]) -> dict[str, Any]:
+    """``row`` with ``gap_to_optimum``, ``(f - f*) / f*`` in SE-Sync's objective, where the optimum is
+    certified (else left out: a bound is not an optimum)."""
+    from studio.solvers.sesync import Optimum
+
+    f, f_star = row.get("sesync_f"), optimum.get("f_star")
+    if f is None or f_star is None or "error" in row:
+        return row
+    return row | {"f_star": f_star, "gap_to_optimum": Optimum(f_star, bool(optimum["certified"])).gap(f)}
 
 
 def _odometry_row(name: str, case: str, dataset: Path, spec: BenchSpec) -> dict[str, Any]:
@@ -354,6 +393,7 @@ def _bench(spec: BenchSpec, out: Path, progress: Progress | None, isolate: bool)
     rows: list[dict[str, Any]] = []
     computed = 0
     prepared: dict[tuple[str, str], tuple[Path, Path | None]] = {}
+    optima: dict[tuple[str, str], dict[str, Any]] = {}
     total = len(cells)
     for k, cell in enumerate(cells):
         report(progress, "bench cells", k, total, "cells")
@@ -373,11 +413,13 @@ def _bench(spec: BenchSpec, out: Path, progress: Progress | None, isolate: bool)
                 _write_json(odo_path, row)
                 rows.append(row)
         dataset, single = prepared[pair]
+        if pair not in optima:
+            optima[pair] = _optimum(spec, runs_dir, cell, dataset, single, isolate)
         key = cell_key(cell, spec)
         done = runs_dir / key / "cell.json"
         finished = _finished(done)
         if finished is not None:
-            rows.append(finished)
+            rows.append(_with_gap(finished, optima[pair]))
             continue
         args = (
             cell,
@@ -403,9 +445,23 @@ def _bench(spec: BenchSpec, out: Path, progress: Progress | None, isolate: bool)
                 "error": f"{done}: {found[0]} is {found[1]!r}, not a finite number (strict JSON)"
             }
         _write_json(done, row)
-        rows.append(row)
+        rows.append(_with_gap(row, optima[pair]))
     report(progress, "bench cells", total, total, "cells")
     return _write_tables(spec, out, rows, computed)
+
+
+def _optimum(
+    spec: BenchSpec, runs_dir: Path, cell: Cell, dataset: Path, single: Path | None, isolate: bool
+) -> dict[str, Any]:
+    """The certified optimum of the graph a dataset's cells solve, computed once and kept beside
+    its cells (``runs/<dataset>-optimum.json``)."""
+    source = str(single if (spec.input == "single-g2o" and single is not None) else dataset)
+    path = runs_dir / f"{cell_key(Cell(cell.dataset, cell.case, 'optimum'), spec)}.json"
+    row = _finished(path)
+    if row is None:
+        row = _in_fresh_process(_optimum_row, source) if isolate else _optimum_row(source)
+        _write_json(path, row)
+    return row
 
 
 def _finished(path: Path) -> dict[str, Any] | None:
@@ -469,6 +525,9 @@ def _write_tables(spec: BenchSpec, out: Path, rows: list[dict[str, Any]], comput
             "iterations",
             "chi2_initial",
             "chi2_final",
+            "sesync_f",
+            "f_star",
+            "gap_to_optimum",
             "solve_s",
             "wall_s",
             "peak_rss_mb",
@@ -497,6 +556,7 @@ def _write_tables(spec: BenchSpec, out: Path, rows: list[dict[str, Any]], comput
             "iterations",
             "chi2_initial",
             "chi2_final",
+            "gap_to_optimum",
             "solve_s",
             "wall_s",
             "peak_rss_mb",

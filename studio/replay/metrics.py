@@ -6,19 +6,24 @@
   map as one piece: one rigid Umeyama transform over all robots' positions (``se3``), which is what
   snaps down when robots meet;
 * the team's consensus: jrl's Shared Variable Error (:func:`studio.core.jrl_metrics.sve`) over the
-  poses robots keep of each other (swarm, dgs) against their owners' estimates and each other's.
+  poses robots keep of each other (swarm, dgs) against their owners' estimates and each other's;
+* the final beliefs' distance to the global optimum: SE-Sync's objective ``f`` of each back-end's
+  final estimate and ``(f - f*) / f*`` against the dataset's certified optimum ``f*``
+  (:func:`gaps_to_optimum`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from studio.core.errors import ConfigError
 from studio.core.geometry import planar_poses_to_se3
 from studio.core.jrl_metrics import RobotValues
 from studio.core.model import PoseKind
 from studio.solvers.incremental import compose, inverse
+from studio.solvers.problem import Problem
 
-__all__ = ["as_se3", "first_pose_errors", "se3_errors", "robot_values"]
+__all__ = ["as_se3", "first_pose_errors", "se3_errors", "robot_values", "gaps_to_optimum"]
 
 
 def as_se3(poses: np.ndarray, kind: PoseKind) -> np.ndarray:
@@ -69,3 +74,28 @@ def robot_values(
         order = np.argsort(keys, kind="stable")
         out.append(RobotValues(keys[order], poses[order]))
     return out
+
+
+def gaps_to_optimum(
+    problem: Problem, finals: list[np.ndarray]
+) -> tuple[float | None, list[tuple[float, float | None]]]:
+    """The certified optimum ``f*`` of ``problem`` (SE-Sync's objective; None when the certified solve
+    is unavailable, pymanopt missing, or does not certify) and, per final estimate (rows in
+    ``problem``'s pose kind), its ``f`` and ``(f - f*) / f*`` (None without a certified ``f*``). A
+    team whose robots never close a loop between them has no one optimum (each robot's map may move
+    rigidly against the others'): ``f`` is NaN and no gap is given."""
+    from studio.solvers.sesync import certified_optimum, sesync_objective
+    from studio.solvers.validate import unreached_vertices
+
+    if len(unreached_vertices(problem)):
+        return None, [(float("nan"), None) for _ in finals]
+    try:
+        optimum = certified_optimum(problem)
+    except ConfigError:
+        optimum = None
+    out = []
+    for poses in finals:
+        f = sesync_objective(problem, poses)
+        out.append((f, None if optimum is None else optimum.gap(f)))
+    f_star = optimum.f_star if optimum is not None and optimum.certified else None
+    return f_star, out

@@ -54,7 +54,7 @@ from studio.core.timing import MeasurementTimes, measurement_times
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.io.strict_json import dumps_strict
-from studio.replay.metrics import as_se3, first_pose_errors, robot_values, se3_errors
+from studio.replay.metrics import as_se3, first_pose_errors, gaps_to_optimum, robot_values, se3_errors
 from studio.replay.protocol import Checkpoint, KeptPoses, Setup, Step
 from studio.replay.registry import DEFAULT_BACKENDS, get_backend, output_name
 from studio.runtime.progress import Progress, report
@@ -154,6 +154,10 @@ class BackendRun:
     poses robots keep of each other, NaN before any is shared; None for a back-end that keeps none."""
     final_kept: KeptPoses | None = None
     """The poses of other robots each robot keeps at the end (swarm, dgs)."""
+    sesync_f: float = float("nan")
+    """SE-Sync's objective of the final beliefs over every edge of the dataset."""
+    gap_to_optimum: float | None = None
+    """``(f - f*) / f*`` against the dataset's certified optimum (None without one)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -375,6 +379,27 @@ def _run(
     )
 
 
+def _run_all(
+    names: list[str],
+    world: World,
+    graph: PoseGraph,
+    schedule: Schedule,
+    checkpoints: np.ndarray,
+    *,
+    keep_beliefs: bool,
+    progress: Progress | None,
+    limit: dict[str, float],
+) -> tuple[BackendRun, ...]:
+    """Every back-end's run (``limit``: ``_run``'s ``time_limit_s`` when given), its final beliefs
+    scored against the certified optimum."""
+    runs = [
+        _run(n, world, graph, schedule, checkpoints, keep_beliefs=keep_beliefs, progress=progress, **limit)
+        for n in names
+    ]
+    _, scored = gaps_to_optimum(world.problem, [r.final_poses for r in runs])
+    return tuple(dataclasses.replace(r, sesync_f=f, gap_to_optimum=g) for r, (f, g) in zip(runs, scored, strict=True))
+
+
 def _sve(step: Step, world: World, t: int) -> tuple[float, float]:
     """jrl's SVE of the robots' own poses visited by ``t`` and the poses they keep of each other."""
     from studio.core.jrl_metrics import sve
@@ -410,7 +435,17 @@ def _metrics_text(runs: tuple[BackendRun, ...], schedule: Schedule) -> str:
     return "\n".join(lines) + "\n"
 
 
-SUMMARY_COLUMNS = ("backend", "ape_first_pose_m", "ape_se3_m", "chi2", "chi2_delivered", "messages", "bytes")
+SUMMARY_COLUMNS = (
+    "backend",
+    "ape_first_pose_m",
+    "ape_se3_m",
+    "chi2",
+    "chi2_delivered",
+    "sesync_f",
+    "gap_to_optimum",
+    "messages",
+    "bytes",
+)
 
 
 def _summary_rows(runs: tuple[BackendRun, ...]) -> list[list[str]]:
@@ -421,6 +456,8 @@ def _summary_rows(runs: tuple[BackendRun, ...]) -> list[list[str]]:
             _g(r.ape_team_se3_m[-1]),
             _g(r.chi2_final),
             _g(r.chi2_delivered),
+            _g(r.sesync_f),
+            "" if r.gap_to_optimum is None else _g(r.gap_to_optimum),
             str(int(r.messages.sum())),
             str(int(r.bytes.sum())),
         ]
@@ -828,10 +865,9 @@ def replay(
     report = comms_report(schedule)
     world = _world(loaded, graph, times, schedule, settings)
     checkpoints = _checkpoints(len(schedule.ticks_ns), every)
-    keep = rrd_path is not None
     limit = {"time_limit_s": time_limit_s} if time_limit_s is not None else {}
-    runs = tuple(
-        _run(n, world, graph, schedule, checkpoints, keep_beliefs=keep, progress=progress, **limit) for n in names
+    runs = _run_all(
+        names, world, graph, schedule, checkpoints, keep_beliefs=rrd_path is not None, progress=progress, limit=limit
     )
     options = _options(dataset, schedule, names, settings, loaded.problem.kind.value, step_s, every, period_s) | limit
     with staged_outputs(out.parent, [out.name], force=force, inputs=inputs) as staging:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -38,7 +39,16 @@ from studio.solvers.sesync_problem import (
     rotation_matrices,
 )
 
-__all__ = ["solve_sesync", "chordal_rotations", "round_rotations", "staircase", "MAX_RANK_EXTRA"]
+__all__ = [
+    "solve_sesync",
+    "chordal_rotations",
+    "round_rotations",
+    "staircase",
+    "MAX_RANK_EXTRA",
+    "Optimum",
+    "certified_optimum",
+    "sesync_objective",
+]
 
 #: The staircase stops at rank ``d + MAX_RANK_EXTRA`` (SE-Sync's ``rmax`` is 10 for ``r0 = 5``).
 MAX_RANK_EXTRA = 7
@@ -233,6 +243,14 @@ def _reanchor(kind: PoseKind, rot: np.ndarray, trans: np.ndarray, target: np.nda
     return out
 
 
+def _same_up_to_rotation(rows: np.ndarray, y: np.ndarray, n: int) -> bool:
+    """Whether the rounded rotations are ``O Y`` for one orthogonal ``O`` (``Y``'s ``n`` blocks are in
+    O(d) at rank d, so ``Y Y^T = n I`` and ``O = rows Y^T / n``): the certificate matrix depends on
+    ``Y^T Y`` only, so ``Y``'s certificate is then the rounded estimate's."""
+    o = rows @ y.T / n
+    return bool(np.allclose(rows, o @ y, atol=1e-10))
+
+
 def solve_sesync(problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution:
     """SE-Sync's certified solve of ``problem`` (see the module doc)."""
     try:
@@ -257,8 +275,8 @@ def solve_sesync(problem: Problem, options: SolveOptions, on_iteration: Iteratio
     y, steps, final = staircase(sync, y0, max_iterations=options.max_iterations)
     rot = round_rotations(y, sync.n, sync.d)
     rows = rot.transpose(1, 0, 2).reshape(sync.d, -1)
-    if final.certified and steps[-1]["rank"] == sync.d and np.allclose(rows, y, atol=1e-12):
-        cert = final  # rounding at rank d left Y as it was: its certificate stands
+    if final.certified and steps[-1]["rank"] == sync.d and _same_up_to_rotation(rows, y, sync.n):
+        cert = final  # rounding at rank d moved Y rigidly: S and f, hence the certificate, are Y's
     else:
         cert, _ = certify_rotations(sync, rows)  # the rounded estimate is what is certified
     poses = _reanchor(problem.kind, rot, -sync.translations(rows), problem.initial[problem.anchor], problem.anchor)
@@ -282,3 +300,43 @@ def certificate_notes(cert: Certificate) -> dict[str, object]:
         "suboptimality_bound": cert.gap_bound,
         "verdict": cert.verdict(),
     }
+
+
+@dataclass(frozen=True)
+class Optimum:
+    """A graph's optimum of SE-Sync's objective, as the certified solve found it: ``f_star`` is the
+    global optimum when ``certified``, else only an upper bound on it."""
+
+    f_star: float
+    certified: bool
+
+    def gap(self, f: float) -> float | None:
+        """``(f - f*) / f*``, the relative distance of an estimate's ``f`` above the certified optimum;
+        None where there is no certified optimum to measure from (or ``f*`` is 0: exact data)."""
+        if not self.certified or not (self.f_star > 0.0) or not np.isfinite(f):
+            return None
+        return (f - self.f_star) / self.f_star
+
+
+def sesync_objective(problem: Problem, poses: np.ndarray) -> float:
+    """SE-Sync's ``f`` (:mod:`studio.solvers.sesync_problem`) of ``poses``, rows in ``problem``'s pose
+    kind: the objective in which a back-end's answer is compared with the certified optimum."""
+    sync = build(
+        problem.kind,
+        problem.num_vertices,
+        problem.edge_from,
+        problem.edge_to,
+        problem.measurements,
+        problem.information_upper,
+    )
+    rot, trans = rotation_matrices(problem.kind, poses)
+    return sync.full_objective(rot, trans)
+
+
+def certified_optimum(problem: Problem) -> Optimum:
+    """The certified solve's ``f`` of ``problem`` and whether it is certified (the reference a
+    benchmark's results are measured from)."""
+    notes = solve_sesync(problem, SolveOptions(max_iterations=1000)).notes
+    f_star = notes["sesync_f"]
+    assert isinstance(f_star, float)
+    return Optimum(f_star, bool(notes["certified"]))

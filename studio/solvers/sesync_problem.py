@@ -23,8 +23,11 @@ so on the optimum ``f*``, and ``tr(Lambda) = f(Y)``; when ``lambda_min(S) >= -et
 ``f(estimate) - tr(Lambda) - n d min(lambda_min, 0)`` bounds how far above ``f*`` the estimate is.
 ``lambda_min`` is found by LOBPCG (scipy) started from ``Y``'s rows, which span ``S``'s null space
 at a critical point, preconditioned by a sparse LU of ``M_RR`` (``M_RR >= Q``). The trust-region
-steps are preconditioned as SE-Sync's are, by a regularized factorization of ``M`` (here SuperLU's:
-scikit-sparse's CHOLMOD does not build against this system's SuiteSparse).
+steps are preconditioned as SE-Sync's are, by a regularized factorization of ``M``. Every matrix
+factored here is symmetric positive definite; :func:`spd_factor` factors it by QDLDL (OSQP's sparse
+LDL^T with AMD ordering, the ``qdldl`` package) where installed, which takes about half of SuperLU's
+time to factor and to solve, else by SuperLU (scikit-sparse's CHOLMOD does not build against this
+system's SuiteSparse).
 """
 
 from __future__ import annotations
@@ -82,6 +85,35 @@ def poses_from(kind: PoseKind, rotations: np.ndarray, translations: np.ndarray) 
     return np.column_stack([translations, quat])
 
 
+class _Ldl:
+    """QDLDL's factorization with SuperLU's ``solve`` (a vector or the columns of a matrix)."""
+
+    def __init__(self, solver: Any) -> None:
+        self.solver = solver
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        b = np.asarray(b, dtype=np.float64)
+        if b.ndim == 1:
+            return np.asarray(self.solver.solve(b))
+        out = np.empty_like(b)
+        for k in range(b.shape[1]):
+            out[:, k] = self.solver.solve(np.ascontiguousarray(b[:, k]))
+        return out
+
+
+def spd_factor(a: Any, *, permc_spec: str = "MMD_AT_PLUS_A") -> Any:
+    """A factorization of the symmetric positive definite sparse ``a`` with ``.solve(b)``: QDLDL's
+    LDL^T where the ``qdldl`` package is installed, else SuperLU's LU with ``permc_spec``."""
+    import scipy.sparse.linalg as spla
+
+    try:
+        import qdldl
+    except ImportError:
+        options = {"SymmetricMode": True} if permc_spec == "MMD_AT_PLUS_A" else {}
+        return spla.splu(a.tocsc(), permc_spec=permc_spec, options=options)
+    return _Ldl(qdldl.Solver(a.tocsc()))
+
+
 @dataclass(frozen=True, eq=False)
 class SyncProblem:
     """SE-Sync's data for one graph: ``d``, ``n``, the blocks of ``M`` (scipy sparse: ``Any``)."""
@@ -108,14 +140,13 @@ class SyncProblem:
         ``reg_Cholesky_precon_max_condition_number``)."""
         if "precon" not in self.cache:
             import scipy.sparse as sp
-            import scipy.sparse.linalg as spla
 
             big = sp.bmat([[self.m_tt, self.m_tr], [self.m_tr.T, self.m_rr]], format="csc")
             # ||M|| from above by its largest absolute row sum (SE-Sync estimates it by LOBPCG)
             reg = float(abs(big).sum(axis=1).max()) / (1e6 - 1)
             # SuperLU's default COLAMD here: on M the symmetric minimum degree fills far more
             # (sphere2500: 16.4M entries against 3.0M, 4.0 s against 0.18 s to factor)
-            self.cache["precon"] = spla.splu((big + reg * sp.identity(big.shape[0])).tocsc())
+            self.cache["precon"] = spd_factor(big + reg * sp.identity(big.shape[0]), permc_spec="COLAMD")
         return self.cache["precon"]
 
     def precondition(self, x: np.ndarray) -> np.ndarray:
@@ -168,7 +199,6 @@ def build(
 ) -> SyncProblem:
     """SE-Sync's data matrix of a graph (every vertex must be joined to vertex 0 by edges)."""
     import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
 
     d, n, m = (2 if kind is PoseKind.SE2 else 3), num_vertices, len(edge_from)
     kappa, tau = _weights(kind, information_upper)
@@ -198,7 +228,7 @@ def build(
     big = (w.T @ w).tocsc()
     m_tt, m_tr, m_rr = big[:n, :n].tocsc(), big[:n, n:].tocsr(), big[n:, n:].tocsr()
     # a symmetric ordering: half the fill of SuperLU's default COLAMD on a Laplacian
-    lap = spla.splu(m_tt[1:, 1:].tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
+    lap = spd_factor(m_tt[1:, 1:])
     w_rot = w[m:, n:]
     return SyncProblem(kind, d, n, m_tt, m_tr, m_rr, lap, (w_rot.T @ w_rot).tocsc(), kappa, tau)
 
@@ -256,9 +286,7 @@ def min_eigenpair(
 
     op = spla.LinearOperator((d * n, d * n), matvec=s_times, matmat=s_times, dtype=np.float64)
     shift = 1e-6 * float(sync.m_rr.diagonal().mean())
-    lu = spla.splu(
-        (sync.m_rr + shift * sp.identity(d * n)).tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True}
-    )
+    lu = spd_factor(sync.m_rr + shift * sp.identity(d * n))
     pre = spla.LinearOperator((d * n, d * n), matvec=lu.solve, matmat=lu.solve, dtype=np.float64)
     rng = np.random.default_rng(seed)
     vecs = np.concatenate([y.T, rng.standard_normal((d * n, 4))], axis=1)

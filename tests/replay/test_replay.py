@@ -350,3 +350,35 @@ def test_swarm_and_dgs_report_the_shared_variable_error_and_write_jrl_results(sm
     assert float(last[7]) == pytest.approx(runs["swarm"].sve[-1, 0], rel=1e-8)
     assert [r[7:] for r in rows if r[0] == "centralized"][-1] == ["", ""]
     assert read_jrr(res.out_dir / "centralized.jrr").solutions[0].keys.size == 401
+
+
+def test_each_back_end_reports_its_gap_to_the_certified_optimum(always, small):
+    from studio.solve import load_problem
+    from studio.solvers.sesync import certified_optimum, sesync_objective
+
+    optimum = certified_optimum(load_problem(small.dataset_dir).problem)
+    assert optimum.certified
+    runs = {r.name: r for r in always.runs}
+    for run in runs.values():
+        assert run.sesync_f == pytest.approx(sesync_objective(load_problem(small.dataset_dir).problem, run.final_poses))
+        assert run.gap_to_optimum == pytest.approx((run.sesync_f - optimum.f_star) / optimum.f_star, rel=1e-9)
+        assert run.gap_to_optimum > -1e-9  # nothing lies below the certified optimum
+    # the centralized back-end with every closure delivered is near the optimum, independent far above
+    assert runs["centralized"].gap_to_optimum < 0.01 < runs["independent"].gap_to_optimum
+    header, *rows = (always.out_dir / "summary.csv").read_text().splitlines()
+    assert header.split(",")[5:7] == ["sesync_f", "gap_to_optimum"]
+    assert all(float(r.split(",")[6]) == pytest.approx(runs[r.split(",")[0]].gap_to_optimum, rel=1e-8) for r in rows)
+
+
+def test_a_graph_in_pieces_has_no_gap_to_report():
+    from studio.core.model import PoseKind
+    from studio.replay.metrics import gaps_to_optimum
+    from studio.solvers.problem import Problem
+
+    # two robots that never met: two chains with no edge between them
+    poses = np.array([[0.0, 0, 0], [1, 0, 0], [5, 0, 0], [6, 0, 0]])
+    upper = np.tile([1.0, 0, 0, 1, 0, 1], (2, 1))
+    edges = np.array([[1.0, 0, 0]] * 2)
+    problem = Problem(PoseKind.SE2, poses, np.array([0, 2]), np.array([1, 3]), edges, upper, np.zeros(2, bool))
+    f_star, scored = gaps_to_optimum(problem, [poses])
+    assert f_star is None and scored[0][1] is None and np.isnan(scored[0][0])

@@ -157,3 +157,30 @@ def test_sesync_is_a_registered_method():
     entry = METHODS["sesync"]
     assert entry.options == ("max_iterations",)
     assert entry.default("max_iterations") == 1000
+
+
+def test_spd_factor_solves_alike_with_qdldl_and_with_superlu(monkeypatch):
+    import builtins
+
+    import scipy.sparse as sp
+
+    from studio.solvers.sesync_problem import spd_factor
+
+    rng = np.random.default_rng(1)
+    b = sp.random(40, 40, density=0.1, random_state=2)
+    a = (b @ b.T + 40 * sp.identity(40)).tocsc()
+    rhs = rng.standard_normal((40, 3))
+    expected = np.linalg.solve(a.toarray(), rhs)
+    np.testing.assert_allclose(spd_factor(a).solve(rhs), expected, rtol=1e-10)
+    np.testing.assert_allclose(spd_factor(a).solve(rhs[:, 0]), expected[:, 0], rtol=1e-10)
+    real_import = builtins.__import__
+
+    def no_qdldl(name, *args, **kwargs):
+        if name == "qdldl":
+            raise ImportError(name)
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_qdldl)
+    lu = spd_factor(a)
+    assert type(lu).__name__ == "SuperLU"
+    np.testing.assert_allclose(lu.solve(rhs), expected, rtol=1e-10)
