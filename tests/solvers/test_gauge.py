@@ -214,7 +214,11 @@ def test_two_robots_with_no_shared_edge_are_each_held_at_their_first_pose(tmp_pa
         np.testing.assert_allclose(est.agents[k].initial[0], given.agents[k].initial[0], rtol=0, atol=1e-15)
         _run("solve", folder / f"robot_{r}.g2o", "-o", tmp_path / r)
         alone = read_g2o(tmp_path / r / f"robot_{r}.g2o", edges=False)
-        np.testing.assert_allclose(est.agents[k].initial, alone.vertex_poses[np.argsort(alone.vertex_ids)], atol=1e-9)
+        # the file alone is one piece, where the default also runs Gauss-Newton from SE-Sync's
+        # certified start: both runs stop at Gauss-Newton's relative tolerance, equal to a micrometre
+        np.testing.assert_allclose(
+            est.agents[k].initial, alone.vertex_poses[np.argsort(alone.vertex_ids)], rtol=0, atol=1e-6
+        )
     _run("check", tmp_path / "ds")
     # a method that holds one anchor alone still refuses it, in one line
     r = runner.invoke(app, ["solve", str(tmp_path / "ds"), "-o", str(tmp_path / "g"), "-m", "g2o"])
