@@ -94,7 +94,7 @@ def _as_flags(err: StudioError) -> str:
     for name in (option, *getattr(err, "also", ())):
         flag = "--" + _FLAGS.get(name, name).replace("_", "-")
         text = text.replace(f"pass {name}=True", f"use {flag}")  # a switch: the flag alone
-        text = re.sub(rf"(?<![\w.-]){re.escape(name)}(?![\w-])", flag, text)
+        text = re.sub(rf"(?<![\w./-]){re.escape(name)}(?![\w/-])", flag, text)  # not a path's part
     return text
 
 

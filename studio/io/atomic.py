@@ -35,7 +35,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import IO
 
-from studio.core.errors import OutputError
+from studio.core.errors import OutputError, already_exists
 from studio.core.types import PathLike
 from studio.runtime.interrupts import interrupts_deferred
 
@@ -444,7 +444,7 @@ def check_outputs(parent: PathLike, names: list[str], *, force: bool = False, in
         raise OutputError(f"{parent} exists and is not a folder")
     existing = [parent / n for n in names if (parent / n).exists() or (parent / n).is_symlink()]
     if existing and not force:
-        raise OutputError(f"{existing[0]} already exists (use --force to overwrite)")
+        raise already_exists(existing[0])
     for dst in existing:
         _check_replaceable(dst, None)
 
@@ -549,7 +549,7 @@ def staged_outputs(
     with _target_lock(parent, names[0]):
         existing = [parent / n for n in names if (parent / n).exists() or (parent / n).is_symlink()]
         if existing and not force:
-            raise OutputError(f"{existing[0]} already exists (use --force to overwrite)")
+            raise already_exists(existing[0])
         for dst in existing:
             _check_replaceable(dst, None)
         _clean_stale(parent)

@@ -52,3 +52,19 @@ def test_export_of_one_file_says_file(tmp_path, one_tum):
     res = runner.invoke(app, ["export", str(ds), "-f", "jrl", "-o", str(tmp_path / "jrl")])
     assert res.exit_code == 0, res.output
     assert re.search(r": jrl, 1 file in ", res.output), res.output
+
+
+def test_the_output_guard_speaks_the_callers_language_and_leaves_paths_alone(tmp_path, monkeypatch):
+    """synth's output goes through the output guard itself (not a pipeline's own check); a folder
+    named ``force`` in the path stays as it is when the hint becomes ``--force``."""
+    from studio.synth import load_synth_config, synthesize
+    from tests.conftest import DATA
+
+    monkeypatch.chdir(tmp_path)
+    config = load_synth_config(DATA / "configs" / "tiny_three.json")
+    synthesize(config, "force", rrd=False, jobs=1)
+    with pytest.raises(OutputError, match=re.escape("force/tiny_three already exists (pass force=True to overwrite)")):
+        synthesize(config, "force", rrd=False, jobs=1)
+    res = runner.invoke(app, ["synth", str(DATA / "configs" / "tiny_three.json"), "-o", "force", "--no-rrd", "-q"])
+    assert res.exit_code == 2
+    assert res.output == "error: force/tiny_three already exists (use --force to overwrite)\n"
