@@ -125,7 +125,8 @@ def _finite(poses: np.ndarray, where: str) -> np.ndarray:
 def certify(dataset: PathLike, estimate: PathLike, *, dimension: str = "auto") -> CertifyReport:
     """Verify ``estimate`` of ``dataset`` with SE-Sync's certificate (see the module doc)."""
     from studio.solve import load_problem
-    from studio.solvers.sesync_problem import build, certify_rotations, rotation_matrices
+    from studio.solvers.sesync import sync_problem
+    from studio.solvers.sesync_problem import certify_rotations, rotation_matrices
     from studio.solvers.validate import check_problem
 
     t0 = time.perf_counter()
@@ -133,14 +134,7 @@ def certify(dataset: PathLike, estimate: PathLike, *, dimension: str = "auto") -
     problem = loaded.problem
     check_problem(problem, str(dataset))
     poses = read_estimate_poses(estimate, loaded)
-    sync = build(
-        problem.kind,
-        problem.num_vertices,
-        problem.edge_from,
-        problem.edge_to,
-        problem.measurements,
-        problem.information_upper,
-    )
+    sync = sync_problem(problem)
     rot, trans = rotation_matrices(problem.kind, poses)
     rows = np.ascontiguousarray(rot.transpose(1, 0, 2).reshape(sync.d, -1))
     cert, _ = certify_rotations(sync, rows, sync.full_objective(rot, trans))

@@ -258,14 +258,7 @@ def solve_sesync(problem: Problem, options: SolveOptions, on_iteration: Iteratio
     except ImportError:
         raise ConfigError("method sesync needs pymanopt: pip install 'cslam-studio[solve]'") from None
     t0 = time.perf_counter()
-    sync = build(
-        problem.kind,
-        problem.num_vertices,
-        problem.edge_from,
-        problem.edge_to,
-        problem.measurements,
-        problem.information_upper,
-    )
+    sync = sync_problem(problem)
     y0 = chordal_rotations(sync)
     t_init = time.perf_counter() - t0
     rot0 = y0.reshape(sync.d, sync.n, sync.d).transpose(1, 0, 2)
@@ -321,14 +314,7 @@ class Optimum:
 def sesync_objective(problem: Problem, poses: np.ndarray) -> float:
     """SE-Sync's ``f`` (:mod:`studio.solvers.sesync_problem`) of ``poses``, rows in ``problem``'s pose
     kind: the objective in which a back-end's answer is compared with the certified optimum."""
-    sync = build(
-        problem.kind,
-        problem.num_vertices,
-        problem.edge_from,
-        problem.edge_to,
-        problem.measurements,
-        problem.information_upper,
-    )
+    sync = sync_problem(problem)
     rot, trans = rotation_matrices(problem.kind, poses)
     return sync.full_objective(rot, trans)
 
@@ -340,3 +326,15 @@ def certified_optimum(problem: Problem) -> Optimum:
     f_star = notes["sesync_f"]
     assert isinstance(f_star, float)
     return Optimum(f_star, bool(notes["certified"]))
+
+
+def sync_problem(problem: Problem) -> SyncProblem:
+    """SE-Sync's data matrices (:func:`studio.solvers.sesync_problem.build`) of ``problem``'s edges."""
+    return build(
+        problem.kind,
+        problem.num_vertices,
+        problem.edge_from,
+        problem.edge_to,
+        problem.measurements,
+        problem.information_upper,
+    )
