@@ -26,7 +26,6 @@ from __future__ import annotations
 import concurrent.futures
 import dataclasses
 import hashlib
-import inspect
 import json
 import math
 import multiprocessing
@@ -147,7 +146,8 @@ class BenchResult:
 
 _KEYS = {"name", "datasets", "cases", "methods", "input", "alignments", "options"}
 #: Keywords of :func:`studio.solve.solve` a spec may set for every method, besides the options the
-#: method's registry entry reads (:attr:`studio.solvers.SolveMethod.options`).
+#: method's registry entry reads (:meth:`studio.solvers.SolveMethod.option_names`: the shared ones
+#: it names and the fields of its own options class).
 SOLVE_KEYWORDS = ("dimension",)
 
 
@@ -155,7 +155,7 @@ def solve_options(method: str) -> tuple[str, ...]:
     """The solve options a spec may set for ``method`` (``[options.<method>]``)."""
     from studio.solvers import method_entry
 
-    return (*method_entry(method).options, *SOLVE_KEYWORDS)
+    return (*method_entry(method).option_names(), *SOLVE_KEYWORDS)
 
 
 def _as_list(value: Any, where: str) -> tuple[str, ...]:
@@ -258,10 +258,8 @@ def _run_cell(cell: Cell, spec: BenchSpec, dataset: str, single: str | None, run
 
     source = single if (spec.input == "single-g2o" and single is not None) else dataset
     t0 = time.perf_counter()
-    given = dict(spec.options.get(cell.method, {}))
-    # solve()'s own keywords as such; the method's other options (dgs's tolerances ...) by name
-    keywords = {k: given.pop(k) for k in list(given) if k in inspect.signature(solve).parameters}
-    res = solve(source, run_dir, method=cell.method, force=True, **keywords, method_options=given)
+    # the shared options and the method's own (dgs's tolerances ...), each by its name
+    res = solve(source, run_dir, method=cell.method, force=True, **spec.options.get(cell.method, {}))
     info = {"estimate": str(res.estimate_path), "planar": res.planar}
     wall = time.perf_counter() - t0
     row: dict[str, Any] = {

@@ -657,7 +657,8 @@ def export(
 
 
 # --- studio solve -------------------------------------------------------------------------------
-# The methods, their help, defaults and the options each reads come from studio.solvers' registry.
+# The methods, their help, defaults and the options each reads come from studio.solvers' registry;
+# each field of a built-in method's own options class (DgsOptions ...) is a flag (_with_method_options).
 
 #: Solve methods of installed plug-ins (entry-point names; imported only when used).
 _SOLVE_PLUGINS = [name for name in plugin_names(SOLVE_METHODS) if name not in METHODS]
@@ -668,7 +669,7 @@ InitChoice = _choices("InitChoice", get_args(Init))
 
 def _readers_of(option: str) -> str:
     """The methods that read ``option``, for its help text (``gtsam, gnc``)."""
-    return ", ".join(name for name, entry in METHODS.items() if option in entry.options)
+    return ", ".join(name for name, entry in METHODS.items() if option in entry.option_names())
 
 
 def _iterations_help() -> str:
@@ -690,6 +691,7 @@ class DimensionChoice(str, enum.Enum):
 @app.command()
 @cli_errors
 def solve(
+    ctx: typer.Context,
     dataset: Path = typer.Argument(..., metavar="DATASET", help="A multi-g2o folder or a single .g2o file."),
     out: Path = typer.Option(..., "-o", "--out", help="Folder to write: the estimate and solve.json."),
     method: MethodChoice = typer.Option(  # type: ignore[valid-type]
@@ -709,24 +711,13 @@ def solve(
         SolveOptions().init, "--init", help=f"Initial guess (methods: {_readers_of('init')})."
     ),
     iterations: int | None = typer.Option(None, "--iterations", help=_iterations_help()),
-    robots: int = typer.Option(0, "--robots", help="dgs on a single .g2o: that many robots of contiguous ids (0: 8)."),
-    coarse: int = typer.Option(
-        SolveOptions().coarse_size,
-        "--coarse",
-        help="dgs: poses per run that the two-level correction moves rigidly each round (0: plain DGS).",
-    ),
-    command: str = typer.Option(
-        "",
-        "--command",
-        help=f"Program to run (methods: {_readers_of('command')}), with {{input}} and {{output}}, "
-        "e.g. 'se-sync {input} {output}'.",
-    ),
     dimension: DimensionChoice = typer.Option(
         DimensionChoice.auto, "--dimension", help="auto: planar 3D data is solved in SE(2)."
     ),
     rrd: Path | None = typer.Option(None, "--rrd", help="Also write the run as a Rerun recording (.rrd)."),
     force: bool = typer.Option(False, "--force", help="Replace an existing OUT (and --rrd file)."),
     as_json: bool = typer.Option(False, "--json", help="Print solve.json instead of a summary."),
+    **own: Any,
 ) -> None:
     """Optimize a dataset's pose graph and write the estimate (multi-g2o or g2o) with solve.json.
 
@@ -737,6 +728,8 @@ def solve(
     from studio.io.strict_json import dumps_strict
     from studio.solve import solve as run_solve
 
+    # a method's own options typed on the command line, and only they: a method refuses another's
+    typed = {k: v for k, v in own.items() if getattr(ctx.get_parameter_source(k), "name", "") in _TYPED}
     res = run_solve(
         dataset,
         out,
@@ -744,13 +737,11 @@ def solve(
         optimizer=optimizer.value,  # type: ignore[attr-defined]
         init=init.value,  # type: ignore[attr-defined]
         max_iterations=iterations,
-        command=command,
         dimension=dimension.value,
         force=force,
         rrd=rrd,
-        robots=robots,
-        coarse_size=coarse,
         warn=_warn,
+        **typed,
     )
     if as_json:
         typer.echo(dumps_strict(res.to_dict(), "--json", indent=2))
@@ -783,6 +774,59 @@ def solve(
             typer.echo("  round  APE first-pose mean [m]  APE se3 mean [m]")
             for k, fp, s3 in zip(curve["round"], curve["first_pose_mean_m"], curve["se3_mean_m"]):
                 typer.echo(f"  {k:5d}  {fp:23.6f}  {s3:16.6f}")
+
+
+#: Where an option typed by the user comes from (compared by name: typer may vendor click, so its
+#: ParameterSource enum is not imported).
+_TYPED = ("COMMANDLINE", "ENVIRONMENT")
+
+
+def _own_solve_options() -> dict[str, tuple[Any, type, list[str]]]:
+    """Each field of the built-in methods' own options classes: the field, its class and the
+    methods that read it."""
+    import dataclasses
+
+    found: dict[str, tuple[Any, type, list[str]]] = {}
+    for name, entry in METHODS.items():
+        if entry.method_options is not None:
+            for f in dataclasses.fields(entry.method_options):
+                found.setdefault(f.name, (f, entry.method_options, []))[2].append(name)
+    return found
+
+
+def _with_method_options(command: Any) -> Any:
+    """Give ``command`` one typer option per field of a built-in method's own options class (flag,
+    default, help and choices declared on the field, :mod:`studio.solvers.options`); the parameter
+    is the field's name, so an error naming it (``ConfigError.option``) is shown as its flag."""
+    import inspect
+    import typing
+
+    from studio.solvers.options import option_flag
+
+    sig = inspect.signature(command)
+    params = [p for p in sig.parameters.values() if p.kind is not inspect.Parameter.VAR_KEYWORD]
+    hints = dict(getattr(command, "__annotations__", {}))
+    for name, (f, cls, methods) in _own_solve_options().items():
+        if name in sig.parameters:
+            raise StudioError(f"studio solve: a method's own option {name!r} is one of the command's own parameters")
+        choices = f.metadata.get("choices", ())
+        annotation: Any = str if choices else typing.get_type_hints(cls)[name]
+        flag = option_flag(cls, name)
+        _FLAGS[name] = flag[2:]
+        option = typer.Option(
+            f.default,
+            flag,
+            help=f"{', '.join(methods)}: {f.metadata['help']}",
+            metavar=_choice_metavar(choices) if choices else None,
+        )
+        params.append(inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=annotation))
+        hints[name] = annotation
+    command.__signature__ = sig.replace(parameters=params)
+    command.__annotations__ = hints
+    return command
+
+
+_with_method_options(solve)
 
 
 def _replay_backend_help() -> str:

@@ -30,7 +30,7 @@ import contextlib
 import dataclasses
 import os
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, get_args
@@ -46,11 +46,9 @@ from studio.core.geometry import (
     se3_poses_to_planar,
 )
 from studio.core.model import AgentGraph, PoseGraph, PoseKind
-from studio.core.option_values import check_option
 from studio.core.trajectory import Trajectory
 from studio.core.types import PathLike
 from studio.core.units import MAX_MAGNITUDE as MAX_COORDINATE_M  # the one bound of every number
-from studio.core.units import MAX_SPLIT_ROBOTS
 from studio.io.estimate import SOLVE_JSON
 from studio.io.names import safe_file_name, safe_file_names
 from studio.io.strict_json import dumps_strict
@@ -125,7 +123,7 @@ class SolveResult:
             extra["outliers"] = self.outliers
         return {
             "method": self.method,
-            "options": dataclasses.asdict(self.options),
+            "options": self.options.to_dict(),
             "planar": self.planar,
             "iterations": self.iterations,
             "chi2_dataset": self.chi2_dataset,
@@ -352,23 +350,24 @@ def _write_estimate(loaded: Loaded, poses: np.ndarray, staging: Path, stem: str,
     return "estimate"
 
 
+#: The shared options' defaults, for :func:`solve`'s keywords.
+_SHARED = SolveOptions()
+
+
 def solve(
     dataset: PathLike,
     out: PathLike,
     *,
     method: str = DEFAULT_METHOD,
-    optimizer: str = "gn",
-    init: str = "chordal",
+    optimizer: str = _SHARED.optimizer,
+    init: str = _SHARED.init,
     max_iterations: int | None = None,
-    relative_tolerance: float = 1e-9,
-    command: str = "",
+    relative_tolerance: float = _SHARED.relative_tolerance,
     dimension: Dimension = "auto",
     force: bool = False,
     rrd: PathLike | None = None,
-    robots: int = 0,
-    coarse_size: int | None = None,
     warn: Callable[[str], None] | None = None,
-    method_options: Mapping[str, Any] | None = None,
+    **method_options: Any,
 ) -> SolveResult:
     """Optimize ``dataset`` with ``method`` and write the estimate and ``solve.json`` into the folder
     ``out`` (staged, renamed into place; an existing ``out`` is replaced only with ``force``).
@@ -376,21 +375,15 @@ def solve(
     ``rrd`` also writes a Rerun recording of the run (every iteration on an ``iteration`` timeline,
     beside the ground truth, with the cost per iteration).
 
-    ``robots``: ``dgs`` on a single g2o file, that many robots of contiguous vertex ids (a multi-g2o
-    folder's robots are its agents); with ground truth, ``dgs`` also scores every round (APE).
-    ``coarse_size``: ``dgs``'s two-level correction, poses per run moved rigidly (0: plain DGS;
-    None: :class:`SolveOptions`'s default). ``method_options``: any other option the method's registry
-    entry reads, by its :class:`SolveOptions` name (dgs: ``rotation_tol``, ``schedule`` ...); one it
-    does not read is refused. ``warn`` gets the reader's warnings (one line each)."""
+    ``max_iterations``: None, the method's own default (g2o: 10). ``method_options``: the method's
+    own options by name, the fields of its registry entry's ``method_options`` class (dgs:
+    :class:`~studio.solvers.options.DgsOptions`, e.g. ``robots=4`` on a single g2o file,
+    ``coarse_size=0`` for plain DGS; command: ``command="prog {input} {output}"``); one the method
+    does not read is refused. With ground truth, ``dgs`` also scores every round (APE). ``warn``
+    gets the reader's warnings (one line each)."""
     entry = method_entry(method)
-    options = _solve_options(entry, optimizer, init, max_iterations, relative_tolerance, command, robots)
-    if coarse_size is not None:
-        if isinstance(coarse_size, bool) or not isinstance(coarse_size, int) or not 0 <= coarse_size <= 1_000_000:
-            raise ConfigError(
-                f"coarse_size: expected 0 (plain DGS) or a count of poses, got {coarse_size!r}", option="coarse_size"
-            )
-        options = dataclasses.replace(options, coarse_size=coarse_size)
-    options = _with_method_options(entry, options, method_options or {})
+    options = _solve_options(entry, optimizer, init, max_iterations, relative_tolerance)
+    options = dataclasses.replace(options, own=entry.own_options_from(method_options))
     out = Path(out)
     rrd_path = None if rrd is None else Path(rrd)
     if rrd_path is not None and rrd_path.suffix != ".rrd":
@@ -430,16 +423,10 @@ def solve(
 
 
 def _solve_options(
-    entry: SolveMethod,
-    optimizer: str,
-    init: str,
-    max_iterations: int | None,
-    relative_tolerance: float,
-    command: str,
-    robots: int,
+    entry: SolveMethod, optimizer: str, init: str, max_iterations: int | None, relative_tolerance: float
 ) -> SolveOptions:
-    """The options of :func:`solve` checked (each refusal names its option), ``max_iterations``
-    defaulting to the method's own."""
+    """The shared options of :func:`solve` checked (each refusal names its option),
+    ``max_iterations`` defaulting to the method's own."""
     if optimizer not in get_args(Optimizer):
         raise ConfigError(f"optimizer: expected {' or '.join(get_args(Optimizer))}, got {optimizer!r}")
     if init not in get_args(Init):
@@ -452,25 +439,7 @@ def _solve_options(
         )
     if not (isinstance(relative_tolerance, (int, float)) and 0 <= relative_tolerance < 1):
         raise ConfigError(f"relative_tolerance: expected a number in [0, 1), got {relative_tolerance!r}")
-    if isinstance(robots, bool) or not isinstance(robots, int) or not 0 <= robots <= MAX_SPLIT_ROBOTS:
-        raise ConfigError(
-            f"robots: expected 0 (the default) or a count up to {MAX_SPLIT_ROBOTS}, got {robots!r}",
-            option="robots",
-        )
-    return SolveOptions(optimizer, init, max_iterations, float(relative_tolerance), command, robots)  # type: ignore[arg-type]
-
-
-def _with_method_options(entry: SolveMethod, options: SolveOptions, given: Mapping[str, Any]) -> SolveOptions:
-    """``options`` with the method's own options ``given`` by name: each one the entry reads, a
-    number finite and not negative (the method checks its own ranges and words)."""
-    for key, value in given.items():
-        if key not in entry.options:
-            raise ConfigError(
-                f"{key}: method {entry.name} does not read it (it reads {', '.join(entry.options)})", option=key
-            )
-        if isinstance(value, (bool, int, float)):
-            check_option(key, value)
-    return dataclasses.replace(options, **given)
+    return SolveOptions(optimizer, init, max_iterations, float(relative_tolerance))  # type: ignore[arg-type]
 
 
 def _run_solver(

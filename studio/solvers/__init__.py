@@ -2,13 +2,14 @@
 columns and returns a :class:`~studio.solvers.problem.Solution`.
 
 The registry is an explicit dict of :class:`SolveMethod` entries, the whole declaration of a
-method: its name, one line of help, the :class:`~studio.solvers.problem.SolveOptions` it reads and
-its own defaults for them. ``studio solve --method`` (choices and help), ``studio solve``'s
-defaults and ``studio bench``'s per-method options are built from it; an unknown name raises and
-lists the known ones. An entry names its back-end by module and attribute
-(:class:`~studio.core.lazy.Lazy`), imported when the method is used; the back-end imports its
-library when called, and a missing library raises a one-line ConfigError naming the extra to
-install (``pip install 'cslam-studio[solve]'``).
+method: its name, one line of help, the shared :class:`~studio.solvers.options.SolveOptions` it
+reads with its own defaults for them, and the class of its own options
+(:class:`~studio.solvers.options.DgsOptions` for ``dgs``). ``studio solve --method`` (choices and
+help), ``studio solve``'s defaults and per-method flags and ``studio bench``'s per-method options
+are built from it; an unknown name raises and lists the known ones. An entry names its back-end by
+module and attribute (:class:`~studio.core.lazy.Lazy`), imported when the method is used; the
+back-end imports its library when called, and a missing library raises a one-line ConfigError
+naming the extra to install (``pip install 'cslam-studio[solve]'``).
 """
 
 from __future__ import annotations
@@ -20,7 +21,14 @@ from typing import TYPE_CHECKING, Any
 
 from studio.core.errors import ConfigError
 from studio.core.lazy import Lazy
-from studio.solvers.options import DEFAULT_MAX_ROUNDS, G2O_DEFAULT_ITERATIONS, SESYNC_MAX_ITERATIONS, SolveOptions
+from studio.solvers.options import (
+    DEFAULT_MAX_ROUNDS,
+    G2O_DEFAULT_ITERATIONS,
+    SESYNC_MAX_ITERATIONS,
+    CommandOptions,
+    DgsOptions,
+    SolveOptions,
+)
 
 if TYPE_CHECKING:  # the back-ends' protocol: numpy types, not loaded to declare the registry
     from studio.solvers.problem import Method
@@ -37,8 +45,9 @@ __all__ = [
 
 DEFAULT_METHOD = "gtsam"
 
-#: The fields of :class:`SolveOptions`, the only names an entry may list or give a default for.
-_OPTION_FIELDS = tuple(f.name for f in dataclasses.fields(SolveOptions))
+#: The shared options of :class:`SolveOptions`, the only names an entry may list or give a default
+#: for (its own options are the fields of its ``method_options`` class).
+_OPTION_FIELDS = tuple(f.name for f in dataclasses.fields(SolveOptions) if f.name != "own")
 
 
 @dataclass(frozen=True)
@@ -50,7 +59,7 @@ class SolveMethod:
     help: str
     """One line for ``studio solve --help`` (what the method does)."""
     options: tuple[str, ...]
-    """The :class:`SolveOptions` fields the method reads (the others are ignored by it)."""
+    """The shared :class:`SolveOptions` fields the method reads (the others are ignored by it)."""
     defaults: Mapping[str, Any] = field(default_factory=dict)
     """The method's own defaults for some of :attr:`options` (``SolveOptions``' defaults otherwise)."""
     scores_rounds: bool = False
@@ -58,14 +67,43 @@ class SolveMethod:
     gauges: bool = False
     """The method takes pose priors and one held vertex per piece (:mod:`studio.solvers.gauge`);
     the others hold the anchor alone and are given connected graphs only."""
+    method_options: type | None = None
+    """The class of the method's own options (a frozen dataclass without numpy, its fields' defaults
+    the method's; :class:`DgsOptions`), or None: the back-end gets an instance as
+    :attr:`SolveOptions.own`. ``studio solve`` has a flag for each field of a built-in method's class."""
 
     def __post_init__(self) -> None:
         for key in (*self.options, *self.defaults):
             if key not in _OPTION_FIELDS:
-                raise ConfigError(f"method {self.name}: {key!r} is not a SolveOptions field")
+                raise ConfigError(
+                    f"method {self.name}: {key!r} is not a SolveOptions field (a method's own options "
+                    "are the fields of its method_options class)"
+                )
         for key in self.defaults:
             if key not in self.options:
                 raise ConfigError(f"method {self.name}: a default for {key!r}, which it does not read")
+        for key in self.own_option_names():
+            if key in _OPTION_FIELDS or key == "own":
+                raise ConfigError(f"method {self.name}: its own option {key!r} is a SolveOptions field")
+
+    def own_option_names(self) -> tuple[str, ...]:
+        """The fields of the method's own options class (none without one)."""
+        if self.method_options is None:
+            return ()
+        return tuple(f.name for f in dataclasses.fields(self.method_options))
+
+    def option_names(self) -> tuple[str, ...]:
+        """Every option the method reads: the shared ones it names, then its own."""
+        return (*self.options, *self.own_option_names())
+
+    def own_options_from(self, given: Mapping[str, Any]) -> object:
+        """The method's own options with ``given`` (by name) over its class's defaults; None for a
+        method without own options. A name the method does not read is refused, naming it."""
+        for key in given:
+            if key not in self.own_option_names():
+                reads = ", ".join(self.option_names()) or "nothing"
+                raise ConfigError(f"{key}: method {self.name} does not read it (it reads {reads})", option=key)
+        return None if self.method_options is None else self.method_options(**given)
 
     def default(self, option: str) -> Any:
         """The method's default for ``option`` (its own, else ``SolveOptions``')."""
@@ -100,25 +138,21 @@ METHODS: dict[str, SolveMethod] = {
             _GTSAM_OPTIONS,
             gauges=True,
         ),
-        SolveMethod("command", Lazy("studio.solvers.command", "solve_command"), "an external program", ("command",)),
+        SolveMethod(
+            "command",
+            Lazy("studio.solvers.command", "solve_command"),
+            "an external program",
+            (),
+            method_options=CommandOptions,
+        ),
         SolveMethod(
             "dgs",
             Lazy("studio.solvers.dgs", "solve_dgs"),
             "Distributed Gauss-Seidel: chordal rotations, then poses, each robot its own block, rounds counted",
-            (
-                "max_iterations",
-                "robots",
-                "rotation_tol",
-                "pose_tol",
-                "rotation_gamma",
-                "pose_gamma",
-                "rotation_momentum",
-                "pose_momentum",
-                "coarse_size",
-                "schedule",
-            ),
+            ("max_iterations",),
             {"max_iterations": DEFAULT_MAX_ROUNDS},
             scores_rounds=True,
+            method_options=DgsOptions,
         ),
         SolveMethod(
             "sesync",
@@ -157,6 +191,8 @@ def get_method(name: str) -> Method:
 
 
 def option_names() -> tuple[str, ...]:
-    """Every option some method reads, in :class:`SolveOptions`' order."""
+    """Every option some built-in method reads: the shared ones in :class:`SolveOptions`' order,
+    then each method's own in registry order."""
     used = {key for entry in METHODS.values() for key in entry.options}
-    return tuple(key for key in _OPTION_FIELDS if key in used)
+    own = [key for entry in METHODS.values() for key in entry.own_option_names()]
+    return (*(key for key in _OPTION_FIELDS if key in used), *dict.fromkeys(own))

@@ -18,13 +18,14 @@ from studio.core.model import PoseKind
 from studio.core.units import MAX_SOLUTION_M
 from studio.io.g2o import G2oDocument, read_g2o, write_g2o
 from studio.runtime.capture import DEFAULT_CAP_BYTES, run_capped
+from studio.solvers.options import CommandOptions
 from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
 
 __all__ = ["solve_command"]
 
 
 def solve_command(problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution:
-    template = options.command.strip()
+    template = options.own_options(CommandOptions).command.strip()
     if not template:
         raise ConfigError("command: method command needs the program to run, e.g. command = 'se-sync {input} {output}'")
     if "{input}" not in template or "{output}" not in template:

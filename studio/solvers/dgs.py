@@ -56,7 +56,21 @@ import numpy as np
 from studio.core.errors import ConfigError, GraphError
 from studio.core.geometry import normalize_angle, upper_to_matrix
 from studio.core.model import PoseKind
-from studio.solvers.problem import DEFAULT_MAX_ROUNDS, Iteration, Problem, Solution, SolveOptions, graph_chi2
+from studio.solvers.options import (
+    DEFAULT_COARSE_SIZE,
+    DEFAULT_MAX_ROUNDS,
+    DEFAULT_POSE_GAMMA,
+    DEFAULT_POSE_MOMENTUM,
+    DEFAULT_POSE_TOL,
+    DEFAULT_ROTATION_GAMMA,
+    DEFAULT_ROTATION_MOMENTUM,
+    DEFAULT_ROTATION_TOL,
+    DEFAULT_SCHEDULE,
+    PLAIN_POSE_GAMMA,
+    DgsOptions,
+    Schedule,
+)
+from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
 
 __all__ = [
     "Schedule",
@@ -77,26 +91,8 @@ __all__ = [
     "BYTES_PER_NUMBER",
 ]
 
-Schedule = Literal["gauss-seidel", "jacobi"]
 Stage = Literal["rotation", "pose"]
 
-#: Rotation stage: stop when no entry of a rotation matrix changes by more than this in a round.
-DEFAULT_ROTATION_TOL = 0.2
-#: Pose stage: stop a linear system's rounds when no update entry (m, rad) changes by more than this.
-DEFAULT_POSE_TOL = 1e-2
-#: Over-relaxation of the rotation stage's block updates.
-DEFAULT_ROTATION_GAMMA = 1.0
-#: Over-relaxation of the pose stage's block updates with the two-level correction (fastest of 1,
-#: 1.5 and 1.9 on Multi3500x8: docs/solve.md).
-DEFAULT_POSE_GAMMA = 1.5
-#: ... and of plain DGS (``coarse_size=0``): fastest of 1, 1.3, 1.6 and 1.9 on kollagen's graphs.
-PLAIN_POSE_GAMMA = 1.9
-#: Vertices per aggregate of the two-level correction (0: plain DGS).
-DEFAULT_COARSE_SIZE = 5
-#: Nesterov momentum of the rotation stage's Gauss-Seidel rounds (0: none; Jacobi rounds default to 0).
-DEFAULT_ROTATION_MOMENTUM = 0.9
-#: Nesterov momentum of the pose stage's rounds (0: none).
-DEFAULT_POSE_MOMENTUM = 0.0
 #: Bytes of one number in a message (float64).
 BYTES_PER_NUMBER = 8
 
@@ -677,7 +673,7 @@ def _defaults(
     if pose_gamma is None:
         pose_gamma = DEFAULT_POSE_GAMMA if coarse_size else PLAIN_POSE_GAMMA
     if rotation_momentum is None:  # Jacobi rounds with momentum diverge on kollagen's graphs
-        rotation_momentum = DEFAULT_ROTATION_MOMENTUM if schedule == "gauss-seidel" else 0.0
+        rotation_momentum = DEFAULT_ROTATION_MOMENTUM if schedule == DEFAULT_SCHEDULE else 0.0
     return pose_gamma, rotation_momentum
 
 
@@ -802,7 +798,7 @@ def dgs_rounds(
     pose_gamma: float | None = None,
     rotation_momentum: float | None = None,
     pose_momentum: float = DEFAULT_POSE_MOMENTUM,
-    schedule: Schedule = "gauss-seidel",
+    schedule: Schedule = DEFAULT_SCHEDULE,
     warm_start: bool = False,
     rotation_stage: bool = True,
     fixed: np.ndarray | None = None,
@@ -874,15 +870,17 @@ def dgs_rounds(
 
 def solve_dgs(problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution:
     """The ``dgs`` method (see the module doc): robots from ``problem.agent_of_vertex``, else a
-    contiguous split into ``options.robots``; ``options.max_iterations`` rounds at most.
+    contiguous split into ``robots`` (:class:`DgsOptions`, ``options.own``);
+    ``options.max_iterations`` rounds at most.
 
     Iteration 0 is the dataset's values (DGS has no separate initial guess: each robot starts from
     its own odometry), iteration ``i >= 1`` the estimate after the ``i``-th pose-stage round (round
     ``rotation_rounds + i``; the rotation stage's rounds have no poses): ``on_iteration`` gets them
     and ``chi2_history`` holds their chi2."""
+    own = options.own_options(DgsOptions)
     robot = problem.agent_of_vertex
     if robot is None:
-        robot = contiguous_robots(problem.num_vertices, options.robots or min(8, problem.num_vertices))
+        robot = contiguous_robots(problem.num_vertices, own.robots or min(8, problem.num_vertices))
     if on_iteration is not None:
         on_iteration(0, problem.initial)
 
@@ -897,20 +895,19 @@ def solve_dgs(problem: Problem, options: SolveOptions, on_iteration: Iteration |
         problem,
         robot,
         max_rounds=max(options.max_iterations, 2),
-        rotation_tol=options.rotation_tol,
-        pose_tol=options.pose_tol,
-        rotation_gamma=options.rotation_gamma,
-        pose_gamma=options.pose_gamma,
-        rotation_momentum=options.rotation_momentum,
-        pose_momentum=options.pose_momentum,
-        schedule=options.schedule,  # type: ignore[arg-type]  # dgs_rounds checks it
+        rotation_tol=own.rotation_tol,
+        pose_tol=own.pose_tol,
+        rotation_gamma=own.rotation_gamma,
+        pose_gamma=own.pose_gamma,
+        rotation_momentum=own.rotation_momentum,
+        pose_momentum=own.pose_momentum,
+        schedule=own.schedule,
         on_round=on_round,
-        coarse_size=options.coarse_size,
+        coarse_size=own.coarse_size,
     )
     history = (graph_chi2(problem, problem.initial), *(r.chi2 for r in result.rounds if r.chi2 is not None))
-    pose_gamma, rotation_momentum = _defaults(
-        options.pose_gamma, options.rotation_momentum, options.coarse_size, options.schedule
-    )  # the values the rounds used where the options left them open
+    # the values the rounds used where the options left them open
+    pose_gamma, rotation_momentum = _defaults(own.pose_gamma, own.rotation_momentum, own.coarse_size, own.schedule)
     return Solution(
         result.poses,
         result.num_rounds,
@@ -923,14 +920,14 @@ def solve_dgs(problem: Problem, options: SolveOptions, on_iteration: Iteration |
             "pose_rounds": result.pose_rounds,
             "linearizations": result.linearizations,
             "converged": result.converged,
-            "schedule": options.schedule,
-            "rotation_gamma": options.rotation_gamma,
+            "schedule": own.schedule,
+            "rotation_gamma": own.rotation_gamma,
             "pose_gamma": pose_gamma,
             "rotation_momentum": rotation_momentum,
-            "pose_momentum": options.pose_momentum,
-            "coarse_size": options.coarse_size if result.robots > 1 else 0,
-            "rotation_tol": options.rotation_tol,
-            "pose_tol": options.pose_tol,
+            "pose_momentum": own.pose_momentum,
+            "coarse_size": own.coarse_size if result.robots > 1 else 0,
+            "rotation_tol": own.rotation_tol,
+            "pose_tol": own.pose_tol,
             "round_stage": [r.stage for r in result.rounds],
             "round_change": [r.change for r in result.rounds],
             "round_chi2": [r.chi2 for r in result.rounds],

@@ -100,7 +100,9 @@ class Solution:
 
 
 class Method(Protocol):
-    """An optimizer back-end: solve ``problem``; call ``on_iteration`` with each iterate if given."""
+    """An optimizer back-end: solve ``problem`` with the shared ``options`` it reads and its own
+    (``options.own_options(ItsOptions)``, the class its registry entry names); call ``on_iteration``
+    with each iterate if given."""
 
     def __call__(self, problem: Problem, options: SolveOptions, on_iteration: Iteration | None = None) -> Solution: ...
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import ast
 import contextlib
+import dataclasses
 import importlib
 import json
 import re
@@ -32,6 +33,7 @@ from studio.core.errors import ConfigError
 from studio.generator.extended import WALK_MODES, WalkMode
 from studio.io.synth_config import parse_synth_config
 from studio.solvers import METHODS, SolveMethod
+from studio.solvers.options import DgsOptions, SolveOptions, option_flag
 from studio.solvers.problem import Init, Optimizer, Solution
 from tests.converters.synthetic import loop_trajectory, write_tum_file
 
@@ -178,16 +180,65 @@ def test_the_docs_tables_are_the_registries():
 def test_an_entry_may_only_name_solve_options():
     with pytest.raises(ConfigError, match="'iters' is not a SolveOptions field"):
         SolveMethod("bad", METHODS["gtsam"].solve, "", ("iters",))
+    with pytest.raises(ConfigError, match="'robots' is not a SolveOptions field"):  # dgs's own option
+        SolveMethod("bad", METHODS["gtsam"].solve, "", ("robots",))
     with pytest.raises(ConfigError, match="a default for 'init', which it does not read"):
         SolveMethod("bad", METHODS["gtsam"].solve, "", ("max_iterations",), {"init": "odometry"})
+    with pytest.raises(ConfigError, match="its own option 'init' is a SolveOptions field"):
+        SolveMethod("bad", METHODS["gtsam"].solve, "", (), method_options=_ClashingOptions)
+
+
+@dataclasses.dataclass(frozen=True)
+class _ClashingOptions:
+    init: str = "odometry"
+
+
+def test_each_method_declares_its_own_options_and_reads_no_other():
+    """A method's own options are the fields of the class its entry names (not one shared bag): no
+    field is a shared option or another method's, every field is a `studio solve` flag with the
+    field's default, the CLI names none of them, and a back-end's module names no other method's
+    options class."""
+    shared = {f.name for f in dataclasses.fields(SolveOptions)}
+    owners: dict[str, str] = {}
+    classes = {e.method_options: name for name, e in METHODS.items() if e.method_options is not None}
+    assert set(classes.values()) == {"dgs", "command"}
+    params = _params(studio.cli.app, "solve")
+    for name, entry in METHODS.items():
+        own = entry.own_option_names()
+        assert entry.option_names() == (*entry.options, *own)
+        for key in own:
+            assert key not in shared and owners.setdefault(key, name) == name, key
+            field = next(f for f in dataclasses.fields(entry.method_options) if f.name == key)
+            assert params[key].default == field.default and option_flag(entry.method_options, key) in params[key].opts
+        module = (REPO / (entry.solve.module.replace(".", "/") + ".py")).read_text(encoding="utf-8")
+        for cls, owner in classes.items():
+            assert owner == name or cls.__name__ not in module, (name, cls.__name__)
+    solve = next(
+        n
+        for n in ast.parse((REPO / "studio" / "cli.py").read_text(encoding="utf-8")).body
+        if isinstance(n, ast.FunctionDef) and n.name == "solve"
+    )
+    assert not set(owners) & _strings(solve)
+    # each default written once: the registry's and the back-end's come from studio/solvers/options.py
+    from studio.solvers import dgs
+
+    assert dgs.dgs_rounds.__kwdefaults__["coarse_size"] is DgsOptions.coarse_size
+    assert dgs.dgs_rounds.__kwdefaults__["rotation_tol"] is DgsOptions.rotation_tol
 
 
 # ------------------------------------------------------------------------- a dummy method, one entry
 
 
 def _dead_reckoning(problem, options, on_iteration=None):
-    """A method that returns the initial values after ``options.max_iterations`` do-nothing steps."""
-    return Solution(problem.initial.copy(), options.max_iterations, notes={"dummy": True})
+    """A method that returns the initial values after ``options.max_iterations`` do-nothing steps,
+    noting its own option ``label``."""
+    label = options.own_options(_DummyOptions).label
+    return Solution(problem.initial.copy(), options.max_iterations, notes={"dummy": True, "label": label})
+
+
+@dataclasses.dataclass(frozen=True)
+class _DummyOptions:
+    label: str = dataclasses.field(default="none", metadata={"help": "a word noted in solve.json."})
 
 
 def test_a_new_method_is_one_registry_entry(tmp_path):
@@ -195,26 +246,41 @@ def test_a_new_method_is_one_registry_entry(tmp_path):
 
     ds = synthesize(load_synth_config(DATA / "configs" / "tiny_single.json"), tmp_path, rrd=False, jobs=1)
     entry = SolveMethod(
-        "dead-reckoning", _dead_reckoning, "keeps the initial values", ("max_iterations",), {"max_iterations": 3}
+        "dead-reckoning",
+        _dead_reckoning,
+        "keeps the initial values",
+        ("max_iterations",),
+        {"max_iterations": 3},
+        method_options=_DummyOptions,
     )
     with _registered(METHODS, "dead-reckoning", entry) as app:
         assert "dead-reckoning" in _params(app, "solve")["method"].type.choices
         text = _help(app, "solve")
         assert _bare("dead-reckoning (keeps the initial values)") in text and "dead-reckoning:3" in text
+        assert _bare("--label <str> dead-reckoning: a word noted in solve.json.") in text  # its own option's flag
         out = tmp_path / "solved"
-        res = CliRunner().invoke(app, ["solve", str(ds.dataset_dir), "-o", str(out), "-m", "dead-reckoning"])
+        res = CliRunner().invoke(
+            app, ["solve", str(ds.dataset_dir), "-o", str(out), "-m", "dead-reckoning", "--label", "x"]
+        )
         assert res.exit_code == 0, res.output
         info = json.loads((out / "solve.json").read_text())
         assert info["method"] == "dead-reckoning" and info["iterations"] == 3  # the entry's own default
-        assert info["notes"] == {"dummy": True}
+        assert info["notes"] == {"dummy": True, "label": "x"} and info["options"]["label"] == "x"
         assert info["chi2_final"] == pytest.approx(info["chi2_dataset"])
+        res = CliRunner().invoke(app, ["solve", str(ds.dataset_dir), "-o", str(tmp_path / "g"), "--label", "x"])
+        assert res.exit_code == 2 and "--label: method gtsam does not read it" in res.stderr
         # bench takes it, with the options its entry reads and no other
-        spec = {"datasets": ["x"], "methods": ["dead-reckoning"], "options": {"dead-reckoning": {"max_iterations": 5}}}
+        spec = {
+            "datasets": ["x"],
+            "methods": ["dead-reckoning"],
+            "options": {"dead-reckoning": {"max_iterations": 5, "label": "y"}},
+        }
         assert bench_spec_from_dict(spec, "spec.toml").methods == ("dead-reckoning",)
         spec["options"] = {"dead-reckoning": {"init": "odometry"}}
         with pytest.raises(ConfigError, match=r"options\.dead-reckoning\.init: unknown solve option"):
             bench_spec_from_dict(spec, "spec.toml")
     assert "dead-reckoning" not in _params(studio.cli.app, "solve")["method"].type.choices
+    assert "label" not in _params(studio.cli.app, "solve")
 
 
 # ------------------------------------------------------------------------- a dummy source, one entry

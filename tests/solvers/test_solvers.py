@@ -14,6 +14,7 @@ from studio.core.model import PoseKind
 from studio.core.residuals import chi2_terms, edge_errors
 from studio.solvers import METHODS, get_method
 from studio.solvers.init import chordal_se2, spanning_tree
+from studio.solvers.options import CommandOptions, DgsOptions
 from studio.solvers.problem import Problem, SolveOptions, graph_chi2
 
 
@@ -168,14 +169,17 @@ def test_command_method_runs_an_external_program_and_maps_ids_back(tmp_path):
     )
     script.write_text(f"import sys\nopen(sys.argv[2], 'w').write({lines!r})\n")
     cmd = f"{sys.executable} {script} {{input}} {{output}}"
-    sol = get_method("command")(problem, SolveOptions(command=cmd))
+    sol = get_method("command")(problem, SolveOptions(own=CommandOptions(cmd)))
     np.testing.assert_array_equal(sol.poses, gt)
     with pytest.raises(ConfigError, match="must contain {input} and {output}"):
-        get_method("command")(problem, SolveOptions(command="true"))
+        get_method("command")(problem, SolveOptions(own=CommandOptions("true")))
     with pytest.raises(ConfigError, match="exited with status 3"):
-        get_method("command")(
-            problem, SolveOptions(command=f"{sys.executable} -c 'import sys; sys.exit(3)' {{input}} {{output}}")
-        )
+        exit3 = f"{sys.executable} -c 'import sys; sys.exit(3)' {{input}} {{output}}"
+        get_method("command")(problem, SolveOptions(own=CommandOptions(exit3)))
+    with pytest.raises(ConfigError, match="needs the program to run"):  # its class's default: none
+        get_method("command")(problem, SolveOptions())
+    with pytest.raises(ConfigError, match="options: expected CommandOptions, got DgsOptions"):
+        get_method("command")(problem, SolveOptions(own=DgsOptions()))
 
 
 @pytest.mark.parametrize("kind", [PoseKind.SE2, PoseKind.SE3])

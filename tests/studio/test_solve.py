@@ -224,19 +224,46 @@ def test_absurd_or_unsolvable_graphs_are_one_line(small, tmp_path):
 
 
 def test_a_methods_own_options_reach_it_by_name_and_other_methods_refuse_them(small, tmp_path):
-    """dgs's tolerances are options its registry entry reads; `solve` takes them by name (a bench
-    spec's `[options.dgs] rotation_tol = ...` used to end in a TypeError traceback), and a method
-    that does not read one refuses it."""
+    """dgs's tolerances are fields of its own options class (DgsOptions, named by its registry
+    entry); `solve` takes them by name (a bench spec's `[options.dgs] rotation_tol = ...` used to
+    end in a TypeError traceback), a method that does not read one refuses it, and solve.json lists
+    the shared options and the method's own, no other method's."""
     from studio.bench import bench_spec_from_dict
     from studio.core.errors import ConfigError
+    from studio.solvers.options import DgsOptions
 
-    res = solve(small.dataset_dir, tmp_path / "dgs", method="dgs", method_options={"rotation_tol": 0.05})
-    notes = json.loads((tmp_path / "dgs" / "solve.json").read_text())["notes"]
-    assert res.options.rotation_tol == 0.05 and notes["rotation_tol"] == 0.05
+    res = solve(small.dataset_dir, tmp_path / "dgs", method="dgs", rotation_tol=0.05)
+    info = json.loads((tmp_path / "dgs" / "solve.json").read_text())
+    assert res.options.own == DgsOptions(rotation_tol=0.05) and info["notes"]["rotation_tol"] == 0.05
+    assert list(info["options"]) == ["optimizer", "init", "max_iterations", "relative_tolerance", *vars(DgsOptions())]
+    assert info["options"]["rotation_tol"] == 0.05 and info["options"]["max_iterations"] == 100
     with pytest.raises(ConfigError, match=r"^rotation_tol: method gtsam does not read it \(it reads optimizer"):
-        solve(small.dataset_dir, tmp_path / "g", method="gtsam", method_options={"rotation_tol": 0.05})
+        solve(small.dataset_dir, tmp_path / "g", method="gtsam", rotation_tol=0.05)
     with pytest.raises(ConfigError, match=r"^pose_tol: expected a finite number >= 0, got -1"):
-        solve(small.dataset_dir, tmp_path / "g", method="dgs", method_options={"pose_tol": -1})
+        solve(small.dataset_dir, tmp_path / "g", method="dgs", pose_tol=-1)
+    with pytest.raises(ConfigError, match=r"^schedule: expected gauss-seidel or jacobi, got 'random'"):
+        solve(small.dataset_dir, tmp_path / "g", method="dgs", schedule="random")
     assert not (tmp_path / "g").exists()
+    gtsam = solve(small.dataset_dir, tmp_path / "gtsam")
+    assert gtsam.options.own is None
+    assert list(gtsam.to_dict()["options"]) == ["optimizer", "init", "max_iterations", "relative_tolerance"]
     spec = {"datasets": ["x"], "methods": ["dgs"], "options": {"dgs": {"rotation_tol": 0.05, "robots": 2}}}
     assert bench_spec_from_dict(spec, "spec.toml").options == {"dgs": {"rotation_tol": 0.05, "robots": 2}}
+
+
+def test_the_cli_has_a_flag_per_own_option_and_passes_only_those_typed(small, tmp_path):
+    """`studio solve`'s dgs flags are DgsOptions' fields: a typed one reaches the method, and one
+    typed for a method that does not read it is refused naming its flag, not ignored (exit 0 before)."""
+    out = tmp_path / "dgs"
+    argv = ["solve", str(small.dataset_dir), "-o", str(out), "-m", "dgs", "--iterations", "5"]
+    res = runner.invoke(app, [*argv, "--rotation-tol", "0.05", "--coarse", "0", "--schedule", "jacobi"])
+    assert res.exit_code == 0, res.output
+    options = json.loads((out / "solve.json").read_text())["options"]
+    assert (options["rotation_tol"], options["coarse_size"], options["schedule"]) == (0.05, 0, "jacobi")
+    res = runner.invoke(app, ["solve", str(small.dataset_dir), "-o", str(tmp_path / "g"), "--coarse", "3"])
+    assert res.exit_code == 2 and res.stderr.startswith("error: --coarse: method gtsam does not read it")
+    res = runner.invoke(
+        app, ["solve", str(small.dataset_dir), "-o", str(tmp_path / "s"), "-m", "dgs", "--schedule", "x"]
+    )
+    assert res.exit_code == 2 and "error: --schedule: expected gauss-seidel or jacobi, got 'x'" in res.stderr
+    assert not (tmp_path / "g").exists() and not (tmp_path / "s").exists()
