@@ -89,6 +89,35 @@ def test_the_example_backend_replays_and_the_method_solves(example_site, tiny, t
     assert "example-odometry, 0 iterations" in res.stdout
 
 
+def test_the_example_methods_own_option_reaches_it_by_name(example_site, tiny, tmp_path):
+    """A plug-in method's own options are the fields of the class its entry names: set by name from
+    Python, refused by name where the method does not read them; `studio solve` has no flag for
+    them (the command line is built without importing plug-ins), so a typed dgs flag is refused."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(example_site), str(EXAMPLE)]))
+    script = (
+        "import json, sys\n"
+        "from studio.core.errors import ConfigError\n"
+        "from studio.solve import solve\n"
+        f"res = solve({str(tiny)!r}, {str(tmp_path / 'lib')!r}, method='example-odometry', label='run 3')\n"
+        "print(json.dumps([res.solution.notes['label'], res.to_dict()['options']['label']]))\n"
+        "try:\n"
+        f"    solve({str(tiny)!r}, {str(tmp_path / 'bad')!r}, method='example-odometry', robots=2)\n"
+        "except ConfigError as err:\n"
+        "    print(err)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.splitlines() == [
+        '["run 3", "run 3"]',
+        "robots: method example-odometry does not read it (it reads label)",
+    ]
+    res = _studio(
+        example_site, "solve", str(tiny), "-m", "example-odometry", "--robots", "2", "-o", str(tmp_path / "c")
+    )
+    assert res.returncode == 2 and res.stderr.startswith("error: --robots: method example-odometry does not read it")
+    assert not (tmp_path / "bad").exists() and not (tmp_path / "c").exists()
+
+
 def test_a_plugin_that_fails_to_import_is_one_line(tmp_path, tiny):
     site = tmp_path / "site"
     _install(
