@@ -28,6 +28,7 @@ import numpy as np
 
 from studio.core.errors import ConfigError
 from studio.core.model import PoseKind
+from studio.solvers.options import SESYNC_MAX_ITERATIONS
 from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
 from studio.solvers.sesync_problem import (
     EIG_TOL,
@@ -322,7 +323,7 @@ def sesync_objective(problem: Problem, poses: np.ndarray) -> float:
 def certified_optimum(problem: Problem) -> Optimum:
     """The certified solve's ``f`` of ``problem`` and whether it is certified (the reference a
     benchmark's results are measured from)."""
-    notes = solve_sesync(problem, SolveOptions(max_iterations=1000)).notes
+    notes = solve_sesync(problem, SolveOptions(max_iterations=SESYNC_MAX_ITERATIONS)).notes
     f_star = notes["sesync_f"]
     assert isinstance(f_star, float)
     return Optimum(f_star, bool(notes["certified"]))
