@@ -27,7 +27,7 @@ from studio.core.plugins import SOLVE_METHODS, plugin_names
 from studio.core.preset_names import PRESET_NAMES
 from studio.core.units import DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_OUTPUT_GB
 from studio.runtime.progress import terminal_progress
-from studio.solvers import DEFAULT_METHOD, METHODS
+from studio.solvers import DEFAULT_METHOD, METHODS, solve_flag
 from studio.solvers.isam_settings import IsamSettings
 from studio.solvers.options import Init, Optimizer, SolveOptions
 
@@ -80,7 +80,7 @@ def _root(
 
 
 #: Library options whose flag is not their name in kebab case (``overlap_s`` -> ``--overlap``).
-_FLAGS: dict[str, str] = {"max_iterations": "iterations"}
+_FLAGS: dict[str, str] = {"max_iterations": solve_flag("max_iterations")[2:]}
 
 
 def _as_flags(err: StudioError) -> str:
@@ -710,7 +710,7 @@ def solve(
     init: InitChoice = typer.Option(  # type: ignore[valid-type]
         SolveOptions().init, "--init", help=f"Initial guess (methods: {_readers_of('init')})."
     ),
-    iterations: int | None = typer.Option(None, "--iterations", help=_iterations_help()),
+    iterations: int | None = typer.Option(None, solve_flag("max_iterations"), help=_iterations_help()),
     dimension: DimensionChoice = typer.Option(
         DimensionChoice.auto, "--dimension", help="auto: planar 3D data is solved in SE(2)."
     ),

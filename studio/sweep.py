@@ -863,8 +863,10 @@ def _command(task: CellTask, out: Path, spec: SweepSpec) -> str:
         words = ["studio", "convert", "--config", cfg, "-o", dataset]
     cmd = shlex.join(words)
     if "solve" in task.steps:
+        from studio.solvers import solve_flag
+
         opts = task.options.get("solve", {})
-        flags = [w for k, v in sorted(opts.items()) for w in (f"--{k.replace('_', '-')}", str(v))]
+        flags = [w for k, v in sorted(opts.items()) for w in (solve_flag(k), str(v))]
         cmd += " && " + shlex.join(["studio", "solve", dataset, "-o", "DIR/solved", *flags])
     if "replay" in task.steps:
         opts = dict(task.options.get("replay", {}))

@@ -28,6 +28,7 @@ from studio.solvers.options import (
     CommandOptions,
     DgsOptions,
     SolveOptions,
+    option_flag,
 )
 
 if TYPE_CHECKING:  # the back-ends' protocol: numpy types, not loaded to declare the registry
@@ -40,6 +41,7 @@ __all__ = [
     "get_method",
     "method_entry",
     "option_names",
+    "solve_flag",
     "DEFAULT_METHOD",
 ]
 
@@ -196,3 +198,13 @@ def option_names() -> tuple[str, ...]:
     used = {key for entry in METHODS.values() for key in entry.options}
     own = [key for entry in METHODS.values() for key in entry.own_option_names()]
     return (*(key for key in _OPTION_FIELDS if key in used), *dict.fromkeys(own))
+
+
+def solve_flag(name: str) -> str:
+    """The ``studio solve`` flag of the solve option or keyword ``name`` as its declaration says
+    (``max_iterations``: ``--iterations``, ``coarse_size``: ``--coarse``), else ``name`` in kebab case."""
+    classes = [SolveOptions, *(e.method_options for e in METHODS.values() if e.method_options is not None)]
+    for cls in classes:
+        if name in {f.name for f in dataclasses.fields(cls)}:
+            return option_flag(cls, name)
+    return "--" + name.replace("_", "-")

@@ -85,7 +85,8 @@ def _opt(default: Any, help: str, *, flag: str = "", choices: tuple[str, ...] = 
 
 
 def option_flag(cls: type, name: str) -> str:
-    """The ``studio solve`` flag of option ``name`` of options class ``cls`` (``--coarse``)."""
+    """The ``studio solve`` flag of option ``name`` of options class ``cls`` (``--coarse``,
+    ``--iterations``)."""
     flag = next(f for f in fields(cls) if f.name == name).metadata.get("flag") or name
     return "--" + flag.replace("_", "-")
 
@@ -99,7 +100,7 @@ class SolveOptions:
     """Gauss-Newton or Levenberg-Marquardt."""
     init: Init = "chordal"
     """Initial guess: chordal relaxation, spanning tree of the measurements, or the dataset's values."""
-    max_iterations: int = 20
+    max_iterations: int = field(default=20, metadata={"flag": "iterations"})
     """Iterations at most (the ``g2o`` method runs exactly this many, 10 by default as the paper)."""
     relative_tolerance: float = 1e-9
     """Stop when the cost decreases by less than this fraction."""

@@ -32,8 +32,8 @@ from studio.core.comms_registry import COMMS_MODELS, CommsModelEntry
 from studio.core.errors import ConfigError
 from studio.generator.extended import WALK_MODES, WalkMode
 from studio.io.synth_config import parse_synth_config
-from studio.solvers import METHODS, SolveMethod
-from studio.solvers.options import DgsOptions, SolveOptions, option_flag
+from studio.solvers import METHODS, SolveMethod, solve_flag
+from studio.solvers.options import DgsOptions, SolveOptions
 from studio.solvers.problem import Init, Optimizer, Solution
 from tests.converters.synthetic import loop_trajectory, write_tum_file
 
@@ -209,7 +209,7 @@ def test_each_method_declares_its_own_options_and_reads_no_other():
         for key in own:
             assert key not in shared and owners.setdefault(key, name) == name, key
             field = next(f for f in dataclasses.fields(entry.method_options) if f.name == key)
-            assert params[key].default == field.default and option_flag(entry.method_options, key) in params[key].opts
+            assert params[key].default == field.default and solve_flag(key) in params[key].opts
         module = (REPO / (entry.solve.module.replace(".", "/") + ".py")).read_text(encoding="utf-8")
         for cls, owner in classes.items():
             assert owner == name or cls.__name__ not in module, (name, cls.__name__)
@@ -219,6 +219,7 @@ def test_each_method_declares_its_own_options_and_reads_no_other():
         if isinstance(n, ast.FunctionDef) and n.name == "solve"
     )
     assert not set(owners) & _strings(solve)
+    assert solve_flag("max_iterations") in params["iterations"].opts and solve_flag("coarse_size") == "--coarse"
     # each default written once: the registry's and the back-end's come from studio/solvers/options.py
     from studio.solvers import dgs
 

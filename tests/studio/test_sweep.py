@@ -455,3 +455,35 @@ def test_replay_cells_of_datasets_comms_and_backends_give_one_table_plots_and_re
     )
     resumed = pd.read_parquet(again.table_path)
     assert resumed[sorted(resumed.columns)].equals(df[sorted(df.columns)])  # result.json's keys are sorted
+
+
+def test_a_solve_step_takes_a_methods_own_options_and_its_command_remakes_the_cell(tmp_path):
+    """`[options.solve]` may hold the method's own options (dgs's `coarse_size`, `rotation_tol`:
+    a TypeError before), and the `studio solve` line the table lists uses their declared flags
+    (`--coarse`, `--iterations`; it wrote `--coarse-size` and `--max-iterations`, which the command
+    does not have) and remakes the cell's estimate byte for byte."""
+    import shlex
+
+    spec = sweep_spec_from_dict(
+        {
+            "name": "dgs",
+            "base": str(DATA / "configs" / "tiny_three.json"),
+            "steps": ["solve"],
+            "options": {"solve": {"method": "dgs", "coarse_size": 0, "rotation_tol": 0.1, "max_iterations": 5}},
+        },
+        "dgs.toml",
+    )
+    res = sweep(spec, tmp_path / "out", workers=1)
+    assert res.failed == 0 and len(res.rows) == 1
+    row = res.rows[0]
+    synth, solve = row["command"].split(" && ")
+    assert solve.endswith("--coarse 0 --iterations 5 --method dgs --rotation-tol 0.1")
+    alone = tmp_path / "alone"
+    for line in (synth, solve):
+        words = [w.replace("DIR", str(alone)) for w in shlex.split(line)]
+        done = CliRunner().invoke(app, words[1:])
+        assert done.exit_code == 0, done.output
+    made = tmp_path / "out" / "cells" / row["cell"] / "solved" / "estimate"
+    assert _same_tree(made, alone / "solved" / "estimate")
+    options = json.loads((alone / "solved" / "solve.json").read_text())["options"]
+    assert (options["coarse_size"], options["rotation_tol"], options["max_iterations"]) == (0, 0.1, 5)
