@@ -17,11 +17,12 @@ kollagen's connector edges joining agent k's last pose to agent k+1's first).
   3D records of its planar walk) is solved in SE(2) (``dimension="auto"``) and written back in 3D;
   its chi2 is the planar one.
 
-``solve.json`` beside the estimate holds the method, options, iterations, chi2 (g2o convention,
-sum of e^T Omega e) at the dataset's initial values, after the initial guess and at the end, the
-wall time and, for ``gnc``, the loop closures it rejected; for ``dgs`` (one robot per agent of a
-multi-g2o folder, ``robots`` contiguous runs of ids of a single g2o) its rounds and bytes in
-``notes`` and, with ground truth, ``ape_per_round``. Outputs are staged and renamed.
+``solve.json`` beside the estimate holds the method, options (the shared ones and the method's
+own), iterations, chi2 (g2o convention, sum of e^T Omega e) at the dataset's initial values, after
+the initial guess and at the end, the wall time and, for ``gnc``, the loop closures it rejected;
+for ``dgs`` (one robot per agent of a multi-g2o folder, ``robots`` contiguous runs of ids of a
+single g2o) its rounds and bytes in ``notes`` and, with ground truth, ``ape_per_round``. Outputs
+are staged and renamed.
 """
 
 from __future__ import annotations
