@@ -9,10 +9,12 @@
   poses robots keep of each other (swarm, dgs) against their owners' estimates and each other's;
 * the final beliefs' distance to the global optimum: SE-Sync's objective ``f`` of each back-end's
   final estimate and ``(f - f*) / f*`` against the dataset's certified optimum ``f*``
-  (:func:`gaps_to_optimum`).
+  (:func:`team_optimum`, :func:`gaps_to`).
 """
 
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -23,7 +25,10 @@ from studio.core.model import PoseKind
 from studio.solvers.incremental import compose, inverse
 from studio.solvers.problem import Problem
 
-__all__ = ["as_se3", "first_pose_errors", "se3_errors", "robot_values", "gaps_to_optimum"]
+if TYPE_CHECKING:  # SE-Sync's modules load scipy's solvers: imported when the optimum is found
+    from studio.solvers.sesync import Optimum
+
+__all__ = ["as_se3", "first_pose_errors", "se3_errors", "robot_values", "team_optimum", "gaps_to", "gaps_to_optimum"]
 
 
 def as_se3(poses: np.ndarray, kind: PoseKind) -> np.ndarray:
@@ -76,23 +81,41 @@ def robot_values(
     return out
 
 
+def team_optimum(problem: Problem) -> Optimum | None:
+    """The certified optimum of ``problem`` (SE-Sync's objective,
+    :func:`studio.solvers.sesync.certified_optimum`), or None when it is unavailable (pymanopt
+    missing) or when no one optimum exists: a team whose robots never close a loop between them
+    (each robot's map may move rigidly against the others'). ``studio replay`` computes it before the
+    back-ends run, so that its memory is not added to theirs at the peak."""
+    from studio.solvers.sesync import certified_optimum
+    from studio.solvers.validate import unreached_vertices
+
+    if len(unreached_vertices(problem)):
+        return None
+    try:
+        return certified_optimum(problem)
+    except ConfigError:
+        return None
+
+
 def gaps_to_optimum(
     problem: Problem, finals: list[np.ndarray]
 ) -> tuple[float | None, list[tuple[float, float | None]]]:
-    """The certified optimum ``f*`` of ``problem`` (SE-Sync's objective; None when the certified solve
-    is unavailable, pymanopt missing, or does not certify) and, per final estimate (rows in
-    ``problem``'s pose kind), its ``f`` and ``(f - f*) / f*`` (None without a certified ``f*``). A
-    team whose robots never close a loop between them has no one optimum (each robot's map may move
-    rigidly against the others'): ``f`` is NaN and no gap is given."""
-    from studio.solvers.sesync import certified_optimum, sesync_objective
+    """:func:`gaps_to` the optimum :func:`team_optimum` finds."""
+    return gaps_to(problem, finals, team_optimum(problem))
+
+
+def gaps_to(
+    problem: Problem, finals: list[np.ndarray], optimum: Optimum | None
+) -> tuple[float | None, list[tuple[float, float | None]]]:
+    """The certified ``f*`` of ``optimum`` (from :func:`team_optimum`) and, per final estimate
+    (rows in ``problem``'s pose kind), its ``f`` and ``(f - f*) / f*`` (None without a certified
+    ``f*``). Without one optimum (robots never tied by a closure) ``f`` is NaN and no gap is given."""
+    from studio.solvers.sesync import sesync_objective
     from studio.solvers.validate import unreached_vertices
 
     if len(unreached_vertices(problem)):
         return None, [(float("nan"), None) for _ in finals]
-    try:
-        optimum = certified_optimum(problem)
-    except ConfigError:
-        optimum = None
     out = []
     for poses in finals:
         f = sesync_objective(problem, poses)
