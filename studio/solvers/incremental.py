@@ -224,12 +224,22 @@ class IncrementalSolver:
         self.edges[edges] = True
         self.estimate[vertices] = start
         if graph.size() or values.size():
-            result = self.isam.update(graph, values)
+            result = self.isam.update(graph, values, self._unconstrained())
             indices = list(result.getNewFactorsIndices())
             self._loose_factors.update(int(indices[i]) for i in loose)
             for _ in range(self.settings.extra_updates):
                 self.isam.update()
         self.seconds += time.perf_counter() - t0
+
+    def _unconstrained(self) -> Any:
+        """An update that orders the re-eliminated part by plain COLAMD. GTSAM's default puts the
+        batch's new variables last, at the root, expecting the next measurements to touch only
+        them; a team's batch holds every robot's newest poses and closures that reach back across
+        the whole map, and that constraint made the root clique, and the separators under it,
+        several times larger (docs/replay.md, "ISAM2 settings and the final polish")."""
+        params = self._gtsam.ISAM2UpdateParams()
+        params.constrainedKeys = self._gtsam.KeyGroupMap()
+        return params
 
     def _add_fixed(self, graph: Any, fixed: FixedEnds) -> None:
         """The unary factors of :class:`FixedEnds` into ``graph``. GTSAM's between error is
@@ -258,8 +268,10 @@ class IncrementalSolver:
         self.seconds += time.perf_counter() - t0
 
     def polish(self, max_iterations: int = 10) -> None:
-        """Gauss-Newton on every factor added, from ISAM2's estimate; the result is :attr:`estimate`
-        (ISAM2 itself is left as it was)."""
+        """Gauss-Newton on every factor added, from ISAM2's estimate; the result is :attr:`estimate`.
+        The last call on a solver: ISAM2 is let go before the Gauss-Newton runs (its Bayes tree is
+        most of a replay's memory, which the batch system's factors then reuse), so no update may
+        follow."""
         gtsam = self._gtsam
         t0 = time.perf_counter()
         ids = np.flatnonzero(self.vertices)
@@ -270,14 +282,18 @@ class IncrementalSolver:
             held = self.isam.getFactorsUnsafe()
             start = self.isam.calculateEstimate()
             # without the loose priors when the graph holds together without them: the batch optimum
-            tight = gtsam.NonlinearFactorGraph()
+            tight, every = gtsam.NonlinearFactorGraph(), gtsam.NonlinearFactorGraph()
             for k in range(held.size()):
-                if k not in self._loose_factors and held.exists(k):
-                    tight.add(held.at(k))
+                if held.exists(k):
+                    every.add(held.at(k))
+                    if k not in self._loose_factors:
+                        tight.add(held.at(k))
+            del held
+            self.isam = None
             try:
                 result = gtsam.GaussNewtonOptimizer(tight, start, params).optimize()
             except RuntimeError:  # robots no closure ties to the first one: keep their priors
-                result = gtsam.GaussNewtonOptimizer(held, start, params).optimize()
+                result = gtsam.GaussNewtonOptimizer(every, start, params).optimize()
             self.estimate[ids] = self._poses(result)
         self.seconds += time.perf_counter() - t0
 
