@@ -160,6 +160,7 @@ class Dgs(_Base):
             warm_start=True,
             rotation_stage=team not in self.teams,
             fixed=held if held.any() else None,
+            score_rounds=False,
         )
         better = bool(graph_chi2(sub, result.poses) < graph_chi2(sub, start))  # nan: not better
         seconds = time.perf_counter() - t0

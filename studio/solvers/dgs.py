@@ -107,7 +107,8 @@ class DgsRound:
     change: float
     """Largest change of an entry of the stage's unknowns in this round."""
     chi2: float | None
-    """Pose stage: chi2 (g2o convention) of the current estimate; None in the rotation stage."""
+    """Pose stage: chi2 (g2o convention) of the current estimate; None in the rotation stage and
+    where the caller did not ask for it (``dgs_rounds(score_rounds=False)``)."""
     bytes_sent: int
     """Bytes all robots sent in this round."""
 
@@ -583,6 +584,8 @@ class _Run:
     """Largest entry of the last pose system's update."""
     coarse_size: int = 0
     """Vertices per aggregate of the two-level correction (0: none, plain DGS)."""
+    score_rounds: bool = True
+    """Each pose round's chi2 is computed (:attr:`DgsRound.chi2`)."""
 
     @property
     def robots(self) -> int:
@@ -761,7 +764,7 @@ def _pose_system(run: _Run, lin: np.ndarray, anchor_pose: np.ndarray, opt: _Stag
         change = _round(delta, g, blocks, run.schedule, opt.gamma, previous, opt.momentum)
         poses = _reanchor(kind, _retract(kind, lin, delta.reshape(n, b)), anchor, anchor_pose)
         sent = run.send(b) + run.send_coarse(blocks.coarse, 1) + run.handshake
-        run.record("pose", change, graph_chi2(problem, poses), sent, poses)
+        run.record("pose", change, graph_chi2(problem, poses) if run.score_rounds else None, sent, poses)
         run.handshake = 0
         if change <= opt.tol:
             break
@@ -804,6 +807,7 @@ def dgs_rounds(
     fixed: np.ndarray | None = None,
     on_round: OnRound | None = None,
     coarse_size: int = DEFAULT_COARSE_SIZE,
+    score_rounds: bool = True,
 ) -> DgsResult:
     """Run DGS on ``problem`` with vertex ``v`` owned by robot ``agent_of_vertex[v]`` (ints ``0..R-1``).
 
@@ -815,7 +819,9 @@ def dgs_rounds(
     ``on_round(round, poses)`` is called after each round, ``poses`` the current estimate in the pose
     stage and None in the rotation stage. At most ``max_rounds`` rounds over both stages. ``fixed``
     (a mask over the vertices) holds vertices at ``initial``, no robot's unknowns (the anchor is then
-    held too): a replay's neighbour poses, each in the block of the robot its edges tie it to."""
+    held too): a replay's neighbour poses, each in the block of the robot its edges tie it to.
+    Without ``score_rounds`` the pose rounds' chi2 is not computed (a caller that needs only the
+    result: the rounds and their stopping rule are the same)."""
     t0 = time.perf_counter()
     robot = _robot_indices(problem, agent_of_vertex)
     robots = int(robot.max()) + 1 if problem.num_vertices else 0
@@ -843,6 +849,7 @@ def dgs_rounds(
         on_round,
         fixed,
         coarse_size=coarse_size,
+        score_rounds=score_rounds,
     )
     if rotation_stage:
         rot, converged_rot = _rotation_stage(run, start, _StageOptions(rotation_tol, rotation_gamma, rotation_momentum))
