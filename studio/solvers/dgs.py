@@ -71,6 +71,7 @@ from studio.solvers.options import (
     Schedule,
 )
 from studio.solvers.problem import Iteration, Problem, Solution, SolveOptions, graph_chi2
+from studio.solvers.spd import spd_factor
 
 __all__ = [
     "Schedule",
@@ -226,7 +227,6 @@ def _coarse(h: Any, robot_dofs: list[np.ndarray], columns: Any) -> _Coarse | Non
     """The coarse correction over the robots' free unknowns with coarse space ``columns``
     (``(sum of dofs, m)``, rows in the order of ``robot_dofs`` concatenated); None without any."""
     import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
 
     free = np.concatenate(robot_dofs) if robot_dofs else np.zeros(0, dtype=np.int64)
     basis = sp.csr_matrix(columns)
@@ -237,8 +237,8 @@ def _coarse(h: Any, robot_dofs: list[np.ndarray], columns: Any) -> _Coarse | Non
     # the anchor-free pose system is singular in the gauge: a ridge far below every entry fixes it
     ridge = 1e-9 * float(np.abs(hc.diagonal()).max())
     try:
-        lu = spla.splu((hc + sp.identity(hc.shape[0], format="csc") * ridge).tocsc())
-    except RuntimeError as err:  # SuperLU: "Factor is exactly singular"
+        lu = spd_factor(hc + sp.identity(hc.shape[0], format="csc") * ridge, permc_spec="COLAMD")
+    except RuntimeError as err:  # SuperLU's "Factor is exactly singular", QDLDL's zero pivot
         raise GraphError(f"dgs: the coarse system is singular ({err}); is every robot tied to the graph?") from None
     return _Coarse(free, rows, basis, lu, _coarse_rows_per_robot(hc, robot_dofs, basis))
 
@@ -319,8 +319,6 @@ def _rigid_columns(kind: PoseKind, lin: np.ndarray, robot_dofs: list[np.ndarray]
 
 
 def _factorise(h: Any, robot_dofs: list[np.ndarray], total: int) -> _Blocks:
-    import scipy.sparse.linalg as spla
-
     lus, couplings, others = [], [], []
     for dofs in robot_dofs:
         rows = h[dofs]
@@ -328,8 +326,8 @@ def _factorise(h: Any, robot_dofs: list[np.ndarray], total: int) -> _Blocks:
         rest[dofs] = False
         other = np.flatnonzero(rest)
         try:
-            lus.append(spla.splu(rows[:, dofs].tocsc()))
-        except RuntimeError as err:  # SuperLU: "Factor is exactly singular"
+            lus.append(spd_factor(rows[:, dofs], permc_spec="COLAMD"))
+        except RuntimeError as err:  # SuperLU's "Factor is exactly singular", QDLDL's zero pivot
             raise GraphError(f"dgs: a robot's block is singular ({err}); is every robot tied to the graph?") from None
         couplings.append(rows[:, other].tocsr())
         others.append(other)

@@ -24,10 +24,8 @@ so on the optimum ``f*``, and ``tr(Lambda) = f(Y)``; when ``lambda_min(S) >= -et
 ``lambda_min`` is found by LOBPCG (scipy) started from ``Y``'s rows, which span ``S``'s null space
 at a critical point, preconditioned by a sparse LU of ``M_RR`` (``M_RR >= Q``). The trust-region
 steps are preconditioned as SE-Sync's are, by a regularized factorization of ``M``. Every matrix
-factored here is symmetric positive definite; :func:`spd_factor` factors it by QDLDL (OSQP's sparse
-LDL^T with AMD ordering, the ``qdldl`` package) where installed, which takes about half of SuperLU's
-time to factor and to solve, else by SuperLU (scikit-sparse's CHOLMOD does not build against this
-system's SuiteSparse).
+factored here is symmetric positive definite; :func:`studio.solvers.spd.spd_factor` factors it by
+QDLDL where installed, else by SuperLU.
 """
 
 from __future__ import annotations
@@ -40,6 +38,7 @@ import numpy as np
 
 from studio.core.geometry import upper_to_matrix
 from studio.core.model import PoseKind
+from studio.solvers.spd import spd_factor
 
 __all__ = ["SyncProblem", "build", "rotation_matrices", "poses_from", "Certificate", "certify_rotations", "EIG_TOL"]
 
@@ -83,35 +82,6 @@ def poses_from(kind: PoseKind, rotations: np.ndarray, translations: np.ndarray) 
     quat = Rotation.from_matrix(rotations).as_quat()
     quat[quat[:, 3] < 0] *= -1.0
     return np.column_stack([translations, quat])
-
-
-class _Ldl:
-    """QDLDL's factorization with SuperLU's ``solve`` (a vector or the columns of a matrix)."""
-
-    def __init__(self, solver: Any) -> None:
-        self.solver = solver
-
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        b = np.asarray(b, dtype=np.float64)
-        if b.ndim == 1:
-            return np.asarray(self.solver.solve(b))
-        out = np.empty_like(b)
-        for k in range(b.shape[1]):
-            out[:, k] = self.solver.solve(np.ascontiguousarray(b[:, k]))
-        return out
-
-
-def spd_factor(a: Any, *, permc_spec: str = "MMD_AT_PLUS_A") -> Any:
-    """A factorization of the symmetric positive definite sparse ``a`` with ``.solve(b)``: QDLDL's
-    LDL^T where the ``qdldl`` package is installed, else SuperLU's LU with ``permc_spec``."""
-    import scipy.sparse.linalg as spla
-
-    try:
-        import qdldl
-    except ImportError:
-        options = {"SymmetricMode": True} if permc_spec == "MMD_AT_PLUS_A" else {}
-        return spla.splu(a.tocsc(), permc_spec=permc_spec, options=options)
-    return _Ldl(qdldl.Solver(a.tocsc()))
 
 
 @dataclass(frozen=True, eq=False)
