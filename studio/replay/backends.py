@@ -265,6 +265,9 @@ class Swarm(_Base):
         self._receive(news)
         self.memory.deliver(news.closures)
         w, tick = self.world, news.tick
+        # a group that is not one of this checkpoint's is gone for good: its solver goes before any
+        # new group's is built, not beside it
+        self.groups = {g: s for g, s in self.groups.items() if g in news.groups}
         kept: dict[tuple[int, ...], IncrementalSolver] = {}
         seconds = 0.0
         for group in news.groups:
