@@ -62,7 +62,7 @@ def make_bag(work: Path, total: int = 300_000) -> Path:
 def timed(label: str, cfg: ConvertConfig, out: Path) -> None:
     marks: dict[str, float] = {}
 
-    def progress(label: str, done: int, total: int) -> None:
+    def progress(label: str, done: int, total: int, unit: str = "") -> None:
         marks.setdefault(label, time.perf_counter())
 
     t0 = time.perf_counter()

@@ -10,9 +10,10 @@ Three sweeps around one base config (Multi3500x8's parameters with --steps steps
 start, every file written) and, with --kollagen, kollagen's `generate CONFIG DIR` on the same JSON.
 Writes one CSV row per run (panel, x, tool, wall seconds, peak RSS MiB, poses, edges, load average)
 and a PNG with the three panels (matplotlib, Agg). The machine's 1-minute load average before each
-run is in the CSV and the plot's title: timings from a shared machine are noisy. With --kollagen the
-two tools' runs of a point alternate and each point prints kollagen's median over the studio's (issue
-28 asks >= 2x at 2 agents and at R = 1 m: ``--only agents:2 radius:1``).
+run is in the CSV and the printed rows (timings from a shared machine are noisy); the plot's title
+names the base config and the cores the runs may use (``taskset -c 1`` makes it one). With
+--kollagen the two tools' runs of a point alternate and each point prints kollagen's median over the
+studio's (issue 28 asks >= 2x at 2 agents and at R = 1 m: ``--only agents:2 radius:1``).
 """
 
 from __future__ import annotations
@@ -136,7 +137,8 @@ def main() -> None:
         w.writeheader()
         w.writerows(rows)
     plot(rows, args.png, args)
-    print(f"wrote {args.csv} and {args.png}")
+    loads = [r["load1"] for r in rows]
+    print(f"wrote {args.csv} and {args.png}; 1-min load {min(loads):.2f}-{max(loads):.2f}")
 
 
 def plot(rows: list[dict], path: Path, args: argparse.Namespace) -> None:
@@ -152,15 +154,16 @@ def plot(rows: list[dict], path: Path, args: argparse.Namespace) -> None:
             pts = [(r["x"], r["wall_s"]) for r in rows if r["panel"] == panel and r["tool"] == tool]
             if pts:
                 ax.plot(*zip(*pts), style, label=tool)
+        ax.set_xticks(sorted({r["x"] for r in rows if r["panel"] == panel}))  # the measured points only
         ax.set_xlabel(labels[panel])
         ax.set_ylabel("wall time [s]")
         ax.grid(alpha=0.3)
         if ax.lines:  # a panel left out by --only has none
             ax.legend()
-    loads = [r["load1"] for r in rows]
+    cores = len(os.sched_getaffinity(0))  # the cores this process and its children may run on
     fig.suptitle(
         f"Generation time (base: Multi3500x8 parameters, {args.agents} agents, {args.steps} steps, "
-        f"R = {args.radius:g} m; 1-min load {min(loads):.1f}-{max(loads):.1f} on {os.cpu_count()} cores)",
+        f"R = {args.radius:g} m; {cores} {'core' if cores == 1 else 'cores'})",
         fontsize=9,
     )
     fig.savefig(path, dpi=90)

@@ -20,10 +20,12 @@ from __future__ import annotations
 import os
 import sys
 from dataclasses import dataclass
-from importlib.metadata import EntryPoint, entry_points
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from studio.core.errors import ConfigError
+
+if TYPE_CHECKING:
+    from importlib.metadata import EntryPoint
 
 __all__ = ["REPLAY_BACKENDS", "SOLVE_METHODS", "GROUPS", "Plugin", "plugins", "plugin_names", "load_plugin"]
 
@@ -44,6 +46,10 @@ class Plugin:
 
 
 def _entries(group: str) -> list[EntryPoint]:
+    # Imported here, not with the module: importlib.metadata brings email, zipfile and csv with it,
+    # which the command line's start (it imports this module for plugin_names) does not need.
+    from importlib.metadata import entry_points
+
     return sorted(entry_points(group=group), key=lambda e: (e.name, e.value))
 
 

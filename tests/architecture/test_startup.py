@@ -17,8 +17,21 @@ from studio.generator.presets import PRESETS
 
 #: What a command's declaration must not load: numeric and recording libraries, the solvers'
 #: libraries, typer's pydantic coercion (typer 0.29+), rich (loaded by the progress display only when
-#: stderr is a terminal) and the generator.
-HEAVY = ("numpy", "pandas", "scipy", "rerun", "gtsam", "g2opy", "evo", "pydantic", "rich", "studio.generator")
+#: stderr is a terminal), the generator and importlib.metadata (email, zipfile and csv come with it;
+#: plug-ins are listed without it, :func:`studio.core.plugins.plugin_names`).
+HEAVY = (
+    "numpy",
+    "pandas",
+    "scipy",
+    "rerun",
+    "gtsam",
+    "g2opy",
+    "evo",
+    "pydantic",
+    "rich",
+    "studio.generator",
+    "importlib.metadata",
+)
 
 COMMANDS = sorted(typer.main.get_command(studio.cli.app).commands)  # type: ignore[attr-defined]
 
