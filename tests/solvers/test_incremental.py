@@ -3,6 +3,8 @@ neighbour's pose another robot shared) enter as unary factors that are exactly t
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -35,3 +37,36 @@ def test_edges_to_held_poses_at_the_optimum_leave_the_others_at_it(kind):
     solver.polish(50)
     width = 2 if kind is PoseKind.SE2 else 3
     np.testing.assert_allclose(solver.estimate[mine, 0:width], batch.poses[mine, 0:width], atol=1e-4)
+
+
+def test_updates_order_the_reeliminated_part_freely(tmp_path):
+    """GTSAM's default update pins a batch's new variables at the root of the Bayes tree; with every
+    robot's newest poses in each batch and closures reaching back, that root and the separators
+    under it grow. The solver's updates order by plain COLAMD: a smaller tree, the same estimate
+    (on the paper presets the peak memory falls by a third to three quarters)."""
+    import json
+
+    import gtsam
+
+    from studio.solve import load_problem
+    from studio.synth import load_synth_config, synthesize
+
+    config = json.loads((Path(__file__).parents[1] / "data" / "configs" / "small3x100.json").read_text())
+    config["number_of_steps"] = 300
+    (tmp_path / "walk.json").write_text(json.dumps(config))
+    synthesize(load_synth_config(tmp_path / "walk.json"), tmp_path / "out", rrd=False)
+    loaded = load_problem(tmp_path / "out" / "walk")
+    problem = loaded.problem
+    offsets = np.asarray(loaded.offsets)
+    robot = np.searchsorted(offsets, np.arange(problem.num_vertices), side="right") - 1
+    step_of_vertex = np.arange(problem.num_vertices) - offsets[robot]
+    solver = IncrementalSolver(problem, robot, IsamSettings())
+    pinned = IncrementalSolver(problem, robot, IsamSettings())
+    pinned._unconstrained = gtsam.ISAM2UpdateParams  # type: ignore[method-assign]  # GTSAM's default
+    for each in (solver, pinned):
+        for step in range(25, 301, 25):  # checkpoints every 25 steps
+            known = step_of_vertex < step
+            edges = known[problem.edge_from] & known[problem.edge_to] & ~each.edges
+            each.add(np.flatnonzero(known & ~each.vertices), np.flatnonzero(edges))
+    assert solver.isam.treeNnz() < 0.95 * pinned.isam.treeNnz()
+    np.testing.assert_allclose(solver.solve(), pinned.solve(), atol=1e-6)
