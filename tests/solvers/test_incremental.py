@@ -62,7 +62,8 @@ def test_updates_order_the_reeliminated_part_freely(tmp_path):
     step_of_vertex = np.arange(problem.num_vertices) - offsets[robot]
     solver = IncrementalSolver(problem, robot, IsamSettings())
     pinned = IncrementalSolver(problem, robot, IsamSettings())
-    pinned._unconstrained = gtsam.ISAM2UpdateParams  # type: ignore[method-assign]  # GTSAM's default
+    # GTSAM's default update, new variables pinned at the root
+    pinned._update_params = lambda team: gtsam.ISAM2UpdateParams()  # type: ignore[method-assign]
     for each in (solver, pinned):
         for step in range(25, 301, 25):  # checkpoints every 25 steps
             known = step_of_vertex < step
