@@ -224,23 +224,21 @@ class IncrementalSolver:
         self.edges[edges] = True
         self.estimate[vertices] = start
         if graph.size() or values.size():
-            result = self.isam.update(graph, values, self._update_params(team=len(seen_agents) > 1))
+            result = self.isam.update(graph, values, self._unconstrained())
             indices = list(result.getNewFactorsIndices())
             self._loose_factors.update(int(indices[i]) for i in loose)
             for _ in range(self.settings.extra_updates):
                 self.isam.update()
         self.seconds += time.perf_counter() - t0
 
-    def _update_params(self, *, team: bool) -> Any:
-        """How an update orders the part it re-eliminates. GTSAM's default puts the batch's new
-        variables last, at the root, expecting the next measurements to touch only them: right for
-        one robot's chain. A team's batch holds every robot's newest poses and closures that reach
-        back across the whole map, and that constraint made the root clique, and the separators
-        under it, several times larger; once the solver holds several robots' poses (``team``)
-        the update orders by plain COLAMD (docs/replay.md, "ISAM2 settings and the final polish")."""
+    def _unconstrained(self) -> Any:
+        """An update that orders the re-eliminated part by plain COLAMD. GTSAM's default puts the
+        batch's new variables last, at the root, expecting the next measurements to touch only
+        them; a team's batch holds every robot's newest poses and closures that reach back across
+        the whole map, and that constraint made the root clique, and the separators under it,
+        several times larger (docs/replay.md, "ISAM2 settings and the final polish")."""
         params = self._gtsam.ISAM2UpdateParams()
-        if team:
-            params.constrainedKeys = self._gtsam.KeyGroupMap()
+        params.constrainedKeys = self._gtsam.KeyGroupMap()
         return params
 
     def _add_fixed(self, graph: Any, fixed: FixedEnds) -> None:
