@@ -787,6 +787,13 @@ def _pose_stage(
     return poses, linearizations, False
 
 
+def _start_values(problem: Problem, initial: np.ndarray | None) -> np.ndarray:
+    start = problem.initial if initial is None else np.asarray(initial, dtype=np.float64)
+    if start.shape != problem.initial.shape:
+        raise ConfigError(f"initial: expected shape {problem.initial.shape}, got {start.shape}")
+    return np.asarray(start)
+
+
 def dgs_rounds(
     problem: Problem,
     agent_of_vertex: np.ndarray,
@@ -810,16 +817,14 @@ def dgs_rounds(
     """Run DGS on ``problem`` with vertex ``v`` owned by robot ``agent_of_vertex[v]`` (ints ``0..R-1``).
 
     ``initial`` (default: the problem's poses) gives the rotation stage's starting rotations and, with
-    ``warm_start``, the pose stage's translations (a replay continuing from an earlier estimate);
-    without it the pose stage starts with every translation at the anchor's, as the paper. Without
-    ``rotation_stage`` the pose stage starts at ``initial`` itself (a replay's later solves, whose
-    rotations are already refined: a chordal stage cut short would only move them away).
-    ``on_round(round, poses)`` is called after each round, ``poses`` the current estimate in the pose
-    stage and None in the rotation stage. At most ``max_rounds`` rounds over both stages. ``fixed``
-    (a mask over the vertices) holds vertices at ``initial``, no robot's unknowns (the anchor is then
-    held too): a replay's neighbour poses, each in the block of the robot its edges tie it to.
-    Without ``score_rounds`` the pose rounds' chi2 is not computed (a caller that needs only the
-    result: the rounds and their stopping rule are the same)."""
+    ``warm_start``, the pose stage's translations (a replay continuing from an earlier estimate); without it the
+    pose stage starts with every translation at the anchor's, as the paper. Without ``rotation_stage`` the pose
+    stage starts at ``initial`` itself (a replay's later solves, whose rotations are already refined: a chordal
+    stage cut short would only move them away). ``on_round(round, poses)`` is called after each round, ``poses``
+    the current estimate in the pose stage and None in the rotation stage. At most ``max_rounds`` rounds over
+    both stages. ``fixed`` (a mask over the vertices) holds vertices at ``initial``, no robot's unknowns (the
+    anchor is then held too): a replay's neighbour poses, each in the block of the robot its edges tie it to.
+    Without ``score_rounds`` no pose round's chi2 is computed (the rounds are the same)."""
     t0 = time.perf_counter()
     robot = _robot_indices(problem, agent_of_vertex)
     robots = int(robot.max()) + 1 if problem.num_vertices else 0
@@ -827,9 +832,7 @@ def dgs_rounds(
     pose_gamma, rotation_momentum = _defaults(pose_gamma, rotation_momentum, coarse_size, schedule)
     _check_options(max_rounds, tols, {"rotation_gamma": rotation_gamma, "pose_gamma": pose_gamma}, schedule)
     _check_momenta_and_coarse(rotation_momentum, pose_momentum, coarse_size)
-    start = problem.initial if initial is None else np.asarray(initial, dtype=np.float64)
-    if start.shape != problem.initial.shape:
-        raise ConfigError(f"initial: expected shape {problem.initial.shape}, got {start.shape}")
+    start = _start_values(problem, initial)
     fixed = _fixed_mask(problem, fixed)
     _check_connected(problem)
     if robots == 1:  # one block is the whole system, solved exactly: over-relaxing it only overshoots
