@@ -30,25 +30,10 @@ import os
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
-from timing import run_usage, work_folder  # noqa: E402  (benchmarks/timing.py, beside this script)
-
-_GNU_TIME = "/usr/bin/time" if os.access("/usr/bin/time", os.X_OK) else None
-
-
-def _run(cmd: list[str]) -> tuple[float, float, float]:
-    """Wall seconds, CPU seconds (user + system) and peak RSS [MiB] of one run of ``cmd``; the peak
-    through GNU time where installed (timing.py says why), else an upper bound."""
-    if _GNU_TIME is None:
-        wall, usage = run_usage(cmd)
-        return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
-    with tempfile.NamedTemporaryFile("r") as peak_file:
-        wall, usage = run_usage([_GNU_TIME, "-f", "%M", "-o", peak_file.name, *cmd], shown=cmd)
-        lines = [ln for ln in peak_file.read().split() if ln.strip().isdigit()]
-        return wall, usage.ru_utime + usage.ru_stime, int(lines[-1]) / 1024.0
+from timing import run_measured, work_folder  # noqa: E402  (benchmarks/timing.py, beside this script)
 
 
 def _summary(folder: Path) -> dict[str, dict[str, str]]:
@@ -103,7 +88,7 @@ def main() -> None:
     print(f"# {time.strftime('%Y-%m-%d %H:%M')}  {os.cpu_count()} cores  load {os.getloadavg()[0]:.2f}", flush=True)
     subprocess.run([studio, "synth", args.preset, "-o", str(work), "-q", "--no-rrd", "--force"], check=True)
     dataset = work / args.preset
-    wall, cpu, peak = _run([studio, "solve", str(dataset), "-o", str(work / "solved"), "--force"])
+    wall, cpu, peak = run_measured([studio, "solve", str(dataset), "-o", str(work / "solved"), "--force"])
     chi2 = json.loads((work / "solved" / "solve.json").read_text())["chi2_final"]
     from studio.evaluate import evaluate
 
@@ -126,7 +111,9 @@ def main() -> None:
         out = work / f"replay-{comms.replace(':', '_')}-{backend}-{len(extra)}{''.join(extra)}"
         cmd = [studio, "replay", str(dataset), "--comms", comms, "-b", backend, "--every", str(args.every)]
         rrd = out.with_suffix(".rrd")
-        wall, cpu, peak = _run([*cmd, *extra, "-o", str(out), "--force"] + (["--rrd", str(rrd)] if args.rrd else []))
+        wall, cpu, peak = run_measured(
+            [*cmd, *extra, "-o", str(out), "--force"] + (["--rrd", str(rrd)] if args.rrd else [])
+        )
         row = _summary(out)[backend]
         label = f"{backend} {comms} {' '.join(extra)}".strip()
         size = f"  {rrd.stat().st_size / 1e6:.1f}" if args.rrd else ""

@@ -25,24 +25,10 @@ import sys
 import time
 from pathlib import Path
 
-from timing import run_usage, work_folder  # noqa: E402  (benchmarks/timing.py, beside this script)
+from timing import run_measured, work_folder  # noqa: E402  (benchmarks/timing.py, beside this script)
 
-_GNU_TIME = "/usr/bin/time" if os.access("/usr/bin/time", os.X_OK) else None
 GOAL_SECONDS = 60.0
 GOAL_MIB = 1024.0
-
-
-def _run(cmd: list[str]) -> tuple[float, float, float]:
-    """Wall seconds, CPU seconds and peak RSS [MiB] of one run (through GNU time where installed)."""
-    if _GNU_TIME is None:
-        wall, usage = run_usage(cmd)
-        return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
-    import tempfile
-
-    with tempfile.NamedTemporaryFile("r") as peak_file:
-        wall, usage = run_usage([_GNU_TIME, "-f", "%M", "-o", peak_file.name, *cmd], shown=cmd)
-        lines = [ln for ln in peak_file.read().split() if ln.strip().isdigit()]
-        return wall, usage.ru_utime + usage.ru_stime, int(lines[-1]) / 1024.0
 
 
 def rendezvous_lines(robots: int, end_s: int) -> list[str]:
@@ -96,7 +82,7 @@ def main() -> None:
                 for name, program in installs:
                     out = work / f"{preset}-{comms.replace(':', '_')}-{backend}-{name}"
                     cmd = [program, "replay", str(dataset), "--comms", model, "-b", backend]
-                    wall, cpu, peak = _run([*cmd, "--every", str(args.every), "-o", str(out), "--force"])
+                    wall, cpu, peak = run_measured([*cmd, "--every", str(args.every), "-o", str(out), "--force"])
                     fp, se3 = _ape(out, backend)
                     met = "met" if wall < GOAL_SECONDS and peak < GOAL_MIB else "MISSED"
                     label = f"{preset} {comms} {backend}"

@@ -64,16 +64,23 @@ def run_usage(cmd: list[str], *, shown: list[str] | None = None) -> tuple[float,
     return wall, usage
 
 
-def run_timed(cmd: list[str]) -> tuple[float, float]:
-    """Wall seconds and peak RSS (MiB) of one run of ``cmd`` (:func:`run_usage`): the largest of
-    the process and the workers it waited for."""
+def run_measured(cmd: list[str]) -> tuple[float, float, float]:
+    """Wall seconds, CPU seconds (user + system) and peak RSS (MiB) of one run of ``cmd``
+    (:func:`run_usage`): the peak the largest of the process and the workers it waited for, through
+    GNU time where installed."""
     if _GNU_TIME is None:
         wall, usage = run_usage(cmd)
-        return wall, usage.ru_maxrss / 1024.0
+        return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
     with tempfile.NamedTemporaryFile("r") as peak_file:
-        wall, _ = run_usage([_GNU_TIME, "-f", "%M", "-o", peak_file.name, *cmd], shown=cmd)
+        wall, usage = run_usage([_GNU_TIME, "-f", "%M", "-o", peak_file.name, *cmd], shown=cmd)
         lines = [ln for ln in peak_file.read().split() if ln.strip().isdigit()]
-        return wall, int(lines[-1]) / 1024.0
+        return wall, usage.ru_utime + usage.ru_stime, int(lines[-1]) / 1024.0
+
+
+def run_timed(cmd: list[str]) -> tuple[float, float]:
+    """Wall seconds and peak RSS (MiB) of one run of ``cmd`` (:func:`run_measured`)."""
+    wall, _, peak = run_measured(cmd)
+    return wall, peak
 
 
 def work_folder(out: Path | None) -> Path:

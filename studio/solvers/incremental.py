@@ -288,6 +288,8 @@ class IncrementalSolver:
                     every.add(held.at(k))
                     if k not in self._loose_factors:
                         tight.add(held.at(k))
+            # ``held`` keeps the ISAM2 alive (pybind ties it to its owner): the factors go into graphs
+            # of their own, then both go
             del held
             self.isam = None
             try:
