@@ -28,7 +28,7 @@ from studio.solvers.problem import Problem
 if TYPE_CHECKING:  # SE-Sync's modules load scipy's solvers: imported when the optimum is found
     from studio.solvers.sesync import Optimum
 
-__all__ = ["as_se3", "first_pose_errors", "se3_errors", "robot_values", "team_optimum", "gaps_to", "gaps_to_optimum"]
+__all__ = ["as_se3", "first_pose_errors", "se3_errors", "robot_values", "team_optimum", "gaps_to"]
 
 
 def as_se3(poses: np.ndarray, kind: PoseKind) -> np.ndarray:
@@ -96,13 +96,6 @@ def team_optimum(problem: Problem) -> Optimum | None:
         return certified_optimum(problem)
     except ConfigError:
         return None
-
-
-def gaps_to_optimum(
-    problem: Problem, finals: list[np.ndarray]
-) -> tuple[float | None, list[tuple[float, float | None]]]:
-    """:func:`gaps_to` the optimum :func:`team_optimum` finds."""
-    return gaps_to(problem, finals, team_optimum(problem))
 
 
 def gaps_to(

@@ -372,7 +372,7 @@ def test_each_back_end_reports_its_gap_to_the_certified_optimum(always, small):
 
 def test_a_graph_in_pieces_has_no_gap_to_report():
     from studio.core.model import PoseKind
-    from studio.replay.metrics import gaps_to_optimum
+    from studio.replay.metrics import gaps_to, team_optimum
     from studio.solvers.problem import Problem
 
     # two robots that never met: two chains with no edge between them
@@ -380,5 +380,6 @@ def test_a_graph_in_pieces_has_no_gap_to_report():
     upper = np.tile([1.0, 0, 0, 1, 0, 1], (2, 1))
     edges = np.array([[1.0, 0, 0]] * 2)
     problem = Problem(PoseKind.SE2, poses, np.array([0, 2]), np.array([1, 3]), edges, upper, np.zeros(2, bool))
-    f_star, scored = gaps_to_optimum(problem, [poses])
+    assert team_optimum(problem) is None
+    f_star, scored = gaps_to(problem, [poses], None)
     assert f_star is None and scored[0][1] is None and np.isnan(scored[0][0])
