@@ -26,6 +26,7 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -90,13 +91,19 @@ class World:
     def setup(self) -> Setup:
         return Setup(self.problem, self.agent_of_vertex, self.num_robots, self.settings)
 
+    @cached_property
+    def closure_tick(self) -> np.ndarray:
+        """Per edge, the tick its inter-agent closure is delivered; -1 for a robot's own edge and a
+        closure never delivered."""
+        inter = self.edge_closure >= 0
+        out = np.full(len(inter), -1, dtype=np.int64)  # a team without closures delivers none
+        out[inter] = self.delivered_tick[self.edge_closure[inter]]
+        return out
+
     def edges_known(self) -> np.ndarray:
         """Per edge: known to some robot by the end (its own edges, the closures delivered): the
         edges the centralized back-end optimizes over."""
-        inter = self.edge_closure >= 0
-        out = ~inter
-        out[inter] = self.delivered_tick[self.edge_closure[inter]] >= 0
-        return out
+        return np.asarray((self.edge_closure < 0) | (self.closure_tick >= 0))
 
     def news(self, previous: int, tick: int, groups: list[tuple[int, ...]], contacts: np.ndarray) -> Checkpoint:
         """What happened after tick ``previous`` (-1: the start) up to ``tick``: poses visited and
@@ -106,9 +113,7 @@ class World:
         vertices = np.flatnonzero((self.vertex_ns > before) & (self.vertex_ns <= t))
         own = self.edge_closure < 0
         edges = np.flatnonzero(own & (self.edge_ns > before) & (self.edge_ns <= t))
-        closure_tick = np.full(len(own), -1, dtype=np.int64)  # a team without closures delivers none
-        closure_tick[~own] = self.delivered_tick[self.edge_closure[~own]]
-        closures = np.flatnonzero(~own & (closure_tick > previous) & (closure_tick <= tick))
+        closures = np.flatnonzero(~own & (self.closure_tick > previous) & (self.closure_tick <= tick))
         return Checkpoint(
             tick,
             t,
