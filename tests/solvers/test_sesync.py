@@ -182,5 +182,37 @@ def test_spd_factor_solves_alike_with_qdldl_and_with_superlu(monkeypatch):
 
     monkeypatch.setattr(builtins, "__import__", no_qdldl)
     lu = spd_factor(a)
-    assert type(lu).__name__ == "SuperLU"
+    assert type(lu.lu).__name__ == "SuperLU"
     np.testing.assert_allclose(lu.solve(rhs), expected, rtol=1e-10)
+
+
+@pytest.mark.parametrize("qdldl", [True, False])
+def test_spd_factor_reads_an_upper_triangle_and_updates_in_place(monkeypatch, qdldl):
+    """A factor given only the upper triangle solves the whole matrix; ``update`` with a matrix
+    of the same pattern solves the new one (QDLDL keeps its ordering, SuperLU factors anew)."""
+    import builtins
+
+    import scipy.sparse as sp
+
+    from studio.solvers.spd import spd_factor
+
+    if not qdldl:
+        real_import = builtins.__import__
+
+        def no_qdldl(name, *args, **kwargs):
+            if name == "qdldl":
+                raise ImportError(name)
+            return real_import(name, *args, **kwargs)
+
+        monkeypatch.setattr(builtins, "__import__", no_qdldl)
+    rng = np.random.default_rng(3)
+    b = sp.random(30, 30, density=0.15, random_state=4)
+    a = (b @ b.T + 30 * sp.identity(30)).tocsc()
+    rhs = rng.standard_normal(30)
+    lu = spd_factor(sp.triu(a, format="csc"), upper=True)
+    np.testing.assert_allclose(lu.solve(rhs), np.linalg.solve(a.toarray(), rhs), rtol=1e-10)
+    a2 = a.copy()
+    a2.data = a2.data * (1.0 + rng.random(a2.nnz))  # same pattern, other numbers
+    a2 = (a2 + a2.T) / 2
+    lu.update(sp.triu(a2, format="csc"))
+    np.testing.assert_allclose(lu.solve(rhs), np.linalg.solve(a2.toarray(), rhs), rtol=1e-10)
