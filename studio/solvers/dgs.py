@@ -37,7 +37,10 @@ distance to the chordal solution after 100 rounds), the pose stage's to none (it
 Errors are g2o's (planar: ``[D.x, D.y, D.theta]``; spatial: translation and the rotation vector of
 ``D.R``, the files' half-angle rotation information scaled as in ``gtsam_method``); planar poses are
 updated additively, spatial ones by ``t <- t + dt``, ``R <- Exp(dphi) R``. Each robot's block is
-factorised once per linear system (SuperLU) and reused across that system's rounds.
+factorised once per linear system (:func:`~studio.solvers.spd.spd_factor`) and reused across that
+system's rounds; a stage works out once where its systems' numbers go (:class:`_Layout`,
+:class:`_Pieces`) and factors each relinearization's blocks in place of the last's (same pattern,
+same ordering).
 
 Communication is counted as the paper's messages: per round, each robot sends each neighbour its
 separator values (``d*d`` numbers per vertex in the rotation stage, 3 or 6 in the pose stage, plus
@@ -48,7 +51,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
@@ -163,33 +166,81 @@ def contiguous_robots(num_vertices: int, robots: int) -> np.ndarray:
 # sparse assembly and the distributed block solve
 
 
-def _assemble(fr: np.ndarray, to: np.ndarray, ji: np.ndarray, jj: np.ndarray, omega: np.ndarray, n: int, b: int) -> Any:
-    """``sum_e J_e^T Omega_e J_e`` over edges with Jacobian blocks ``ji``, ``jj`` of shape (m, r, b)."""
+@dataclass(eq=False)
+class _Layout:
+    """Where the numbers of ``sum_e J_e^T Omega_e J_e`` over a problem's edges go (``b`` unknowns
+    per vertex), found once: each linear system of a stage then only adds its numbers up, and each
+    robot's pieces of the matrix are gathered by :class:`_Take` instead of sliced."""
+
+    size: int
+    indptr: np.ndarray
+    indices: np.ndarray
+    slot: np.ndarray
+    """The place in the matrix's data of each number :func:`_products` gives, in its order."""
+
+    def data(self, products: np.ndarray) -> np.ndarray:
+        """The matrix's numbers (CSR order) from :func:`_products`'."""
+        return np.bincount(self.slot, weights=products, minlength=len(self.indices))
+
+    def numbered(self) -> Any:
+        """The pattern with entry ``k`` of the data holding ``k + 1`` (no entry is zero)."""
+        import scipy.sparse as sp
+
+        places = np.arange(1, len(self.indices) + 1, dtype=np.float64)
+        return sp.csr_matrix((places, self.indices, self.indptr), shape=(self.size, self.size))
+
+
+def _layout(fr: np.ndarray, to: np.ndarray, n: int, b: int) -> _Layout:
+    """The layout of the products of edges ``fr -> to`` over ``n`` vertices: the vertex blocks they
+    touch (sorted, so the scalar pattern is too) and where each product's numbers land."""
     import scipy.sparse as sp
 
-    oi, oj = omega @ ji, omega @ jj
-    blocks = (
-        (fr, fr, np.einsum("mri,mrk->mik", ji, oi)),
-        (fr, to, np.einsum("mri,mrk->mik", ji, oj)),
-        (to, fr, np.einsum("mri,mrk->mik", jj, oi)),
-        (to, to, np.einsum("mri,mrk->mik", jj, oj)),
-    )
-    a = np.arange(b)
-    rows = np.concatenate([(r[:, None, None] * b + a[None, :, None]).repeat(b, axis=2).ravel() for r, _, _ in blocks])
-    cols = np.concatenate([(c[:, None, None] * b + a[None, None, :]).repeat(b, axis=1).ravel() for _, c, _ in blocks])
-    vals = np.concatenate([v.ravel() for _, _, v in blocks])
-    return sp.csr_matrix((vals, (rows, cols)), shape=(n * b, n * b))
+    keys, block = np.unique(np.concatenate([fr * n + fr, fr * n + to, to * n + fr, to * n + to]), return_inverse=True)
+    bb = b * b
+    numbers = np.arange(1, len(keys) * bb + 1, dtype=np.float64).reshape(-1, b, b)
+    pattern = sp.bsr_matrix((numbers, keys % n, np.searchsorted(keys // n, np.arange(n + 1))), shape=(n * b, n * b))
+    csr = pattern.tocsr()
+    place = np.empty(len(keys) * bb, dtype=np.int64)
+    place[csr.data.astype(np.int64) - 1] = np.arange(csr.nnz)
+    slot = place[(block[:, None] * bb + np.arange(bb)[None, :]).ravel()]
+    return _Layout(n * b, csr.indptr, csr.indices, slot)
+
+
+def _products(jacobians: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """``J_a^T Omega J_b`` of each edge for ``(a, b)`` = (from, from), (from, to), (to, from),
+    (to, to), blocks of shape (m, b, b), from the Jacobian blocks ``[J_from, J_to]`` of shape
+    (m, r, 2b), concatenated and raveled (the order of :attr:`_Layout.slot`)."""
+    m, _, b2 = jacobians.shape
+    b = b2 // 2
+    full = np.transpose(jacobians, (0, 2, 1)) @ (omega @ jacobians)
+    return np.asarray(full.reshape(m, 2, b, 2, b).transpose(1, 3, 0, 2, 4).ravel())
+
+
+@dataclass(eq=False)
+class _Take:
+    """A piece of a layout's matrix: its pattern and where its numbers are in the whole's data."""
+
+    pattern: Any
+    take: np.ndarray
+
+    @classmethod
+    def of_numbered(cls, piece: Any) -> _Take:
+        """From the same piece of :meth:`_Layout.numbered` (its numbers are places plus one)."""
+        return cls(piece, piece.data.astype(np.int64) - 1)
+
+    def of(self, data: np.ndarray) -> Any:
+        p = self.pattern
+        return type(p)((data[self.take], p.indices, p.indptr), shape=p.shape)
 
 
 def _gradient(
-    fr: np.ndarray, to: np.ndarray, ji: np.ndarray, jj: np.ndarray, omega: np.ndarray, e0: np.ndarray, n: int, b: int
+    fr: np.ndarray, to: np.ndarray, jacobians: np.ndarray, omega: np.ndarray, e0: np.ndarray, n: int
 ) -> np.ndarray:
-    """``-sum_e J_e^T Omega_e e_e`` as a vector of length ``n * b``."""
-    oe = np.einsum("mrk,mk->mr", omega, e0)
-    g = np.zeros((n, b))
-    np.add.at(g, fr, -np.einsum("mri,mr->mi", ji, oe))
-    np.add.at(g, to, -np.einsum("mri,mr->mi", jj, oe))
-    return g.ravel()
+    """``-sum_e J_e^T Omega_e e_e`` as a vector of length ``n * b`` (Jacobians as in :func:`_products`)."""
+    b = jacobians.shape[2] // 2
+    each = (np.transpose(jacobians, (0, 2, 1)) @ (omega @ e0[:, :, None]))[:, :, 0]
+    rows = (np.concatenate([fr, to])[:, None] * b + np.arange(b)[None, :]).ravel()
+    return -np.bincount(rows, weights=np.concatenate([each[:, :b], each[:, b:]]).ravel(), minlength=n * b)
 
 
 @dataclass(eq=False)
@@ -204,7 +255,8 @@ class _Coarse:
     """``P``: ``(len(free), m)`` (csr)."""
     lu: Any
     per_robot: np.ndarray
-    """``(robots, 2)``: coarse unknowns of each robot's vertices, non-zeros of their coarse rows."""
+    """``(robots, 2)``: coarse unknowns of each robot's vertices, entries of their coarse rows (of
+    its structure: a number that happens to cancel to zero is sent too)."""
 
     def correct(self, x: np.ndarray, g: np.ndarray) -> None:
         """``x`` (in place) moved by the coarse system's solution for its residual."""
@@ -223,29 +275,111 @@ class _Blocks:
     coarse: _Coarse | None = None
 
 
-def _coarse(h: Any, robot_dofs: list[np.ndarray], columns: Any) -> _Coarse | None:
-    """The coarse correction over the robots' free unknowns with coarse space ``columns``
-    (``(sum of dofs, m)``, rows in the order of ``robot_dofs`` concatenated); None without any."""
+@dataclass(eq=False)
+class _Pieces:
+    """A stage's robots' pieces of its layout's matrix: each robot's block (upper triangle) and
+    coupling to the rest, the free unknowns' rows for the coarse system; and the factors of the
+    stage's last system, factored again in place for the next (same pattern, same ordering)."""
+
+    dofs: list[np.ndarray]
+    others: list[np.ndarray]
+    blocks: list[_Take]
+    couplings: list[_Take]
+    free_rows: _Take
+    free_free: _Take
+    factors: list[Any]
+    coarse_factors: list[Any] = field(default_factory=list)
+    coarse_structure: _CoarseStructure | None = None
+
+
+def _pieces(layout: _Layout, robot_dofs: list[np.ndarray]) -> _Pieces:
     import scipy.sparse as sp
 
+    numbered = layout.numbered()
     free = np.concatenate(robot_dofs) if robot_dofs else np.zeros(0, dtype=np.int64)
+    free_rows = numbered[free]
+    blocks, couplings, others = [], [], []
+    for dofs in robot_dofs:
+        rows = numbered[dofs]
+        rest = np.ones(layout.size, dtype=bool)
+        rest[dofs] = False
+        others.append(np.flatnonzero(rest))
+        blocks.append(_Take.of_numbered(sp.triu(rows[:, dofs], format="csc")))
+        couplings.append(_Take.of_numbered(rows[:, others[-1]].tocsr()))
+    free_free = _Take.of_numbered(free_rows[:, free].tocsr())
+    return _Pieces(list(robot_dofs), others, blocks, couplings, _Take.of_numbered(free_rows.tocsr()), free_free, [])
+
+
+def _factor(factors: list[Any], k: int, a: Any) -> Any:
+    """Factor ``k`` of ``factors`` for ``a`` (the upper triangle): the one there factored again, or a new one."""
+    if k < len(factors):
+        factors[k].update(a)
+    else:
+        factors.append(spd_factor(a, permc_spec="COLAMD", upper=True))
+    return factors[k]
+
+
+@dataclass(eq=False)
+class _CoarseStructure:
+    """Every entry of a stage's coarse matrix ``P^T h P`` its products can give, whatever the
+    numbers (some cancel to zero, and which ones depends on the order of the arithmetic): the
+    pattern the coarse factor is ordered for once per stage, and what each robot sends of it."""
+
+    upper: Any
+    """The upper triangle (csc, sorted)."""
+    keys: np.ndarray
+    """Each entry's column * size + row (sorted)."""
+    per_robot: np.ndarray
+    """As :attr:`_Coarse.per_robot`."""
+
+
+def _coarse_structure(hff: Any, basis: Any, robot_dofs: list[np.ndarray]) -> _CoarseStructure:
+    import scipy.sparse as sp
+
+    ones_h, ones_p = hff.copy(), basis.copy()
+    ones_h.data[:], ones_p.data[:] = 1.0, 1.0  # positive: no sum cancels
+    full = (ones_p.T @ ones_h @ ones_p + sp.identity(basis.shape[1])).tocsc()
+    upper = sp.triu(full, format="csc")
+    upper.sort_indices()
+    return _CoarseStructure(upper, _csc_keys(upper), _coarse_rows_per_robot(full, robot_dofs, basis))
+
+
+def _csc_keys(m: Any) -> np.ndarray:
+    cols = np.repeat(np.arange(m.shape[1], dtype=np.int64), np.diff(m.indptr))
+    return np.asarray(cols * m.shape[0] + m.indices)
+
+
+def _coarse(data: np.ndarray, pieces: _Pieces, columns: Any) -> _Coarse | None:
+    """The coarse correction over the robots' free unknowns with coarse space ``columns``
+    (``(sum of dofs, m)``, rows in the order of ``pieces.dofs`` concatenated, the same pattern for
+    every system of a stage); None without any."""
+    import scipy.sparse as sp
+
     basis = sp.csr_matrix(columns)
     if basis.shape[1] == 0:
         return None
-    rows = h[free].tocsr()
-    hc = (basis.T @ rows[:, free] @ basis).tocsc()
+    hff = pieces.free_free.of(data)
+    if pieces.coarse_structure is None:
+        pieces.coarse_structure = _coarse_structure(hff, basis, pieces.dofs)
+    structure = pieces.coarse_structure
+    hc = (basis.T @ hff @ basis).tocsc()
     # the anchor-free pose system is singular in the gauge: a ridge far below every entry fixes it
     ridge = 1e-9 * float(np.abs(hc.diagonal()).max())
+    upper = sp.triu(hc + sp.identity(hc.shape[0], format="csc") * ridge, format="csc")
+    numbers = np.zeros(len(structure.keys))
+    numbers[np.searchsorted(structure.keys, _csc_keys(upper))] = upper.data
+    pattern = structure.upper
     try:
-        lu = spd_factor(hc + sp.identity(hc.shape[0], format="csc") * ridge, permc_spec="COLAMD")
+        lu = _factor(pieces.coarse_factors, 0, sp.csc_matrix((numbers, pattern.indices, pattern.indptr), pattern.shape))
     except RuntimeError as err:  # SuperLU's "Factor is exactly singular", QDLDL's zero pivot
         raise GraphError(f"dgs: the coarse system is singular ({err}); is every robot tied to the graph?") from None
-    return _Coarse(free, rows, basis, lu, _coarse_rows_per_robot(hc, robot_dofs, basis))
+    free = np.concatenate(pieces.dofs)
+    return _Coarse(free, pieces.free_rows.of(data), basis, lu, structure.per_robot)
 
 
 def _coarse_rows_per_robot(hc: Any, robot_dofs: list[np.ndarray], basis: Any) -> np.ndarray:
-    """``(robots, 2)``: each robot's coarse unknowns and the non-zeros of its rows of the coarse
-    matrix (what it sends to build it: every coarse unknown belongs to one robot's vertices)."""
+    """``(robots, 2)``: each robot's coarse unknowns and the entries of its rows of the coarse
+    matrix ``hc`` (what it sends to build it: every coarse unknown belongs to one robot's vertices)."""
     first = np.cumsum([0] + [len(d) for d in robot_dofs])
     owner_of_fine = np.repeat(np.arange(len(robot_dofs)), np.diff(first))
     coo = basis.tocoo()
@@ -318,20 +452,15 @@ def _rigid_columns(kind: PoseKind, lin: np.ndarray, robot_dofs: list[np.ndarray]
     return sp.csr_matrix((v, (r, cidx)), shape=(n * b, count * b))
 
 
-def _factorise(h: Any, robot_dofs: list[np.ndarray], total: int) -> _Blocks:
-    lus, couplings, others = [], [], []
-    for dofs in robot_dofs:
-        rows = h[dofs]
-        rest = np.ones(total, dtype=bool)
-        rest[dofs] = False
-        other = np.flatnonzero(rest)
+def _factorise(data: np.ndarray, pieces: _Pieces) -> _Blocks:
+    """Each robot's block of the matrix with ``data`` (of the pieces' layout) factored."""
+    lus = []
+    for k, block in enumerate(pieces.blocks):
         try:
-            lus.append(spd_factor(rows[:, dofs], permc_spec="COLAMD"))
+            lus.append(_factor(pieces.factors, k, block.of(data)))
         except RuntimeError as err:  # SuperLU's "Factor is exactly singular", QDLDL's zero pivot
             raise GraphError(f"dgs: a robot's block is singular ({err}); is every robot tied to the graph?") from None
-        couplings.append(rows[:, other].tocsr())
-        others.append(other)
-    return _Blocks(robot_dofs, others, lus, couplings)
+    return _Blocks(pieces.dofs, pieces.others, lus, [c.of(data) for c in pieces.couplings])
 
 
 def _round(
@@ -696,10 +825,12 @@ def _rotation_stage(run: _Run, start: np.ndarray, opt: _StageOptions) -> tuple[n
     w = _rotation_weights(problem)
     omega_r = w[:, None, None] * np.eye(d)[None]
     eye = np.broadcast_to(np.eye(d), rz.shape).copy()
-    h_rot = _assemble(problem.edge_from, problem.edge_to, -np.transpose(rz, (0, 2, 1)), eye, omega_r, n, d)
-    blocks = _factorise(h_rot, run.dofs_of(d), n * d)
+    layout = _layout(problem.edge_from, problem.edge_to, n, d)
+    h_rot = layout.data(_products(np.concatenate([-np.transpose(rz, (0, 2, 1)), eye], axis=2), omega_r))
+    pieces = _pieces(layout, run.dofs_of(d))
+    blocks = _factorise(h_rot, pieces)
     if run.coarse_size:
-        blocks.coarse = _coarse(h_rot, blocks.dofs, _constant_columns(blocks.dofs, d, run.coarse_size))
+        blocks.coarse = _coarse(h_rot, pieces, _constant_columns(blocks.dofs, d, run.coarse_size))
     setup = run.send_coarse_matrix(blocks.coarse)
     y = np.transpose(_rotations(kind, start), (0, 2, 1)).reshape(n * d, d).copy()
     zero_rhs = np.zeros((n * d, d))
@@ -739,21 +870,22 @@ def _pose_start(
     return lin
 
 
-def _pose_system(run: _Run, lin: np.ndarray, anchor_pose: np.ndarray, opt: _StageOptions) -> np.ndarray:
+def _pose_system(
+    run: _Run, lin: np.ndarray, anchor_pose: np.ndarray, opt: _StageOptions, pieces: tuple[_Layout, _Pieces]
+) -> np.ndarray:
     """One Gauss-Newton system at ``lin`` solved in rounds (until ``tol`` or the budget); the poses."""
     problem = run.problem
     n, kind = problem.num_vertices, problem.kind
     fr, to, anchor = problem.edge_from, problem.edge_to, problem.anchor
     b = 3 if kind is PoseKind.SE2 else 6
     ji, jj, omega, e0 = _pose_linearization(problem, lin)
-    h = _assemble(fr, to, ji, jj, omega, n, b)
-    g = _gradient(fr, to, ji, jj, omega, e0, n, b)
-    # Jacobi rounds on the anchor-free (singular) system would keep oscillating in its gauge
-    # with fixed vertices the anchor is held too: the rigid move onto it would move them
-    hold = run.robots == 1 or run.schedule == "jacobi" or (run.fixed is not None and bool(run.fixed.any()))
-    blocks = _factorise(h, run.dofs_of(b, fix_anchor=hold), n * b)
+    layout, robot_pieces = pieces
+    jacobians = np.concatenate([ji, jj], axis=2)
+    h = layout.data(_products(jacobians, omega))
+    g = _gradient(fr, to, jacobians, omega, e0, n)
+    blocks = _factorise(h, robot_pieces)
     if run.coarse_size:
-        blocks.coarse = _coarse(h, blocks.dofs, _rigid_columns(kind, lin, blocks.dofs, run.coarse_size))
+        blocks.coarse = _coarse(h, robot_pieces, _rigid_columns(kind, lin, blocks.dofs, run.coarse_size))
         run.handshake += run.send_coarse_matrix(blocks.coarse)
     delta = np.zeros(n * b)
     previous = delta.copy()
@@ -776,10 +908,17 @@ def _pose_stage(
     """Gauss-Newton from ``lin``, each system solved in rounds, relinearized until an update moves no
     entry by more than ``opt.tol`` or the rounds run out: the poses, the systems built, convergence."""
     run.handshake = run.send(run.problem.kind.pose_width)  # each robot's separator poses at ``lin``
+    problem = run.problem
+    b = 3 if problem.kind is PoseKind.SE2 else 6
+    layout = _layout(problem.edge_from, problem.edge_to, problem.num_vertices, b)
+    # Jacobi rounds on the anchor-free (singular) system would keep oscillating in its gauge
+    # with fixed vertices the anchor is held too: the rigid move onto it would move them
+    hold = run.robots == 1 or run.schedule == "jacobi" or (run.fixed is not None and bool(run.fixed.any()))
+    pieces = (layout, _pieces(layout, run.dofs_of(b, fix_anchor=hold)))
     linearizations = 0
     poses = lin
     while run.left > 0:
-        poses = _pose_system(run, lin, anchor_pose, opt)
+        poses = _pose_system(run, lin, anchor_pose, opt, pieces)
         linearizations += 1
         lin = poses
         if run.step <= opt.tol and run.rounds[-1].change <= opt.tol:

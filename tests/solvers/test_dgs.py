@@ -347,3 +347,41 @@ def test_fixed_vertices_held_at_the_optimum_leave_the_others_at_it(kind):
     assert res.bytes_per_link[2].sum() > 0  # robot 2 is still a neighbour: it sends its separators
     with pytest.raises(ConfigError, match="fixed: expected a mask of 120 vertices"):
         dgs_rounds(problem, robot, fixed=held[:5])
+
+
+@pytest.mark.parametrize("b", [2, 3, 6])
+def test_the_layout_adds_every_edges_products_where_a_dense_sum_puts_them(b):
+    """The matrix a stage's layout fills in (edges in any order, two between the same pair, both
+    directions) is ``sum_e J_e^T Omega_e J_e``; each robot's pieces are its block's upper triangle
+    and its coupling to everyone else, and factoring a second system in place of the first solves
+    the second."""
+    from studio.solvers import dgs
+
+    rng = np.random.default_rng(7)
+    n, r = 7, b + 1
+    fr = np.array([0, 1, 2, 3, 4, 5, 1, 2, 6])
+    to = np.array([1, 2, 3, 4, 5, 6, 0, 3, 2])  # 1-0 reverses 0-1; 2-3 twice; 6-2 closes a loop
+    layout = dgs._layout(fr, to, n, b)
+    robot_dofs = [np.arange(b, 3 * b), np.arange(3 * b, n * b)]  # vertex 0 is the anchor
+    pieces = dgs._pieces(layout, robot_dofs)
+    for _ in range(2):
+        jacobians = rng.standard_normal((len(fr), r, 2 * b))
+        omega = np.array([a @ a.T + np.eye(r) for a in rng.standard_normal((len(fr), r, r))])
+        dense = np.zeros((n * b, n * b))
+        for k, (i, j) in enumerate(zip(fr, to)):
+            cols = np.concatenate([np.arange(i * b, i * b + b), np.arange(j * b, j * b + b)])
+            dense[np.ix_(cols, cols)] += jacobians[k].T @ omega[k] @ jacobians[k]
+        data = layout.data(dgs._products(jacobians, omega))
+        whole = layout.numbered().copy()
+        whole.data = data
+        np.testing.assert_allclose(whole.toarray(), dense, rtol=1e-12, atol=1e-12)
+        blocks = dgs._factorise(data, pieces)
+        for dofs, other, take, coupling, lu in zip(
+            robot_dofs, blocks.others, pieces.blocks, blocks.couplings, blocks.lus
+        ):
+            own = dense[np.ix_(dofs, dofs)]
+            np.testing.assert_allclose(take.of(data).toarray(), np.triu(own), rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(coupling.toarray(), dense[np.ix_(dofs, other)], rtol=1e-12, atol=1e-12)
+            rhs = rng.standard_normal(len(dofs))
+            np.testing.assert_allclose(lu.solve(rhs), np.linalg.solve(own, rhs), rtol=1e-8)
+    assert len(pieces.factors) == 2  # the second system's blocks were factored in place of the first's
