@@ -366,8 +366,11 @@ def _coarse(data: np.ndarray, pieces: _Pieces, columns: Any) -> _Coarse | None:
     # the anchor-free pose system is singular in the gauge: a ridge far below every entry fixes it
     ridge = 1e-9 * float(np.abs(hc.diagonal()).max())
     upper = sp.triu(hc + sp.identity(hc.shape[0], format="csc") * ridge, format="csc")
+    keys = _csc_keys(upper)
+    at = np.minimum(np.searchsorted(structure.keys, keys), len(structure.keys) - 1)
+    assert np.array_equal(structure.keys[at], keys)  # the columns keep their pattern within a stage
     numbers = np.zeros(len(structure.keys))
-    numbers[np.searchsorted(structure.keys, _csc_keys(upper))] = upper.data
+    numbers[at] = upper.data
     pattern = structure.upper
     try:
         lu = _factor(pieces.coarse_factors, 0, sp.csc_matrix((numbers, pattern.indices, pattern.indptr), pattern.shape))
