@@ -159,9 +159,21 @@ def test_sesync_is_a_registered_method():
     assert entry.default("max_iterations") == 1000
 
 
-def test_spd_factor_solves_alike_with_qdldl_and_with_superlu(monkeypatch):
+def _without_qdldl(monkeypatch) -> None:
+    """Imports of ``qdldl`` fail from here on, as on a machine without the ``solve`` extra."""
     import builtins
 
+    real_import = builtins.__import__
+
+    def no_qdldl(name, *args, **kwargs):
+        if name == "qdldl":
+            raise ImportError(name)
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_qdldl)
+
+
+def test_spd_factor_solves_alike_with_qdldl_and_with_superlu(monkeypatch):
     import scipy.sparse as sp
 
     from studio.solvers.sesync_problem import spd_factor
@@ -173,14 +185,7 @@ def test_spd_factor_solves_alike_with_qdldl_and_with_superlu(monkeypatch):
     expected = np.linalg.solve(a.toarray(), rhs)
     np.testing.assert_allclose(spd_factor(a).solve(rhs), expected, rtol=1e-10)
     np.testing.assert_allclose(spd_factor(a).solve(rhs[:, 0]), expected[:, 0], rtol=1e-10)
-    real_import = builtins.__import__
-
-    def no_qdldl(name, *args, **kwargs):
-        if name == "qdldl":
-            raise ImportError(name)
-        return real_import(name, *args, **kwargs)
-
-    monkeypatch.setattr(builtins, "__import__", no_qdldl)
+    _without_qdldl(monkeypatch)
     lu = spd_factor(a)
     assert type(lu.lu).__name__ == "SuperLU"
     np.testing.assert_allclose(lu.solve(rhs), expected, rtol=1e-10)
@@ -190,21 +195,12 @@ def test_spd_factor_solves_alike_with_qdldl_and_with_superlu(monkeypatch):
 def test_spd_factor_reads_an_upper_triangle_and_updates_in_place(monkeypatch, qdldl):
     """A factor given only the upper triangle solves the whole matrix; ``update`` with a matrix
     of the same pattern solves the new one (QDLDL keeps its ordering, SuperLU factors anew)."""
-    import builtins
-
     import scipy.sparse as sp
 
     from studio.solvers.spd import spd_factor
 
     if not qdldl:
-        real_import = builtins.__import__
-
-        def no_qdldl(name, *args, **kwargs):
-            if name == "qdldl":
-                raise ImportError(name)
-            return real_import(name, *args, **kwargs)
-
-        monkeypatch.setattr(builtins, "__import__", no_qdldl)
+        _without_qdldl(monkeypatch)
     rng = np.random.default_rng(3)
     b = sp.random(30, 30, density=0.15, random_state=4)
     a = (b @ b.T + 30 * sp.identity(30)).tocsc()
