@@ -281,7 +281,10 @@ class _Pieces:
     coupling to the rest, the free unknowns' rows for the coarse system; and the factors of the
     stage's last system, factored again in place for the next (same pattern, same ordering)."""
 
+    layout: _Layout
     dofs: list[np.ndarray]
+    free: np.ndarray
+    """The robots' free unknowns, ``dofs`` concatenated."""
     others: list[np.ndarray]
     blocks: list[_Take]
     couplings: list[_Take]
@@ -307,7 +310,8 @@ def _pieces(layout: _Layout, robot_dofs: list[np.ndarray]) -> _Pieces:
         blocks.append(_Take.of_numbered(sp.triu(rows[:, dofs], format="csc")))
         couplings.append(_Take.of_numbered(rows[:, others[-1]].tocsr()))
     free_free = _Take.of_numbered(free_rows[:, free].tocsr())
-    return _Pieces(list(robot_dofs), others, blocks, couplings, _Take.of_numbered(free_rows.tocsr()), free_free, [])
+    free_rows_take = _Take.of_numbered(free_rows.tocsr())
+    return _Pieces(layout, list(robot_dofs), free, others, blocks, couplings, free_rows_take, free_free, [])
 
 
 def _factor(factors: list[Any], k: int, a: Any) -> Any:
@@ -376,8 +380,7 @@ def _coarse(data: np.ndarray, pieces: _Pieces, columns: Any) -> _Coarse | None:
         lu = _factor(pieces.coarse_factors, 0, sp.csc_matrix((numbers, pattern.indices, pattern.indptr), pattern.shape))
     except RuntimeError as err:  # SuperLU's "Factor is exactly singular", QDLDL's zero pivot
         raise GraphError(f"dgs: the coarse system is singular ({err}); is every robot tied to the graph?") from None
-    free = np.concatenate(pieces.dofs)
-    return _Coarse(free, pieces.free_rows.of(data), basis, lu, structure.per_robot)
+    return _Coarse(pieces.free, pieces.free_rows.of(data), basis, lu, structure.per_robot)
 
 
 def _coarse_rows_per_robot(hc: Any, robot_dofs: list[np.ndarray], basis: Any) -> np.ndarray:
@@ -874,7 +877,7 @@ def _pose_start(
 
 
 def _pose_system(
-    run: _Run, lin: np.ndarray, anchor_pose: np.ndarray, opt: _StageOptions, pieces: tuple[_Layout, _Pieces]
+    run: _Run, lin: np.ndarray, anchor_pose: np.ndarray, opt: _StageOptions, pieces: _Pieces
 ) -> np.ndarray:
     """One Gauss-Newton system at ``lin`` solved in rounds (until ``tol`` or the budget); the poses."""
     problem = run.problem
@@ -882,13 +885,12 @@ def _pose_system(
     fr, to, anchor = problem.edge_from, problem.edge_to, problem.anchor
     b = 3 if kind is PoseKind.SE2 else 6
     ji, jj, omega, e0 = _pose_linearization(problem, lin)
-    layout, robot_pieces = pieces
     jacobians = np.concatenate([ji, jj], axis=2)
-    h = layout.data(_products(jacobians, omega))
+    h = pieces.layout.data(_products(jacobians, omega))
     g = _gradient(fr, to, jacobians, omega, e0, n)
-    blocks = _factorise(h, robot_pieces)
+    blocks = _factorise(h, pieces)
     if run.coarse_size:
-        blocks.coarse = _coarse(h, robot_pieces, _rigid_columns(kind, lin, blocks.dofs, run.coarse_size))
+        blocks.coarse = _coarse(h, pieces, _rigid_columns(kind, lin, blocks.dofs, run.coarse_size))
         run.handshake += run.send_coarse_matrix(blocks.coarse)
     delta = np.zeros(n * b)
     previous = delta.copy()
@@ -917,7 +919,7 @@ def _pose_stage(
     # Jacobi rounds on the anchor-free (singular) system would keep oscillating in its gauge
     # with fixed vertices the anchor is held too: the rigid move onto it would move them
     hold = run.robots == 1 or run.schedule == "jacobi" or (run.fixed is not None and bool(run.fixed.any()))
-    pieces = (layout, _pieces(layout, run.dofs_of(b, fix_anchor=hold)))
+    pieces = _pieces(layout, run.dofs_of(b, fix_anchor=hold))
     linearizations = 0
     poses = lin
     while run.left > 0:
