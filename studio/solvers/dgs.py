@@ -195,25 +195,24 @@ def _layout(fr: np.ndarray, to: np.ndarray, n: int, b: int) -> _Layout:
     touch (sorted, so the scalar pattern is too) and where each product's numbers land."""
     import scipy.sparse as sp
 
+    m, bb = len(fr), b * b
     keys, block = np.unique(np.concatenate([fr * n + fr, fr * n + to, to * n + fr, to * n + to]), return_inverse=True)
-    bb = b * b
     numbers = np.arange(1, len(keys) * bb + 1, dtype=np.float64).reshape(-1, b, b)
     pattern = sp.bsr_matrix((numbers, keys % n, np.searchsorted(keys // n, np.arange(n + 1))), shape=(n * b, n * b))
     csr = pattern.tocsr()
     place = np.empty(len(keys) * bb, dtype=np.int64)
     place[csr.data.astype(np.int64) - 1] = np.arange(csr.nnz)
-    slot = place[(block[:, None] * bb + np.arange(bb)[None, :]).ravel()]
-    return _Layout(n * b, csr.indptr, csr.indices, slot)
+    # entry (P, Q) of an edge's product: block (P // b, Q // b) of [from, to] x [from, to]
+    slot = np.empty((m, 2, b, 2, b), dtype=np.int64)
+    for i, blocks in enumerate(block.reshape(4, m)):
+        slot[:, i // 2, :, i % 2, :] = place.reshape(-1, b, b)[blocks]
+    return _Layout(n * b, csr.indptr, csr.indices, slot.reshape(-1))
 
 
 def _products(jacobians: np.ndarray, omega: np.ndarray) -> np.ndarray:
-    """``J_a^T Omega J_b`` of each edge for ``(a, b)`` = (from, from), (from, to), (to, from),
-    (to, to), blocks of shape (m, b, b), from the Jacobian blocks ``[J_from, J_to]`` of shape
-    (m, r, 2b), concatenated and raveled (the order of :attr:`_Layout.slot`)."""
-    m, _, b2 = jacobians.shape
-    b = b2 // 2
-    full = np.transpose(jacobians, (0, 2, 1)) @ (omega @ jacobians)
-    return np.asarray(full.reshape(m, 2, b, 2, b).transpose(1, 3, 0, 2, 4).ravel())
+    """``J^T Omega J`` of each edge, ``J = [J_from, J_to]`` its Jacobian blocks of shape (m, r,
+    2b), raveled (the order of :attr:`_Layout.slot`)."""
+    return np.asarray((np.transpose(jacobians, (0, 2, 1)) @ (omega @ jacobians)).reshape(-1))
 
 
 @dataclass(eq=False)
@@ -276,6 +275,116 @@ class _Blocks:
 
 
 @dataclass(eq=False)
+class _CoarseSpace:
+    """A stage's coarse space: runs of ``size`` consecutive free vertices of one robot
+    (*aggregates*), ``c`` coarse unknowns each, a free vertex's ``b`` unknowns tied to its
+    aggregate's by a ``(b, c)`` block of ``P``. The coarse matrix ``P^T h P`` is the sum over the
+    edges of ``(J_e P_e)^T Omega_e (J_e P_e)``, so a layout over the aggregates adds it up as the
+    fine one adds ``h``: its pattern is every entry those products can give, whatever the numbers
+    (some cancel to zero, and which ones depends on the order of the arithmetic), the same for
+    every system of the stage: its factor is ordered once and each robot sends its rows of it."""
+
+    vertex: np.ndarray
+    """Each free vertex's id, in the order of the robots' unknowns concatenated."""
+    aggregate: np.ndarray
+    """Each free vertex's aggregate."""
+    count: int
+    c: int
+    edges: np.ndarray
+    """The edges with a free end; each end's place in :attr:`vertex` (-1 where held) below."""
+    at_from: np.ndarray
+    at_to: np.ndarray
+    layout: _Layout
+    upper: _Take
+    """The coarse matrix's upper triangle (csc) in the layout's data."""
+    diagonal: np.ndarray
+    """The places of the coarse matrix's diagonal in the layout's data."""
+    basis_indices: np.ndarray
+    """Column indices of ``P`` (csr, each free vertex's rows a full ``(b, c)`` block)."""
+    per_robot: np.ndarray
+    """As :attr:`_Coarse.per_robot`."""
+    factors: list[Any] = field(default_factory=list)
+
+
+def _coarse_space(
+    fr: np.ndarray, to: np.ndarray, n: int, robot_dofs: list[np.ndarray], b: int, c: int, size: int
+) -> _CoarseSpace | None:
+    """The coarse space over the robots' free unknowns ``robot_dofs`` (``b`` per vertex) of a stage
+    whose edges are ``fr -> to`` over ``n`` vertices; None with ``size`` 0 or no free unknowns."""
+    if not size:
+        return None
+    aggregate, vertex, count = _aggregates(robot_dofs, b, size)
+    if not count:
+        return None
+    place = np.full(n, -1, dtype=np.int64)
+    place[vertex] = np.arange(len(vertex))
+    at_from, at_to = place[fr], place[to]
+    edges = np.flatnonzero((at_from >= 0) | (at_to >= 0))
+    at_from, at_to = at_from[edges], at_to[edges]
+    # a held end adds nothing but to the free end's own block: it stands at the free end's aggregate
+    a_from = np.where(at_from >= 0, aggregate[at_from], aggregate[at_to])
+    a_to = np.where(at_to >= 0, aggregate[at_to], aggregate[at_from])
+    layout = _layout(a_from, a_to, count, c)
+    row = np.repeat(np.arange(layout.size), np.diff(layout.indptr))
+    lower = np.flatnonzero(layout.indices <= row)  # as csc: the upper triangle (see _pieces)
+    upper = _compressed("csc", lower, row[lower], layout.indices[lower], (layout.size, layout.size))
+    diagonal = np.flatnonzero(layout.indices == row)
+    if len(diagonal) != layout.size:
+        raise GraphError("dgs: a run of a robot's poses has no edge; is every robot tied to the graph?")
+    per_row = np.diff(layout.indptr)
+    robots = len(robot_dofs)
+    first = np.cumsum([0] + [len(d) // b for d in robot_dofs])
+    owner = np.repeat(np.arange(robots), np.diff(first))
+    owner_of_aggregate = np.zeros(count, dtype=np.int64)
+    owner_of_aggregate[aggregate] = owner
+    per_robot = np.zeros((robots, 2), dtype=np.int64)
+    per_robot[:, 0] = np.bincount(owner_of_aggregate, minlength=robots) * c
+    per_robot[:, 1] = np.bincount(np.repeat(owner_of_aggregate, c), weights=per_row, minlength=robots).astype(np.int64)
+    basis_indices = np.repeat(aggregate * c, b)[:, None] + np.arange(c)[None, :]
+    return _CoarseSpace(
+        vertex, aggregate, count, c, edges, at_from, at_to, layout, upper, diagonal, basis_indices.ravel(), per_robot
+    )
+
+
+def _compressed(kind: str, take: np.ndarray, major: np.ndarray, minor: np.ndarray, shape: tuple[int, int]) -> _Take:
+    """The piece holding the entries ``take`` of a layout's data, each in compressed ``kind``
+    (``"csr"`` or ``"csc"``) row or column ``major`` and at ``minor`` in it, ``take`` ordered by
+    ``major`` and then ``minor``."""
+    import scipy.sparse as sp
+
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(major, minlength=shape[0 if kind == "csr" else 1]))])
+    make = sp.csr_matrix if kind == "csr" else sp.csc_matrix
+    return _Take(make((np.zeros(len(take)), minor, indptr), shape=shape), take)
+
+
+def _coarse(pieces: _Pieces, data: np.ndarray, jacobians: np.ndarray, omega: np.ndarray, blocks: np.ndarray) -> _Coarse:
+    """The two-level correction of the linear system with ``data`` (of the pieces' layout), from
+    the edges' Jacobian blocks and information (as :func:`_products`) and ``P``'s ``(b, c)`` block
+    of each free vertex (the order of :attr:`_CoarseSpace.vertex`)."""
+    import scipy.sparse as sp
+
+    space = pieces.coarse
+    assert space is not None
+    b, c = jacobians.shape[2] // 2, space.c
+    padded = np.concatenate([blocks, np.zeros((1, b, c))])  # place -1, a held end: no coarse unknowns
+    jac = jacobians[space.edges]
+    coarse_jacobians = np.concatenate(
+        [jac[:, :, :b] @ padded[space.at_from], jac[:, :, b:] @ padded[space.at_to]], axis=2
+    )
+    hc = space.layout.data(_products(coarse_jacobians, omega[space.edges]))
+    # the anchor-free pose system is singular in the gauge: a ridge far below every entry fixes it
+    hc[space.diagonal] += 1e-9 * float(np.abs(hc[space.diagonal]).max())
+    try:
+        lu = _factor(space.factors, 0, space.upper.of(hc))
+    except RuntimeError as err:  # SuperLU's "Factor is exactly singular", QDLDL's zero pivot
+        raise GraphError(f"dgs: the coarse system is singular ({err}); is every robot tied to the graph?") from None
+    rows = blocks.shape[0] * b
+    indptr = np.arange(0, rows * c + 1, c)
+    basis = sp.csr_matrix((blocks.ravel(), space.basis_indices, indptr), shape=(rows, space.count * c))
+    return _Coarse(pieces.free, pieces.free_rows.of(data), basis, lu, space.per_robot)
+
+
+@dataclass(eq=False)
 class _Pieces:
     """A stage's robots' pieces of its layout's matrix: each robot's block (upper triangle) and
     coupling to the rest, the free unknowns' rows for the coarse system; and the factors of the
@@ -286,32 +395,61 @@ class _Pieces:
     free: np.ndarray
     """The robots' free unknowns, ``dofs`` concatenated."""
     others: list[np.ndarray]
+    """Each robot's coupled unknowns: the others its block's rows reach."""
     blocks: list[_Take]
     couplings: list[_Take]
     free_rows: _Take
-    free_free: _Take
     factors: list[Any]
-    coarse_factors: list[Any] = field(default_factory=list)
-    coarse_structure: _CoarseStructure | None = None
+    coarse: _CoarseSpace | None = None
 
 
 def _pieces(layout: _Layout, robot_dofs: list[np.ndarray]) -> _Pieces:
+    """Each robot's pieces of ``layout``'s matrix (``robot_dofs`` sorted), picked from its data by
+    which robot each entry's row and column belong to: its block's upper triangle (csc) is its
+    lower triangle's entries as the csr data holds them (a column of the one is a row of the other)."""
+    size, col = layout.size, layout.indices
+    row = np.repeat(np.arange(size, dtype=np.int64), np.diff(layout.indptr))
+    robots = len(robot_dofs)
+    owner = np.full(size, robots, dtype=np.int16)  # ``robots``: a held unknown
+    position = np.zeros(size, dtype=np.int64)
+    for r, dofs in enumerate(robot_dofs):
+        owner[dofs] = r
+        position[dofs] = np.arange(len(dofs))
+    orow, ocol = owner[row], owner[col]
+    inside = _by_robot(np.flatnonzero((orow == ocol) & (orow < robots) & (col <= row)), orow, robots)
+    across = _by_robot(np.flatnonzero((orow != ocol) & (orow < robots)), orow, robots)
+    blocks, couplings, others = [], [], []
+    for r, dofs in enumerate(robot_dofs):
+        take = inside[r]
+        blocks.append(_compressed("csc", take, position[row[take]], position[col[take]], (len(dofs), len(dofs))))
+        take = across[r]
+        reached = np.zeros(size, dtype=bool)  # the unknowns its rows reach: its neighbours' separators
+        reached[col[take]] = True
+        others.append(np.flatnonzero(reached))
+        at = np.cumsum(reached) - 1
+        shape = (len(dofs), len(others[-1]))
+        couplings.append(_compressed("csr", take, position[row[take]], at[col[take]], shape))
+    free = np.concatenate(robot_dofs) if robot_dofs else np.zeros(0, dtype=np.int64)
+    return _Pieces(layout, list(robot_dofs), free, others, blocks, couplings, _rows_of(layout, free), [])
+
+
+def _by_robot(entries: np.ndarray, owner: np.ndarray, robots: int) -> list[np.ndarray]:
+    """``entries`` split by ``owner[entries]`` (``0..robots-1``), each part in the order given."""
+    order = np.argsort(owner[entries], kind="stable")
+    counts = np.bincount(owner[entries], minlength=robots)[:robots]
+    return np.split(entries[order], np.cumsum(counts)[:-1])
+
+
+def _rows_of(layout: _Layout, rows: np.ndarray) -> _Take:
+    """The rows ``rows`` (in that order) of ``layout``'s matrix, every column."""
     import scipy.sparse as sp
 
-    numbered = layout.numbered()
-    free = np.concatenate(robot_dofs) if robot_dofs else np.zeros(0, dtype=np.int64)
-    free_rows = numbered[free]
-    blocks, couplings, others = [], [], []
-    for dofs in robot_dofs:
-        rows = numbered[dofs]
-        rest = np.ones(layout.size, dtype=bool)
-        rest[dofs] = False
-        others.append(np.flatnonzero(rest))
-        blocks.append(_Take.of_numbered(sp.triu(rows[:, dofs], format="csc")))
-        couplings.append(_Take.of_numbered(rows[:, others[-1]].tocsr()))
-    free_free = _Take.of_numbered(free_rows[:, free].tocsr())
-    free_rows_take = _Take.of_numbered(free_rows.tocsr())
-    return _Pieces(layout, list(robot_dofs), free, others, blocks, couplings, free_rows_take, free_free, [])
+    starts, lengths = layout.indptr[rows], np.diff(layout.indptr)[rows]
+    indptr = np.concatenate([[0], np.cumsum(lengths)])
+    take = np.repeat(starts - indptr[:-1], lengths) + np.arange(indptr[-1])
+    return _Take(
+        sp.csr_matrix((np.zeros(len(take)), layout.indices[take], indptr), shape=(len(rows), layout.size)), take
+    )
 
 
 def _factor(factors: list[Any], k: int, a: Any) -> Any:
@@ -321,81 +459,6 @@ def _factor(factors: list[Any], k: int, a: Any) -> Any:
     else:
         factors.append(spd_factor(a, permc_spec="COLAMD", upper=True))
     return factors[k]
-
-
-@dataclass(eq=False)
-class _CoarseStructure:
-    """Every entry of a stage's coarse matrix ``P^T h P`` its products can give, whatever the
-    numbers (some cancel to zero, and which ones depends on the order of the arithmetic): the
-    pattern the coarse factor is ordered for once per stage, and what each robot sends of it."""
-
-    upper: Any
-    """The upper triangle (csc, sorted)."""
-    keys: np.ndarray
-    """Each entry's column * size + row (sorted)."""
-    per_robot: np.ndarray
-    """As :attr:`_Coarse.per_robot`."""
-
-
-def _coarse_structure(hff: Any, basis: Any, robot_dofs: list[np.ndarray]) -> _CoarseStructure:
-    import scipy.sparse as sp
-
-    ones_h, ones_p = hff.copy(), basis.copy()
-    ones_h.data[:], ones_p.data[:] = 1.0, 1.0  # positive: no sum cancels
-    full = (ones_p.T @ ones_h @ ones_p + sp.identity(basis.shape[1])).tocsc()
-    upper = sp.triu(full, format="csc")
-    upper.sort_indices()
-    return _CoarseStructure(upper, _csc_keys(upper), _coarse_rows_per_robot(full, robot_dofs, basis))
-
-
-def _csc_keys(m: Any) -> np.ndarray:
-    cols = np.repeat(np.arange(m.shape[1], dtype=np.int64), np.diff(m.indptr))
-    return np.asarray(cols * m.shape[0] + m.indices)
-
-
-def _coarse(data: np.ndarray, pieces: _Pieces, columns: Any) -> _Coarse | None:
-    """The coarse correction over the robots' free unknowns with coarse space ``columns``
-    (``(sum of dofs, m)``, rows in the order of ``pieces.dofs`` concatenated, the same pattern for
-    every system of a stage); None without any."""
-    import scipy.sparse as sp
-
-    basis = sp.csr_matrix(columns)
-    if basis.shape[1] == 0:
-        return None
-    hff = pieces.free_free.of(data)
-    if pieces.coarse_structure is None:
-        pieces.coarse_structure = _coarse_structure(hff, basis, pieces.dofs)
-    structure = pieces.coarse_structure
-    hc = (basis.T @ hff @ basis).tocsc()
-    # the anchor-free pose system is singular in the gauge: a ridge far below every entry fixes it
-    ridge = 1e-9 * float(np.abs(hc.diagonal()).max())
-    upper = sp.triu(hc + sp.identity(hc.shape[0], format="csc") * ridge, format="csc")
-    keys = _csc_keys(upper)
-    at = np.minimum(np.searchsorted(structure.keys, keys), len(structure.keys) - 1)
-    assert np.array_equal(structure.keys[at], keys)  # the columns keep their pattern within a stage
-    numbers = np.zeros(len(structure.keys))
-    numbers[at] = upper.data
-    pattern = structure.upper
-    try:
-        lu = _factor(pieces.coarse_factors, 0, sp.csc_matrix((numbers, pattern.indices, pattern.indptr), pattern.shape))
-    except RuntimeError as err:  # SuperLU's "Factor is exactly singular", QDLDL's zero pivot
-        raise GraphError(f"dgs: the coarse system is singular ({err}); is every robot tied to the graph?") from None
-    return _Coarse(pieces.free, pieces.free_rows.of(data), basis, lu, structure.per_robot)
-
-
-def _coarse_rows_per_robot(hc: Any, robot_dofs: list[np.ndarray], basis: Any) -> np.ndarray:
-    """``(robots, 2)``: each robot's coarse unknowns and the entries of its rows of the coarse
-    matrix ``hc`` (what it sends to build it: every coarse unknown belongs to one robot's vertices)."""
-    first = np.cumsum([0] + [len(d) for d in robot_dofs])
-    owner_of_fine = np.repeat(np.arange(len(robot_dofs)), np.diff(first))
-    coo = basis.tocoo()
-    owner = np.zeros(basis.shape[1], dtype=np.int64)
-    owner[coo.col] = owner_of_fine[coo.row]
-    per_row = np.diff(hc.tocsr().indptr)
-    out = np.zeros((len(robot_dofs), 2), dtype=np.int64)
-    np.add.at(out[:, 0], owner, 1)
-    np.add.at(out[:, 1], owner, per_row)
-    return out
 
 
 def _aggregates(robot_dofs: list[np.ndarray], b: int, size: int) -> tuple[np.ndarray, np.ndarray, int]:
@@ -413,49 +476,25 @@ def _aggregates(robot_dofs: list[np.ndarray], b: int, size: int) -> tuple[np.nda
     return np.concatenate(agg), np.concatenate(verts), count
 
 
-def _constant_columns(robot_dofs: list[np.ndarray], b: int, size: int) -> Any:
-    """Piecewise-constant aggregation: one coarse unknown per aggregate and component."""
-    import scipy.sparse as sp
-
-    agg, _, count = _aggregates(robot_dofs, b, size)
-    rows = np.arange(len(agg) * b)
-    cols = (agg[:, None] * b + np.arange(b)[None, :]).ravel()
-    return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(rows), count * b))
-
-
-def _rigid_columns(kind: PoseKind, lin: np.ndarray, robot_dofs: list[np.ndarray], size: int) -> Any:
+def _rigid_blocks(kind: PoseKind, lin: np.ndarray, space: _CoarseSpace) -> np.ndarray:
     """Each aggregate moved rigidly: a translation and a rotation about its centroid (3 coarse
-    unknowns in the plane, 6 in space), in the pose stage's update coordinates at ``lin``."""
-    import scipy.sparse as sp
-
-    b = 3 if kind is PoseKind.SE2 else 6
-    agg, verts, count = _aggregates(robot_dofs, b, size)
+    unknowns in the plane, 6 in space), in the pose stage's update coordinates at ``lin``: each
+    free vertex's ``(b, b)`` block of ``P``."""
+    agg, count = space.aggregate, space.count
     tw = 2 if kind is PoseKind.SE2 else 3
-    t = lin[verts, 0:tw]
+    t = lin[space.vertex, 0:tw]
     centre = np.zeros((count, tw))
     np.add.at(centre, agg, t)
     centre /= np.maximum(np.bincount(agg, minlength=count), 1)[:, None]
     rel = t - centre[agg]
-    n = len(agg)
-    base = np.arange(n) * b
-    entries: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-    for c in range(tw):  # translations
-        entries.append((base + c, agg * b + c, np.ones(n)))
+    b = 3 if kind is PoseKind.SE2 else 6
+    out = np.zeros((len(agg), b, b))
+    out[:, np.arange(b), np.arange(b)] = 1.0
     if kind is PoseKind.SE2:  # rotation w about the centroid: dx = -w ry, dy = w rx, dtheta = w
-        col = agg * b + 2
-        entries += [(base + 0, col, -rel[:, 1]), (base + 1, col, rel[:, 0]), (base + 2, col, np.ones(n))]
-    else:  # dphi = w, dt = w x rel
-        for c in range(3):
-            col = agg * b + 3 + c
-            e = np.zeros((n, 3))
-            e[:, c] = 1.0
-            dt = np.cross(e, rel)
-            entries += [(base + k, col, dt[:, k]) for k in range(3)]
-            entries.append((base + 3 + c, col, np.ones(n)))
-    r = np.concatenate([e[0] for e in entries])
-    cidx = np.concatenate([e[1] for e in entries])
-    v = np.concatenate([e[2] for e in entries])
-    return sp.csr_matrix((v, (r, cidx)), shape=(n * b, count * b))
+        out[:, 0, 2], out[:, 1, 2] = -rel[:, 1], rel[:, 0]
+    else:  # dphi = w, dt = w x rel = -[rel]x w
+        out[:, 0:3, 3:6] = -_skew(rel)
+    return out
 
 
 def _factorise(data: np.ndarray, pieces: _Pieces) -> _Blocks:
@@ -832,11 +871,14 @@ def _rotation_stage(run: _Run, start: np.ndarray, opt: _StageOptions) -> tuple[n
     omega_r = w[:, None, None] * np.eye(d)[None]
     eye = np.broadcast_to(np.eye(d), rz.shape).copy()
     layout = _layout(problem.edge_from, problem.edge_to, n, d)
-    h_rot = layout.data(_products(np.concatenate([-np.transpose(rz, (0, 2, 1)), eye], axis=2), omega_r))
+    jacobians = np.concatenate([-np.transpose(rz, (0, 2, 1)), eye], axis=2)
+    h_rot = layout.data(_products(jacobians, omega_r))
     pieces = _pieces(layout, run.dofs_of(d))
     blocks = _factorise(h_rot, pieces)
-    if run.coarse_size:
-        blocks.coarse = _coarse(h_rot, pieces, _constant_columns(blocks.dofs, d, run.coarse_size))
+    pieces.coarse = _coarse_space(problem.edge_from, problem.edge_to, n, pieces.dofs, d, d, run.coarse_size)
+    if pieces.coarse is not None:
+        identity = np.broadcast_to(np.eye(d), (len(pieces.coarse.vertex), d, d))
+        blocks.coarse = _coarse(pieces, h_rot, jacobians, omega_r, identity)
     setup = run.send_coarse_matrix(blocks.coarse)
     y = np.transpose(_rotations(kind, start), (0, 2, 1)).reshape(n * d, d).copy()
     zero_rhs = np.zeros((n * d, d))
@@ -889,8 +931,8 @@ def _pose_system(
     h = pieces.layout.data(_products(jacobians, omega))
     g = _gradient(fr, to, jacobians, omega, e0, n)
     blocks = _factorise(h, pieces)
-    if run.coarse_size:
-        blocks.coarse = _coarse(h, pieces, _rigid_columns(kind, lin, blocks.dofs, run.coarse_size))
+    if pieces.coarse is not None:
+        blocks.coarse = _coarse(pieces, h, jacobians, omega, _rigid_blocks(kind, lin, pieces.coarse))
         run.handshake += run.send_coarse_matrix(blocks.coarse)
     delta = np.zeros(n * b)
     previous = delta.copy()
@@ -920,6 +962,9 @@ def _pose_stage(
     # with fixed vertices the anchor is held too: the rigid move onto it would move them
     hold = run.robots == 1 or run.schedule == "jacobi" or (run.fixed is not None and bool(run.fixed.any()))
     pieces = _pieces(layout, run.dofs_of(b, fix_anchor=hold))
+    pieces.coarse = _coarse_space(
+        problem.edge_from, problem.edge_to, problem.num_vertices, pieces.dofs, b, b, run.coarse_size
+    )
     linearizations = 0
     poses = lin
     while run.left > 0:

@@ -385,3 +385,41 @@ def test_the_layout_adds_every_edges_products_where_a_dense_sum_puts_them(b):
             rhs = rng.standard_normal(len(dofs))
             np.testing.assert_allclose(lu.solve(rhs), np.linalg.solve(own, rhs), rtol=1e-8)
     assert len(pieces.factors) == 2  # the second system's blocks were factored in place of the first's
+
+
+@pytest.mark.parametrize("b", [3, 6])
+def test_the_coarse_matrix_added_up_over_the_edges_is_p_transposed_h_p(b):
+    """The coarse system the edges add up over the runs of two poses is ``P^T h P`` on the free
+    unknowns (vertex 0 held: its edges reach only their free end's block), its factor solves it,
+    and each robot's rows are counted on its structure: here every run meets every other, so each
+    coarse row has three blocks."""
+    from studio.solvers import dgs
+
+    rng = np.random.default_rng(11)
+    n, r = 7, b
+    fr = np.array([0, 1, 2, 3, 4, 5, 1, 2, 6])
+    to = np.array([1, 2, 3, 4, 5, 6, 0, 3, 2])
+    layout = dgs._layout(fr, to, n, b)
+    robot_dofs = [np.arange(b, 3 * b), np.arange(3 * b, n * b)]  # runs {1, 2}, {3, 4}, {5, 6}
+    pieces = dgs._pieces(layout, robot_dofs)
+    pieces.coarse = dgs._coarse_space(fr, to, n, pieces.dofs, b, b, 2)
+    assert pieces.coarse is not None
+    jacobians = rng.standard_normal((len(fr), r, 2 * b))
+    omega = np.array([a @ a.T + np.eye(r) for a in rng.standard_normal((len(fr), r, r))])
+    data = layout.data(dgs._products(jacobians, omega))
+    blocks = rng.standard_normal((len(pieces.coarse.vertex), b, b))
+    coarse = dgs._coarse(pieces, data, jacobians, omega, blocks)
+    dense = np.zeros((n * b, n * b))
+    for k, (i, j) in enumerate(zip(fr, to)):
+        cols = np.concatenate([np.arange(i * b, i * b + b), np.arange(j * b, j * b + b)])
+        dense[np.ix_(cols, cols)] += jacobians[k].T @ omega[k] @ jacobians[k]
+    free = np.concatenate(robot_dofs)
+    p = np.zeros((len(free), 3 * b))
+    for k, run in enumerate([0, 0, 1, 1, 2, 2]):  # the free vertices 1..6 in order, two per run
+        p[k * b : k * b + b, run * b : run * b + b] = blocks[k]
+    np.testing.assert_allclose(coarse.basis.toarray(), p, rtol=0, atol=0)
+    hc = p.T @ dense[np.ix_(free, free)] @ p
+    hc += 1e-9 * np.abs(np.diag(hc)).max() * np.eye(3 * b)
+    rhs = rng.standard_normal(3 * b)
+    np.testing.assert_allclose(coarse.lu.solve(rhs), np.linalg.solve(hc, rhs), rtol=1e-8)
+    np.testing.assert_array_equal(coarse.per_robot, [[b, b * 3 * b], [2 * b, 2 * b * 3 * b]])
