@@ -149,6 +149,7 @@ class Dgs(_Base):
             self.believed[ids] = True
             return 0.0
         start = sub.initial
+        rotation_stage = team not in self.teams
         t0 = time.perf_counter()
         result = dgs_rounds(
             sub,
@@ -158,11 +159,13 @@ class Dgs(_Base):
             pose_gamma=budget.pose_gamma,
             pose_tol=budget.pose_tol,
             warm_start=True,
-            rotation_stage=team not in self.teams,
+            rotation_stage=rotation_stage,
             fixed=held if held.any() else None,
             score_rounds=False,
         )
-        better = bool(graph_chi2(sub, result.poses) < graph_chi2(sub, start))  # nan: not better
+        # without the rotation stage the pose stage's first linearization point is the start
+        before = graph_chi2(sub, start) if rotation_stage else result.chi2_initial
+        better = bool(graph_chi2(sub, result.poses) < before)  # nan: not better
         seconds = time.perf_counter() - t0
         self.own[ids] = (result.poses if better else start)[: len(ids)]
         self.rejected += not better

@@ -936,15 +936,21 @@ def _pose_system(
         run.handshake += run.send_coarse_matrix(blocks.coarse)
     delta = np.zeros(n * b)
     previous = delta.copy()
+    # a round's poses are only needed where someone reads them (they stay the same otherwise)
+    each_round = run.score_rounds or run.on_round is not None
+    first = len(run.rounds)
     poses = lin
     while run.left > 0:
         change = _round(delta, g, blocks, run.schedule, opt.gamma, previous, opt.momentum)
-        poses = _reanchor(kind, _retract(kind, lin, delta.reshape(n, b)), anchor, anchor_pose)
+        if each_round:
+            poses = _reanchor(kind, _retract(kind, lin, delta.reshape(n, b)), anchor, anchor_pose)
         sent = run.send(b) + run.send_coarse(blocks.coarse, 1) + run.handshake
         run.record("pose", change, graph_chi2(problem, poses) if run.score_rounds else None, sent, poses)
         run.handshake = 0
         if change <= opt.tol:
             break
+    if not each_round and len(run.rounds) > first:
+        poses = _reanchor(kind, _retract(kind, lin, delta.reshape(n, b)), anchor, anchor_pose)
     run.step = float(np.abs(delta).max()) if delta.size else 0.0
     return poses
 
