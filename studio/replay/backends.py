@@ -33,7 +33,7 @@ import numpy as np
 
 from studio.core.comms import robot_pairs
 from studio.replay.protocol import BackendFactory, Checkpoint, KeptPoses, ReplayBackend, Setup, Step
-from studio.solvers.incremental import FixedEnds, IncrementalSolver, IsamSettings
+from studio.solvers.incremental import EdgeTerms, FixedEnds, IncrementalSolver, IsamSettings
 
 __all__ = ["Centralized", "Independent", "Swarm", "Memory", "make_dgs"]
 
@@ -191,8 +191,10 @@ class Centralized(_Base):
 class Independent(_Base):
     def __init__(self, world: Setup) -> None:
         super().__init__(world)
+        terms = EdgeTerms(world.problem)
         self.solvers = [
-            IncrementalSolver(world.problem, world.agent_of_vertex, world.settings) for _ in range(world.num_robots)
+            IncrementalSolver(world.problem, world.agent_of_vertex, world.settings, terms=terms)
+            for _ in range(world.num_robots)
         ]
 
     def advance(self, news: Checkpoint) -> Step:
@@ -225,10 +227,12 @@ class Swarm(_Base):
         self.believed = np.zeros(world.problem.num_vertices, dtype=bool)
         self.memory = Memory(world)
         self.rebuilds = 0
+        self.terms = EdgeTerms(world.problem)
+        """The edges' GTSAM terms, shared by every group's solver."""
 
     def _new_group(self, group: tuple[int, ...], vertices: np.ndarray, edges: np.ndarray, fixed: FixedEnds):
         w = self.world
-        solver = IncrementalSolver(w.problem, w.agent_of_vertex, w.settings)
+        solver = IncrementalSolver(w.problem, w.agent_of_vertex, w.settings, terms=self.terms)
         solver.estimate = self.own.copy()
         new_v = np.flatnonzero(vertices)
         start = solver.dead_reckon(new_v, self.believed)
