@@ -182,13 +182,6 @@ class _Layout:
         """The matrix's numbers (CSR order) from :func:`_products`'."""
         return np.bincount(self.slot, weights=products, minlength=len(self.indices))
 
-    def numbered(self) -> Any:
-        """The pattern with entry ``k`` of the data holding ``k + 1`` (no entry is zero)."""
-        import scipy.sparse as sp
-
-        places = np.arange(1, len(self.indices) + 1, dtype=np.float64)
-        return sp.csr_matrix((places, self.indices, self.indptr), shape=(self.size, self.size))
-
 
 def _layout(fr: np.ndarray, to: np.ndarray, n: int, b: int) -> _Layout:
     """The layout of the products of edges ``fr -> to`` over ``n`` vertices: the vertex blocks they
@@ -221,11 +214,6 @@ class _Take:
 
     pattern: Any
     take: np.ndarray
-
-    @classmethod
-    def of_numbered(cls, piece: Any) -> _Take:
-        """From the same piece of :meth:`_Layout.numbered` (its numbers are places plus one)."""
-        return cls(piece, piece.data.astype(np.int64) - 1)
 
     def of(self, data: np.ndarray) -> Any:
         p = self.pattern
