@@ -162,14 +162,7 @@ class IncrementalSolver:
         """Wall time spent in GTSAM (building factors, updates, estimates)."""
 
     def _pose(self, row: np.ndarray) -> Any:
-        gtsam = self._gtsam
-        if self.kind is PoseKind.SE2:
-            return gtsam.Pose2(float(row[0]), float(row[1]), float(row[2]))
-        q = row[3:7]
-        return gtsam.Pose3(
-            gtsam.Rot3.Quaternion(float(q[3]), float(q[0]), float(q[1]), float(q[2])),
-            gtsam.Point3(float(row[0]), float(row[1]), float(row[2])),
-        )
+        return gtsam_poses(self._gtsam, self.kind, np.asarray(row, dtype=np.float64)[None])[0]
 
     def _poses(self, values: Any) -> np.ndarray:
         gtsam = self._gtsam
@@ -278,9 +271,9 @@ class IncrementalSolver:
         prior = gtsam.PriorFactorPose2 if self.kind is PoseKind.SE2 else gtsam.PriorFactorPose3
         gaussian = gtsam.noiseModel.Gaussian.Information
         edges = np.asarray(fixed.edges, dtype=np.int64)
+        held_poses = gtsam_poses(gtsam, self.kind, fixed.held_poses)
         for k, e in enumerate(edges.tolist()):
-            z = self.terms.measurements[e]
-            held = self._pose(fixed.held_poses[k])
+            z, held = self.terms.measurements[e], held_poses[k]
             omega = self.terms.omega[e] * fixed.information_scale
             if fixed.held_is_from[k]:
                 graph.add(prior(int(p.edge_to[e]), held.compose(z), gaussian(omega)))
