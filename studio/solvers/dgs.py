@@ -182,6 +182,10 @@ class _Layout:
         """The matrix's numbers (CSR order) from :func:`_products`'."""
         return np.bincount(self.slot, weights=products, minlength=len(self.indices))
 
+    def rows(self) -> np.ndarray:
+        """The row of each entry of the matrix's data."""
+        return np.repeat(np.arange(self.size, dtype=np.int64), np.diff(self.indptr))
+
 
 def _layout(fr: np.ndarray, to: np.ndarray, n: int, b: int) -> _Layout:
     """The layout of the products of edges ``fr -> to`` over ``n`` vertices: the vertex blocks they
@@ -313,7 +317,7 @@ def _coarse_space(
     a_from = np.where(at_from >= 0, aggregate[at_from], aggregate[at_to])
     a_to = np.where(at_to >= 0, aggregate[at_to], aggregate[at_from])
     layout = _layout(a_from, a_to, count, c)
-    row = np.repeat(np.arange(layout.size), np.diff(layout.indptr))
+    row = layout.rows()
     lower = np.flatnonzero(layout.indices <= row)  # as csc: the upper triangle (see _pieces)
     upper = _compressed("csc", lower, row[lower], layout.indices[lower], (layout.size, layout.size))
     diagonal = np.flatnonzero(layout.indices == row)
@@ -396,7 +400,7 @@ def _pieces(layout: _Layout, robot_dofs: list[np.ndarray]) -> _Pieces:
     which robot each entry's row and column belong to: its block's upper triangle (csc) is its
     lower triangle's entries as the csr data holds them (a column of the one is a row of the other)."""
     size, col = layout.size, layout.indices
-    row = np.repeat(np.arange(size, dtype=np.int64), np.diff(layout.indptr))
+    row = layout.rows()
     robots = len(robot_dofs)
     owner = np.full(size, robots, dtype=np.int16)  # ``robots``: a held unknown
     position = np.zeros(size, dtype=np.int64)
@@ -421,10 +425,20 @@ def _pieces(layout: _Layout, robot_dofs: list[np.ndarray]) -> _Pieces:
     return _Pieces(layout, list(robot_dofs), free, others, blocks, couplings, _rows_of(layout, free), [])
 
 
+def _stage_pieces(run: _Run, b: int, fix_anchor: bool = True) -> _Pieces:
+    """A stage's layout (``b`` unknowns per vertex), its robots' pieces and its coarse space."""
+    problem = run.problem
+    fr, to, n = problem.edge_from, problem.edge_to, problem.num_vertices
+    pieces = _pieces(_layout(fr, to, n, b), run.dofs_of(b, fix_anchor=fix_anchor))
+    pieces.coarse = _coarse_space(fr, to, n, pieces.dofs, b, b, run.coarse_size)
+    return pieces
+
+
 def _by_robot(entries: np.ndarray, owner: np.ndarray, robots: int) -> list[np.ndarray]:
     """``entries`` split by ``owner[entries]`` (``0..robots-1``), each part in the order given."""
-    order = np.argsort(owner[entries], kind="stable")
-    counts = np.bincount(owner[entries], minlength=robots)[:robots]
+    whose = owner[entries]
+    order = np.argsort(whose, kind="stable")
+    counts = np.bincount(whose, minlength=robots)[:robots]
     return np.split(entries[order], np.cumsum(counts)[:-1])
 
 
@@ -858,12 +872,10 @@ def _rotation_stage(run: _Run, start: np.ndarray, opt: _StageOptions) -> tuple[n
     w = _rotation_weights(problem)
     omega_r = w[:, None, None] * np.eye(d)[None]
     eye = np.broadcast_to(np.eye(d), rz.shape).copy()
-    layout = _layout(problem.edge_from, problem.edge_to, n, d)
+    pieces = _stage_pieces(run, d)
     jacobians = np.concatenate([-np.transpose(rz, (0, 2, 1)), eye], axis=2)
-    h_rot = layout.data(_products(jacobians, omega_r))
-    pieces = _pieces(layout, run.dofs_of(d))
+    h_rot = pieces.layout.data(_products(jacobians, omega_r))
     blocks = _factorise(h_rot, pieces)
-    pieces.coarse = _coarse_space(problem.edge_from, problem.edge_to, n, pieces.dofs, d, d, run.coarse_size)
     if pieces.coarse is not None:
         identity = np.broadcast_to(np.eye(d), (len(pieces.coarse.vertex), d, d))
         blocks.coarse = _coarse(pieces, h_rot, jacobians, omega_r, identity)
@@ -949,16 +961,10 @@ def _pose_stage(
     """Gauss-Newton from ``lin``, each system solved in rounds, relinearized until an update moves no
     entry by more than ``opt.tol`` or the rounds run out: the poses, the systems built, convergence."""
     run.handshake = run.send(run.problem.kind.pose_width)  # each robot's separator poses at ``lin``
-    problem = run.problem
-    b = 3 if problem.kind is PoseKind.SE2 else 6
-    layout = _layout(problem.edge_from, problem.edge_to, problem.num_vertices, b)
     # Jacobi rounds on the anchor-free (singular) system would keep oscillating in its gauge
     # with fixed vertices the anchor is held too: the rigid move onto it would move them
     hold = run.robots == 1 or run.schedule == "jacobi" or (run.fixed is not None and bool(run.fixed.any()))
-    pieces = _pieces(layout, run.dofs_of(b, fix_anchor=hold))
-    pieces.coarse = _coarse_space(
-        problem.edge_from, problem.edge_to, problem.num_vertices, pieces.dofs, b, b, run.coarse_size
-    )
+    pieces = _stage_pieces(run, 3 if run.problem.kind is PoseKind.SE2 else 6, fix_anchor=hold)
     linearizations = 0
     poses = lin
     while run.left > 0:
