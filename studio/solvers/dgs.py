@@ -295,14 +295,21 @@ class _CoarseSpace:
     """Column indices of ``P`` (csr, each free vertex's rows a full ``(b, c)`` block)."""
     per_robot: np.ndarray
     """As :attr:`_Coarse.per_robot`."""
+    pinned: np.ndarray
+    """The free vertices (places in :attr:`vertex`) of the anchor's aggregate where the anchor is
+    free (an anchor-free system, singular in the gauge), else none: their aggregate is held still,
+    which takes the gauge, a rigid motion of everyone, out of the coarse system."""
+    pinned_diagonal: np.ndarray
+    """The places in the layout's data of the held aggregate's diagonal."""
     factors: list[Any] = field(default_factory=list)
 
 
 def _coarse_space(
-    fr: np.ndarray, to: np.ndarray, n: int, robot_dofs: list[np.ndarray], b: int, c: int, size: int
+    fr: np.ndarray, to: np.ndarray, n: int, robot_dofs: list[np.ndarray], b: int, c: int, size: int, anchor: int
 ) -> _CoarseSpace | None:
     """The coarse space over the robots' free unknowns ``robot_dofs`` (``b`` per vertex) of a stage
-    whose edges are ``fr -> to`` over ``n`` vertices; None with ``size`` 0 or no free unknowns."""
+    whose edges are ``fr -> to`` over ``n`` vertices and whose gauge is held by vertex ``anchor``
+    (if it is free); None with ``size`` 0 or no free unknowns."""
     if not size:
         return None
     aggregate, vertex, count = _aggregates(robot_dofs, b, size)
@@ -333,8 +340,27 @@ def _coarse_space(
     per_robot[:, 0] = np.bincount(owner_of_aggregate, minlength=robots) * c
     per_robot[:, 1] = np.bincount(np.repeat(owner_of_aggregate, c), weights=per_row, minlength=robots).astype(np.int64)
     basis_indices = np.repeat(aggregate * c, b)[:, None] + np.arange(c)[None, :]
+    pinned = np.zeros(0, dtype=np.int64)
+    pinned_diagonal = np.zeros(0, dtype=np.int64)
+    if place[anchor] >= 0:
+        held = aggregate[place[anchor]]
+        pinned = np.flatnonzero(aggregate == held)
+        pinned_diagonal = diagonal[held * c : (held + 1) * c]
     return _CoarseSpace(
-        vertex, aggregate, count, c, edges, at_from, at_to, layout, upper, diagonal, basis_indices.ravel(), per_robot
+        vertex,
+        aggregate,
+        count,
+        c,
+        edges,
+        at_from,
+        at_to,
+        layout,
+        upper,
+        diagonal,
+        basis_indices.ravel(),
+        per_robot,
+        pinned,
+        pinned_diagonal,
     )
 
 
@@ -359,20 +385,22 @@ def _coarse(pieces: _Pieces, data: np.ndarray, jacobians: np.ndarray, omega: np.
     assert space is not None
     b, c = jacobians.shape[2] // 2, space.c
     padded = np.concatenate([blocks, np.zeros((1, b, c))])  # place -1, a held end: no coarse unknowns
+    # the anchor-free system's gauge: the anchor's aggregate does not move (zero columns of P), its
+    # coarse unknowns stand alone with a unit diagonal and a zero right-hand side
+    padded[space.pinned] = 0.0
     jac = jacobians[space.edges]
     coarse_jacobians = np.concatenate(
         [jac[:, :, :b] @ padded[space.at_from], jac[:, :, b:] @ padded[space.at_to]], axis=2
     )
     hc = space.layout.data(_products(coarse_jacobians, omega[space.edges]))
-    # the anchor-free pose system is singular in the gauge: a ridge far below every entry fixes it
-    hc[space.diagonal] += 1e-9 * float(np.abs(hc[space.diagonal]).max())
+    hc[space.pinned_diagonal] = 1.0
     try:
         lu = _factor(space.factors, 0, space.upper.of(hc))
     except RuntimeError as err:  # SuperLU's "Factor is exactly singular", QDLDL's zero pivot
         raise GraphError(f"dgs: the coarse system is singular ({err}); is every robot tied to the graph?") from None
     rows = blocks.shape[0] * b
     indptr = np.arange(0, rows * c + 1, c)
-    basis = sp.csr_matrix((blocks.ravel(), space.basis_indices, indptr), shape=(rows, space.count * c))
+    basis = sp.csr_matrix((padded[:-1].ravel(), space.basis_indices, indptr), shape=(rows, space.count * c))
     return _Coarse(pieces.free, pieces.free_rows.of(data), basis, lu, space.per_robot)
 
 
@@ -430,7 +458,7 @@ def _stage_pieces(run: _Run, b: int, fix_anchor: bool = True) -> _Pieces:
     problem = run.problem
     fr, to, n = problem.edge_from, problem.edge_to, problem.num_vertices
     pieces = _pieces(_layout(fr, to, n, b), run.dofs_of(b, fix_anchor=fix_anchor))
-    pieces.coarse = _coarse_space(fr, to, n, pieces.dofs, b, b, run.coarse_size)
+    pieces.coarse = _coarse_space(fr, to, n, pieces.dofs, b, b, run.coarse_size, problem.anchor)
     return pieces
 
 

@@ -403,8 +403,9 @@ def test_the_coarse_matrix_added_up_over_the_edges_is_p_transposed_h_p(b):
     layout = dgs._layout(fr, to, n, b)
     robot_dofs = [np.arange(b, 3 * b), np.arange(3 * b, n * b)]  # runs {1, 2}, {3, 4}, {5, 6}
     pieces = dgs._pieces(layout, robot_dofs)
-    pieces.coarse = dgs._coarse_space(fr, to, n, pieces.dofs, b, b, 2)
+    pieces.coarse = dgs._coarse_space(fr, to, n, pieces.dofs, b, b, 2, 0)
     assert pieces.coarse is not None
+    assert len(pieces.coarse.pinned) == 0  # the anchor, vertex 0, is held: no gauge to take out
     jacobians = rng.standard_normal((len(fr), r, 2 * b))
     omega = np.array([a @ a.T + np.eye(r) for a in rng.standard_normal((len(fr), r, r))])
     data = layout.data(dgs._products(jacobians, omega))
@@ -420,7 +421,17 @@ def test_the_coarse_matrix_added_up_over_the_edges_is_p_transposed_h_p(b):
         p[k * b : k * b + b, run * b : run * b + b] = blocks[k]
     np.testing.assert_allclose(coarse.basis.toarray(), p, rtol=0, atol=0)
     hc = p.T @ dense[np.ix_(free, free)] @ p
-    hc += 1e-9 * np.abs(np.diag(hc)).max() * np.eye(3 * b)
     rhs = rng.standard_normal(3 * b)
     np.testing.assert_allclose(coarse.lu.solve(rhs), np.linalg.solve(hc, rhs), rtol=1e-8)
     np.testing.assert_array_equal(coarse.per_robot, [[b, b * 3 * b], [2 * b, 2 * b * 3 * b]])
+    # with the anchor free (vertex 3, of the second run) that run is held still: zero columns of P,
+    # a unit diagonal block, the rest P^T h P as before
+    pieces.coarse = dgs._coarse_space(fr, to, n, pieces.dofs, b, b, 2, 3)
+    assert pieces.coarse is not None
+    np.testing.assert_array_equal(pieces.coarse.pinned, [2, 3])
+    pinned = dgs._coarse(pieces, data, jacobians, omega, blocks)
+    p[:, b : 2 * b] = 0.0
+    np.testing.assert_allclose(pinned.basis.toarray(), p, rtol=0, atol=0)
+    hc = p.T @ dense[np.ix_(free, free)] @ p
+    hc[b : 2 * b, b : 2 * b] = np.eye(b)
+    np.testing.assert_allclose(pinned.lu.solve(rhs), np.linalg.solve(hc, rhs), rtol=1e-8)
