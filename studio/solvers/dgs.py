@@ -395,7 +395,7 @@ def _coarse(pieces: _Pieces, data: np.ndarray, jacobians: np.ndarray, omega: np.
     hc = space.layout.data(_products(coarse_jacobians, omega[space.edges]))
     hc[space.pinned_diagonal] = 1.0
     try:
-        lu = _factor(space.factors, 0, space.upper.of(hc))
+        lu = _factor(space.factors, 0, space.upper.of(hc), supernodal=True)
     except RuntimeError as err:  # SuperLU's "Factor is exactly singular", QDLDL's zero pivot
         raise GraphError(f"dgs: the coarse system is singular ({err}); is every robot tied to the graph?") from None
     rows = blocks.shape[0] * b
@@ -482,12 +482,13 @@ def _rows_of(layout: _Layout, rows: np.ndarray) -> _Take:
     )
 
 
-def _factor(factors: list[Any], k: int, a: Any) -> Any:
-    """Factor ``k`` of ``factors`` for ``a`` (the upper triangle): the one there factored again, or a new one."""
+def _factor(factors: list[Any], k: int, a: Any, supernodal: bool = False) -> Any:
+    """Factor ``k`` of ``factors`` for ``a`` (the upper triangle): the one there factored again, or
+    a new one (``supernodal``: one that fills in, see :func:`~studio.solvers.spd.spd_factor`)."""
     if k < len(factors):
         factors[k].update(a)
     else:
-        factors.append(spd_factor(a, permc_spec="COLAMD", upper=True))
+        factors.append(spd_factor(a, permc_spec="COLAMD", upper=True, supernodal=supernodal))
     return factors[k]
 
 

@@ -191,24 +191,48 @@ def test_spd_factor_solves_alike_with_qdldl_and_with_superlu(monkeypatch):
     np.testing.assert_allclose(lu.solve(rhs), expected, rtol=1e-10)
 
 
-@pytest.mark.parametrize("qdldl", [True, False])
-def test_spd_factor_reads_an_upper_triangle_and_updates_in_place(monkeypatch, qdldl):
+@pytest.mark.parametrize("method", ["qdldl", "superlu", "cholmod"])
+def test_spd_factor_reads_an_upper_triangle_and_updates_in_place(monkeypatch, method):
     """A factor given only the upper triangle solves the whole matrix; ``update`` with a matrix
-    of the same pattern solves the new one (QDLDL keeps its ordering, SuperLU factors anew)."""
+    of the same pattern solves the new one (QDLDL and CHOLMOD keep their ordering, SuperLU factors
+    anew)."""
     import scipy.sparse as sp
 
     from studio.solvers.spd import spd_factor
 
-    if not qdldl:
+    if method == "cholmod":
+        pytest.importorskip("cvxopt")
+    if method == "superlu":
         _without_qdldl(monkeypatch)
     rng = np.random.default_rng(3)
     b = sp.random(30, 30, density=0.15, random_state=4)
     a = (b @ b.T + 30 * sp.identity(30)).tocsc()
     rhs = rng.standard_normal(30)
-    lu = spd_factor(sp.triu(a, format="csc"), upper=True)
+    lu = spd_factor(sp.triu(a, format="csc"), upper=True, supernodal=method == "cholmod")
+    assert type(lu).__name__ == {"qdldl": "_Ldl", "superlu": "_Lu", "cholmod": "_Cholmod"}[method]
     np.testing.assert_allclose(lu.solve(rhs), np.linalg.solve(a.toarray(), rhs), rtol=1e-10)
     a2 = a.copy()
     a2.data = a2.data * (1.0 + rng.random(a2.nnz))  # same pattern, other numbers
     a2 = (a2 + a2.T) / 2
     lu.update(sp.triu(a2, format="csc"))
     np.testing.assert_allclose(lu.solve(rhs), np.linalg.solve(a2.toarray(), rhs), rtol=1e-10)
+
+
+def test_a_supernodal_factor_hands_a_matrix_that_is_not_positive_definite_to_ldl():
+    """CHOLMOD refuses a pivot that is not positive, LDL^T takes any nonzero one: a matrix of the
+    pattern that is symmetric but indefinite is still solved, by QDLDL's factor from then on."""
+    import scipy.sparse as sp
+
+    pytest.importorskip("cvxopt")
+    from studio.solvers.spd import spd_factor
+
+    upper = sp.csc_matrix(np.triu([[4.0, 0.0, 1.0], [0.0, 3.0, 0.0], [1.0, 0.0, 5.0]]))
+    lu = spd_factor(upper, upper=True, supernodal=True)
+    assert lu.ldl is None
+    indefinite = upper.copy()
+    indefinite.data = np.array([1.0, 3.0, 2.0, 1.0])  # [[1, 0, 2], [0, 3, 0], [2, 0, 1]]: eigenvalue -1
+    lu.update(indefinite)
+    assert lu.ldl is not None
+    full = np.array([[1.0, 0.0, 2.0], [0.0, 3.0, 0.0], [2.0, 0.0, 1.0]])
+    rhs = np.array([1.0, 2.0, 3.0])
+    np.testing.assert_allclose(lu.solve(rhs), np.linalg.solve(full, rhs), rtol=1e-12)
