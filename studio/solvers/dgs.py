@@ -189,21 +189,52 @@ class _Layout:
 
 def _layout(fr: np.ndarray, to: np.ndarray, n: int, b: int) -> _Layout:
     """The layout of the products of edges ``fr -> to`` over ``n`` vertices: the vertex blocks they
-    touch (sorted, so the scalar pattern is too) and where each product's numbers land."""
+    touch (each row's in column order, so the scalar pattern's too) and where each product's numbers
+    land. A row's blocks are its pairs with smaller vertices, its diagonal, its pairs with larger
+    ones: one sort of the distinct pairs places them all (the upper ones in its order, the lower
+    ones in a stable sort of it by their larger vertex)."""
     import scipy.sparse as sp
 
-    m, bb = len(fr), b * b
-    keys, block = np.unique(np.concatenate([fr * n + fr, fr * n + to, to * n + fr, to * n + to]), return_inverse=True)
-    numbers = np.arange(1, len(keys) * bb + 1, dtype=np.float64).reshape(-1, b, b)
-    pattern = sp.bsr_matrix((numbers, keys % n, np.searchsorted(keys // n, np.arange(n + 1))), shape=(n * b, n * b))
-    csr = pattern.tocsr()
-    place = np.empty(len(keys) * bb, dtype=np.int64)
-    place[csr.data.astype(np.int64) - 1] = np.arange(csr.nnz)
-    # entry (P, Q) of an edge's product: block (P // b, Q // b) of [from, to] x [from, to]
-    slot = np.empty((m, 2, b, 2, b), dtype=np.int64)
-    for i, blocks in enumerate(block.reshape(4, m)):
-        slot[:, i // 2, :, i % 2, :] = place.reshape(-1, b, b)[blocks]
-    return _Layout(n * b, csr.indptr, csr.indices, slot.reshape(-1))
+    m = len(fr)
+    lo, hi = np.minimum(fr, to), np.maximum(fr, to)
+    pairs, pair_of = np.unique(lo * n + hi, return_inverse=True)
+    pair_lo, pair_hi = pairs // n, pairs % n
+    apart = pair_lo != pair_hi  # a self-loop's pair is its vertex's diagonal block
+    upper_row, lower_row = pair_lo[apart], pair_hi[apart]
+    touched = np.zeros(n, dtype=np.int64)
+    touched[fr] = 1
+    touched[to] = 1
+    uppers = np.bincount(upper_row, minlength=n)
+    lowers = np.bincount(lower_row, minlength=n)
+    block_ptr = np.concatenate([[0], np.cumsum(lowers + touched + uppers)])
+    diagonal = block_ptr[:-1] + lowers
+    k = np.arange(len(upper_row))
+    upper = diagonal[upper_row] + touched[upper_row] + k - (np.cumsum(uppers) - uppers)[upper_row]
+    by_lower = np.argsort(lower_row, kind="stable")
+    lower = np.empty_like(upper)
+    lower[by_lower] = block_ptr[lower_row[by_lower]] + k - (np.cumsum(lowers) - lowers)[lower_row[by_lower]]
+    columns = np.empty(int(block_ptr[-1]), dtype=np.int64)
+    columns[diagonal[touched > 0]] = np.flatnonzero(touched)
+    columns[upper], columns[lower] = lower_row, upper_row
+    # each edge's four blocks [from, to] x [from, to]
+    blocks = np.empty((m, 2, 2), dtype=np.int64)
+    blocks[:, 0, 0] = blocks[:, 0, 1] = blocks[:, 1, 0] = diagonal[fr]
+    blocks[:, 1, 1] = diagonal[to]
+    e = np.flatnonzero(apart[pair_of])
+    q = (np.cumsum(apart) - 1)[pair_of[e]]  # the edge's pair among those apart
+    ahead = fr[e] < to[e]
+    blocks[e, 0, 1] = np.where(ahead, upper[q], lower[q])
+    blocks[e, 1, 0] = np.where(ahead, lower[q], upper[q])
+    # entry (i, j) of block k of block row v: row v * b + i, which starts at b * b * block_ptr[v] +
+    # i * b * degree(v), at (k - block_ptr[v]) * b + j in it
+    degree = np.diff(block_ptr)
+    rows = np.stack([fr, to], axis=1)
+    start = b * b * block_ptr[rows][:, :, None] + (blocks - block_ptr[rows][:, :, None]) * b  # (m, 2, 2)
+    step = b * degree[rows]  # (m, 2): the length of a scalar row of the block row
+    i = np.arange(b)
+    slot = start[:, :, None, :, None] + step[:, :, None, None, None] * i[None, None, :, None, None] + i
+    pattern = sp.bsr_matrix((np.zeros((len(columns), b, b)), columns, block_ptr), shape=(n * b, n * b)).tocsr()
+    return _Layout(n * b, pattern.indptr, pattern.indices, slot.reshape(-1))
 
 
 def _products(jacobians: np.ndarray, omega: np.ndarray) -> np.ndarray:

@@ -349,6 +349,36 @@ def test_fixed_vertices_held_at_the_optimum_leave_the_others_at_it(kind):
         dgs_rounds(problem, robot, fixed=held[:5])
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_the_layout_of_any_edges_is_a_sorted_pattern_holding_their_dense_sum(seed):
+    """Random edges (repeated pairs, both directions, self-loops, vertices no edge touches): the
+    layout's pattern has each row's columns sorted and distinct, and its data is the dense sum of
+    the edges' products."""
+    import scipy.sparse as sp
+
+    from studio.solvers import dgs
+
+    rng = np.random.default_rng(seed)
+    n, m, b = int(rng.integers(2, 12)), int(rng.integers(1, 30)), int(rng.integers(1, 4))
+    fr, to = rng.integers(0, n, m), rng.integers(0, n, m)
+    layout = dgs._layout(fr, to, n, b)
+    jacobians = rng.standard_normal((m, b, 2 * b))
+    omega = np.broadcast_to(np.eye(b), (m, b, b))
+    dense = np.zeros((n * b, n * b))
+    for k, (i, j) in enumerate(zip(fr, to)):
+        cols = np.concatenate([np.arange(i * b, i * b + b), np.arange(j * b, j * b + b)])
+        np.add.at(dense, np.ix_(cols, cols), jacobians[k].T @ jacobians[k])
+    whole = sp.csr_matrix(
+        (layout.data(dgs._products(jacobians, omega)), layout.indices, layout.indptr), shape=dense.shape
+    )
+    for row in range(n * b):
+        columns = layout.indices[layout.indptr[row] : layout.indptr[row + 1]]
+        assert np.all(np.diff(columns) > 0)
+    np.testing.assert_allclose(whole.toarray(), dense, rtol=1e-12, atol=1e-12)
+    touched = np.isin(np.arange(n), np.concatenate([fr, to]))
+    assert np.array_equal(np.diff(layout.indptr) > 0, np.repeat(touched, b))
+
+
 @pytest.mark.parametrize("b", [2, 3, 6])
 def test_the_layout_adds_every_edges_products_where_a_dense_sum_puts_them(b):
     """The matrix a stage's layout fills in (edges in any order, two between the same pair, both
