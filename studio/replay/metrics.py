@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from studio.core.errors import ConfigError
-from studio.core.geometry import planar_poses_to_se3
+from studio.core.geometry import planar_poses_to_se3, quat_rotate
 from studio.core.jrl_metrics import RobotValues
 from studio.core.model import PoseKind
 from studio.solvers.incremental import compose, inverse
@@ -28,11 +28,18 @@ from studio.solvers.problem import Problem
 if TYPE_CHECKING:  # SE-Sync's modules load scipy's solvers: imported when the optimum is found
     from studio.solvers.sesync import Optimum
 
-__all__ = ["as_se3", "first_pose_errors", "se3_errors", "robot_values", "team_optimum", "gaps_to"]
+__all__ = ["as_se3", "positions", "first_pose_errors", "se3_errors", "robot_values", "team_optimum", "gaps_to"]
 
 
 def as_se3(poses: np.ndarray, kind: PoseKind) -> np.ndarray:
     return planar_poses_to_se3(poses) if kind is PoseKind.SE2 else poses
+
+
+def positions(poses: np.ndarray, kind: PoseKind) -> np.ndarray:
+    """``(n, 3)`` positions of pose rows, planar ones at height 0 (as :func:`as_se3`'s)."""
+    if kind is PoseKind.SE3:
+        return poses[:, 0:3]
+    return np.column_stack([poses[:, 0:2], np.zeros(len(poses))])
 
 
 def first_pose_errors(estimate_se3: np.ndarray, truth_se3: np.ndarray) -> np.ndarray:
@@ -40,8 +47,9 @@ def first_pose_errors(estimate_se3: np.ndarray, truth_se3: np.ndarray) -> np.nda
     if not len(estimate_se3):
         return np.zeros(0)
     move = compose(truth_se3[:1], inverse(estimate_se3[:1], PoseKind.SE3), PoseKind.SE3)
-    moved = compose(np.repeat(move, len(estimate_se3), axis=0), estimate_se3, PoseKind.SE3)
-    return np.linalg.norm(moved[:, 0:3] - truth_se3[:, 0:3], axis=1)
+    # the translations of ``move * estimate`` (the rotations are not scored)
+    moved = move[:, 0:3] + quat_rotate(move[:, 3:7], estimate_se3[:, 0:3])
+    return np.linalg.norm(moved - truth_se3[:, 0:3], axis=1)
 
 
 def se3_errors(estimate_xyz: np.ndarray, truth_xyz: np.ndarray) -> np.ndarray:

@@ -55,7 +55,15 @@ from studio.core.timing import MeasurementTimes, measurement_times
 from studio.core.types import PathLike
 from studio.core.units import NS_PER_S
 from studio.io.strict_json import dumps_strict
-from studio.replay.metrics import as_se3, first_pose_errors, gaps_to, robot_values, se3_errors, team_optimum
+from studio.replay.metrics import (
+    as_se3,
+    first_pose_errors,
+    gaps_to,
+    positions,
+    robot_values,
+    se3_errors,
+    team_optimum,
+)
 from studio.replay.protocol import Checkpoint, KeptPoses, Setup, Step
 from studio.replay.registry import DEFAULT_BACKENDS, get_backend, output_name
 from studio.runtime.progress import Progress, report
@@ -340,16 +348,15 @@ def _run(
             last = backend.finish()
             step = dataclasses.replace(last, solver_seconds=step.solver_seconds + last.solver_seconds)
         solver_s[c] = step.solver_seconds
-        own = as_se3(step.own, kind)
         if keep_beliefs:
-            beliefs.append(own[:, 0:3].astype(np.float32))
+            beliefs.append(positions(step.own, kind).astype(np.float32))
         t = world.ticks_ns[tick]
         fp_all, est_all, gt_all = [], [], []
         for r in range(n):
             rows = slice(int(offsets[r]), int(offsets[r + 1]))
             seen = int((world.vertex_ns[rows] <= t).sum())
             seen_count[c, r] = seen
-            est, gt = own[rows][:seen], truth[r][:seen]
+            est, gt = as_se3(step.own[rows][:seen], kind), truth[r][:seen]  # the poses seen by t
             e = first_pose_errors(est, gt)
             ape[c, r] = float(e.mean()) if len(e) else 0.0
             fp_all.append(e)
