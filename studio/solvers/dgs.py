@@ -419,11 +419,12 @@ def _coarse(pieces: _Pieces, data: np.ndarray, jacobians: np.ndarray, omega: np.
     # the anchor-free system's gauge: the anchor's aggregate does not move (zero columns of P), its
     # coarse unknowns stand alone with a unit diagonal and a zero right-hand side
     padded[space.pinned] = 0.0
-    jac = jacobians[space.edges]
-    coarse_jacobians = np.concatenate(
-        [jac[:, :, :b] @ padded[space.at_from], jac[:, :, b:] @ padded[space.at_to]], axis=2
-    )
-    hc = space.layout.data(_products(coarse_jacobians, omega[space.edges]))
+    every = len(space.edges) == len(jacobians)  # no edge between held vertices: no copies to take
+    jac = jacobians if every else jacobians[space.edges]
+    coarse_jacobians = np.empty((len(jac), jac.shape[1], 2 * c))
+    np.matmul(jac[:, :, :b], padded[space.at_from], out=coarse_jacobians[:, :, :c])
+    np.matmul(jac[:, :, b:], padded[space.at_to], out=coarse_jacobians[:, :, c:])
+    hc = space.layout.data(_products(coarse_jacobians, omega if every else omega[space.edges]))
     hc[space.pinned_diagonal] = 1.0
     try:
         lu = _factor(space.factors, 0, space.upper.of(hc), supernodal=True)
@@ -664,8 +665,9 @@ def _rotation_weights(problem: Problem) -> np.ndarray:
     return np.asarray(np.maximum(w, 0.0))
 
 
-def _pose_linearization(problem: Problem, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Per edge: Jacobian blocks (m, r, b) of the error w.r.t. the two poses, the information and the error."""
+def _pose_linearization(problem: Problem, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per edge: the Jacobian ``[J_from, J_to]`` (m, r, 2b) of the error w.r.t. the two poses, the
+    information and the error."""
     fr, to, z = problem.edge_from, problem.edge_to, problem.measurements
     m = len(fr)
     if problem.kind is PoseKind.SE2:
@@ -680,14 +682,14 @@ def _pose_linearization(problem: Problem, poses: np.ndarray) -> tuple[np.ndarray
         rzt = np.stack([np.stack([cz, sz], 1), np.stack([-sz, cz], 1)], axis=1)  # Rz^T
         rit = np.stack([np.stack([ci, si], 1), np.stack([-si, ci], 1)], axis=1)  # Ri^T
         a = rzt @ rit
-        ji = np.zeros((m, 3, 3))
-        jj = np.zeros((m, 3, 3))
+        jacobians = np.zeros((m, 3, 6))
+        ji, jj = jacobians[:, :, 0:3], jacobians[:, :, 3:6]
         ji[:, 0:2, 0:2] = -a
         jj[:, 0:2, 0:2] = a
         ji[:, 0:2, 2] = np.einsum("mij,mj->mi", rzt, np.column_stack([uy, -ux]))
         ji[:, 2, 2] = -1.0
         jj[:, 2, 2] = 1.0
-        return ji, jj, omega, e0
+        return jacobians, omega, e0
     from scipy.spatial.transform import Rotation
 
     half = np.array([1.0, 1.0, 1.0, 0.5, 0.5, 0.5])
@@ -703,14 +705,14 @@ def _pose_linearization(problem: Problem, poses: np.ndarray) -> tuple[np.ndarray
     e_r = (rz.inv() * ri.inv() * rj).as_rotvec()
     jinv = _jr_inv(e_r)
     rjt = rj.inv().as_matrix()
-    ji = np.zeros((m, 6, 6))
-    jj = np.zeros((m, 6, 6))
+    jacobians = np.zeros((m, 6, 12))
+    ji, jj = jacobians[:, :, 0:6], jacobians[:, :, 6:12]
     ji[:, 0:3, 0:3] = -a
     jj[:, 0:3, 0:3] = a
     ji[:, 0:3, 3:6] = a @ _skew(d)
     ji[:, 3:6, 3:6] = -jinv @ rjt
     jj[:, 3:6, 3:6] = jinv @ rjt
-    return ji, jj, omega, np.column_stack([e_t, e_r])
+    return jacobians, omega, np.column_stack([e_t, e_r])
 
 
 def _retract(kind: PoseKind, poses: np.ndarray, delta: np.ndarray) -> np.ndarray:
@@ -986,8 +988,7 @@ def _pose_system(
     n, kind = problem.num_vertices, problem.kind
     fr, to, anchor = problem.edge_from, problem.edge_to, problem.anchor
     b = 3 if kind is PoseKind.SE2 else 6
-    ji, jj, omega, e0 = _pose_linearization(problem, lin)
-    jacobians = np.concatenate([ji, jj], axis=2)
+    jacobians, omega, e0 = _pose_linearization(problem, lin)
     h = pieces.layout.data(_products(jacobians, omega))
     g = _gradient(fr, to, jacobians, omega, e0, n)
     blocks = _factorise(h, pieces)
