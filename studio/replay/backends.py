@@ -52,6 +52,11 @@ class _Base:
         self.visited = np.zeros(world.problem.num_vertices, dtype=bool)
         self.edges_known = np.zeros(world.problem.num_edges, dtype=bool)
         self._seconds = 0.0
+        self.edge_robots = (
+            world.agent_of_vertex[world.problem.edge_from],
+            world.agent_of_vertex[world.problem.edge_to],
+        )
+        """Each edge's two ends' robots."""
 
     def _receive(self, news: Checkpoint) -> None:
         self.visited[news.vertices] = True
@@ -74,8 +79,7 @@ class _Base:
             member = np.zeros(w.num_robots, dtype=bool)
             member[list(robots)] = True
             vertices &= member[w.agent_of_vertex]
-            ends = member[w.agent_of_vertex[w.problem.edge_from]] & member[w.agent_of_vertex[w.problem.edge_to]]
-            edges &= ends
+            edges &= member[self.edge_robots[0]] & member[self.edge_robots[1]]
         return vertices, edges
 
     def _step(self, solvers: list[IncrementalSolver]) -> Step:
@@ -288,11 +292,12 @@ class Swarm(_Base):
             kept[group] = solver
             learned = self.memory.learn(tick, group, self.own)
             lead_robot = group[0]
+            edges_of = np.bincount(self.edge_robots[0][sent_edges], minlength=w.num_robots)
+            poses_of = np.bincount(w.agent_of_vertex[ids], minlength=w.num_robots)
             for m in group[1:]:
                 # up: its new measurements; down: its estimate and the poses it keeps of the others
-                n_edges = int((sent_edges & (w.agent_of_vertex[w.problem.edge_from] == m)).sum())
-                n_poses = int((w.agent_of_vertex[ids] == m).sum()) + learned[m]
-                self._count(lead_robot, m, 2, n_edges * w.edge_bytes + n_poses * w.pose_bytes)
+                n_poses = int(poses_of[m]) + learned[m]
+                self._count(lead_robot, m, 2, int(edges_of[m]) * w.edge_bytes + n_poses * w.pose_bytes)
         self.groups = kept
         self.fixed_edges = {g: self.fixed_edges[g] for g in kept}
         return self._answer(seconds, self.memory.kept())
