@@ -51,8 +51,11 @@ CHECKPOINT = Budget(10, DEFAULT_POSE_TOL, 1.0)
 FINAL = Budget(100, 1e-4, 1.6)
 
 
-def _teams(world: Setup, group: tuple[int, ...], edges: np.ndarray) -> list[tuple[int, ...]]:
-    """``group`` split into the robots tied together by the known edges ``edges`` (a mask)."""
+def _teams(
+    group: tuple[int, ...], edge_robots: tuple[np.ndarray, np.ndarray], edges: np.ndarray, num_robots: int
+) -> list[tuple[int, ...]]:
+    """``group`` split into the robots tied together by the known edges ``edges`` (a mask), each
+    edge's ends' robots ``edge_robots``."""
     parent = {r: r for r in group}
 
     def find(r: int) -> int:
@@ -61,12 +64,12 @@ def _teams(world: Setup, group: tuple[int, ...], edges: np.ndarray) -> list[tupl
             r = parent[r]
         return r
 
-    a = world.agent_of_vertex[world.problem.edge_from[edges]]
-    b = world.agent_of_vertex[world.problem.edge_to[edges]]
-    for x, y in set(zip(a.tolist(), b.tolist())):
-        if x != y:
-            rx, ry = find(x), find(y)
-            parent[max(rx, ry)] = min(rx, ry)
+    a, b = edge_robots[0][edges], edge_robots[1][edges]
+    apart = a != b
+    pairs = np.unique(a[apart] * num_robots + b[apart])
+    for x, y in zip((pairs // num_robots).tolist(), (pairs % num_robots).tolist()):
+        rx, ry = find(x), find(y)
+        parent[max(rx, ry)] = min(rx, ry)
     teams: dict[int, list[int]] = {}
     for r in group:
         teams.setdefault(find(r), []).append(r)
@@ -182,7 +185,7 @@ class Dgs(_Base):
         teams = set()
         for group in groups:
             _, edges = self._known(group)
-            for team in _teams(self.world, group, edges):
+            for team in _teams(group, self.edge_robots, edges, self.world.num_robots):
                 seconds += self._solve(team, tick, budget)
                 teams.add(team)
         self.teams = teams
