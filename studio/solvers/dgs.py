@@ -665,13 +665,21 @@ def _rotation_weights(problem: Problem) -> np.ndarray:
     return np.asarray(np.maximum(w, 0.0))
 
 
-def _pose_linearization(problem: Problem, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per edge: the Jacobian ``[J_from, J_to]`` (m, r, 2b) of the error w.r.t. the two poses, the
-    information and the error."""
+def _pose_information(problem: Problem) -> np.ndarray:
+    """Per edge, the information of the pose stage's errors (spatial: the files' half-angle
+    rotation information scaled to the rotation vector's)."""
+    if problem.kind is PoseKind.SE2:
+        return upper_to_matrix(problem.information_upper, 3)
+    half = np.array([1.0, 1.0, 1.0, 0.5, 0.5, 0.5])
+    return upper_to_matrix(problem.information_upper, 6) * half[None, :, None] * half[None, None, :]
+
+
+def _pose_linearization(problem: Problem, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per edge: the Jacobian ``[J_from, J_to]`` (m, r, 2b) of the error w.r.t. the two poses and
+    the error."""
     fr, to, z = problem.edge_from, problem.edge_to, problem.measurements
     m = len(fr)
     if problem.kind is PoseKind.SE2:
-        omega = upper_to_matrix(problem.information_upper, 3)
         xi, xj = poses[fr], poses[to]
         ci, si = np.cos(xi[:, 2]), np.sin(xi[:, 2])
         cz, sz = np.cos(z[:, 2]), np.sin(z[:, 2])
@@ -689,11 +697,9 @@ def _pose_linearization(problem: Problem, poses: np.ndarray) -> tuple[np.ndarray
         ji[:, 0:2, 2] = np.einsum("mij,mj->mi", rzt, np.column_stack([uy, -ux]))
         ji[:, 2, 2] = -1.0
         jj[:, 2, 2] = 1.0
-        return jacobians, omega, e0
+        return jacobians, e0
     from scipy.spatial.transform import Rotation
 
-    half = np.array([1.0, 1.0, 1.0, 0.5, 0.5, 0.5])
-    omega = upper_to_matrix(problem.information_upper, 6) * half[None, :, None] * half[None, None, :]
     ri = Rotation.from_quat(poses[fr, 3:7])
     rj = Rotation.from_quat(poses[to, 3:7])
     rz = Rotation.from_quat(z[:, 3:7])
@@ -712,7 +718,7 @@ def _pose_linearization(problem: Problem, poses: np.ndarray) -> tuple[np.ndarray
     ji[:, 0:3, 3:6] = a @ _skew(d)
     ji[:, 3:6, 3:6] = -jinv @ rjt
     jj[:, 3:6, 3:6] = jinv @ rjt
-    return jacobians, omega, np.column_stack([e_t, e_r])
+    return jacobians, np.column_stack([e_t, e_r])
 
 
 def _retract(kind: PoseKind, poses: np.ndarray, delta: np.ndarray) -> np.ndarray:
@@ -981,14 +987,15 @@ def _pose_start(
 
 
 def _pose_system(
-    run: _Run, lin: np.ndarray, anchor_pose: np.ndarray, opt: _StageOptions, pieces: _Pieces
+    run: _Run, lin: np.ndarray, anchor_pose: np.ndarray, opt: _StageOptions, pieces: _Pieces, omega: np.ndarray
 ) -> np.ndarray:
-    """One Gauss-Newton system at ``lin`` solved in rounds (until ``tol`` or the budget); the poses."""
+    """One Gauss-Newton system at ``lin`` solved in rounds (until ``tol`` or the budget); the poses
+    (``omega``: the edges' :func:`_pose_information`)."""
     problem = run.problem
     n, kind = problem.num_vertices, problem.kind
     fr, to, anchor = problem.edge_from, problem.edge_to, problem.anchor
     b = 3 if kind is PoseKind.SE2 else 6
-    jacobians, omega, e0 = _pose_linearization(problem, lin)
+    jacobians, e0 = _pose_linearization(problem, lin)
     h = pieces.layout.data(_products(jacobians, omega))
     g = _gradient(fr, to, jacobians, omega, e0, n)
     blocks = _factorise(h, pieces)
@@ -1026,10 +1033,11 @@ def _pose_stage(
     # with fixed vertices the anchor is held too: the rigid move onto it would move them
     hold = run.robots == 1 or run.schedule == "jacobi" or (run.fixed is not None and bool(run.fixed.any()))
     pieces = _stage_pieces(run, 3 if run.problem.kind is PoseKind.SE2 else 6, fix_anchor=hold)
+    omega = _pose_information(run.problem)
     linearizations = 0
     poses = lin
     while run.left > 0:
-        poses = _pose_system(run, lin, anchor_pose, opt, pieces)
+        poses = _pose_system(run, lin, anchor_pose, opt, pieces, omega)
         linearizations += 1
         lin = poses
         if run.step <= opt.tol and run.rounds[-1].change <= opt.tol:
