@@ -271,8 +271,8 @@ class _Coarse:
     with the residual ``r = g - h x`` on the free unknowns, ``P`` the coarse space's columns."""
 
     free: np.ndarray
-    rows: Any
-    """``h[free]`` (csr)."""
+    matrix: Any
+    """``h`` (csr; its free rows give the residual, row by row as ``h[free]`` would)."""
     basis: Any
     """``P``: ``(len(free), m)`` (csr)."""
     lu: Any
@@ -282,7 +282,7 @@ class _Coarse:
 
     def correct(self, x: np.ndarray, g: np.ndarray) -> None:
         """``x`` (in place) moved by the coarse system's solution for its residual."""
-        r = g[self.free] - self.rows @ x
+        r = (g - self.matrix @ x)[self.free]
         x[self.free] += self.basis @ self.lu.solve(np.asarray(self.basis.T @ r))
 
 
@@ -433,14 +433,16 @@ def _coarse(pieces: _Pieces, data: np.ndarray, jacobians: np.ndarray, omega: np.
     rows = blocks.shape[0] * b
     indptr = np.arange(0, rows * c + 1, c)
     basis = sp.csr_matrix((padded[:-1].ravel(), space.basis_indices, indptr), shape=(rows, space.count * c))
-    return _Coarse(pieces.free, pieces.free_rows.of(data), basis, lu, space.per_robot)
+    layout = pieces.layout
+    matrix = sp.csr_matrix((data, layout.indices, layout.indptr), shape=(layout.size, layout.size))
+    return _Coarse(pieces.free, matrix, basis, lu, space.per_robot)
 
 
 @dataclass(eq=False)
 class _Pieces:
     """A stage's robots' pieces of its layout's matrix: each robot's block (upper triangle) and
-    coupling to the rest, the free unknowns' rows for the coarse system; and the factors of the
-    stage's last system, factored again in place for the next (same pattern, same ordering)."""
+    coupling to the rest; and the factors of the stage's last system, factored again in place for
+    the next (same pattern, same ordering)."""
 
     layout: _Layout
     dofs: list[np.ndarray]
@@ -450,7 +452,6 @@ class _Pieces:
     """Each robot's coupled unknowns: the others its block's rows reach."""
     blocks: list[_Take]
     couplings: list[_Take]
-    free_rows: _Take
     factors: list[Any]
     coarse: _CoarseSpace | None = None
 
@@ -482,7 +483,7 @@ def _pieces(layout: _Layout, robot_dofs: list[np.ndarray]) -> _Pieces:
         shape = (len(dofs), len(others[-1]))
         couplings.append(_compressed("csr", take, position[row[take]], at[col[take]], shape))
     free = np.concatenate(robot_dofs) if robot_dofs else np.zeros(0, dtype=np.int64)
-    return _Pieces(layout, list(robot_dofs), free, others, blocks, couplings, _rows_of(layout, free), [])
+    return _Pieces(layout, list(robot_dofs), free, others, blocks, couplings, [])
 
 
 def _stage_pieces(run: _Run, b: int, fix_anchor: bool = True) -> _Pieces:
@@ -500,18 +501,6 @@ def _by_robot(entries: np.ndarray, owner: np.ndarray, robots: int) -> list[np.nd
     order = np.argsort(whose, kind="stable")
     counts = np.bincount(whose, minlength=robots)[:robots]
     return np.split(entries[order], np.cumsum(counts)[:-1])
-
-
-def _rows_of(layout: _Layout, rows: np.ndarray) -> _Take:
-    """The rows ``rows`` (in that order) of ``layout``'s matrix, every column."""
-    import scipy.sparse as sp
-
-    starts, lengths = layout.indptr[rows], np.diff(layout.indptr)[rows]
-    indptr = np.concatenate([[0], np.cumsum(lengths)])
-    take = np.repeat(starts - indptr[:-1], lengths) + np.arange(indptr[-1])
-    return _Take(
-        sp.csr_matrix((np.zeros(len(take)), layout.indices[take], indptr), shape=(len(rows), layout.size)), take
-    )
 
 
 def _factor(factors: list[Any], k: int, a: Any, supernodal: bool = False) -> Any:
