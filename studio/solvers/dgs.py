@@ -660,7 +660,7 @@ def _pose_information(problem: Problem) -> np.ndarray:
     if problem.kind is PoseKind.SE2:
         return upper_to_matrix(problem.information_upper, 3)
     half = np.array([1.0, 1.0, 1.0, 0.5, 0.5, 0.5])
-    return upper_to_matrix(problem.information_upper, 6) * half[None, :, None] * half[None, None, :]
+    return np.asarray(upper_to_matrix(problem.information_upper, 6) * half[None, :, None] * half[None, None, :])
 
 
 def _pose_linearization(problem: Problem, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
