@@ -52,10 +52,10 @@ class _Cholmod:
     replaces the numbers of the first, which is cvxopt's cheap way: building its sparse matrix from
     coordinates sorts them, half the time of a numeric factorization)."""
 
-    def __init__(self, a: Any, upper: bool) -> None:
+    def __init__(self, a: Any, upper: bool, permc_spec: str) -> None:
         from cvxopt import cholmod, matrix, spmatrix
 
-        self.upper = upper
+        self.upper, self.permc_spec = upper, permc_spec
         self.ldl: Any = None
         """The LDL^T factor that took over where a matrix was not numerically positive definite."""
         a = _sorted_csc(a)
@@ -84,7 +84,7 @@ class _Cholmod:
         try:
             cholmod.numeric(self.matrix, self.factor)
         except ArithmeticError:  # a pivot rounded to zero or below: LDL^T takes any nonzero one
-            self.ldl = spd_factor(a, upper=self.upper)
+            self.ldl = spd_factor(a, permc_spec=self.permc_spec, upper=self.upper)
 
 
 def _sorted_csc(a: Any) -> Any:
@@ -124,7 +124,7 @@ def spd_factor(a: Any, *, permc_spec: str = "MMD_AT_PLUS_A", upper: bool = False
         except ImportError:
             pass
         else:
-            return _Cholmod(a, upper)
+            return _Cholmod(a, upper, permc_spec)
     try:
         import qdldl
     except ImportError:
